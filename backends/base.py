@@ -1,0 +1,78 @@
+"""The contract between the driver and a framework.
+
+A backend is a package ``backends/<name>/`` whose ``__init__.py`` defines ``BACKEND``, an instance
+of a ``Backend`` subclass, and one module per scenario (``saxpy.py``, ``sdf.py``, ...) with a class
+``Kernel`` implementing ``ScenarioKernel``. Nothing else: no timing, no checking, no I/O.
+
+Life of a cell (one worker process per scenario x backend x device x precision x variant):
+    BACKEND.setup(device, precision, variant)       # process-global init (ti.init, jax x64, ...)
+    k = BACKEND.kernel(scenario)(params, inputs, device, precision, variant)  # allocate + upload
+    r = k.run(); BACKEND.synchronize(device, r)     # timed, first call separately (compile)
+    k.outputs()                                     # download (timed separately)
+``run`` must be repeatable: every call computes the same outputs from the uploaded inputs, with no
+host<->device transfers and no allocations where the framework lets us avoid them.
+"""
+from __future__ import annotations
+
+import importlib
+from typing import Any, ClassVar
+
+import numpy as np
+
+DEVICES: tuple[str, ...] = ("cpu", "cuda")
+
+
+class ScenarioKernel:
+    """One scenario in one framework. Subclasses are named ``Kernel`` in backends/<fw>/<scenario>.py."""
+
+    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+                 variant: str) -> None:
+        raise NotImplementedError
+
+    def run(self) -> Any:
+        """Launch the work; may return immediately (asynchronous); returns what synchronize needs."""
+        raise NotImplementedError
+
+    def outputs(self) -> dict[str, np.ndarray]:
+        """Copy the results of the last run to host NumPy arrays, named as the scenario's outputs."""
+        raise NotImplementedError
+
+    def info(self) -> dict[str, Any]:
+        """Facts about how the kernel ran (launch config, donation, gradient method...)."""
+        return {}
+
+
+class Backend:
+    name: ClassVar[str]
+    package: ClassVar[str]                     # the pip distribution the backend needs
+    gradient_method: ClassVar[str] = "-"       # 'tape', 'ad', 'adjoint'
+    variants: ClassVar[tuple[str, ...]] = ("default",)   # e.g. 'fastmath'
+    is_reference: ClassVar[bool] = False
+
+    def available(self) -> dict[str, str | None]:
+        """device -> None when usable, else the reason it is not (not installed, no GPU...)."""
+        raise NotImplementedError
+
+    def versions(self) -> dict[str, str]:
+        return {}
+
+    def setup(self, device: str, precision: str, variant: str) -> None:
+        """Process-global initialisation; called once per worker before any kernel is built."""
+
+    def synchronize(self, device: str, result: Any) -> None:
+        """Block until everything launched by ``run`` has finished."""
+        raise NotImplementedError
+
+    def kernel(self, scenario: str) -> type[ScenarioKernel]:
+        module = importlib.import_module(f"{type(self).__module__}.{scenario}")
+        return module.Kernel
+
+
+def not_installed(module: str, package: str) -> str | None:
+    """None if ``module`` imports, else a one-line reason."""
+    try:
+        importlib.import_module(module)
+    except Exception as exc:  # ImportError, or a framework failing at import (driver/ABI issues)
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        return f"{package} not importable: {first}"
+    return None

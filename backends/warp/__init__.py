@@ -1,0 +1,48 @@
+"""NVIDIA Warp, the reference backend."""
+from __future__ import annotations
+
+from typing import Any
+
+from ..base import Backend, not_installed
+
+
+def wp_device(device: str) -> str:
+    return "cuda:0" if device == "cuda" else "cpu"
+
+
+def wp_scalar(precision: str):
+    import warp as wp
+    return wp.float32 if precision == "float32" else wp.float64
+
+
+class WarpBackend(Backend):
+    name = "warp"
+    package = "warp-lang"
+    gradient_method = "tape"
+    is_reference = True
+
+    def available(self) -> dict[str, str | None]:
+        reason = not_installed("warp", self.package)
+        if reason:
+            return {"cpu": reason, "cuda": reason}
+        import warp as wp
+        wp.config.quiet = True
+        wp.init()
+        return {"cpu": None,
+                "cuda": None if wp.is_cuda_available() else "no CUDA device visible to Warp"}
+
+    def versions(self) -> dict[str, str]:
+        import warp as wp
+        return {"warp": wp.config.version}
+
+    def setup(self, device: str, precision: str, variant: str) -> None:
+        import warp as wp
+        wp.config.quiet = True
+        wp.init()
+
+    def synchronize(self, device: str, result: Any) -> None:
+        import warp as wp
+        wp.synchronize_device(wp_device(device))
+
+
+BACKEND = WarpBackend()

@@ -1,0 +1,152 @@
+"""What every scenario provides: parameters, inputs, a float64 oracle and a derived error check.
+
+A scenario knows nothing about frameworks. A backend's kernel file receives the inputs this module
+makes (already rounded to the cell's precision) and returns outputs named as in ``outputs``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from typing import Any, ClassVar
+
+import numpy as np
+
+PRECISIONS: tuple[str, ...] = ("float32", "float64")
+
+# Unit roundoff u = 2^-p (p = significand bits incl. the hidden one): |fl(x) - x| <= u |x|.
+UNIT_ROUNDOFF: dict[str, float] = {"float32": 2.0**-24, "float64": 2.0**-53}
+
+
+class ParamError(ValueError):
+    """Bad scenario parameter; its message is one line naming the parameter and the allowed range."""
+
+
+def dtype_of(precision: str) -> type[np.floating]:
+    if precision not in PRECISIONS:
+        raise ParamError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+    return np.float32 if precision == "float32" else np.float64
+
+
+def precision_of(array: np.ndarray) -> str:
+    """The precision name of an input array (inputs arrive already rounded)."""
+    return "float32" if np.asarray(array).dtype == np.float32 else "float64"
+
+
+@dataclasses.dataclass
+class Check:
+    """One comparison of outputs against a reference.
+
+    ``error`` and ``tolerance`` are in the scenario's own metric (documented where it is defined);
+    ``ok`` is ``error <= tolerance`` for every checked quantity and every value finite.
+    ``details`` holds the per-quantity figures (e.g. gradient error) that go into the records.
+    """
+
+    error: float
+    tolerance: float
+    ok: bool
+    details: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+def require(cond: bool, message: str) -> None:
+    if not cond:
+        raise ParamError(message)
+
+
+def finite(x: float) -> bool:
+    return math.isfinite(x)
+
+
+def _coerce(name: str, value: Any, typ: Any) -> Any:
+    """Turn a CLI string (or a Python value) into the field's type, with a one-line error."""
+    origin = typing.get_origin(typ)
+    if origin is typing.Literal:
+        choices = typing.get_args(typ)
+        if value not in choices:
+            raise ParamError(f"{name} must be one of {', '.join(map(str, choices))}, got {value!r}")
+        return value
+    try:
+        if typ is bool:
+            if isinstance(value, bool):
+                return value
+            low = str(value).lower()
+            if low in ("1", "true", "yes", "on"):
+                return True
+            if low in ("0", "false", "no", "off"):
+                return False
+            raise ValueError
+        if typ is int:
+            if isinstance(value, bool):
+                raise ValueError
+            if isinstance(value, str):
+                f = float(value.replace("_", ""))
+                if not f.is_integer():
+                    raise ValueError
+                return int(f)
+            if isinstance(value, float) and not value.is_integer():
+                raise ValueError
+            return int(value)
+        if typ is float:
+            if isinstance(value, bool):
+                raise ValueError
+            return float(value)
+        if typ is str:
+            return str(value)
+    except (TypeError, ValueError, OverflowError):
+        pass
+    raise ParamError(f"{name} must be a {getattr(typ, '__name__', typ)}, got {value!r}")
+
+
+class Scenario:
+    """Base class of the four scenarios. Subclasses set the class attributes and the methods."""
+
+    name: ClassVar[str]
+    title: ClassVar[str]
+    Params: ClassVar[type]            # a dataclass with the seed's defaults; validate() checks ranges
+    quick: ClassVar[dict[str, Any]] = {}   # overrides used by --quick (small sizes for CI)
+    outputs: ClassVar[tuple[str, ...]]     # names of the arrays a backend returns
+    has_gradient: ClassVar[bool] = False
+
+    # ---- parameters -------------------------------------------------------------------------
+    def params(self, overrides: dict[str, Any] | None = None, quick: bool = False):
+        """Defaults, then quick overrides, then user overrides; coerced and validated."""
+        fields = {f.name: f for f in dataclasses.fields(self.Params)}
+        hints = typing.get_type_hints(self.Params)
+        values: dict[str, Any] = {}
+        merged = dict(self.quick) if quick else {}
+        merged.update(overrides or {})
+        for key, raw in merged.items():
+            if key not in fields:
+                raise ParamError(
+                    f"unknown parameter {key!r} for scenario {self.name} "
+                    f"(known: {', '.join(fields)})")
+            values[key] = _coerce(key, raw, hints[key])
+        p = self.Params(**values)
+        p.validate()
+        return p
+
+    def describe_params(self) -> str:
+        return ", ".join(f"{f.name}={f.default!r}" for f in dataclasses.fields(self.Params))
+
+    # ---- data -------------------------------------------------------------------------------
+    def inputs(self, params, precision: str) -> dict[str, np.ndarray]:
+        """Deterministic inputs, already rounded to ``precision``."""
+        raise NotImplementedError
+
+    def oracle(self, params, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Float64 NumPy reference computed from the (rounded) inputs."""
+        raise NotImplementedError
+
+    def check(self, params, inputs: dict[str, np.ndarray], outputs: dict[str, np.ndarray],
+              reference: dict[str, np.ndarray], precision: str) -> Check:
+        """Compare ``outputs`` with ``reference`` (the oracle) using the derived tolerance."""
+        raise NotImplementedError
+
+    def distance(self, params, inputs: dict[str, np.ndarray], outputs: dict[str, np.ndarray],
+                 other: dict[str, np.ndarray]) -> float:
+        """The scenario's error metric between two backends' outputs (e.g. a port vs Warp)."""
+        raise NotImplementedError
+
+    def work(self, params, precision: str) -> dict[str, float]:
+        """Useful work per run, for throughput figures: {'bytes': moved, 'items': ...}."""
+        return {}

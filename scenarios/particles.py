@@ -1,0 +1,176 @@
+"""Bouncing particles in a box (the seed's physics), integrated with semi-implicit Euler.
+
+One step, per particle, in this exact order (every backend does the same):
+    v += gravity*dt;  x += u*dt;  y += v*dt
+    if y < radius:          y = radius;        v = -bounce*v;  u = damping*u
+    if x < -1 + radius:     x = -1 + radius;   u = -bounce*u
+    if x >  1 - radius:     x =  1 - radius;   u = -bounce*u
+Particles are independent, so a thread per particle may loop over all steps; what is forbidden is
+the seed's single launch over (step, particle), where step s reads what step s-1 has not yet
+written.
+
+Initial state (deterministic): particle i of n sits on the circle of radius 0.5 centred at (0, 1),
+at angle 2*pi*i/n; velocities come from numpy's default_rng(seed): u ~ U(-1, 1), v ~ U(0, 2).
+The physical constants are rounded to the cell's precision and passed as inputs, so the float64
+oracle solves exactly the problem the port solves and the measured error is arithmetic alone.
+
+Error check. Contacts make the final state discontinuous in the data: a particle that reaches a
+wall within rounding distance of the threshold may bounce one step earlier or later in another
+precision, which changes its state by O(|v| dt). The oracle therefore carries, per particle, a
+first-order running bound on the rounding error of each coordinate (every operation adds u times
+the size of its operands; clamps reset position error to 0 and scale velocity error by the
+restitution factor) and the smallest distance to a contact threshold seen during the run.
+A particle is *well-conditioned* if that distance always exceeds the position error bound at the
+time: then every port that rounds no worse than the bound takes the same branches, and its final
+state must lie within the bound. Ill-conditioned particles are counted and reported, not checked.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .base import UNIT_ROUNDOFF, Check, Scenario, precision_of, require
+
+CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
+
+
+@dataclasses.dataclass(frozen=True)
+class ParticlesParams:
+    n: int = 256
+    steps: int = 300
+    dt: float = 0.01
+    gravity: float = -9.8
+    damping: float = 0.985
+    bounce: float = 0.82
+    radius: float = 0.03
+    seed: int = 0
+    record_every: int = 0      # 0: final state only; k > 0: also keep every k-th state
+
+    def validate(self) -> None:
+        require(1 <= self.n <= 2**31 - 1, f"n must be in [1, 2^31-1], got {self.n}")
+        require(0 <= self.steps <= 10**9, f"steps must be in [0, 1e9], got {self.steps}")
+        require(math.isfinite(self.dt) and 0.0 < self.dt <= 1.0,
+                f"dt must be finite and in (0, 1], got {self.dt}")
+        require(math.isfinite(self.gravity) and abs(self.gravity) <= 1e6,
+                f"gravity must be finite with |gravity| <= 1e6, got {self.gravity}")
+        require(math.isfinite(self.damping) and 0.0 <= self.damping <= 10.0,
+                f"damping must be in [0, 10], got {self.damping}")
+        require(math.isfinite(self.bounce) and 0.0 <= self.bounce <= 10.0,
+                f"bounce must be in [0, 10], got {self.bounce}")
+        require(math.isfinite(self.radius) and 0.0 < self.radius < 0.5,
+                f"radius must be in (0, 0.5), got {self.radius}")
+        require(self.seed >= 0, f"seed must be >= 0, got {self.seed}")
+        require(self.record_every >= 0, f"record_every must be >= 0, got {self.record_every}")
+        if self.record_every:
+            frames = self.steps // self.record_every + 1
+            require(frames * self.n <= 2**31 - 1,
+                    f"record_every={self.record_every} keeps {frames} frames of {self.n} particles; "
+                    "that is over 2^31 values, raise record_every")
+
+
+def initial_state(params: ParticlesParams) -> dict[str, np.ndarray]:
+    theta = 2.0 * np.pi * np.arange(params.n) / params.n
+    rng = np.random.default_rng(params.seed)
+    return {"x0": 0.5 * np.cos(theta), "y0": 1.0 + 0.5 * np.sin(theta),
+            "vx0": rng.uniform(-1.0, 1.0, params.n), "vy0": rng.uniform(0.0, 2.0, params.n)}
+
+
+def n_frames(params: ParticlesParams) -> int:
+    return params.steps // params.record_every + 1 if params.record_every else 0
+
+
+class Particles(Scenario):
+    name = "particles"
+    title = "Bouncing particles"
+    Params = ParticlesParams
+    quick = {"n": 1000, "steps": 300}     # n not a multiple of any block size
+    outputs = ("x", "y", "vx", "vy")
+
+    def inputs(self, params: ParticlesParams, precision: str) -> dict[str, np.ndarray]:
+        dt = np.float32 if precision == "float32" else np.float64
+        out = {k: v.astype(dt) for k, v in initial_state(params).items()}
+        out.update({k: np.array(getattr(params, k), dtype=dt) for k in CONSTANTS})
+        return out
+
+    def oracle(self, params: ParticlesParams, inputs):
+        """Float64 rollout, plus the running error bound for the inputs' precision and margins."""
+        u = UNIT_ROUNDOFF[precision_of(inputs["x0"])]
+        c = {k: float(inputs[k]) for k in CONSTANTS}
+        dt, g, damp, bounce, rad = c["dt"], c["gravity"], c["damping"], c["bounce"], c["radius"]
+        lo, hi = -1.0 + rad, 1.0 - rad
+        x, y = inputs["x0"].astype(np.float64), inputs["y0"].astype(np.float64)
+        vx, vy = inputs["vx0"].astype(np.float64), inputs["vy0"].astype(np.float64)
+        ex = np.zeros_like(x); ey = np.zeros_like(x); eu = np.zeros_like(x); ev = np.zeros_like(x)
+        margin = np.full(x.shape, np.inf); ill = np.zeros(x.shape, dtype=bool)
+        gdt = g * dt
+        frames = []
+        if params.record_every:
+            frames.append((x.copy(), y.copy()))
+        for s in range(params.steps):
+            vy = vy + gdt
+            ev = ev + u * (np.abs(vy) + 2.0 * abs(gdt))
+            ex = ex + dt * eu + u * (np.abs(x + vx * dt) + 2.0 * np.abs(vx * dt))
+            x = x + vx * dt
+            ey = ey + dt * ev + u * (np.abs(y + vy * dt) + 2.0 * np.abs(vy * dt))
+            y = y + vy * dt
+            # contact thresholds: record the closest approach and whether it was within the bound
+            for dist, err in ((np.abs(y - rad), ey), (np.abs(x - lo), ex), (np.abs(x - hi), ex)):
+                margin = np.minimum(margin, dist)
+                ill |= dist <= err
+            hit = y < rad
+            y = np.where(hit, rad, y); ey = np.where(hit, 0.0, ey)
+            vy = np.where(hit, -bounce * vy, vy); ev = np.where(hit, bounce * ev + u * np.abs(vy), ev)
+            vx = np.where(hit, damp * vx, vx); eu = np.where(hit, damp * eu + u * np.abs(vx), eu)
+            hit = x < lo
+            x = np.where(hit, lo, x); ex = np.where(hit, 0.0, ex)
+            vx = np.where(hit, -bounce * vx, vx); eu = np.where(hit, bounce * eu + u * np.abs(vx), eu)
+            hit = x > hi
+            x = np.where(hit, hi, x); ex = np.where(hit, 0.0, ex)
+            vx = np.where(hit, -bounce * vx, vx); eu = np.where(hit, bounce * eu + u * np.abs(vx), eu)
+            if params.record_every and (s + 1) % params.record_every == 0:
+                frames.append((x.copy(), y.copy()))
+        out = {"x": x, "y": y, "vx": vx, "vy": vy,
+               "error_bound": np.maximum.reduce([ex, ey, eu, ev]), "margin": margin,
+               "ill_conditioned": ill}
+        if params.record_every:
+            out["traj_x"] = np.stack([f[0] for f in frames])
+            out["traj_y"] = np.stack([f[1] for f in frames])
+        return out
+
+    @staticmethod
+    def _state_error(outputs, other) -> np.ndarray:
+        return np.max([np.abs(np.asarray(outputs[k], np.float64) - np.asarray(other[k], np.float64))
+                       for k in ("x", "y", "vx", "vy")], axis=0)
+
+    def check(self, params, inputs, outputs, reference, precision) -> Check:
+        err = self._state_error(outputs, reference)
+        bound = reference["error_bound"]
+        ill = reference["ill_conditioned"]
+        good = ~ill
+        finite = bool(np.all(np.isfinite(err)))
+        ok = finite and bool(np.all(err[good] <= bound[good]))
+        worst = float(err[good].max()) if good.any() else 0.0
+        tol = float(bound[good].max()) if good.any() else 0.0
+        details = {
+            "metric": "max |state - ref| over well-conditioned particles (bound per particle)",
+            "well_conditioned": int(good.sum()), "ill_conditioned": int(ill.sum()),
+            "ill_conditioned_deviating": int(np.sum(err[ill] > bound[ill])),
+            "max_error_all_particles": float(err.max()) if err.size else 0.0,
+            "worst_error_over_bound": float(np.max(err[good] / np.maximum(bound[good], 1e-300)))
+            if good.any() else 0.0,
+        }
+        if params.record_every and "traj_x" in outputs:
+            details["trajectory_shape_ok"] = tuple(np.shape(outputs["traj_x"])) == \
+                (n_frames(params), params.n)
+            ok = ok and details["trajectory_shape_ok"]
+        return Check(worst if finite else math.inf, tol, ok, details)
+
+    def distance(self, params, inputs, outputs, other) -> float:
+        err = self._state_error(outputs, other)
+        return float(err.max()) if np.all(np.isfinite(err)) else math.inf
+
+    def work(self, params: ParticlesParams, precision: str) -> dict[str, float]:
+        itemsize = 4 if precision == "float32" else 8
+        return {"items": float(params.n) * params.steps, "bytes": 8.0 * params.n * itemsize}

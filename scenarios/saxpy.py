@@ -1,0 +1,77 @@
+"""SAXPY: out = a*x + y.
+
+Error metric (per element, normalised by the size of the terms, so it reads in units of u):
+    e_i = |out_i - ref_i| / max(|a x_i| + |y_i|, tiny)
+Derived bound: fl(fl(a*x) + y) = (a x (1+d1) + y)(1+d2), |d| <= u, so
+    |err_i| <= u|a x_i| + u|a x_i + y_i| + u^2|a x_i| <= 2u(1+u)(|a x_i| + |y_i|);
+with a fused multiply-add the bound is u|a x_i + y_i|, smaller. Tolerance: 2u(1+u).
+The reference is computed in float64 from the same rounded a, x, y, so it is exact to 2^-53.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Literal
+
+import numpy as np
+
+from .base import UNIT_ROUNDOFF, Check, Scenario, require
+
+
+@dataclasses.dataclass(frozen=True)
+class SaxpyParams:
+    n: int = 1_000_000
+    a: float = 2.5
+    inputs: Literal["linspace", "random"] = "linspace"
+    seed: int = 0
+
+    def validate(self) -> None:
+        require(1 <= self.n <= 2**31 - 1, f"n must be in [1, 2^31-1], got {self.n}")
+        require(math.isfinite(self.a), f"a must be finite, got {self.a}")
+        require(self.seed >= 0, f"seed must be >= 0, got {self.seed}")
+
+
+class Saxpy(Scenario):
+    name = "saxpy"
+    title = "SAXPY out = a*x + y"
+    Params = SaxpyParams
+    quick = {"n": 100_003}          # not a multiple of any block size
+    outputs = ("out",)
+
+    def inputs(self, params: SaxpyParams, precision: str) -> dict[str, np.ndarray]:
+        dt = np.float32 if precision == "float32" else np.float64
+        if params.inputs == "linspace":
+            x = np.linspace(0.0, 1.0, params.n)
+            y = np.linspace(1.0, 2.0, params.n)
+        else:  # signed values over several decades, so cancellation in a*x + y is exercised
+            rng = np.random.default_rng(params.seed)
+            x = rng.standard_normal(params.n) * 10.0 ** rng.uniform(-3, 3, params.n)
+            y = rng.standard_normal(params.n) * 10.0 ** rng.uniform(-3, 3, params.n)
+        return {"a": np.array(params.a, dtype=dt), "x": x.astype(dt), "y": y.astype(dt)}
+
+    def oracle(self, params: SaxpyParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        a = np.float64(inputs["a"])
+        return {"out": a * inputs["x"].astype(np.float64) + inputs["y"].astype(np.float64)}
+
+    def _scale(self, inputs: dict[str, np.ndarray]) -> np.ndarray:
+        a = np.float64(inputs["a"])
+        s = np.abs(a * inputs["x"].astype(np.float64)) + np.abs(inputs["y"].astype(np.float64))
+        return np.maximum(s, np.finfo(np.float64).tiny)
+
+    def normalised_error(self, inputs, out: np.ndarray, ref: np.ndarray) -> float:
+        diff = np.abs(np.asarray(out, dtype=np.float64) - np.asarray(ref, dtype=np.float64))
+        e = diff / self._scale(inputs)
+        return float(np.max(e)) if e.size and np.all(np.isfinite(e)) else math.inf
+
+    def check(self, params, inputs, outputs, reference, precision) -> Check:
+        u = UNIT_ROUNDOFF[precision]
+        tol = 2.0 * u * (1.0 + u)
+        err = self.normalised_error(inputs, outputs["out"], reference["out"])
+        return Check(err, tol, err <= tol, {"metric": "max |err|/(|a x|+|y|)", "ulps": err / u})
+
+    def distance(self, params, inputs, outputs, other) -> float:
+        return self.normalised_error(inputs, outputs["out"], other["out"])
+
+    def work(self, params: SaxpyParams, precision: str) -> dict[str, float]:
+        itemsize = 4 if precision == "float32" else 8
+        return {"items": params.n, "bytes": 3.0 * params.n * itemsize}

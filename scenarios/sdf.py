@@ -1,0 +1,84 @@
+"""Procedural signed-distance image (the seed's two circles, sine wave and exp(-18|d|)).
+
+Pixel (i, j), i the column in [0, width), j the row in [0, height), stored row-major as
+image[j, i]:
+    fx = 2 i/(width-1) - 1,  fy = 2 j/(height-1) - 1
+    r1 = sqrt((fx+0.35)^2 + fy^2) - 0.28,  r2 = sqrt((fx-0.25)^2 + (fy-0.15)^2) - 0.18
+    wave = fy + 0.25 sin(8 fx),  d = max(min(r1, r2), -wave),  v = exp(-18 |d|)
+
+Error metric: max |v - v_ref| over pixels, in units of u (v is in (0, 1]).
+Derived bound (first order, per operation |d| <= u, libm sin/exp within 2 ulp):
+    |dfx|, |dfy| <= 3u                      (one division, one subtraction; x2 is exact)
+    |dr1|, |dr2| <= sqrt(2)*4.7u + 2.5u*1.9 + 2u <= 13u   (shifted coordinate, hypot, sqrt, shift)
+    |dwave| <= 3u + 0.25*(8*3u + 2u) + 1.25u <= 11u
+    |dd| <= 16u                             (min, max and |.| are 1-Lipschitz; margin included)
+    |dv| <= v*(18*16u + 18|d|u + 2u) <= 288u + u/e + 2u <= 291u   (18|d|e^{-18|d|} <= 1/e)
+Tolerance: 300u (1.8e-5 in float32, 3.3e-14 in float64).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .base import UNIT_ROUNDOFF, Check, Scenario, require
+
+TOLERANCE_ULPS = 300.0
+
+
+@dataclasses.dataclass(frozen=True)
+class SdfParams:
+    width: int = 512
+    height: int = 512
+
+    def validate(self) -> None:
+        require(2 <= self.width <= 65536, f"width must be in [2, 65536], got {self.width}")
+        require(2 <= self.height <= 65536, f"height must be in [2, 65536], got {self.height}")
+
+
+def sdf_field(fx: np.ndarray, fy: np.ndarray) -> np.ndarray:
+    r1 = np.sqrt((fx + 0.35) ** 2 + fy * fy) - 0.28
+    r2 = np.sqrt((fx - 0.25) ** 2 + (fy - 0.15) ** 2) - 0.18
+    wave = fy + 0.25 * np.sin(8.0 * fx)
+    d = np.maximum(np.minimum(r1, r2), -wave)
+    return np.exp(-18.0 * np.abs(d))
+
+
+class Sdf(Scenario):
+    name = "sdf"
+    title = "Procedural SDF image"
+    Params = SdfParams
+    quick = {"width": 203, "height": 97}   # non-square, not a multiple of any block size
+    outputs = ("image",)
+
+    def inputs(self, params: SdfParams, precision: str) -> dict[str, np.ndarray]:
+        return {}  # the image is a pure function of the pixel index
+
+    def oracle(self, params: SdfParams, inputs) -> dict[str, np.ndarray]:
+        i = np.arange(params.width, dtype=np.float64)
+        j = np.arange(params.height, dtype=np.float64)
+        fx = 2.0 * (i / (params.width - 1)) - 1.0
+        fy = 2.0 * (j / (params.height - 1)) - 1.0
+        return {"image": sdf_field(fx[None, :], fy[:, None])}
+
+    def _max_abs(self, a: np.ndarray, b: np.ndarray) -> float:
+        a = np.asarray(a, dtype=np.float64)
+        b = np.asarray(b, dtype=np.float64)
+        if a.shape != b.shape:
+            return float("inf")
+        d = np.abs(a - b)
+        return float(d.max()) if np.all(np.isfinite(d)) else float("inf")
+
+    def check(self, params, inputs, outputs, reference, precision) -> Check:
+        u = UNIT_ROUNDOFF[precision]
+        err = self._max_abs(outputs["image"], reference["image"])
+        tol = TOLERANCE_ULPS * u
+        return Check(err, tol, err <= tol, {"metric": "max |v - v_ref|", "ulps": err / u})
+
+    def distance(self, params, inputs, outputs, other) -> float:
+        return self._max_abs(outputs["image"], other["image"])
+
+    def work(self, params: SdfParams, precision: str) -> dict[str, float]:
+        itemsize = 4 if precision == "float32" else 8
+        n = params.width * params.height
+        return {"items": n, "bytes": float(n * itemsize)}
