@@ -1,0 +1,1 @@
+"""Driver: runs scenario x backend x device x precision cells in worker processes and reports."""

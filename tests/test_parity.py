@@ -1,0 +1,70 @@
+"""One parity suite run against every backend (array-api-tests style).
+
+Each case runs the real worker path (one process per cell). A port passes when it agrees with the
+float64 oracle within the scenario's derived tolerance: in float64 that tolerance is ~1e-14..1e-12
+(exactness: the port is the same algorithm); in float32 it is the derived rounding bound. Float64
+ports must also agree with Warp's float64 output to the same tight level.
+Select one backend with ``pytest -m <backend>``.
+"""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import backends
+from compare import cells
+from conftest import require_device
+
+CASES = [
+    ("saxpy", {}),                                       # quick: n = 100_003
+    ("saxpy", {"n": 1}),
+    ("saxpy", {"n": 257, "inputs": "random", "seed": 3}),
+    ("sdf", {}),                                         # quick: 203 x 97, non-square
+    ("sdf", {"width": 2, "height": 3}),
+    ("particles", {}),                                   # quick: n = 1000
+    ("particles", {"n": 33, "steps": 57, "record_every": 7}),
+    ("projectile", {"contact": "none"}),
+    ("projectile", {"contact": "hard"}),
+    ("projectile", {"contact": "soft"}),
+    ("projectile", {"steps": 7, "iters": 0}),
+]
+# float64 agreement with Warp (relative to each scenario's metric): both ports are the same
+# algorithm, so they may differ only by float64 rounding, e.g. FMA contraction.
+TIGHT_VS_WARP = {"saxpy": 1e-15, "sdf": 1e-13, "particles": 1e-12, "projectile": 1e-12}
+
+_warp_outputs: dict = {}
+
+
+def _params(case):
+    return [pytest.param(b, d, p, s, o, marks=getattr(pytest.mark, b),
+                         id=f"{b}-{d}-{p}-{s}-" + ",".join(f"{k}={v}" for k, v in o.items()))
+            for b in backends.BACKENDS for d in backends.DEVICES for p in ("float64", "float32")
+            for s, o in case]
+
+
+def _spec(backend, device, precision, scenario, overrides):
+    return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
+            "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0}
+
+
+@pytest.mark.parametrize("backend,device,precision,scenario,overrides", _params(CASES))
+def test_parity(backend, device, precision, scenario, overrides):
+    require_device(backend, device)
+    record, outputs = cells.run(_spec(backend, device, precision, scenario, overrides), timeout=900)
+    assert record["status"] == "ok", f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
+    err = record["error"]
+    assert math.isfinite(err["vs_oracle"]) and err["vs_oracle"] <= err["tolerance"]
+    assert record["time"]["first_call_s"] > 0 and record["time"]["median_s"] > 0
+    if precision == "float64" and backend != backends.reference():
+        key = (device, scenario, tuple(sorted(overrides.items())))
+        if key not in _warp_outputs:
+            require_device(backends.reference(), device)
+            ref_rec, ref_out = cells.run(_spec(backends.reference(), device, "float64", scenario, overrides))
+            assert ref_rec["status"] == "ok", ref_rec.get("reason")
+            _warp_outputs[key] = ref_out
+        import scenarios
+        sc = scenarios.get(scenario)
+        p = sc.params(overrides, quick=True)
+        d = sc.distance(p, sc.inputs(p, "float64"), outputs, _warp_outputs[key])
+        assert d <= TIGHT_VS_WARP[scenario], f"float64 {backend} vs warp differ by {d:.3g}"
