@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import sys
 import time
 import traceback
@@ -38,6 +39,16 @@ def jsonable(x: Any) -> Any:
     return x
 
 
+def injected_fault(spec: dict[str, Any]) -> str | None:
+    """Test hook: COMPARE_FAULT="<scenario>/<backend>:<kind>" (kind: crash, hang, raise, mismatch)
+    makes matching cells misbehave, so the driver's handling of each failure can be tested."""
+    rule = os.environ.get("COMPARE_FAULT", "")
+    if ":" not in rule:
+        return None
+    target, kind = rule.rsplit(":", 1)
+    return kind if target == f"{spec['scenario']}/{spec['backend']}" else None
+
+
 def run_cell(spec: dict[str, Any], out_dir: Path) -> dict[str, Any]:
     """Build, time, download and check one cell. Exceptions propagate (the parent records them)."""
     sc = scenarios.get(spec["scenario"])
@@ -58,6 +69,16 @@ def run_cell(spec: dict[str, Any], out_dir: Path) -> dict[str, Any]:
     t0 = time.perf_counter()
     outputs = {k: np.asarray(v) for k, v in kernel.outputs().items()}
     download_s = time.perf_counter() - t0
+
+    fault = injected_fault(spec)
+    if fault == "crash":
+        os.abort()
+    if fault == "hang":
+        time.sleep(10**6)
+    if fault == "raise":
+        raise RuntimeError("injected fault")
+    if fault == "mismatch":
+        outputs = {k: v + np.asarray(1, v.dtype) if v.dtype.kind == "f" else v for k, v in outputs.items()}
 
     reference = sc.oracle(params, inputs)
     check = sc.check(params, inputs, outputs, reference, precision)

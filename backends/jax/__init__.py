@@ -1,0 +1,119 @@
+"""JAX: every timed computation is one jax.jit program; gradients by reverse-mode AD.
+
+JAX is imported lazily (inside functions), because the driver imports every backend package
+without loading frameworks. Precision is process-global in JAX (the ``jax_enable_x64`` flag), which
+is why ``setup`` sets it per worker process and before any array exists.
+"""
+from __future__ import annotations
+
+import warnings
+from typing import Any, Callable, Sequence
+
+from ..base import Backend, not_installed
+
+# Platform names JAX may register a CUDA GPU under (newer jaxlib: "cuda"; older: "gpu").
+_GPU_PLATFORMS = ("cuda", "gpu")
+
+
+def jax_device(device: str) -> Any:
+    """The jax.Device for the driver's device name ('cpu' or 'cuda')."""
+    import jax
+    if device == "cpu":
+        return jax.devices("cpu")[0]
+    errors = []
+    for platform in _GPU_PLATFORMS:
+        try:
+            return jax.devices(platform)[0]
+        except RuntimeError as exc:
+            errors.append(str(exc).strip().splitlines()[0])
+    raise RuntimeError(f"no CUDA device visible to JAX ({errors[-1]})")
+
+
+def jax_dtype(precision: str) -> Any:
+    import jax.numpy as jnp
+    return jnp.float32 if precision == "float32" else jnp.float64
+
+
+def put(array: Any, precision: str, device: Any) -> Any:
+    """Upload a host array (or scalar) as a committed device array of the cell's dtype."""
+    import jax
+    import numpy as np
+    return jax.device_put(np.asarray(array, dtype=np.dtype(jax_dtype(precision))), device)
+
+
+class Program:
+    """A jax.jit function, compiled ahead of time on its first call.
+
+    Compiling inside the first call keeps compilation in the driver's first-call time (the
+    constructor is not timed as compute) and leaves the executable at hand for its memory figures.
+    ``donate`` names the arguments whose buffers the program may reuse for its outputs: the caller
+    passes the previous call's outputs back there, so a steady-state call allocates nothing new.
+    ``keep_unused`` is needed because those arguments are never read, and jit would otherwise
+    prune them (and with them the aliasing).
+    """
+
+    def __init__(self, fn: Callable[..., Any], donate: Sequence[int] = ()) -> None:
+        import jax
+        self.donate = tuple(donate)
+        self.jitted = jax.jit(fn, donate_argnums=self.donate, keep_unused=True)
+        self.compiled: Any = None
+        self.donated: bool | None = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self.compiled is not None:
+            return self.compiled(*args)
+        import jax
+        with warnings.catch_warnings():
+            # A platform that cannot alias buffers falls back to fresh outputs; info() reports it.
+            warnings.filterwarnings("ignore", message=".*donated buffers were not usable.*")
+            self.compiled = self.jitted.lower(*args).compile()
+            out = self.compiled(*args)
+        donated = [leaf for i in self.donate for leaf in jax.tree_util.tree_leaves(args[i])]
+        self.donated = bool(donated) and all(leaf.is_deleted() for leaf in donated)
+        return out
+
+    def info(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"compiled": "jit (AOT on first call)", "donated": self.donated}
+        stats = self.compiled.memory_analysis() if self.compiled is not None else None
+        if stats is not None:
+            out["temp_bytes"] = int(stats.temp_size_in_bytes)
+            out["argument_bytes"] = int(stats.argument_size_in_bytes)
+            out["output_bytes"] = int(stats.output_size_in_bytes)
+            out["alias_bytes"] = int(stats.alias_size_in_bytes)
+        return out
+
+
+class JaxBackend(Backend):
+    name = "jax"
+    package = "jax"
+    gradient_method = "ad"
+
+    def available(self) -> dict[str, str | None]:
+        reason = not_installed("jax", self.package)
+        if reason:
+            return {"cpu": reason, "cuda": reason}
+        try:
+            jax_device("cuda")
+            cuda = None
+        except RuntimeError as exc:
+            cuda = str(exc).strip().splitlines()[0]
+        return {"cpu": None, "cuda": cuda}
+
+    def versions(self) -> dict[str, str]:
+        import jax
+        import jaxlib
+        return {"jax": jax.__version__, "jaxlib": jaxlib.__version__}
+
+    def setup(self, device: str, precision: str, variant: str) -> None:
+        import jax
+        # Per process (each cell is its own worker) and before any array is created: arrays made
+        # under the other setting would keep their dtype.
+        jax.config.update("jax_enable_x64", precision == "float64")
+        jax.config.update("jax_default_device", jax_device(device))
+
+    def synchronize(self, device: str, result: Any) -> None:
+        import jax
+        jax.block_until_ready(result)
+
+
+BACKEND = JaxBackend()

@@ -1,0 +1,118 @@
+"""Differentiable projectile in JAX: reverse-mode AD (jax.value_and_grad) through lax.scan.
+
+One jitted program holds the whole run: a lax.scan over the iters+1 gradient-descent iterations,
+each a value_and_grad of the step scan (static trip count). Iteration k records loss(v_k), keeps
+the gradient of iteration 0 and updates v only while k < iters, so v_final = v_iters.
+
+Memory: reverse mode keeps each step's residuals (a few scalars per step). For long horizons
+``remat_segment`` = K > 0 checkpoints the rollout in segments of K steps (jax.checkpoint around an
+inner scan): only segment boundaries are kept and each segment is recomputed during the backward
+pass, so memory drops from O(steps) to O(steps/K + K) for one extra forward pass; K ~ sqrt(steps)
+is the usual choice. info() reports the compiled program's temporary memory either way.
+"""
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+
+from . import Program, jax_device, put
+from ..base import ScenarioKernel
+
+CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "target_x",
+             "target_y", "lr")
+
+
+def _make_step(contact: str, c: dict[str, Any]):
+    """One step of the scenario (its exact operation order) for a static contact model."""
+    import jax.numpy as jnp
+    zero = jnp.zeros((), dtype=c["dt"].dtype)
+    one = jnp.ones((), dtype=c["dt"].dtype)
+    dt, gravity = c["dt"], c["gravity"]
+
+    def step(state, _):
+        x, y, vx, vy = state
+        acc = gravity
+        if contact == "soft":
+            z = -y / c["softness"]
+            sp = jnp.maximum(z, zero) + jnp.log(one + jnp.exp(-jnp.abs(z)))
+            acc = gravity + c["stiffness"] * (c["softness"] * sp)
+        vy = vy + acc * dt
+        x = x + vx * dt
+        y = y + vy * dt
+        if contact == "hard":
+            hit = y < zero
+            y = jnp.where(hit, zero, y)
+            vy = jnp.where(hit, -c["bounce"] * vy, vy)
+            vx = jnp.where(hit, c["damping"] * vx, vx)
+        return (x, y, vx, vy), None
+
+    return step
+
+
+def _optimise(steps: int, iters: int, contact: str, remat_segment: int, v0, consts, out):
+    import jax
+    import jax.numpy as jnp
+    from jax import lax
+    del out  # donated: its buffers receive the results
+    c = dict(zip(CONSTANTS, consts))
+    step = _make_step(contact, c)
+
+    def scan_steps(state, n):
+        return lax.scan(step, state, None, length=n)[0]
+
+    def simulate(state):
+        if not 0 < remat_segment < steps:
+            return scan_steps(state, steps)
+        segments, tail = divmod(steps, remat_segment)
+        segment = jax.checkpoint(lambda s: scan_steps(s, remat_segment), prevent_cse=False)
+        state = lax.scan(lambda s, _: (segment(s), None), state, None, length=segments)[0]
+        return scan_steps(state, tail)
+
+    def loss_fn(v):
+        zero = jnp.zeros((), dtype=v.dtype)
+        x, y, _, _ = simulate((zero, zero, v[0], v[1]))
+        dx = x - c["target_x"]
+        dy = y - c["target_y"]
+        return dx * dx + dy * dy
+
+    value_and_grad = jax.value_and_grad(loss_fn)
+
+    def iteration(carry, k):
+        v, grad0 = carry
+        loss, g = value_and_grad(v)
+        grad0 = jnp.where(k == 0, g, grad0)
+        v = jnp.where(k < iters, v - c["lr"] * g, v)   # no update after the last evaluation
+        return (v, grad0), loss
+
+    (v, grad0), history = lax.scan(iteration, (v0, jnp.zeros_like(v0)), jnp.arange(iters + 1))
+    return history[0], grad0, history, v
+
+
+class Kernel(ScenarioKernel):
+    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+                 variant: str, remat_segment: int = 0) -> None:
+        import jax.numpy as jnp
+        dev = jax_device(device)
+        self.params = params
+        self.remat_segment = remat_segment
+        self.v0 = put(inputs["v0"], precision, dev)
+        self.consts = tuple(put(inputs[k], precision, dev) for k in CONSTANTS)
+        dt = self.v0.dtype
+        self.out = (jnp.empty((), dt, device=dev), jnp.empty(2, dt, device=dev),
+                    jnp.empty(params.iters + 1, dt, device=dev), jnp.empty(2, dt, device=dev))
+        fn = functools.partial(_optimise, params.steps, params.iters, params.contact, remat_segment)
+        self.program = Program(fn, donate=(2,))
+
+    def run(self) -> Any:
+        self.out = self.program(self.v0, self.consts, self.out)
+        return self.out
+
+    def outputs(self) -> dict[str, np.ndarray]:
+        loss, grad, history, v = (np.asarray(a) for a in self.out)
+        return {"loss": loss, "grad": grad, "loss_history": history, "v_final": v}
+
+    def info(self) -> dict[str, Any]:
+        return {**self.program.info(), "gradient": "jax.value_and_grad through lax.scan",
+                "remat_segment": self.remat_segment}

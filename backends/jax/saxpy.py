@@ -1,0 +1,34 @@
+"""SAXPY in JAX: one jitted elementwise expression, writing into the previous call's output."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from . import Program, jax_device, put
+from ..base import ScenarioKernel
+
+
+def _saxpy(a, x, y, out):
+    del out  # donated: its buffer receives the result
+    return a * x + y
+
+
+class Kernel(ScenarioKernel):
+    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+                 variant: str) -> None:
+        import jax.numpy as jnp
+        dev = jax_device(device)
+        self.a, self.x, self.y = (put(inputs[k], precision, dev) for k in ("a", "x", "y"))
+        self.out = jnp.empty_like(self.x, device=dev)
+        self.program = Program(_saxpy, donate=(3,))
+
+    def run(self) -> Any:
+        self.out = self.program(self.a, self.x, self.y, self.out)
+        return self.out
+
+    def outputs(self) -> dict[str, np.ndarray]:
+        return {"out": np.asarray(self.out)}
+
+    def info(self) -> dict[str, Any]:
+        return self.program.info()

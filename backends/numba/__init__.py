@@ -1,0 +1,98 @@
+"""Numba: ``@njit(parallel=True)`` on the CPU, ``numba.cuda`` kernels (the numba-cuda package) on CUDA.
+
+Shared conventions of the kernel files:
+  * every kernel is built by a factory cached per (dtype, fastmath), with the scalar type ``S``
+    captured in the closure, and every constant written ``S(...)`` or passed as a typed argument,
+    so the float32 specialisation has no float64 arithmetic (Python float literals would promote,
+    numba/numba#4676);
+  * the factories only create dispatchers; Numba compiles lazily at the first call, i.e. in the
+    first ``run()``, which the driver reports as the first-call (compile) time;
+  * CUDA kernels take device arrays made in the constructor; ``run`` only launches.
+Importing this package does not import numba.
+"""
+from __future__ import annotations
+
+import importlib.metadata
+import os
+from typing import Any
+
+import numpy as np
+
+from ..base import Backend, not_installed
+
+THREADS_PER_BLOCK = 256
+SIMULATOR = "CUDA simulator (correctness only)"
+
+
+def scalar_type(precision: str) -> type[np.floating]:
+    return np.float32 if precision == "float32" else np.float64
+
+
+def use_fastmath(variant: str) -> bool:
+    return variant == "fastmath"
+
+
+def blocks(n: int, per_block: int = THREADS_PER_BLOCK) -> int:
+    """Blocks of ``per_block`` threads covering ``n`` items (at least one)."""
+    return max(1, -(-n // per_block))
+
+
+def kernel_info(device: str, fastmath: bool, **extra: Any) -> dict[str, Any]:
+    """What ``ScenarioKernel.info`` reports: launch configuration or CPU threads, fastmath."""
+    if device == "cuda":
+        return {"threads_per_block": THREADS_PER_BLOCK, "fastmath": fastmath, **extra}
+    import numba
+    return {"parallel": True, "threads": numba.get_num_threads(), "fastmath": fastmath, **extra}
+
+
+def _simulator() -> bool:
+    if os.environ.get("NUMBA_ENABLE_CUDASIM", "0") not in ("", "0"):
+        return True
+    try:
+        from numba import config
+        return bool(getattr(config, "ENABLE_CUDASIM", False))
+    except Exception:
+        return False
+
+
+class NumbaBackend(Backend):
+    name = "numba"
+    package = "numba"
+    gradient_method = "adjoint"          # hand-written discrete adjoint: Numba has no autodiff
+    variants = ("default", "fastmath")
+
+    def available(self) -> dict[str, str | None]:
+        reason = not_installed("numba", self.package)
+        if reason:
+            return {"cpu": reason, "cuda": reason}
+        return {"cpu": None, "cuda": self._cuda_reason()}
+
+    @staticmethod
+    def _cuda_reason() -> str | None:
+        if _simulator():
+            return SIMULATOR
+        reason = not_installed("numba.cuda", "numba-cuda")
+        if reason:
+            return reason
+        from numba import cuda
+        try:
+            return None if cuda.is_available() else "no CUDA device visible to numba.cuda"
+        except Exception as exc:  # driver / toolkit problems surface here
+            return f"numba.cuda unusable: {type(exc).__name__}: {exc}"
+
+    def versions(self) -> dict[str, str]:
+        out = {}
+        for dist in ("numba", "numba-cuda", "llvmlite"):
+            try:
+                out[dist] = importlib.metadata.version(dist)
+            except importlib.metadata.PackageNotFoundError:
+                pass
+        return out
+
+    def synchronize(self, device: str, result: Any) -> None:
+        if device == "cuda":
+            from numba import cuda
+            cuda.synchronize()
+
+
+BACKEND = NumbaBackend()

@@ -1,0 +1,74 @@
+"""What a results file records about where it was made (so numbers can be reproduced)."""
+from __future__ import annotations
+
+import datetime
+import importlib.metadata
+import platform
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("numpy", "warp-lang", "taichi", "jax", "jaxlib", "jax-cuda12-plugin", "jax-cuda13-plugin",
+            "numba", "numba-cuda", "matplotlib")
+
+
+def _run(cmd: list[str]) -> str:
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=20, cwd=ROOT).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def gpus() -> list[dict[str, str]]:
+    if not shutil.which("nvidia-smi"):
+        return []
+    out = _run(["nvidia-smi", "--query-gpu=name,driver_version,memory.total", "--format=csv,noheader"])
+    rows = []
+    for line in out.splitlines():
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) == 3:
+            rows.append({"name": parts[0], "driver": parts[1], "memory": parts[2]})
+    return rows
+
+
+def collect(argv: list[str] | None = None) -> dict[str, Any]:
+    versions = {}
+    for pkg in PACKAGES:
+        try:
+            versions[pkg] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    try:
+        import os
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        import os
+        cores = os.cpu_count() or 0
+    import psutil
+    cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []
+    return {
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "hostname": platform.node(),
+        "os": platform.platform(),
+        "cpu": cpu_model(), "cores": cores,
+        "memory_gib": round(psutil.virtual_memory().total / 2**30, 1),
+        "gpus": gpus(), "cuda_toolkit": cuda[0] if cuda else "",
+        "python": sys.version.split()[0],
+        "packages": versions,
+        "git_commit": _run(["git", "rev-parse", "--short", "HEAD"]),
+        "git_dirty": bool(_run(["git", "status", "--porcelain", "--untracked-files=no"])),
+        "command": " ".join(["python -m compare"] + (argv if argv is not None else sys.argv[1:])),
+    }

@@ -1,0 +1,182 @@
+"""Tables (console, Markdown, CSV), results.json and plots from a list of records."""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+from tabulate import tabulate
+
+COLUMNS = ("backend", "device", "precision", "variant", "status", "first call", "median", "IQR",
+           "min", "err vs oracle", "tolerance", "err vs warp", "gradient", "note")
+
+
+def fmt_time(s: Any) -> str:
+    if not isinstance(s, (int, float)) or not math.isfinite(s):
+        return "-"
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("µs", 1e-6)):
+        if s >= scale:
+            return f"{s / scale:.3g} {unit}"
+    return f"{s * 1e9:.3g} ns"
+
+
+def fmt_num(x: Any) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, str):
+        return x
+    if isinstance(x, (list, tuple)):
+        return "[" + ", ".join(fmt_num(v) for v in x) + "]"
+    return "0" if x == 0 else f"{x:.3g}"
+
+
+def fmt_gradient(rec: dict[str, Any]) -> str:
+    g = rec.get("gradient")
+    if not g:
+        return "-"
+    rel = g.get("vs_oracle_rel")
+    return f"{g.get('method', '?')}: {fmt_num(rel)} rel vs {g.get('reference', '?')}"
+
+
+def row(rec: dict[str, Any]) -> list[str]:
+    t = rec.get("time") or {}
+    e = rec.get("error") or {}
+    note = rec.get("reason", "") or ""
+    if rec.get("status") == "ok" and e.get("ill_conditioned"):
+        note = f"{e['ill_conditioned']} ill-conditioned particles not checked"
+    return [rec["backend"], rec["device"], rec["precision"], rec.get("variant", "default"),
+            rec["status"], fmt_time(t.get("first_call_s")), fmt_time(t.get("median_s")),
+            fmt_time(t.get("iqr_s")), fmt_time(t.get("min_s")), fmt_num(e.get("vs_oracle")),
+            fmt_num(e.get("tolerance")), fmt_num(e.get("vs_warp")), fmt_gradient(rec), note[:120]]
+
+
+def by_scenario(records: Iterable[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
+    groups: dict[str, list[dict[str, Any]]] = {}
+    for r in records:
+        groups.setdefault(r["scenario"], []).append(r)
+    return groups
+
+
+def params_line(recs: list[dict[str, Any]]) -> str:
+    p = next((r["params"] for r in recs if r.get("params")), {})
+    return ", ".join(f"{k}={v}" for k, v in p.items())
+
+
+def tables(records: list[dict[str, Any]], fmt: str = "simple") -> str:
+    parts = []
+    for scenario, recs in by_scenario(records).items():
+        head = f"{scenario} ({params_line(recs)})"
+        parts.append(("## " if fmt == "github" else "") + head + "\n\n" +
+                     tabulate([row(r) for r in recs], headers=COLUMNS, tablefmt=fmt, disable_numparse=True))
+    return "\n\n".join(parts) + "\n"
+
+
+def atomic_write(path: Path, text: str) -> None:
+    """Write via a temporary file and rename, so a reader never sees half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def write_results(out: Path, environment: dict[str, Any], records: list[dict[str, Any]]) -> None:
+    clean = [{k: v for k, v in r.items() if not k.startswith("_")} for r in records]
+    atomic_write(out / "results.json", json.dumps({"environment": environment, "records": clean}, indent=1))
+    header = ["scenario"] + list(COLUMNS)
+    rows = [[r["scenario"]] + row(r) for r in records]
+    import io
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(header)
+    w.writerows(rows)
+    atomic_write(out / "results.csv", buf.getvalue())
+    env_lines = "\n".join(f"- {k}: {v}" for k, v in environment.items() if k != "packages")
+    pkgs = ", ".join(f"{k} {v}" for k, v in environment.get("packages", {}).items())
+    atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n- packages: {pkgs}\n\n"
+                 + tables(records, "github"))
+
+
+def _err_floor(e: float) -> float:
+    return max(e, 1e-17)
+
+
+def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    groups = by_scenario(r for r in records if r["status"] in ("ok", "mismatch") and r.get("time"))
+    if not groups:
+        return
+    fig, axes = plt.subplots(1, len(groups), figsize=(4.6 * len(groups), 4.0), squeeze=False)
+    colors = {}
+    for ax, (scenario, recs) in zip(axes[0], groups.items()):
+        for r in recs:
+            c = colors.setdefault(r["backend"], f"C{len(colors)}")
+            err = r["error"]["vs_oracle"]
+            if not isinstance(err, (int, float)) or not math.isfinite(err):
+                continue
+            ax.scatter(r["time"]["median_s"], _err_floor(err), color=c,
+                       marker="o" if r["device"] == "cpu" else "^",
+                       facecolors=c if r["precision"] == "float64" else "none", s=50)
+        ax.set_xscale("log"); ax.set_yscale("log")
+        ax.set_xlabel("steady-state median time per run [s]")
+        ax.set_ylabel("error vs float64 oracle (scenario metric)")
+        ax.set_title(scenario)
+        ax.grid(True, which="both", alpha=0.3)
+    handles = [plt.Line2D([], [], color=c, marker="o", ls="", label=b) for b, c in colors.items()]
+    handles += [plt.Line2D([], [], color="k", marker="o", ls="", label="cpu"),
+                plt.Line2D([], [], color="k", marker="^", ls="", label="cuda"),
+                plt.Line2D([], [], color="k", marker="o", ls="", markerfacecolor="none", label="float32 (hollow)")]
+    fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8)
+    fig.tight_layout(rect=(0, 0, 1, 0.9))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_outputs(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], out: Path) -> list[Path]:
+    """One picture per scenario from the reference backend's float32 run (or the first ok run)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    written = []
+    for scenario, recs in by_scenario(records).items():
+        ok = [(i, r) for i, r in enumerate(records) if r["scenario"] == scenario and i in outputs]
+        if not ok:
+            continue
+        if scenario == "projectile":
+            fig, ax = plt.subplots(figsize=(6, 4))
+            for i, r in ok:
+                h = np.asarray(outputs[i]["loss_history"], np.float64)
+                ax.plot(np.arange(h.size), np.maximum(h, 1e-30),
+                        label=f"{r['backend']}/{r['device']}/{r['precision']}", lw=1)
+            ax.set_yscale("log"); ax.set_xlabel("gradient-descent iteration"); ax.set_ylabel("loss [m²]")
+            ax.set_title(f"projectile loss ({params_line(recs)[:60]}…)", fontsize=8)
+            ax.legend(fontsize=6)
+        else:
+            i, r = ok[0]
+            o = outputs[i]
+            fig, ax = plt.subplots(figsize=(5, 5))
+            if scenario == "sdf":
+                im = ax.imshow(o["image"], origin="lower", cmap="magma")
+                fig.colorbar(im, ax=ax, label="exp(-18|d|)")
+                ax.set_xlabel("pixel column i"); ax.set_ylabel("pixel row j")
+            elif scenario == "particles":
+                if "traj_x" in o:
+                    ax.plot(o["traj_x"], o["traj_y"], lw=0.4, alpha=0.6)
+                ax.scatter(o["x"], o["y"], s=4, color="k")
+                ax.set_xlim(-1, 1); ax.set_xlabel("x [m]"); ax.set_ylabel("y [m]")
+            elif scenario == "saxpy":
+                n = o["out"].size
+                idx = np.unique(np.linspace(0, n - 1, min(n, 2000)).astype(int))
+                ax.plot(idx, o["out"][idx]); ax.set_xlabel("element index"); ax.set_ylabel("a·x + y")
+            ax.set_title(f"{scenario}: {r['backend']}/{r['device']}/{r['precision']}")
+        p = out / f"{scenario}.png"
+        fig.tight_layout(); fig.savefig(p, dpi=110); plt.close(fig)
+        written.append(p)
+    return written

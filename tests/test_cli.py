@@ -1,0 +1,124 @@
+"""The command-line contract: list, exit codes, one-line errors, results files, --save-arrays."""
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+pytestmark = pytest.mark.cli
+
+
+def compare(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "compare", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=1200)
+
+
+def test_list_names_everything():
+    p = compare("list")
+    assert p.returncode == 0, p.stderr
+    for name in ("saxpy", "sdf", "particles", "projectile", "warp"):
+        assert name in p.stdout
+    assert "cuda:" in p.stdout          # every device is listed, with a reason when unavailable
+
+
+@pytest.mark.parametrize("args,needle", [
+    (("bogus",), "unknown scenario"),
+    (("saxpy", "--set", "n=0"), "n must be"),
+    (("saxpy", "--set", "n=-5"), "n must be"),
+    (("saxpy", "--set", "n=1.5"), "n must be a int"),
+    (("particles", "--set", "dt=nan"), "dt must be"),
+    (("particles", "--set", "dt=inf"), "dt must be"),
+    (("particles", "--set", "dt=-0.01"), "dt must be"),
+    (("sdf", "--set", "width=1"), "width must be"),
+    (("projectile", "--set", "contact=sticky"), "contact must be one of"),
+    (("all", "--set", "nope=1"), "unknown parameter"),
+    (("all", "--set", "n"), "KEY=VALUE"),
+    (("all", "--backends", "fortran"), "unknown backend"),
+    (("all", "--devices", "tpu"), "unknown device"),
+    (("all", "--precision", "float16"), "unknown precision"),
+    (("all", "--repeat", "0"), "--repeat"),
+    (("all", "--frobnicate"), "unrecognized"),
+])
+def test_bad_usage_exits_2_with_one_line(args, needle):
+    p = compare(*args)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], p.stderr
+    assert "Traceback" not in p.stderr
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run")
+    p = compare("all", "--quick", "--backends", "warp", "--devices", "cpu", "--repeat", "2",
+                "--out", str(out), "--save-arrays")
+    return p, out
+
+
+def test_all_quick_is_ok_and_exit_0(quick_run):
+    p, out = quick_run
+    assert p.returncode == 0, p.stdout + p.stderr
+    for scenario in ("saxpy", "sdf", "particles", "projectile"):
+        assert scenario in p.stdout
+
+
+def test_results_json_contract(quick_run):
+    _, out = quick_run
+    data = json.loads((out / "results.json").read_text())
+    assert {"environment", "records"} <= set(data)
+    for key in ("python", "packages", "cpu", "git_commit", "command"):
+        assert key in data["environment"]
+    recs = data["records"]
+    assert {r["scenario"] for r in recs} == {"saxpy", "sdf", "particles", "projectile"}
+    for r in recs:
+        for key in ("scenario", "backend", "device", "precision", "params", "status", "reason",
+                    "time", "error"):
+            assert key in r
+        assert r["status"] == "ok"
+        assert set(r["time"]) >= {"first_call_s", "median_s", "iqr_s", "min_s", "repeats"}
+        assert set(r["error"]) >= {"vs_oracle", "vs_warp", "tolerance"}
+        assert r["error"]["vs_oracle"] <= r["error"]["tolerance"]
+        if r["scenario"] == "projectile":
+            assert len(r["gradient"]["value"]) == 2
+            assert r["gradient"]["method"] == "tape"
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert len(rows) == len(recs)
+    md = (out / "results.md").read_text()
+    assert "| backend" in md and "projectile" in md
+
+
+def test_save_arrays_contract(quick_run):
+    _, out = quick_run
+    want = {"saxpy": {"a", "x", "y", "out"}, "sdf": {"image"},
+            "particles": {"x0", "y0", "vx0", "vy0", "x", "y", "vx", "vy"},
+            "projectile": {"loss", "grad"}}
+    for scenario, keys in want.items():
+        for precision in ("float32", "float64"):
+            with np.load(out / "arrays" / f"{scenario}-warp-cpu-{precision}.npz") as z:
+                assert keys <= set(z.files), (scenario, z.files)
+                for k in keys & {"out", "image", "x"}:
+                    assert z[k].dtype == np.dtype(precision)
+
+
+@pytest.mark.parametrize("fault,status,needle", [
+    ("mismatch", "mismatch", "exceeds tolerance"),
+    ("raise", "error", "RuntimeError: injected fault"),
+    ("crash", "error", "signal SIGABRT"),
+    ("hang", "error", "timed out"),
+])
+def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, status, needle):
+    monkeypatch.setenv("COMPARE_FAULT", f"saxpy/warp:{fault}")
+    p = compare("all", "--quick", "--backends", "warp", "--devices", "cpu", "--precision", "float32",
+                "--repeat", "1", "--timeout", "30", "--out", str(tmp_path), "--no-plots")
+    assert p.returncode == 1, p.stderr
+    recs = json.loads((tmp_path / "results.json").read_text())["records"]
+    bad = [r for r in recs if r["scenario"] == "saxpy"]
+    assert bad[0]["status"] == status and needle in bad[0]["reason"], bad[0]["reason"]
+    # the other scenarios still ran
+    assert all(r["status"] == "ok" for r in recs if r["scenario"] != "saxpy")

@@ -1,0 +1,126 @@
+"""JAX-specific checks beyond the generic parity suite: precision really follows the cell (the
+x64 flag is per process), AD gradients agree with finite differences of the float64 oracle,
+trajectories, donation, and the rematerialisation option of the projectile."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import scenarios
+from compare import cells
+from conftest import ROOT, require_device
+from scenarios.projectile import CONSTANTS, rollout
+
+pytestmark = pytest.mark.jax
+
+SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 5, "height": 3},
+         "particles": {"n": 33, "steps": 57}, "projectile": {"contact": "soft", "iters": 2}}
+
+
+def _run(scenario: str, precision: str, params: dict, device: str = "cpu"):
+    require_device("jax", device)
+    spec = {"scenario": scenario, "backend": "jax", "device": device, "precision": precision,
+            "params": params, "quick": True, "repeat": 1, "min_time": 0.0}
+    record, outputs = cells.run(spec, timeout=600)
+    assert record["status"] == "ok", f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
+    return record, outputs
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+@pytest.mark.parametrize("scenario", list(SMALL))
+def test_outputs_have_the_cells_precision(scenario, precision):
+    _, outputs = _run(scenario, precision, SMALL[scenario])
+    assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
+
+
+def test_back_to_back_cells_keep_their_own_precision():
+    """The x64 flag is process-global in JAX; each cell must get exactly the one it asked for."""
+    results = []
+    for precision in ("float32", "float64", "float32", "float64"):
+        _, out = _run("saxpy", precision, SMALL["saxpy"])
+        results.append((precision, out["out"]))
+    for precision, out in results:
+        assert out.dtype == np.dtype(precision)
+        if precision == "float64":   # computed in float64, not float32 widened afterwards
+            assert np.any(out != out.astype(np.float32).astype(np.float64))
+
+
+@pytest.mark.parametrize("contact", ["hard", "soft"])
+def test_gradient_matches_finite_differences_of_the_oracle(contact):
+    params = {"contact": contact, "iters": 0}
+    _, outputs = _run("projectile", "float64", params)
+    sc = scenarios.get("projectile")
+    p = sc.params(params, quick=True)
+    inputs = sc.inputs(p, "float64")
+    c = {k: float(inputs[k]) for k in CONSTANTS}
+
+    def loss(v: np.ndarray) -> float:
+        (x, y, _, _), _ = rollout(c, contact, p.steps, float(v[0]), float(v[1]))
+        return (x - c["target_x"]) ** 2 + (y - c["target_y"]) ** 2
+
+    def central(v: np.ndarray, h: float) -> np.ndarray:
+        e = np.eye(2) * h
+        return np.array([(loss(v + e[i]) - loss(v - e[i])) / (2 * h) for i in range(2)])
+
+    v0 = inputs["v0"].astype(np.float64)
+    h = 1e-4   # Richardson extrapolation: O(h^4), so the stiff soft contact needs no tiny step
+    fd = (4.0 * central(v0, h / 2) - central(v0, h)) / 3.0
+    grad = outputs["grad"]
+    assert np.all(np.abs(grad - fd) <= 1e-6 * np.abs(fd) + 1e-9 * np.max(np.abs(fd))), (grad, fd)
+    assert float(outputs["loss"]) == pytest.approx(loss(v0), rel=1e-13)
+
+
+def test_particle_trajectory_frames_match_the_oracle():
+    params = {"n": 33, "steps": 57, "record_every": 7}
+    _, outputs = _run("particles", "float64", params)
+    sc = scenarios.get("particles")
+    p = sc.params(params, quick=True)
+    ref = sc.oracle(p, sc.inputs(p, "float64"))
+    for k in ("traj_x", "traj_y"):
+        assert outputs[k].shape == ref[k].shape == (57 // 7 + 1, 33)
+        np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)
+
+
+def test_info_reports_donation_and_memory():
+    record, _ = _run("particles", "float32", SMALL["particles"])
+    info = record["info"]
+    assert info["donated"] is True        # outputs are written into the previous call's buffers
+    assert info["alias_bytes"] >= 4 * 33 * 4
+
+
+REMAT = """
+import json, sys
+import numpy as np
+import backends, scenarios
+from backends.jax.projectile import Kernel
+b = backends.get("jax"); b.setup("cpu", "float64", "default")
+sc = scenarios.get("projectile")
+p = sc.params({"contact": "soft", "steps": 4000, "dt": 0.025 * 180 / 4000, "iters": 2})
+i = sc.inputs(p, "float64")
+res = {}
+for seg in (0, 63):
+    k = Kernel(p, i, "cpu", "float64", "default", remat_segment=seg)
+    b.synchronize("cpu", k.run())
+    o = k.outputs()
+    res[seg] = {"temp": k.info()["temp_bytes"], "grad": o["grad"].tolist(),
+                "hist": o["loss_history"].tolist(), "ok": sc.check(p, i, o, sc.oracle(p, i), "float64").ok}
+print("REMAT" + json.dumps(res))
+"""
+
+
+def test_remat_segments_cut_memory_and_keep_the_gradient():
+    require_device("jax", "cpu")
+    proc = subprocess.run([sys.executable, "-c", REMAT], cwd=ROOT, env=cells.worker_env(),
+                          capture_output=True, text=True, timeout=600)
+    line = next((r for r in proc.stdout.splitlines() if r.startswith("REMAT")), None)
+    assert line, proc.stderr[-2000:]
+    res = json.loads(line[5:])
+    full, seg = res["0"], res["63"]
+    assert full["ok"] and seg["ok"]
+    assert seg["temp"] < full["temp"] / 4
+    np.testing.assert_allclose(seg["grad"], full["grad"], rtol=1e-12)
+    np.testing.assert_allclose(seg["hist"], full["hist"], rtol=1e-12)
