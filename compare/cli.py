@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
+import dataclasses
+import json
 import os
 import sys
 from pathlib import Path
@@ -44,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="results", help="output directory")
     p.add_argument("--save-arrays", action="store_true", help="write inputs/outputs per cell (npz)")
     p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the cells already in DIR/results.json and run only the missing ones")
     return p
 
 
@@ -68,12 +72,23 @@ def parse_sets(pairs: list[str], chosen: list[scenarios.Scenario], quick: bool) 
     for sc in chosen:
         names = {f for f in sc.Params.__dataclass_fields__}
         per[sc.name] = {k: v for k, v in raw.items() if k in names}
-        sc.params(per[sc.name], quick=quick)          # validate now: bad input never reaches a worker
+        params = sc.params(per[sc.name], quick=quick)   # validate now: bad input never reaches a worker
+        check_memory(sc, params)
     unknown = [k for k in raw if not any(k in sc.Params.__dataclass_fields__ for sc in chosen)]
     if unknown:
         known = sorted({f for sc in chosen for f in sc.Params.__dataclass_fields__})
         raise ParamError(f"unknown parameter {unknown[0]!r} (known: {', '.join(known)})")
     return per
+
+
+def check_memory(sc: scenarios.Scenario, params) -> None:
+    """Refuse sizes that cannot fit in this machine's memory before any worker starts."""
+    import psutil
+    need = sc.footprint(params, "float64")
+    have = psutil.virtual_memory().total
+    if need > have:
+        raise ParamError(f"{sc.name} with {sc.size_text(params)} needs about {need / 2**30:.1f} GiB "
+                         f"of host memory; this machine has {have / 2**30:.1f} GiB")
 
 
 def probe_all(names: list[str]) -> dict[str, dict[str, Any]]:
@@ -124,32 +139,48 @@ def plan(args, chosen) -> tuple[list[dict[str, Any]], dict[str, dict[str, Any]]]
     return specs, probe_all(order)
 
 
-def run_specs(specs, probes, args) -> tuple[list[dict[str, Any]], dict[int, dict[str, np.ndarray]]]:
+def cell_key(rec: dict[str, Any]) -> tuple:
+    return (rec["scenario"], rec["backend"], rec["device"], rec["precision"],
+            rec.get("variant", "default"), json.dumps(rec.get("params"), sort_keys=True))
+
+
+def run_specs(specs, probes, args, env, previous=()):
+    """Run the cells one after another (never concurrently: they would share cores and the GPU),
+    saving results.json after every cell so an interrupted run keeps what it finished."""
     from tqdm import tqdm
-    records: list[dict[str, Any]] = []
+
+    from compare.worker import jsonable
+    records: list[dict[str, Any]] = list(previous)
     outputs: dict[int, dict[str, np.ndarray]] = {}
+    inputs: dict[int, dict[str, np.ndarray]] = {}
+    done = {cell_key(r) for r in records}
+    out_dir = Path(args.out)
     quiet = bool(os.environ.get("CI")) or not sys.stderr.isatty()
     bar = tqdm(specs, disable=quiet, unit="cell", file=sys.stderr)
     for spec in bar:
         key = f"{spec['scenario']}/{spec['backend']}/{spec['device']}/{spec['precision']}/{spec['variant']}"
         bar.set_description(key)
         base = {k: spec[k] for k in ("scenario", "backend", "device", "precision", "variant")}
+        sc = scenarios.get(spec["scenario"])
+        base["params"] = dataclasses.asdict(sc.params(spec["params"], quick=spec["quick"]))
+        if cell_key(base) in done:
+            continue
         why = probes[spec["backend"]]["available"].get(spec["device"])
         if why:
-            sc = scenarios.get(spec["scenario"])
-            import dataclasses
-            rec = {**base, "params": dataclasses.asdict(sc.params(spec["params"], quick=spec["quick"])),
-                   "status": "skipped", "reason": why, "time": None, "error": None}
+            rec = {**base, "status": "skipped", "reason": why, "time": None, "error": None}
         else:
             rec, out = cells.run(spec, timeout=args.timeout)
             rec = {**base, **rec}
             rec.setdefault("params", None); rec.setdefault("time", None); rec.setdefault("error", None)
             if out is not None:
                 outputs[len(records)] = out
+            if "_inputs" in rec:
+                inputs[len(records)] = rec.pop("_inputs")
             if quiet:
                 print(f"  {key}: {rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr)
-        records.append(rec)
-    return records, outputs
+        records.append(jsonable(rec))
+        report.write_results(out_dir, env, records, json_only=True)
+    return records, outputs, inputs
 
 
 def fill_vs_reference(records, outputs) -> None:
@@ -172,33 +203,52 @@ def fill_vs_reference(records, outputs) -> None:
         r["error"]["vs_warp_device"] = records[cands[0]]["device"]
 
 
-def save_arrays(out: Path, records, outputs) -> None:
-    d = out / "arrays"
-    d.mkdir(parents=True, exist_ok=True)
+def array_file(out: Path, r: dict[str, Any]) -> Path:
+    name = f"{r['scenario']}-{r['backend']}-{r['device']}-{r['precision']}"
+    if r.get("variant", "default") != "default":
+        name += f"-{r['variant']}"
+    return out / "arrays" / f"{name}.npz"
+
+
+def save_arrays(out: Path, records, outputs, inputs) -> None:
+    (out / "arrays").mkdir(parents=True, exist_ok=True)
     for i, r in enumerate(records):
-        if i not in outputs:
-            continue
-        data = dict(r.pop("_inputs", {}) or {})
-        data.update(outputs[i])
-        name = f"{r['scenario']}-{r['backend']}-{r['device']}-{r['precision']}"
-        if r["variant"] != "default":
-            name += f"-{r['variant']}"
-        np.savez(d / f"{name}.npz", **data)
+        if i in outputs:
+            np.savez(array_file(out, r), **{**inputs.get(i, {}), **outputs[i]})
 
 
-def cmd_run(args, chosen) -> int:
+def load_saved_outputs(out: Path, records, outputs) -> None:
+    """Outputs of resumed cells (for the comparison with Warp), where --save-arrays kept them."""
+    for i, r in enumerate(records):
+        f = array_file(out, r)
+        if i not in outputs and r.get("status") in ("ok", "mismatch") and f.exists():
+            sc = scenarios.get(r["scenario"])
+            with np.load(f) as z:
+                outputs[i] = {k: z[k] for k in sc.outputs if k in z.files}
+
+
+def load_previous(out: Path) -> list[dict[str, Any]]:
+    path = out / "results.json"
+    if not path.exists():
+        return []
+    try:
+        return json.loads(path.read_text())["records"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise ParamError(f"--resume: cannot read {path}: {exc}") from None
+
+
+def cmd_run(args, chosen, argv) -> int:
     specs, probes = plan(args, chosen)
     out = Path(args.out)
-    records, outputs = run_specs(specs, probes, args)
-    fill_vs_reference(records, outputs)
-    env = environment.collect()
+    previous = load_previous(out) if args.resume else []
+    env = environment.collect(argv)
     env["backends"] = {n: p for n, p in probes.items()}
+    records, outputs, inputs_of = run_specs(specs, probes, args, env, previous)
+    if args.save_arrays or args.resume:
+        load_saved_outputs(out, records, outputs)
+    fill_vs_reference(records, outputs)
     if args.save_arrays:
-        save_arrays(out, records, outputs)
-    for r in records:
-        r.pop("_inputs", None)
-    from compare.worker import jsonable
-    records = jsonable(records)
+        save_arrays(out, records, outputs, inputs_of)
     report.write_results(out, env, records)
     if not args.no_plots:
         plots = out / "plots"
@@ -220,7 +270,7 @@ def main(argv: list[str]) -> int:
             chosen = list(scenarios.SCENARIOS.values())
         else:
             chosen = [scenarios.get(args.command)]
-        return cmd_run(args, chosen)
+        return cmd_run(args, chosen, argv)
     except (UsageError, ParamError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -85,9 +85,12 @@ def atomic_write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def write_results(out: Path, environment: dict[str, Any], records: list[dict[str, Any]]) -> None:
-    clean = [{k: v for k, v in r.items() if not k.startswith("_")} for r in records]
-    atomic_write(out / "results.json", json.dumps({"environment": environment, "records": clean}, indent=1))
+def write_results(out: Path, environment: dict[str, Any], records: list[dict[str, Any]],
+                  json_only: bool = False) -> None:
+    """results.json (and, unless json_only, results.csv and results.md), each written atomically."""
+    atomic_write(out / "results.json", json.dumps({"environment": environment, "records": records}, indent=1))
+    if json_only:
+        return
     header = ["scenario"] + list(COLUMNS)
     rows = [[r["scenario"]] + row(r) for r in records]
     import io

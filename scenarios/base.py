@@ -147,6 +147,14 @@ class Scenario:
         """The scenario's error metric between two backends' outputs (e.g. a port vs Warp)."""
         raise NotImplementedError
 
+    def footprint(self, params, precision: str) -> float:
+        """Bytes of host memory a cell needs (inputs, outputs, oracle), to refuse absurd sizes."""
+        return 0.0
+
+    def size_text(self, params) -> str:
+        return ", ".join(f"{k}={getattr(params, k)}" for k in ("n", "width", "height", "steps")
+                         if hasattr(params, k))
+
     def work(self, params, precision: str) -> dict[str, float]:
         """Useful work per run, for throughput figures: {'bytes': moved, 'items': ...}."""
         return {}

@@ -171,6 +171,10 @@ class Particles(Scenario):
         err = self._state_error(outputs, other)
         return float(err.max()) if np.all(np.isfinite(err)) else math.inf
 
+    def footprint(self, params: ParticlesParams, precision: str) -> float:
+        frames = n_frames(params)
+        return params.n * (8 * 8 + 16 * 8.0) + 2.0 * frames * params.n * 8 * 2
+
     def work(self, params: ParticlesParams, precision: str) -> dict[str, float]:
         itemsize = 4 if precision == "float32" else 8
         return {"items": float(params.n) * params.steps, "bytes": 8.0 * params.n * itemsize}

@@ -72,6 +72,9 @@ class Saxpy(Scenario):
     def distance(self, params, inputs, outputs, other) -> float:
         return self.normalised_error(inputs, outputs["out"], other["out"])
 
+    def footprint(self, params: SaxpyParams, precision: str) -> float:
+        return params.n * (3 * 8 + 4 * 8.0)       # inputs/outputs + float64 oracle temporaries
+
     def work(self, params: SaxpyParams, precision: str) -> dict[str, float]:
         itemsize = 4 if precision == "float32" else 8
         return {"items": params.n, "bytes": 3.0 * params.n * itemsize}

@@ -78,6 +78,9 @@ class Sdf(Scenario):
     def distance(self, params, inputs, outputs, other) -> float:
         return self._max_abs(outputs["image"], other["image"])
 
+    def footprint(self, params: SdfParams, precision: str) -> float:
+        return params.width * params.height * 10 * 8.0   # image + float64 oracle temporaries
+
     def work(self, params: SdfParams, precision: str) -> dict[str, float]:
         itemsize = 4 if precision == "float32" else 8
         n = params.width * params.height
