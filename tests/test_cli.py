@@ -122,3 +122,16 @@ def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, stat
     assert bad[0]["status"] == status and needle in bad[0]["reason"], bad[0]["reason"]
     # the other scenarios still ran
     assert all(r["status"] == "ok" for r in recs if r["scenario"] != "saxpy")
+
+
+def test_resume_runs_only_missing_cells(tmp_path):
+    args = ("--backends", "warp", "--devices", "cpu", "--precision", "float32", "--quick",
+            "--repeat", "1", "--out", str(tmp_path), "--no-plots", "--save-arrays")
+    assert compare("saxpy", *args).returncode == 0
+    first = json.loads((tmp_path / "results.json").read_text())["records"]
+    p = compare("all", "--resume", *args)
+    assert p.returncode == 0, p.stderr
+    assert "saxpy/warp" not in p.stderr          # not rerun
+    recs = json.loads((tmp_path / "results.json").read_text())["records"]
+    assert recs[0] == first[0]
+    assert {r["scenario"] for r in recs} == {"saxpy", "sdf", "particles", "projectile"}
