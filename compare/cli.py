@@ -46,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="results", help="output directory")
     p.add_argument("--save-arrays", action="store_true", help="write inputs/outputs per cell (npz)")
     p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run cells as tasks on a Dask distributed scheduler ('local': a LocalCluster)")
     p.add_argument("--resume", action="store_true",
                    help="keep the cells already in DIR/results.json and run only the missing ones")
     return p
@@ -144,6 +146,31 @@ def cell_key(rec: dict[str, Any]) -> tuple:
             rec.get("variant", "default"), json.dumps(rec.get("params"), sort_keys=True))
 
 
+def executor(scheduler: str | None, timeout: float, runnable: list[dict[str, Any]]):
+    """How cells run: local worker processes one at a time (default), or as tasks on a Dask
+    distributed scheduler (``--scheduler ADDRESS``, or ``local`` for a one-worker LocalCluster),
+    all submitted at once and collected in order. Each task still starts its own worker process,
+    so isolation and timeouts are the same; give Dask workers one thread each so cells sharing a
+    host do not time each other."""
+    if not scheduler:
+        return lambda spec: cells.run(spec, timeout=timeout)
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise ParamError("--scheduler needs the 'distributed' package (pip install distributed)") from None
+    if scheduler == "local":
+        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    else:
+        try:
+            client = Client(scheduler, timeout="30s")
+        except (OSError, TimeoutError) as exc:
+            raise ParamError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+    futures = {json.dumps(s, sort_keys=True): client.submit(cells.run, s, timeout, pure=False)
+               for s in runnable}
+    return lambda spec: futures[json.dumps(spec, sort_keys=True)].result()
+
+
 def run_specs(specs, probes, args, env, previous=()):
     """Run the cells one after another (never concurrently: they would share cores and the GPU),
     saving results.json after every cell so an interrupted run keeps what it finished."""
@@ -156,6 +183,8 @@ def run_specs(specs, probes, args, env, previous=()):
     done = {cell_key(r) for r in records}
     out_dir = Path(args.out)
     quiet = bool(os.environ.get("CI")) or not sys.stderr.isatty()
+    runner = executor(args.scheduler, args.timeout, [s for s in specs
+                      if not probes[s["backend"]]["available"].get(s["device"])])
     bar = tqdm(specs, disable=quiet, unit="cell", file=sys.stderr)
     for spec in bar:
         key = f"{spec['scenario']}/{spec['backend']}/{spec['device']}/{spec['precision']}/{spec['variant']}"
@@ -169,7 +198,7 @@ def run_specs(specs, probes, args, env, previous=()):
         if why:
             rec = {**base, "status": "skipped", "reason": why, "time": None, "error": None}
         else:
-            rec, out = cells.run(spec, timeout=args.timeout)
+            rec, out = runner(spec)
             rec = {**base, **rec}
             rec.setdefault("params", None); rec.setdefault("time", None); rec.setdefault("error", None)
             if out is not None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import platform
 import sys
 import time
 import traceback
@@ -94,6 +95,7 @@ def run_cell(spec: dict[str, Any], out_dir: Path) -> dict[str, Any]:
         "work": work,
         "throughput": {f"{k}_per_s": v / t["median_s"] for k, v in work.items() if t["median_s"] > 0},
         "info": kernel.info(),
+        "host": platform.node(),
         "versions": be.versions(),
     }
     if sc.has_gradient:

@@ -135,3 +135,17 @@ def test_resume_runs_only_missing_cells(tmp_path):
     recs = json.loads((tmp_path / "results.json").read_text())["records"]
     assert recs[0] == first[0]
     assert {r["scenario"] for r in recs} == {"saxpy", "sdf", "particles", "projectile"}
+
+
+def test_dask_local_cluster_gives_the_same_records(tmp_path):
+    pytest.importorskip("distributed", reason="distributed not installed")
+    common = ("--backends", "warp", "--devices", "cpu", "--quick", "--repeat", "1", "--no-plots")
+    a = compare("all", *common, "--out", str(tmp_path / "local"))
+    b = compare("all", *common, "--out", str(tmp_path / "dask"), "--scheduler", "local")
+    assert a.returncode == 0 and b.returncode == 0, b.stderr
+    ra = json.loads((tmp_path / "local" / "results.json").read_text())["records"]
+    rb = json.loads((tmp_path / "dask" / "results.json").read_text())["records"]
+    strip = lambda r: (r["scenario"], r["device"], r["precision"], r["status"], r["params"],  # noqa
+                       r["error"] and {k: v for k, v in r["error"].items()},
+                       r.get("gradient", {}).get("value"))
+    assert [strip(r) for r in ra] == [strip(r) for r in rb]   # bitwise: same outputs on CPU
