@@ -228,6 +228,20 @@ def evaluate(c: dict[str, float], contact: str, steps: int, v, u: float):
     return loss, grad, tol_loss, tol_grad
 
 
+def gradient(c: dict[str, float], contact: str, steps: int, v) -> np.ndarray:
+    (x, y, _, _), tape = rollout(c, contact, steps, float(v[0]), float(v[1]))
+    return np.array(adjoint(c, tape, 2.0 * (x - c["target_x"]), 2.0 * (y - c["target_y"])))
+
+
+def hessian(c: dict[str, float], contact: str, steps: int, v, rel_step: float = 1e-6) -> np.ndarray:
+    """Loss Hessian by central differences of the float64 adjoint gradient (symmetrised)."""
+    h = rel_step * max(1.0, float(np.max(np.abs(v))))
+    cols = [(gradient(c, contact, steps, v + h * e) - gradient(c, contact, steps, v - h * e)) / (2 * h)
+            for e in np.eye(2)]
+    m = np.array(cols).T
+    return 0.5 * (m + m.T)
+
+
 def closed_form(c: dict[str, float], steps: int, v: tuple[float, float]) -> tuple[float, np.ndarray]:
     """Exact loss and gradient of the discrete scheme without contact."""
     t = steps * c["dt"]
@@ -256,26 +270,35 @@ class Projectile(Scenario):
         c = {k: float(inputs[k]) for k in CONSTANTS}
         lr = c["lr"]
         v = inputs["v0"].astype(np.float64)
-        hist, grads, tol_l, tol_g = [], [], [], []
+        hist, grads, tol_l, tol_g, tol_h = [], [], [], [], []
+        dv = 0.0           # bound on |v_k - v_ref_k| (2-norm)
         for k in range(params.iters + 1):
             loss, grad, tl, tg = evaluate(c, params.contact, params.steps, v, u)
             if params.contact == "none":       # the closed form is the oracle; the rollout gives bounds
                 loss, grad = closed_form(c, params.steps, v)
+            hess = hessian(c, params.contact, params.steps, v) if params.iters else np.zeros((2, 2))
             hist.append(loss); grads.append(grad); tol_l.append(tl); tol_g.append(tg)
+            tol_h.append(tl + np.linalg.norm(grad) * dv + 0.5 * np.linalg.norm(hess, 2) * dv * dv)
             if k < params.iters:
-                v = v - lr * grad
+                v_new = v - lr * grad
+                gain = np.linalg.norm(np.eye(2) - lr * hess, 2)
+                dv = gain * dv + lr * np.linalg.norm(tg) + u * (np.linalg.norm(v_new) + lr * np.linalg.norm(grad))
+                v = v_new
         return {"loss": np.float64(hist[0]), "grad": grads[0], "loss_history": np.array(hist),
-                "v_final": v, "grad_history": np.array(grads),
-                "tol_loss": np.array(tol_l), "tol_grad": np.array(tol_g), "gradient_reference":
+                "v_final": v, "grad_history": np.array(grads), "tol_loss": np.array(tol_l),
+                "tol_grad": np.array(tol_g), "tol_history": np.array(tol_h), "gradient_reference":
                 np.array("closed-form" if params.contact == "none" else "adjoint64")}
 
     def check(self, params, inputs, outputs, reference, precision) -> Check:
         """Loss, gradient and history within their derived bounds.
 
-        History: v_k differs from the reference by at most dv_k = lr * sum_{j<k} tol_grad_j
-        (errors of earlier gradients, not credited with any contraction) plus the rounding of the
-        update; so |h_k - h_ref_k| <= tol_loss_k + |grad_k|_1 * dv_k. The reported error is the
-        worst ratio error/bound over loss, gradient and history (ok when <= 1).
+        History: an error dv_k in v_k evolves through the descent map v -> v - lr*grad(v), whose
+        Jacobian is I - lr*H_k (H_k the loss Hessian at v_k, from central differences of the
+        float64 adjoint), so dv_{k+1} <= |I - lr H_k|_2 dv_k + lr |tol_grad_k| + u(|v_{k+1}| + lr|grad_k|)
+        and |h_k - h_ref_k| <= tol_loss_k + |grad_k| dv_k + |H_k| dv_k^2 / 2. Where descent is
+        unstable (|I - lr H| > 1, e.g. the seed's lr = 0.08) the bound grows with the amplification,
+        as the error itself does. The reported error is the worst ratio error/bound over loss,
+        gradient and history (ok when <= 1).
         """
         u = UNIT_ROUNDOFF[precision]
         lr = float(inputs["lr"])
@@ -289,10 +312,7 @@ class Projectile(Scenario):
         ref_hist = reference["loss_history"]
         if hist.shape != ref_hist.shape:
             return Check(math.inf, 1.0, False, {"reason": f"loss_history shape {hist.shape} != {ref_hist.shape}"})
-        dv = np.concatenate([[0.0], np.cumsum(lr * np.max(reference["tol_grad"][:-1], axis=1))])
-        dv += np.concatenate([[0.0], np.cumsum(u * np.max(np.abs(np.cumsum(
-            np.vstack([[0, 0], -lr * reference["grad_history"][:-1]]), axis=0) + inputs["v0"]), axis=1)[1:])])
-        tol_hist = reference["tol_loss"] + np.sum(np.abs(reference["grad_history"]), axis=1) * dv
+        tol_hist = reference["tol_history"]
         e_hist = np.abs(hist - ref_hist)
         ratios = [e_loss / tol_loss, float(np.max(e_grad_vec / tol_grad_vec)),
                   float(np.max(e_hist / tol_hist))]
@@ -308,13 +328,18 @@ class Projectile(Scenario):
         })
 
     def distance(self, params, inputs, outputs, other) -> float:
-        """Largest relative difference over loss, gradient and history."""
+        """Largest relative difference of loss and gradient at v0.
+
+        The descent history is left out: where descent is unstable (soft contact, large lr) it
+        amplifies one-ulp differences (an FMA, an operation order) by orders of magnitude, which
+        says nothing about whether two ports compute the same thing; ``check`` bounds it instead.
+        """
         def rel(a, b):
             a = np.asarray(a, np.float64).reshape(-1); b = np.asarray(b, np.float64).reshape(-1)
             if a.shape != b.shape:
                 return math.inf
             return float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-300)))
-        d = max(rel(outputs[k], other[k]) for k in ("loss", "grad", "loss_history"))
+        d = max(rel(outputs[k], other[k]) for k in ("loss", "grad"))
         return d if math.isfinite(d) else math.inf
 
     def work(self, params: ProjectileParams, precision: str) -> dict[str, float]:

@@ -89,6 +89,11 @@ class NumbaBackend(Backend):
                 pass
         return out
 
+    def setup(self, device: str, precision: str, variant: str) -> None:
+        if device == "cuda":   # the projectile is one thread by design: no low-occupancy warnings
+            from numba import config
+            config.CUDA_LOW_OCCUPANCY_WARNINGS = False
+
     def synchronize(self, device: str, result: Any) -> None:
         if device == "cuda":
             from numba import cuda

@@ -1,4 +1,8 @@
-"""SAXPY in Numba: a prange loop on the CPU, one thread per element on CUDA."""
+"""SAXPY in Numba: a prange loop on the CPU, one thread per element on CUDA.
+
+No constants, so one dispatcher per fastmath setting; Numba specialises it per dtype (``a`` is a
+typed NumPy scalar, so the float32 specialisation is all float32).
+"""
 from __future__ import annotations
 
 import functools
@@ -26,7 +30,6 @@ def cpu_kernel(fastmath: bool):
 
 @functools.cache
 def cuda_kernel(fastmath: bool):
-
     @cuda.jit(fastmath=fastmath)
     def saxpy(a, x, y, out):
         i = cuda.grid(1)
