@@ -20,6 +20,7 @@ precision, which changes its state by O(|v| dt). The oracle therefore carries, p
 first-order running bound on the rounding error of each coordinate (every operation adds u times
 the size of its operands; clamps reset position error to 0 and scale velocity error by the
 restitution factor) and the smallest distance to a contact threshold seen during the run.
+The float64 oracle itself obeys the same bound with u64, so the bound is computed with u + u64.
 A particle is *well-conditioned* if that distance always exceeds the position error bound at the
 time: then every port that rounds no worse than the bound takes the same branches, and its final
 state must lie within the bound. Ill-conditioned particles are counted and reported, not checked.
@@ -96,7 +97,8 @@ class Particles(Scenario):
 
     def oracle(self, params: ParticlesParams, inputs):
         """Float64 rollout, plus the running error bound for the inputs' precision and margins."""
-        u = UNIT_ROUNDOFF[precision_of(inputs["x0"])]
+        # the port's rounding (u) plus the float64 oracle's own (u64): the bound is linear in u
+        u = UNIT_ROUNDOFF[precision_of(inputs["x0"])] + UNIT_ROUNDOFF["float64"]
         c = {k: float(inputs[k]) for k in CONSTANTS}
         dt, g, damp, bounce, rad = c["dt"], c["gravity"], c["damping"], c["bounce"], c["radius"]
         lo, hi = -1.0 + rad, 1.0 - rad

@@ -266,7 +266,8 @@ class Projectile(Scenario):
         return out
 
     def oracle(self, params: ProjectileParams, inputs) -> dict[str, np.ndarray]:
-        u = UNIT_ROUNDOFF[precision_of(inputs["v0"])]
+        # the port's rounding (u) plus the float64 oracle's own (u64): the bounds are linear in u
+        u = UNIT_ROUNDOFF[precision_of(inputs["v0"])] + UNIT_ROUNDOFF["float64"]
         c = {k: float(inputs[k]) for k in CONSTANTS}
         lr = c["lr"]
         v = inputs["v0"].astype(np.float64)
