@@ -63,6 +63,10 @@ class Backend:
         """Block until everything launched by ``run`` has finished."""
         raise NotImplementedError
 
+    def memory(self, device: str) -> dict[str, Any]:
+        """Device memory figures the framework exposes (e.g. {'device_peak_bytes': ...}), if any."""
+        return {}
+
     def kernel(self, scenario: str) -> type[ScenarioKernel]:
         module = importlib.import_module(f"{type(self).__module__}.{scenario}")
         return module.Kernel

@@ -31,7 +31,8 @@ class Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="python -m compare", description=__doc__)
-    p.add_argument("command", help="list | all | " + " | ".join(scenarios.SCENARIOS))
+    p.add_argument("command", help="list | all | report | " + " | ".join(scenarios.SCENARIOS))
+    p.add_argument("files", nargs="*", help="report: results.json files to merge")
     p.add_argument("--backends", default=",".join(backends.BACKENDS), help="comma-separated")
     p.add_argument("--devices", default=",".join(backends.DEVICES), help="cpu,cuda")
     p.add_argument("--precision", default=",".join(PRECISIONS), help="float32,float64")
@@ -290,11 +291,39 @@ def cmd_run(args, chosen, argv) -> int:
     return EXIT_FAIL if bad else EXIT_OK
 
 
+def cmd_report(args) -> int:
+    """Rebuild tables and plots from saved results.json files (merged), without running anything.
+    Records from different machines are told apart by a 'machine' field (GPU model or host)."""
+    if not args.files:
+        raise ParamError("report needs at least one results.json")
+    records, envs = [], []
+    for f in args.files:
+        try:
+            data = json.loads(Path(f).read_text())
+            recs, env = data["records"], data["environment"]
+        except (OSError, ValueError, KeyError) as exc:
+            raise ParamError(f"cannot read results file {f}: {exc}") from None
+        machine = (env.get("gpus") or [{}])[0].get("name") or env.get("hostname", "?")
+        for r in recs:
+            r.setdefault("machine", machine)
+        records += recs
+        envs.append(env)
+    out = Path(args.out)
+    report.write_results(out, {"merged_from": args.files, "environments": envs}, records)
+    if not args.no_plots:
+        (out / "plots").mkdir(parents=True, exist_ok=True)
+        report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")
+    print(report.tables(records))
+    return EXIT_OK
+
+
 def main(argv: list[str]) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command == "list":
             return cmd_list()
+        if args.command == "report":
+            return cmd_report(args)
         if args.command == "all":
             chosen = list(scenarios.SCENARIOS.values())
         else:

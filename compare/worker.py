@@ -40,6 +40,12 @@ def jsonable(x: Any) -> Any:
     return x
 
 
+def peak_rss_bytes() -> int:
+    """Peak resident set size of this worker (the cell alone: each cell has its own process)."""
+    import resource
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024   # Linux reports KiB
+
+
 def injected_fault(spec: dict[str, Any]) -> str | None:
     """Test hook: COMPARE_FAULT="<scenario>/<backend>:<kind>" (kind: crash, hang, raise, mismatch)
     makes matching cells misbehave, so the driver's handling of each failure can be tested."""
@@ -94,6 +100,7 @@ def run_cell(spec: dict[str, Any], out_dir: Path) -> dict[str, Any]:
                   **{k: v for k, v in check.details.items()}},
         "work": work,
         "throughput": {f"{k}_per_s": v / t["median_s"] for k, v in work.items() if t["median_s"] > 0},
+        "memory": {"peak_host_rss_bytes": peak_rss_bytes(), **be.memory(device)},
         "info": kernel.info(),
         "host": platform.node(),
         "versions": be.versions(),
