@@ -317,7 +317,13 @@ def cmd_report(args) -> int:
     return EXIT_OK
 
 
+SUBCOMMANDS = {"stress": "compare.stress", "sweep": "compare.sweep"}   # each has its own main(argv)
+
+
 def main(argv: list[str]) -> int:
+    if argv and argv[0] in SUBCOMMANDS:
+        import importlib
+        return importlib.import_module(SUBCOMMANDS[argv[0]]).main(argv[1:])
     try:
         args = build_parser().parse_args(argv)
         if args.command == "list":
@@ -325,7 +331,7 @@ def main(argv: list[str]) -> int:
         if args.command == "report":
             return cmd_report(args)
         if args.command == "all":
-            chosen = list(scenarios.SCENARIOS.values())
+            chosen = [sc for sc in scenarios.SCENARIOS.values() if sc.in_all]
         else:
             chosen = [scenarios.get(args.command)]
         return cmd_run(args, chosen, argv)

@@ -106,6 +106,7 @@ class Scenario:
     quick: ClassVar[dict[str, Any]] = {}   # overrides used by --quick (small sizes for CI)
     outputs: ClassVar[tuple[str, ...]]     # names of the arrays a backend returns
     has_gradient: ClassVar[bool] = False
+    in_all: ClassVar[bool] = True          # False for measurement-only scenarios (launch, copy)
 
     # ---- parameters -------------------------------------------------------------------------
     def params(self, overrides: dict[str, Any] | None = None, quick: bool = False):
