@@ -13,9 +13,24 @@ from typing import Any
 from ..base import Backend, not_installed
 
 
+# Depth of Taichi's autodiff stacks, process-global and fixed at ti.init. The projectile's fused
+# backward kernel needs steps + 1 entries per stack; Taichi cannot size stacks for a runtime trip
+# count and would fall back to 32, overflowing silently. Stacks are allocas: the CPU thread's own
+# stack, per-thread local memory on CUDA, where 4096 fails to launch (CUDA_ERROR_INVALID_VALUE,
+# H200) and 1024 runs. Longer rollouts take the one-launch-per-step path (see projectile.py).
+AD_STACK_SIZE = {"cpu": 4096, "cuda": 1024}
+
+
 def _quiet() -> None:
     # No network version check from inside a benchmark worker.
     os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
+
+
+def config_info() -> dict[str, Any]:
+    """How this process's Taichi was initialised, for the kernels' info()."""
+    from taichi.lang import impl
+    cfg = impl.current_cfg()
+    return {"fast_math": bool(cfg.fast_math), "arch": str(cfg.arch).rsplit(".", 1)[-1]}
 
 
 def ti_arch(device: str):
@@ -51,6 +66,9 @@ class TaichiBackend(Backend):
         return {"taichi": ".".join(map(str, ti.__version__))}
 
     def setup(self, device: str, precision: str, variant: str) -> None:
+        if variant not in self.variants:
+            raise ValueError(f"taichi variant must be one of {', '.join(self.variants)}, "
+                             f"got {variant!r}")
         _quiet()
         import taichi as ti
         ti.init(arch=ti_arch(device), enable_fallback=False,
@@ -61,7 +79,7 @@ class TaichiBackend(Backend):
                 # No on-disk kernel cache: first_call_s then always includes compilation, and
                 # concurrent workers never share (or race on) a cache directory.
                 offline_cache=False,
-                random_seed=0, log_level="warn")
+                ad_stack_size=AD_STACK_SIZE[device], random_seed=0, log_level="warn")
 
     def synchronize(self, device: str, result: Any) -> None:
         import taichi as ti

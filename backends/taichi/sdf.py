@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import taichi as ti
 
+from . import config_info
 from ..base import ScenarioKernel
 
 
@@ -44,4 +45,4 @@ class Kernel(ScenarioKernel):
         return {"image": self.image.to_numpy()}
 
     def info(self) -> dict[str, Any]:
-        return {"storage": "field"}
+        return {"storage": "field", **config_info()}
