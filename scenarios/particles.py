@@ -107,9 +107,9 @@ class Particles(Scenario):
         ex = np.zeros_like(x); ey = np.zeros_like(x); eu = np.zeros_like(x); ev = np.zeros_like(x)
         margin = np.full(x.shape, np.inf); ill = np.zeros(x.shape, dtype=bool)
         gdt = g * dt
-        frames = []
+        frames, frame_bounds = [], []
         if params.record_every:
-            frames.append((x.copy(), y.copy()))
+            frames.append((x.copy(), y.copy())); frame_bounds.append(np.maximum(ex, ey))
         for s in range(params.steps):
             vy = vy + gdt
             ev = ev + u * (np.abs(vy) + 2.0 * abs(gdt))
@@ -132,13 +132,14 @@ class Particles(Scenario):
             x = np.where(hit, hi, x); ex = np.where(hit, 0.0, ex)
             vx = np.where(hit, -bounce * vx, vx); eu = np.where(hit, bounce * eu + u * np.abs(vx), eu)
             if params.record_every and (s + 1) % params.record_every == 0:
-                frames.append((x.copy(), y.copy()))
+                frames.append((x.copy(), y.copy())); frame_bounds.append(np.maximum(ex, ey))
         out = {"x": x, "y": y, "vx": vx, "vy": vy,
                "error_bound": np.maximum.reduce([ex, ey, eu, ev]), "margin": margin,
                "ill_conditioned": ill}
         if params.record_every:
             out["traj_x"] = np.stack([f[0] for f in frames])
             out["traj_y"] = np.stack([f[1] for f in frames])
+            out["traj_bound"] = np.stack(frame_bounds)
         return out
 
     @staticmethod
@@ -163,10 +164,18 @@ class Particles(Scenario):
             "worst_error_over_bound": float(np.max(err[good] / np.maximum(bound[good], 1e-300)))
             if good.any() else 0.0,
         }
-        if params.record_every and "traj_x" in outputs:
-            details["trajectory_shape_ok"] = tuple(np.shape(outputs["traj_x"])) == \
-                (n_frames(params), params.n)
-            ok = ok and details["trajectory_shape_ok"]
+        if params.record_every:
+            # every recorded frame of every well-conditioned particle within its bound at that time
+            shape = (n_frames(params), params.n)
+            tx, ty = (np.asarray(outputs.get(k, np.empty(0)), np.float64) for k in ("traj_x", "traj_y"))
+            if tx.shape != shape or ty.shape != shape:
+                details["trajectory"] = f"shape {tx.shape}/{ty.shape}, expected {shape}"
+                ok = False
+            else:
+                terr = np.maximum(np.abs(tx - reference["traj_x"]), np.abs(ty - reference["traj_y"]))
+                tok = bool(np.all(terr[:, good] <= reference["traj_bound"][:, good]))
+                details["trajectory_max_error"] = float(terr[:, good].max()) if good.any() else 0.0
+                ok = ok and tok
         return Check(worst if finite else math.inf, tol, ok, details)
 
     def distance(self, params, inputs, outputs, other) -> float:

@@ -251,6 +251,17 @@ def closed_form(c: dict[str, float], steps: int, v: tuple[float, float]) -> tupl
     return dx * dx + dy * dy, np.array([2.0 * dx * t, 2.0 * dy * t])
 
 
+def _ratio(err, bound) -> float:
+    """max(err/bound); an exact zero with a zero bound (e.g. a gradient component killed by a
+    final hard-contact clamp) is 0, a nonzero error against a zero bound is inf."""
+    err = np.atleast_1d(np.asarray(err, np.float64))
+    bound = np.atleast_1d(np.asarray(bound, np.float64))
+    r = np.divide(err, bound, out=np.zeros_like(err), where=bound > 0)
+    r[(bound <= 0) & (err != 0)] = np.inf
+    r[~np.isfinite(err)] = np.inf
+    return float(np.max(r))
+
+
 class Projectile(Scenario):
     name = "projectile"
     title = "Differentiable projectile"
@@ -315,8 +326,7 @@ class Projectile(Scenario):
             return Check(math.inf, 1.0, False, {"reason": f"loss_history shape {hist.shape} != {ref_hist.shape}"})
         tol_hist = reference["tol_history"]
         e_hist = np.abs(hist - ref_hist)
-        ratios = [e_loss / tol_loss, float(np.max(e_grad_vec / tol_grad_vec)),
-                  float(np.max(e_hist / tol_hist))]
+        ratios = [_ratio(e_loss, tol_loss), _ratio(e_grad_vec, tol_grad_vec), _ratio(e_hist, tol_hist)]
         finite = all(math.isfinite(r) for r in ratios) and np.all(np.isfinite(hist))
         worst = max(ratios) if finite else math.inf
         rel_grad = e_grad / max(float(np.max(np.abs(reference["grad"]))), 1e-300)

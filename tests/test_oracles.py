@@ -87,3 +87,27 @@ def test_saxpy_and_sdf_checks_fail_on_one_bad_value():
         assert sc.check(p, inputs, out, ref, "float32").ok
         out[key].flat[7] += 1e-3
         assert not sc.check(p, inputs, out, ref, "float32").ok
+
+
+def test_particle_trajectory_values_are_checked():
+    sc = scenarios.get("particles")
+    p = sc.params({"n": 20, "steps": 30, "record_every": 5})
+    inputs = sc.inputs(p, "float64")
+    ref = sc.oracle(p, inputs)
+    out = {k: ref[k].copy() for k in ("x", "y", "vx", "vy", "traj_x", "traj_y")}
+    assert sc.check(p, inputs, out, ref, "float64").ok
+    out["traj_y"][3, 4] += 1e-6
+    assert not sc.check(p, inputs, out, ref, "float64").ok
+
+
+def test_projectile_zero_bound_component_is_not_nan():
+    """A final hard-contact clamp zeroes a gradient component and its bound: 0/0 counts as exact."""
+    sc = scenarios.get("projectile")
+    p = sc.params({"steps": 38, "dt": 4.5 / 38, "contact": "hard", "iters": 2})
+    inputs = sc.inputs(p, "float64")
+    ref = sc.oracle(p, inputs)
+    assert ref["tol_grad"][0][1] == 0
+    out = {k: np.copy(ref[k]) for k in sc.outputs}
+    assert sc.check(p, inputs, out, ref, "float64").ok
+    out["grad"][1] = 1e-300
+    assert not sc.check(p, inputs, out, ref, "float64").ok
