@@ -40,7 +40,10 @@ def fmt_gradient(rec: dict[str, Any]) -> str:
     if not g:
         return "-"
     rel = g.get("vs_oracle_rel")
-    return f"{g.get('method', '?')}: {fmt_num(rel)} rel vs {g.get('reference', '?')}"
+    text = f"{g.get('method', '?')}: {fmt_num(rel)} rel vs {g.get('reference', '?')}"
+    if g.get("vs_fd64_rel") is not None:
+        text += f", {fmt_num(g['vs_fd64_rel'])} vs fd64"
+    return text
 
 
 def row(rec: dict[str, Any]) -> list[str]:

@@ -2,12 +2,15 @@
 from __future__ import annotations
 
 from .base import PRECISIONS, Check, ParamError, Scenario
+from .copy import Copy
+from .launch import Launch
 from .particles import Particles
 from .projectile import Projectile
 from .saxpy import Saxpy
 from .sdf import Sdf
 
-SCENARIOS: dict[str, Scenario] = {s.name: s for s in (Saxpy(), Sdf(), Particles(), Projectile())}
+SCENARIOS: dict[str, Scenario] = {s.name: s for s in (Saxpy(), Sdf(), Particles(), Projectile(),
+                                                       Launch(), Copy())}
 
 
 def get(name: str) -> Scenario:
