@@ -18,8 +18,9 @@ Error check. Contacts make the final state discontinuous in the data: a particle
 wall within rounding distance of the threshold may bounce one step earlier or later in another
 precision, which changes its state by O(|v| dt). The oracle therefore carries, per particle, a
 first-order running bound on the rounding error of each coordinate (every operation adds u times
-the size of its operands; clamps reset position error to 0 and scale velocity error by the
-restitution factor) and the smallest distance to a contact threshold seen during the run.
+the size of its operands; a floor clamp resets the position error to 0, a wall clamp to the
+rounding of +-1 -/+ radius, and clamps scale velocity error by the restitution factor)
+and the smallest distance to a contact threshold seen during the run.
 The float64 oracle itself obeys the same bound with u64, so the bound is computed with u + u64.
 A particle is *well-conditioned* if that distance always exceeds the position error bound at the
 time: then every port that rounds no worse than the bound takes the same branches, and its final
@@ -126,10 +127,10 @@ class Particles(Scenario):
             vy = np.where(hit, -bounce * vy, vy); ev = np.where(hit, bounce * ev + u * np.abs(vy), ev)
             vx = np.where(hit, damp * vx, vx); eu = np.where(hit, damp * eu + u * np.abs(vx), eu)
             hit = x < lo
-            x = np.where(hit, lo, x); ex = np.where(hit, 0.0, ex)
+            x = np.where(hit, lo, x); ex = np.where(hit, u * abs(lo), ex)   # the port rounds -1 + radius
             vx = np.where(hit, -bounce * vx, vx); eu = np.where(hit, bounce * eu + u * np.abs(vx), eu)
             hit = x > hi
-            x = np.where(hit, hi, x); ex = np.where(hit, 0.0, ex)
+            x = np.where(hit, hi, x); ex = np.where(hit, u * abs(hi), ex)
             vx = np.where(hit, -bounce * vx, vx); eu = np.where(hit, bounce * eu + u * np.abs(vx), eu)
             if params.record_every and (s + 1) % params.record_every == 0:
                 frames.append((x.copy(), y.copy())); frame_bounds.append(np.maximum(ex, ey))
