@@ -1,0 +1,206 @@
+"""The stress suite: its pure verdict rules on synthetic data, and a quick CPU run of two experiments."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, require_device
+from compare import stress
+
+pytestmark = pytest.mark.cli
+
+
+# ---- classifier -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("history,expected", [
+    ([100.0 * 0.5 ** k for k in range(40)], "converged"),         # 1e-12 of the start
+    ([100.0, 50.0, 40.0, 35.0], "stalled"),                        # better, not 1e-6 of the start
+    ([100.0] * 10, "stalled"),                                     # no progress, no growth
+    ([100.0, 100.05], "stalled"),                                  # within 0.1 %: rounding, not growth
+    ([100.0, 200.0, 400.0], "diverged"),                           # grew
+    ([100.0, 1e3, 1e6, math.inf], "diverged"),                     # overflowed
+    ([100.0, 1.0, math.nan, 0.0], "diverged"),                     # NaN anywhere
+    ([100.0, 1e8, 1e-5], "converged"),                             # a spike does not matter at the end
+    ([], "diverged"),
+])
+def test_classify(history, expected):
+    assert stress.classify(history) == expected
+
+
+def test_classify_gradient_descent_on_a_quadratic_matches_the_stability_bound():
+    """GD on L = lam/2 v^2 contracts by |1 - lr lam| per step: stable iff lr < 2/lam."""
+    lam = 40.5
+    def hist(lr):
+        v = 1.0
+        out = []
+        for _ in range(61):
+            out.append(0.5 * lam * v * v)
+            v -= lr * lam * v
+        return out
+    assert stress.classify(hist(0.01)) == "converged"
+    assert stress.classify(hist(0.049)) == "stalled"          # |1 - lr lam| = 0.98: slow
+    assert stress.classify(hist(0.08)) == "diverged"
+    lrs = [0.01, 0.045, 0.055, 0.08]
+    below, first = stress.observed_boundary(lrs, [stress.classify(hist(lr)) for lr in lrs])
+    assert below == 0.045 and first == 0.055 and below < 2 / lam <= first
+
+
+def test_observed_boundary_without_divergence():
+    assert stress.observed_boundary([0.1, 0.2], ["stalled", "converged"]) == (0.2, None)
+
+
+# ---- race detector ----------------------------------------------------------------------------
+
+def _outputs(seed=0):
+    rng = np.random.default_rng(seed)
+    return {k: rng.standard_normal(100).astype(np.float32) for k in ("x", "y", "vx", "vy")}
+
+
+def test_bitwise_differences_counts_elements_and_treats_equal_nans_as_equal():
+    a = _outputs()
+    b = {k: v.copy() for k, v in a.items()}
+    assert stress.bitwise_differences(a, b) == 0
+    a["x"][3] = b["x"][3] = np.nan
+    assert stress.bitwise_differences(a, b) == 0
+    b["y"][7] = np.nextafter(b["y"][7], np.float32(np.inf))      # one ulp
+    b["vx"][0] = -b["vx"][0]
+    assert stress.bitwise_differences(a, b) == 2
+    assert stress.bitwise_differences({"z": np.float32([0.0])}, {"z": np.float32([-0.0])}) == 1
+    assert stress.bitwise_differences(a, {**b, "extra": b["x"]}) == -1
+    assert stress.bitwise_differences({"x": a["x"]}, {"x": a["x"][:5]}) == -1
+
+
+@pytest.mark.parametrize("device,differing,oracle_ok,flagged", [
+    ("cuda", 37, (True, True), True),           # runs disagree
+    ("cuda", 0, (False, False), True),          # deterministic, but wrong
+    ("cuda", 0, (True, False), True),
+    ("cuda", -1, (True, True), True),           # shapes differ
+    ("cuda", 0, (True, True), False),           # clean on a GPU: the control was missed
+    ("cpu", 0, (True, True), False),            # clean on the CPU: threads ran in order
+    ("cpu", 5, (True, True), True),
+])
+def test_race_verdict(device, differing, oracle_ok, flagged):
+    verdict = stress.race_verdict(device, differing, oracle_ok)
+    assert verdict.startswith("RACE DETECTED") == flagged
+    if not flagged:
+        assert verdict == ("race not observable on CPU" if device == "cpu" else "MISSED: race not flagged")
+
+
+def test_race_detector_flags_a_synthetic_read_before_write():
+    """What the seed's one-launch kernel does when step s is read before step s-1 is written: the
+    detector must flag the result through the oracle check and through run-to-run differences."""
+    clean = _outputs()
+    stale = {k: v.copy() for k, v in clean.items()}
+    stale["y"][::3] = 0.0                       # some threads read the zeroed history
+    differing = stress.bitwise_differences(clean, stale)
+    assert differing > 0
+    assert stress.race_verdict("cuda", differing, (True, False)).startswith("RACE DETECTED")
+
+
+# ---- other rules ------------------------------------------------------------------------------
+
+def test_contacts_and_first_flips():
+    radius = 0.03
+    lo = float(np.float32(-1) + np.float32(radius))
+    ty = np.array([[0.5, radius], [radius, 0.4], [0.2, 0.1]])
+    tx = np.array([[0.0, 0.0], [0.0, 0.0], [lo, 0.0]])
+    c = stress.contacts(tx, ty, radius, np.float32)
+    assert c.tolist() == [[False, True], [True, False], [True, False]]
+    other = c.copy(); other[1, 0] = False
+    assert stress.first_flips(c, other).tolist() == [1, -1]
+
+
+def test_energy_bound_holds_for_the_float64_oracle():
+    """The derived per-particle bound (bounce < 1) holds along the oracle's own long rollout."""
+    import scenarios
+    sc = scenarios.get("particles")
+    p = sc.params({"n": 64, "steps": 2000, "bounce": 0.95})
+    inp = sc.inputs(p, "float64")
+    ref = sc.oracle(p, inp)
+    g, r = float(inp["gravity"]), float(inp["radius"])
+    e = stress.energy(ref["x"], ref["y"], ref["vx"], ref["vy"], g, r)
+    assert np.all(e <= stress.energy_bound(inp))
+
+
+def test_loss_mispredictions_separates_jumps_from_curvature_and_rounding():
+    vy = np.linspace(0.0, 1.0, 11)
+    smooth = [[0.0, 2 * v] for v in vy]                      # L = v^2, exact gradient
+    assert stress.loss_mispredictions(vy, vy ** 2, smooth) == (0, 0)
+    jump = vy ** 2 + (vy > 0.55)                             # a step the gradient cannot see
+    assert stress.loss_mispredictions(vy, jump, smooth) == (1, 0)
+    flat = np.full(11, 25.0) + 1e-7 * (-1.0) ** np.arange(11)  # rounding noise on a flat loss
+    assert stress.loss_mispredictions(vy, flat, [[0.0, 0.0]] * 11, noise_rel=2 ** -23) == (0, 10)
+
+
+def test_ulps_of_correctly_rounded_results_are_at_most_half():
+    ref = np.random.default_rng(1).standard_normal(1000)
+    assert np.max(stress.ulps(ref.astype(np.float32), ref)) <= 0.5
+    assert stress.ulps(np.float32([1.0 + 2 ** -23]), np.array([1.0]))[0] == 1.0
+
+
+def test_emulation_finds_the_overflow_step():
+    """bounce > 1 at the walls: the horizontal speed overflows sooner in float32 than in float64."""
+    s32 = stress.emulate_first_nonfinite({"n": 16, "bounce": 3.0}, "float32", 5000)
+    s64 = stress.emulate_first_nonfinite({"n": 16, "bounce": 3.0}, "float64", 5000)
+    assert s32 is not None and s64 is not None and s32 < s64
+    assert stress.emulate_first_nonfinite({"n": 16, "bounce": 0.5}, "float32", 500) is None
+
+
+# ---- command line -----------------------------------------------------------------------------
+
+def run_stress(*args):
+    return subprocess.run([sys.executable, "-m", "compare", "stress", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=900)
+
+
+@pytest.mark.parametrize("args,needle", [
+    (("--only", "bogus"), "unknown only"),
+    (("--backends", "fortran"), "unknown backend"),
+    (("--devices", "tpu"), "unknown device"),
+    (("--jobs", "0"), "--jobs"),
+    (("--merge", "/nonexistent/stress.json"), "cannot read"),
+    (("--frobnicate",), "unrecognized"),
+])
+def test_bad_usage_exits_2_with_one_line(args, needle):
+    p = run_stress(*args)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], p.stderr
+
+
+def test_quick_warp_cpu_two_experiments(tmp_path):
+    require_device("warp", "cpu")
+    p = run_stress("--quick", "--backends", "warp", "--devices", "cpu", "--only",
+                   "particles-inf,races", "--out", str(tmp_path), "--jobs", "2")
+    assert p.returncode == 0, p.stderr[-3000:]
+    data = json.loads((tmp_path / "stress.json").read_text())
+    rows = data["rows"]
+    assert {r["experiment"] for r in rows} == {"particles-inf", "races"}
+    for r in rows:
+        assert set(stress.COLUMNS) <= set(r) and r["verdict"]
+    inf = [r for r in rows if r["experiment"] == "particles-inf"]
+    assert {r["precision"] for r in inf} == {"float32", "float64"}
+    for r in inf:   # the overflow step is found and agrees with the NumPy emulation
+        assert isinstance(r["value"], int) and "= NumPy emulation" in r["verdict"], r
+    racy = [r for r in rows if "racy" in r["setting"]]
+    assert len(racy) == 1 and racy[0]["verdict"] == "race not observable on CPU"
+    assert all(r["verdict"] == "bitwise reproducible" for r in rows
+               if r["experiment"] == "races" and "racy" not in r["setting"])
+    md = (tmp_path / "stress.md").read_text()
+    assert "## particles-inf" in md and "## races" in md
+    # a second run of one experiment keeps the other's rows
+    p = run_stress("--quick", "--backends", "warp", "--devices", "cpu", "--only", "particles-inf",
+                   "--out", str(tmp_path), "--no-plots")
+    assert p.returncode == 0, p.stderr[-3000:]
+    again = json.loads((tmp_path / "stress.json").read_text())["rows"]
+    assert {r["experiment"] for r in again} == {"particles-inf", "races"}
+    # parts run separately (one GPU call each) merge into one report
+    p = run_stress("--merge", str(tmp_path / "stress.json"), "--out", str(tmp_path / "merged"), "--no-plots")
+    assert p.returncode == 0, p.stderr
+    merged = json.loads((tmp_path / "merged" / "stress.json").read_text())["rows"]
+    assert len(merged) == len(again) and (tmp_path / "merged" / "stress.md").exists()
