@@ -1,23 +1,86 @@
-"""The one timing protocol every backend is measured with.
+"""The one timing protocol every backend is measured with (docs/measurement.md is the long form).
 
-1. first call: build + compile + run, synchronised (reported as ``first_call_s``, never mixed
-   into the steady state);
+1. first call: compile + one run, synchronised, on the wall clock (``first_call_s``, never mixed
+   into the steady state); the worker runs it against empty framework caches (``cache`` policy);
 2. ``warmup`` more calls, untimed;
-3. timed calls, each ``run(); synchronize()`` on a monotonic wall clock (time.perf_counter),
-   until at least ``repeat`` calls *and* ``min_time`` seconds have been measured, stopping early
-   only when ``max_time`` is exceeded with at least 3 calls;
+3. timed calls, each ``run(); synchronize()``, until at least ``repeat`` calls *and* ``min_time``
+   seconds (wall clock) have been measured, stopping early only when ``max_time`` is exceeded with
+   at least 3 calls;
 4. median, inter-quartile range and min of the per-call times.
+Every timed call is measured on the wall clock (time.perf_counter, around run + synchronise). On a
+GPU, where the framework offers device events (Warp, Numba), the same call is also bracketed by
+two events on the stream the kernels run on; the event times are then the primary figures
+(``clock`` says which), and the wall-clock figures stay in ``wall``.
 Host<->device transfers are outside the timed calls (uploads in the kernel's constructor,
-downloads in ``outputs()``); both are timed separately.
+downloads in ``outputs()``); both are timed separately by the worker.
 """
 from __future__ import annotations
 
 import time
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
 CLOCK = "wall clock (time.perf_counter) around run() + backend synchronize"
+EVENT_CLOCKS = {"warp": "CUDA events (wp.Event on the device's current stream) around run()",
+                "numba": "CUDA events (numba.cuda.event on the default stream) around run()"}
+
+
+class EventTimer(Protocol):
+    """Device events around one call: ``start()``, run, ``stop()``, synchronise, ``elapsed_s()``."""
+    def start(self) -> None: ...
+    def stop(self) -> None: ...
+    def elapsed_s(self) -> float: ...
+
+
+class _WarpEvents:
+    def __init__(self, device: str) -> None:
+        import warp as wp
+        self.wp, self.dev = wp, "cuda:0" if device == "cuda" else device
+        self.a = wp.Event(self.dev, enable_timing=True)
+        self.b = wp.Event(self.dev, enable_timing=True)
+
+    def start(self) -> None:
+        self.wp.get_stream(self.dev).record_event(self.a)
+
+    def stop(self) -> None:
+        self.wp.get_stream(self.dev).record_event(self.b)
+
+    def elapsed_s(self) -> float:
+        return self.wp.get_event_elapsed_time(self.a, self.b) * 1e-3   # milliseconds
+
+
+class _NumbaEvents:
+    def __init__(self, device: str) -> None:
+        from numba import cuda
+        self.cuda = cuda
+        self.a, self.b = cuda.event(timing=True), cuda.event(timing=True)
+
+    def start(self) -> None:
+        self.a.record()
+
+    def stop(self) -> None:
+        self.b.record()
+
+    def elapsed_s(self) -> float:
+        self.b.synchronize()
+        return self.cuda.event_elapsed_time(self.a, self.b) * 1e-3       # milliseconds
+
+
+# Frameworks whose public API has timing events (Taichi and JAX have none around a call).
+# TODO(integrator): this belongs behind a Backend hook in backends/base.py; it lives here because
+# that contract is not this module's to change.
+_EVENTS: dict[str, Callable[[str], EventTimer]] = {"warp": _WarpEvents, "numba": _NumbaEvents}
+
+
+def event_timer(backend: str, device: str, mode: str = "auto") -> tuple[EventTimer | None, str]:
+    """(timer or None, description of the primary clock) for a cell. mode: 'auto' | 'wall'."""
+    if mode == "wall" or device == "cpu" or backend not in _EVENTS:
+        return None, CLOCK
+    try:
+        return _EVENTS[backend](device), EVENT_CLOCKS[backend]
+    except Exception as exc:  # e.g. the CUDA simulator: say why and fall back
+        return None, f"{CLOCK} (events unavailable: {type(exc).__name__}: {exc})"
 
 
 def call(run: Callable[[], Any], sync: Callable[[Any], None]) -> float:
@@ -26,21 +89,54 @@ def call(run: Callable[[], Any], sync: Callable[[Any], None]) -> float:
     return time.perf_counter() - t0
 
 
+def timed_call(run: Callable[[], Any], sync: Callable[[Any], None],
+               timer: EventTimer | None = None) -> tuple[float, float | None]:
+    """(wall seconds, event seconds or None) of one synchronised call."""
+    if timer is None:
+        return call(run, sync), None
+    t0 = time.perf_counter()
+    timer.start()
+    r = run()
+    timer.stop()
+    sync(r)
+    wall = time.perf_counter() - t0
+    return wall, timer.elapsed_s()
+
+
 def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: int = 10,
                  warmup: int = 2, min_time: float = 0.2, max_time: float = 10.0,
-                 max_calls: int = 100_000) -> dict[str, Any]:
+                 max_calls: int = 100_000, timer: EventTimer | None = None) -> dict[str, Any]:
+    """Median/IQR/min of the primary clock (events if ``timer``, else wall), plus ``wall``."""
     for _ in range(warmup):
         call(run, sync)
-    times: list[float] = []
+    walls: list[float] = []
+    events: list[float] = []
     total = 0.0
-    while len(times) < max_calls:
-        t = call(run, sync)
-        times.append(t)
-        total += t
-        enough = len(times) >= repeat and total >= min_time
-        if enough or (total >= max_time and len(times) >= min(3, repeat)):
+    events_error = None
+    while len(walls) < max_calls:
+        try:
+            wall, ev = timed_call(run, sync, timer)
+        except Exception as exc:  # an event API failing must not cost the cell: fall back to wall
+            if timer is None:
+                raise
+            events_error = f"{type(exc).__name__}: {exc}"
+            timer, events = None, []
+            sync(None)
+            continue
+        walls.append(wall)
+        if ev is not None:
+            events.append(ev)
+        total += wall
+        enough = len(walls) >= repeat and total >= min_time
+        if enough or (total >= max_time and len(walls) >= min(3, repeat)):
             break
-    return summarise(times)
+    wall_stats = summarise(walls)
+    out = summarise(events) if timer is not None else dict(wall_stats)
+    out.update({"warmup": warmup, "timed_total_s": total,
+                "wall": {k: wall_stats[k] for k in ("median_s", "iqr_s", "min_s")}})
+    if events_error:
+        out["events_error"] = events_error
+    return out
 
 
 def summarise(times: list[float]) -> dict[str, Any]:

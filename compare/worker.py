@@ -49,9 +49,21 @@ def jsonable(x: Any) -> Any:
 
 
 def peak_rss_bytes() -> int:
-    """Peak resident set size of this worker (the cell alone: each cell has its own process)."""
+    """Peak resident set size of this worker (the cell alone: each cell has its own process).
+
+    VmHWM (Linux) belongs to this process image only. getrusage's ru_maxrss would not do: Linux
+    carries the parent's high-water mark across fork + exec, so a large driver process (a sweep
+    holding references and outputs) would set a floor under every cell's figure.
+    """
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024                          # kB
+    except (OSError, ValueError, IndexError):
+        pass
     import resource
-    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024   # Linux reports KiB
+    scale = 1 if sys.platform == "darwin" else 1024                          # bytes on macOS, KiB on Linux
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * scale
 
 
 def injected_fault(spec: dict[str, Any]) -> str | None:
@@ -122,7 +134,8 @@ class Nvml:
 
     def device_used(self) -> int:
         mem = _NvmlMem()
-        self.lib.nvmlDeviceGetMemoryInfo(self.handle, ctypes.byref(mem))
+        if self.lib.nvmlDeviceGetMemoryInfo(self.handle, ctypes.byref(mem)) != 0:
+            raise OSError("nvmlDeviceGetMemoryInfo failed")
         return int(mem.used)
 
     def process_used(self) -> int | None:
@@ -141,8 +154,11 @@ class Nvml:
         return None
 
     def sample(self) -> None:
-        self.peak_device = max(self.peak_device, self.device_used())
-        mine = self.process_used()
+        try:
+            self.peak_device = max(self.peak_device, self.device_used())
+            mine = self.process_used()
+        except Exception:  # a reading lost is a sample lost, never the cell
+            return
         if mine is not None:
             self.peak_process = max(self.peak_process or 0, mine)
 
@@ -165,6 +181,14 @@ def open_nvml(device: str) -> tuple[Nvml | None, str | None]:
         return Nvml(), None
     except Exception as exc:  # no driver library, or no device
         return None, f"NVML unavailable: {type(exc).__name__}: {exc}"
+
+
+def device_memory(be: Any, device: str) -> dict[str, Any]:
+    """The backend's own device-memory figures; a failing reader is noted, not fatal."""
+    try:
+        return be.memory(device)
+    except Exception as exc:
+        return {"device_memory_error": f"{type(exc).__name__}: {exc}"}
 
 
 def sample_items(params: Any, inputs: dict[str, np.ndarray], outputs: dict[str, np.ndarray],
@@ -236,14 +260,15 @@ def run_cell(spec: dict[str, Any], out_dir: Path, cache_note: str = "") -> dict[
         "reason": "" if check.ok else f"error {check.error:.3g} exceeds tolerance {check.tolerance:.3g}",
         "params": dataclasses.asdict(params),
         "time": {"first_call_s": first_call_s, **t, "setup_s": setup_s, "download_s": download_s,
-                 "clock": clock, "timer": "events" if timer is not None else "wall",
+                 "clock": timing.CLOCK if "events_error" in t else clock,
+                 "timer": "events" if timer is not None and "events_error" not in t else "wall",
                  "first_call_clock": timing.CLOCK, "cache": cache_note},
         "error": {"vs_oracle": check.error, "tolerance": check.tolerance, "vs_warp": None,
                   **{k: v for k, v in check.details.items()},
                   "checked_items": f"{sampled[2]} of {params.n} (evenly spaced)" if sampled else "all"},
         "work": work,
         "throughput": {f"{k}_per_s": v / t["median_s"] for k, v in work.items() if t["median_s"] > 0},
-        "memory": {"peak_host_rss_bytes": peak_rss_bytes(), **be.memory(device),
+        "memory": {"peak_host_rss_bytes": peak_rss_bytes(), **device_memory(be, device),
                    **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})},
         "info": kernel.info(),
         "host": platform.node(),

@@ -115,5 +115,15 @@ class JaxBackend(Backend):
         import jax
         jax.block_until_ready(result)
 
+    def memory(self, device: str) -> dict[str, Any]:
+        """Peak bytes of JAX's GPU allocator (the worker disables preallocation); CPU: nothing."""
+        if device != "cuda":
+            return {}
+        stats = jax_device(device).memory_stats() or {}
+        if "peak_bytes_in_use" not in stats:
+            return {"device_memory_source": "jax memory_stats() has no peak_bytes_in_use"}
+        return {"device_peak_bytes": int(stats["peak_bytes_in_use"]),
+                "device_memory_source": "jax memory_stats() peak_bytes_in_use"}
+
 
 BACKEND = JaxBackend()

@@ -44,5 +44,16 @@ class WarpBackend(Backend):
         import warp as wp
         wp.synchronize_device(wp_device(device))
 
+    def memory(self, device: str) -> dict[str, Any]:
+        """High-water mark of Warp's CUDA memory pool (cudaMallocAsync); nothing on the CPU."""
+        if device != "cuda":
+            return {}
+        import warp as wp
+        dev = wp_device(device)
+        if not wp.is_mempool_enabled(dev):
+            return {"device_memory_source": "warp mempool disabled on this device (see nvml_*)"}
+        return {"device_peak_bytes": int(wp.get_mempool_used_mem_high(dev)),
+                "device_memory_source": "warp mempool high-water mark"}
+
 
 BACKEND = WarpBackend()

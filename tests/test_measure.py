@@ -1,0 +1,232 @@
+"""The measurement protocol (issue 6): launch/copy cells, timing records, roofline and Pareto math,
+converged references, and the sweep command on Warp/CPU in quick mode."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import backends
+from compare import cells, plots_measure, sweep, timing, worker
+from conftest import ROOT, require_device
+
+pytestmark = pytest.mark.cli
+
+
+# ---- launch and copy through the real worker path, every installed backend, CPU --------------
+@pytest.mark.parametrize("scenario,params", [("launch", {}), ("copy", {"n": 100_003})])
+@pytest.mark.parametrize("backend", list(backends.BACKENDS))
+def test_launch_and_copy_cells(backend, scenario, params):
+    require_device(backend, "cpu")
+    spec = {"scenario": scenario, "backend": backend, "device": "cpu", "precision": "float32",
+            "params": params, "repeat": 2, "min_time": 0.0}
+    rec, out = cells.run(spec, timeout=600)
+    assert rec["status"] == "ok", f"{rec.get('reason')}\n{rec.get('traceback', '')}"
+    assert rec["error"]["vs_oracle"] == 0.0 and rec["error"]["checked_items"] == "all"
+    t = rec["time"]
+    assert t["timer"] == "wall" and t["cache"].startswith("cold")
+    assert t["median_s"] == t["wall"]["median_s"] > 0 and t["first_call_s"] > 0
+    assert t["repeats"] >= 2 and t["warmup"] == 2
+    assert rec["memory"]["peak_host_rss_bytes"] > 0
+    assert not any(k.startswith(("device_", "nvml_")) for k in rec["memory"])   # CPU: none
+    assert out["out"].dtype == np.float32
+
+
+def test_check_sample_checks_evenly_spaced_items():
+    spec = {"scenario": "saxpy", "backend": "warp", "device": "cpu", "precision": "float32",
+            "params": {"n": 50_001}, "repeat": 1, "min_time": 0.0, "check_sample": 1000,
+            "save_outputs": False, "cache": "warm"}
+    require_device("warp", "cpu")
+    rec, out = cells.run(spec, timeout=600)
+    assert rec["status"] == "ok", rec.get("reason")
+    assert rec["error"]["checked_items"] == "1000 of 50001 (evenly spaced)"
+    assert rec["time"]["cache"].startswith("warm")
+    assert out is None
+
+
+def test_sample_items_only_for_per_item_scenarios():
+    import scenarios
+    sax = scenarios.get("saxpy")
+    p = sax.params({"n": 10})
+    inp = sax.inputs(p, "float32")
+    s_in, s_out, k = worker.sample_items(p, inp, {"out": inp["x"]}, 4)
+    assert k == 4 and s_in["x"].tolist() == inp["x"][[0, 3, 6, 9]].tolist()
+    assert np.ndim(s_in["a"]) == 0
+    assert worker.sample_items(p, inp, {"out": inp["x"]}, 10) is None      # n <= k: all
+    part = scenarios.get("particles")
+    p = part.params({"n": 10, "steps": 3, "record_every": 1})
+    inp = part.inputs(p, "float32")
+    assert worker.sample_items(p, inp, {"traj_x": np.zeros((4, 10))}, 4) is None
+
+
+# ---- timing --------------------------------------------------------------------------------
+class FakeEvents:
+    """Stands in for CUDA events: reports a fixed device time per call."""
+
+    def start(self):
+        pass
+
+    def stop(self):
+        pass
+
+    def elapsed_s(self):
+        return 1e-6
+
+
+def test_steady_state_reports_events_as_primary_and_wall_beside():
+    t = timing.steady_state(lambda: None, lambda r: None, repeat=5, min_time=0.0, timer=FakeEvents())
+    assert t["median_s"] == t["min_s"] == 1e-6 and t["iqr_s"] == 0.0 and t["repeats"] == 5
+    assert set(t["wall"]) == {"median_s", "iqr_s", "min_s"} and t["wall"]["median_s"] > 0
+    w = timing.steady_state(lambda: None, lambda r: None, repeat=3, min_time=0.0)
+    assert w["median_s"] == w["wall"]["median_s"]
+
+
+class BrokenEvents(FakeEvents):
+    def elapsed_s(self):
+        raise RuntimeError("no events here")
+
+
+def test_failing_events_fall_back_to_the_wall_clock():
+    t = timing.steady_state(lambda: None, lambda r: None, repeat=4, min_time=0.0,
+                            timer=BrokenEvents())
+    assert "no events here" in t["events_error"]
+    assert t["repeats"] == 4 and t["median_s"] == t["wall"]["median_s"]
+
+
+def test_event_timer_choice():
+    assert timing.event_timer("warp", "cpu") == (None, timing.CLOCK)
+    assert timing.event_timer("jax", "cuda") == (None, timing.CLOCK)
+    assert timing.event_timer("warp", "cuda", mode="wall") == (None, timing.CLOCK)
+
+
+# ---- roofline and Pareto math ---------------------------------------------------------------
+def _rec(role, backend, n, median, nbytes, wall=None, timer="wall", device="cuda"):
+    return {"sweep": "bandwidth", "role": role, "scenario": role, "backend": backend,
+            "device": device, "precision": "float32", "status": "ok", "params": {"n": n},
+            "work": {"bytes": nbytes},
+            "time": {"median_s": median, "timer": timer,
+                     "wall": {"median_s": wall or median, "iqr_s": 0.0, "min_s": wall or median}}}
+
+
+def test_roofline_and_bandwidth_rows():
+    recs = [_rec("copy", "a", 1 << 20, 1e-3, 2e9), _rec("copy", "b", 1 << 20, 2e-3, 2e9),
+            _rec("launch", "a", 1, 1e-5, 8, wall=1e-5),
+            _rec("saxpy", "a", 1 << 10, 2e-6, 3e3, wall=1.2e-5, timer="events"),
+            _rec("saxpy", "a", 1 << 28, 2e-3, 3e9, wall=2.1e-3, timer="events")]
+    roof = plots_measure.roofline(recs, "cuda")
+    assert roof["backend"] == "a" and math.isclose(roof["gbps"], 2000.0)
+    assert plots_measure.roofline(recs, "cpu") is None
+    small = plots_measure.bandwidth_row(recs[3], recs)
+    assert math.isclose(small["gbps"], 3e3 / 2e-6 / 1e9)              # primary clock (events)
+    assert math.isclose(small["wall_gbps"], 3e3 / 1.2e-5 / 1e9)
+    assert math.isclose(small["launch_share"], 1e-5 / 1.2e-5) and small["regime"] == "overhead-bound"
+    big = plots_measure.bandwidth_row(recs[4], recs)
+    assert math.isclose(big["roof_share"], 1500.0 / 2000.0) and big["regime"] == "bandwidth-bound"
+    assert plots_measure.regime(0.1, 0.2) == "mixed" and plots_measure.regime(None, None) == "-"
+    assert plots_measure.gbps(1e9, 0.5) == 2.0
+
+
+def test_pareto_front():
+    pts = [(1.0, 10.0), (2.0, 5.0), (3.0, 6.0), (4.0, 1.0), (2.0, 5.0), (0.5, 20.0), (5.0, 1.0)]
+    assert plots_measure.pareto_front(pts) == [True, True, False, True, True, True, False]
+    assert plots_measure.pareto_front([]) == []
+    assert plots_measure.pareto_front([(1.0, 1.0)]) == [True]
+
+
+# ---- converged references -------------------------------------------------------------------
+def test_references_converge():
+    import scenarios
+    sdf = scenarios.get("sdf")
+    errs = [sweep.sdf_error(sdf.oracle(sdf.params({"width": r, "height": r}), {})["image"])["error"]
+            for r in (32, 128, 512)]
+    assert errs[0] > errs[1] > errs[2] > 0
+    params = {"n": 16, "seed": 0}
+    ref = sweep.particles_positions(params, 0.001, 3000)
+    e = [sweep.particles_error(*sweep.particles_positions(params, dt, round(3.0 / dt)), *ref)["error"]
+         for dt in (0.02, 0.004)]
+    assert e[0] > e[1] > 0
+    p = {"contact": "none", "iters": 0}
+    exact = scenarios.get("projectile").params(p)       # continuous limit of the no-contact case
+    T = 4.5
+    x, y = exact.vx0 * T, exact.vy0 * T + 0.5 * exact.gravity * T * T
+    dx, dy = x - exact.target_x, y - exact.target_y
+    loss, grad = sweep.projectile_loss_grad(p, 0.0005, 9000)
+    assert abs(loss - (dx * dx + dy * dy)) / (dx * dx + dy * dy) < 1e-3
+    assert np.allclose(grad, [2 * dx * T, 2 * dy * T], rtol=1e-3)
+
+
+# ---- the sweep command ----------------------------------------------------------------------
+def run_sweep(*args):
+    return subprocess.run([sys.executable, "-m", "compare", "sweep", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=1200)
+
+
+@pytest.fixture(scope="module")
+def quick_sweep(tmp_path_factory):
+    require_device("warp", "cpu")
+    out = tmp_path_factory.mktemp("sweep")
+    p = run_sweep("all", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
+                  "float32", "--cache", "warm", "--out", str(out))
+    return p, out
+
+
+def test_sweep_quick_runs_everything_ok(quick_sweep):
+    p, out = quick_sweep
+    assert p.returncode == 0, p.stdout + p.stderr
+    data = json.loads((out / "sweep.json").read_text())
+    recs = data["records"]
+    assert all(r["status"] == "ok" for r in recs), [r.get("reason") for r in recs]
+    roles = {(r["sweep"], r["role"]) for r in recs}
+    assert {("bandwidth", "launch"), ("bandwidth", "copy"), ("bandwidth", "saxpy"),
+            ("error", "sdf"), ("error", "particles"), ("error", "projectile"),
+            ("scaling", "particles")} <= roles
+    for r in recs:
+        if r["sweep"] == "error":
+            c = r["converged"]
+            assert c["metric"] and math.isfinite(c["error"]) and c["error"] >= 0
+            if r["scenario"] in ("particles", "projectile"):    # the reference is far finer
+                assert c["reference"]["self_difference"] < c["error"]
+    for name in ("bandwidth_cpu.png", "time_vs_error_cpu.png", "scaling_cpu.png", "measurement.md"):
+        assert (out / name).stat().st_size > 0
+    md = (out / "measurement.md").read_text()
+    assert "Roofline for this device" in md and "python -m compare sweep all --quick" in md
+
+
+def test_sweep_report_rebuilds_without_running(quick_sweep, tmp_path):
+    _, out = quick_sweep
+    page = tmp_path / "page.md"
+    p = run_sweep("report", str(out / "sweep.json"), "--out", str(tmp_path / "plots"),
+                  "--page", str(page), "--title", "Rebuilt")
+    assert p.returncode == 0, p.stderr
+    text = page.read_text()
+    assert text.startswith("# Rebuilt") and "(plots/bandwidth_cpu.png)" in text
+
+
+def test_sweep_resume_skips_ok_cells(quick_sweep):
+    _, out = quick_sweep
+    p = run_sweep("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
+                  "float32", "--out", str(out), "--resume", "--no-plots")
+    assert p.returncode == 0, p.stderr
+    assert "scaling particles" not in p.stderr          # nothing rerun
+
+
+@pytest.mark.parametrize("args,needle", [
+    ((), "required"),
+    (("bogus",), "unknown sweep"),
+    (("bandwidth", "--backends", "fortran"), "unknown backend"),
+    (("error", "--scenarios", "launch"), "unknown scenario"),
+    (("scaling", "--precision", "float16"), "unknown precision"),
+    (("bandwidth", "--repeat", "0"), "--repeat"),
+    (("report",), "at least one"),
+    (("report", "/nonexistent/sweep.json"), "cannot read"),
+    (("error", "--contact", "sticky"), "invalid choice"),
+])
+def test_sweep_bad_usage_exits_2_with_one_line(args, needle):
+    p = run_sweep(*args)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], p.stderr
