@@ -67,7 +67,7 @@ def peak_rss_bytes() -> int:
 
 
 def injected_fault(spec: dict[str, Any]) -> str | None:
-    """Test hook: COMPARE_FAULT="<scenario>/<backend>:<kind>" (kind: crash, hang, raise, mismatch)
+    """Test hook: COMPARE_FAULT="<scenario>/<backend>:<kind>" (kind: crash, hang, raise, mismatch, oom)
     makes matching cells misbehave, so the driver's handling of each failure can be tested."""
     rule = os.environ.get("COMPARE_FAULT", "")
     if ":" not in rule:
@@ -247,6 +247,10 @@ def run_cell(spec: dict[str, Any], out_dir: Path, cache_note: str = "") -> dict[
         time.sleep(10**6)
     if fault == "raise":
         raise RuntimeError("injected fault")
+    if fault == "oom":   # out of memory, safely: cap this process's address space, then exceed it
+        import resource
+        resource.setrlimit(resource.RLIMIT_AS, (2**31, resource.getrlimit(resource.RLIMIT_AS)[1]))
+        np.ones(2**31, dtype=np.float64)
     if fault == "mismatch":
         outputs = {k: v + np.asarray(1, v.dtype) if v.dtype.kind == "f" else v for k, v in outputs.items()}
 

@@ -111,6 +111,7 @@ def test_save_arrays_contract(quick_run):
     ("raise", "error", "RuntimeError: injected fault"),
     ("crash", "error", "signal SIGABRT"),
     ("hang", "error", "timed out"),
+    ("oom", "error", "MemoryError"),
 ])
 def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, status, needle):
     monkeypatch.setenv("COMPARE_FAULT", f"saxpy/warp:{fault}")
