@@ -6,7 +6,6 @@ makes (already rounded to the cell's precision) and returns outputs named as in 
 from __future__ import annotations
 
 import dataclasses
-import math
 import typing
 from typing import Any, ClassVar
 
@@ -51,10 +50,6 @@ class Check:
 def require(cond: bool, message: str) -> None:
     if not cond:
         raise ParamError(message)
-
-
-def finite(x: float) -> bool:
-    return math.isfinite(x)
 
 
 def _coerce(name: str, value: Any, typ: Any) -> Any:

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from .base import Check, Scenario, require
+from .base import Check, Scenario, dtype_of, require
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,7 +32,7 @@ class Copy(Scenario):
     in_all = False
 
     def inputs(self, params: CopyParams, precision: str) -> dict[str, np.ndarray]:
-        dt = np.float32 if precision == "float32" else np.float64
+        dt = dtype_of(precision)
         # distinct, non-trivial values (not zeros, which a wrong copy could still match)
         return {"x": np.linspace(-1.0, 1.0, params.n, dtype=np.float64).astype(dt)}
 

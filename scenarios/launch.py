@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from .base import Check, Scenario, require
+from .base import Check, Scenario, dtype_of, require
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,7 +33,7 @@ class Launch(Scenario):
     in_all = False
 
     def inputs(self, params: LaunchParams, precision: str) -> dict[str, np.ndarray]:
-        dt = np.float32 if precision == "float32" else np.float64
+        dt = dtype_of(precision)
         return {"x": np.arange(params.n, dtype=dt)}
 
     def oracle(self, params: LaunchParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

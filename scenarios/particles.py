@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from .base import UNIT_ROUNDOFF, Check, Scenario, precision_of, require
+from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require
 
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
 
@@ -91,7 +91,7 @@ class Particles(Scenario):
     outputs = ("x", "y", "vx", "vy")
 
     def inputs(self, params: ParticlesParams, precision: str) -> dict[str, np.ndarray]:
-        dt = np.float32 if precision == "float32" else np.float64
+        dt = dtype_of(precision)
         out = {k: v.astype(dt) for k, v in initial_state(params).items()}
         out.update({k: np.array(getattr(params, k), dtype=dt) for k in CONSTANTS})
         return out

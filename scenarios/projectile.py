@@ -30,7 +30,7 @@ from typing import Literal
 
 import numpy as np
 
-from .base import UNIT_ROUNDOFF, Check, Scenario, precision_of, require
+from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require
 
 CONSTANTS = ("dt", "gravity", "target_x", "target_y", "bounce", "damping", "stiffness",
              "softness", "lr")
@@ -289,7 +289,7 @@ class Projectile(Scenario):
     has_gradient = True
 
     def inputs(self, params: ProjectileParams, precision: str) -> dict[str, np.ndarray]:
-        dt = np.float32 if precision == "float32" else np.float64
+        dt = dtype_of(precision)
         out = {k: np.array(getattr(params, k), dtype=dt) for k in CONSTANTS}
         out["v0"] = np.array([params.vx0, params.vy0], dtype=dt)
         return out

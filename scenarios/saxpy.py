@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from .base import UNIT_ROUNDOFF, Check, Scenario, require
+from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, require
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,7 +41,7 @@ class Saxpy(Scenario):
     outputs = ("out",)
 
     def inputs(self, params: SaxpyParams, precision: str) -> dict[str, np.ndarray]:
-        dt = np.float32 if precision == "float32" else np.float64
+        dt = dtype_of(precision)
         if params.inputs == "linspace":
             x = np.linspace(0.0, 1.0, params.n)
             y = np.linspace(1.0, 2.0, params.n)

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.base import dtype_of
+
 from ..base import Backend, not_installed
 
 THREADS_PER_BLOCK = 256
@@ -25,7 +27,7 @@ SIMULATOR = "CUDA simulator (correctness only)"
 
 
 def scalar_type(precision: str) -> type[np.floating]:
-    return np.float32 if precision == "float32" else np.float64
+    return dtype_of(precision)
 
 
 def use_fastmath(variant: str) -> bool:
