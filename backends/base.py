@@ -37,6 +37,12 @@ class ScenarioKernel:
         """Copy the results of the last run to host NumPy arrays, named as the scenario's outputs."""
         raise NotImplementedError
 
+    def set_input(self, name: str, value: np.ndarray) -> None:
+        """Overwrite input ``name`` in place (same shape and dtype), so a host loop can rerun the
+        kernel at new inputs without rebuilding or recompiling it. Optional: the stress suite's
+        host-loop tasks use it and rebuild the kernel per evaluation where it is missing."""
+        raise NotImplementedError(f"{type(self).__module__}.Kernel cannot replace {name!r} in place")
+
     def info(self) -> dict[str, Any]:
         """Facts about how the kernel ran (launch config, donation, gradient method...)."""
         return {}

@@ -212,12 +212,39 @@ def spec(scenario: str, backend: str, device: str, precision: str, params: dict[
             "cache": "warm", "timer": "wall"}
 
 
-def pool_map(ctx: Ctx, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
-    """Stress figures are not timings, so cells may share the machine: ``--jobs`` at a time."""
-    if ctx.jobs <= 1 or len(items) <= 1:
-        return [fn(it) for it in items]
-    with concurrent.futures.ThreadPoolExecutor(max_workers=ctx.jobs) as pool:
-        return list(pool.map(fn, items))
+def gpu_lane(item: Any) -> Any:
+    """Items that must not overlap: work of one backend on one GPU (None: no constraint).
+
+    Frameworks reserve device memory per process: Taichi sizes each kernel's autodiff-stack local
+    memory for every thread the GPU can hold resident, so eight Taichi processes on one H100 ran out
+    of memory at launch. One process per backend per GPU still lets different backends overlap.
+    """
+    # items are cell specs / task dicts, or (backend, device, ...) tuples
+    backend, device = ((item.get("backend"), item.get("device")) if isinstance(item, dict) else item[:2])
+    return None if device in ("cpu", "host") else (backend, device)
+
+
+def pool_map(ctx: Ctx, fn: Callable[[Any], Any], items: list[Any],
+             lane: Callable[[Any], Any] = gpu_lane) -> list[Any]:
+    """Stress figures are not timings, so cells may share the machine: ``--jobs`` at a time, except
+    that items in the same ``lane`` (not None) run one after another."""
+    groups: dict[Any, list[int]] = {}
+    for i, it in enumerate(items):
+        key = lane(it)
+        groups.setdefault(("solo", i) if key is None else key, []).append(i)
+    results: list[Any] = [None] * len(items)
+
+    def run_group(idx: list[int]) -> None:
+        for i in idx:
+            results[i] = fn(items[i])
+
+    if ctx.jobs <= 1 or len(groups) <= 1:
+        for idx in groups.values():
+            run_group(idx)
+    else:
+        with concurrent.futures.ThreadPoolExecutor(max_workers=ctx.jobs) as pool:
+            list(pool.map(run_group, groups.values()))
+    return results
 
 
 def run_cells(ctx: Ctx, specs: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, np.ndarray] | None]]:

@@ -2,14 +2,15 @@
 
 Two experiments need more than one cell gives: optimisers the backends do not implement (gradient
 clipping, Adam) and loss/gradient along a line of launch velocities. A task builds the backend's
-projectile kernel with ``iters=0`` (one run = loss and gradient at ``v0``) once per evaluation,
-with ``v0`` replaced by the point asked for, rounded to the cell's precision. **The optimiser runs on
+projectile kernel with ``iters=0`` (one run = loss and gradient at ``v0``) once per contact model
+and, per evaluation, overwrites its ``v0`` in place with the point asked for, rounded to the cell's
+precision (``ScenarioKernel.set_input``: no rebuild, no recompile). **The optimiser runs on
 the host** in float64: only the loss and gradient come from the backend. Process isolation is as
 for cells (``compare.cells``): frameworks' global state lives and dies with this process.
 
-Building a kernel per evaluation costs whatever the backend's constructor costs (Taichi allocates
-fields and JAX compiles per instance), so a task times its second evaluation and declines, with the
-measured figures, when the whole task would exceed its time budget.
+A kernel without ``set_input`` is rebuilt per evaluation, which costs whatever its constructor costs
+(JAX compiles per instance), so a task times its second evaluation and declines, with the measured
+figures, when the whole task would exceed its time budget.
 """
 from __future__ import annotations
 
@@ -67,7 +68,8 @@ def optimise(evaluate: Evaluate, v0: np.ndarray, lr: float, iters: int, method: 
 
 
 def backend_evaluator(backend: str, device: str, precision: str, params: dict[str, Any]) -> Evaluate:
-    """loss and gradient at v from the backend's projectile kernel (iters = 0), one kernel per call."""
+    """loss and gradient at v from the backend's projectile kernel (iters = 0): one kernel, its v0
+    replaced in place per call (``set_input``), else one kernel per call."""
     import backends
     import scenarios
     be, sc = backends.get(backend), scenarios.get("projectile")
@@ -76,13 +78,22 @@ def backend_evaluator(backend: str, device: str, precision: str, params: dict[st
     be.setup(device, precision, "default")
     kernel_cls = be.kernel("projectile")
     dtype = base["v0"].dtype
+    kernel: list[Any] = []                  # the reusable kernel, once built
 
     def evaluate(v: np.ndarray) -> tuple[float, np.ndarray]:
         if not np.all(np.isfinite(v)):
             return math.nan, np.full(2, math.nan)
         with np.errstate(over="ignore"):
-            inputs = {**base, "v0": np.asarray(v, np.float64).astype(dtype)}
-        k = kernel_cls(p, inputs, device, precision, "default")
+            v0 = np.asarray(v, np.float64).astype(dtype)
+        k = kernel[0] if kernel else None
+        try:
+            if k is None:
+                raise NotImplementedError
+            k.set_input("v0", v0)
+        except NotImplementedError:
+            k = kernel_cls(p, {**base, "v0": v0}, device, precision, "default")
+            if not kernel:
+                kernel.append(k)
         be.synchronize(device, k.run())
         out = k.outputs()
         return float(np.asarray(out["loss"]).reshape(())), np.asarray(out["grad"], np.float64).reshape(2)
@@ -151,7 +162,7 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     projected = per_eval * total
     if projected > task["budget_s"]:
         return {"skipped": f"{total} host-loop evaluations at {per_eval * 1e3:.3g} ms each "
-                           f"(first {first:.3g} s; the kernel is rebuilt per evaluation) would take "
+                           f"(first {first:.3g} s) would take "
                            f"~{projected:.0f} s, over this task's budget of {task['budget_s']:g} s",
                 "per_eval_s": per_eval}
     results = []

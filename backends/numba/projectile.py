@@ -140,6 +140,15 @@ class Kernel(ScenarioKernel):
     def run(self) -> None:
         self.fn(*self.args)
 
+    def set_input(self, name: str, value: np.ndarray) -> None:
+        if name != "v0":
+            super().set_input(name, value)
+        v0 = self.arrays["v0"]              # the launch arguments hold this same array
+        if self.device == "cuda":
+            v0.copy_to_device(np.ascontiguousarray(value, v0.dtype))
+        else:
+            v0[:] = value
+
     def outputs(self) -> dict[str, np.ndarray]:
         host = {k: (a.copy_to_host() if self.device == "cuda" else a.copy())
                 for k, a in self.arrays.items() if k in ("history", "grad0", "v")}

@@ -233,6 +233,11 @@ class Kernel(ScenarioKernel):
             _update(k, self.p.iters, self.lr, self.loss, self.v, self.history, self.grad0,
                     *self.state)
 
+    def set_input(self, name: str, value: np.ndarray) -> None:
+        if name != "v0":
+            super().set_input(name, value)
+        self.v0.from_numpy(value)
+
     def outputs(self) -> dict[str, np.ndarray]:
         hist = self.history.to_numpy()
         return {"loss": hist[0], "grad": self.grad0.to_numpy(), "loss_history": hist,

@@ -136,6 +136,11 @@ class Kernel(ScenarioKernel):
                 self._optimise()
             self.graph = capture.graph
 
+    def set_input(self, name: str, value: np.ndarray) -> None:
+        if name != "v0":
+            super().set_input(name, value)
+        self.v0.assign(value)               # same buffer: the captured graph reads the new v0
+
     def outputs(self) -> dict[str, np.ndarray]:
         hist = self.history.numpy()
         return {"loss": hist[0], "grad": self.grad0.numpy(), "loss_history": hist,
