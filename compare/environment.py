@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import datetime
 import importlib.metadata
+import os
 import platform
 import shutil
 import subprocess
@@ -59,6 +60,7 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
         cores = os.cpu_count() or 0
     import psutil
     cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []
+    commit = os.environ.get("COMPARE_GIT_COMMIT", "").strip()
     return {
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "hostname": platform.node(),
@@ -68,7 +70,9 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
         "gpus": gpus(), "cuda_toolkit": cuda[0] if cuda else "",
         "python": sys.version.split()[0],
         "packages": versions,
-        "git_commit": _run(["git", "rev-parse", "--short", "HEAD"]),
-        "git_dirty": bool(_run(["git", "status", "--porcelain", "--untracked-files=no"])),
+        # A copied tree (e.g. on a lent GPU machine) may carry a stale or no .git: the caller then
+        # names the commit it copied in COMPARE_GIT_COMMIT, and dirtiness is unknown (None).
+        "git_commit": commit or _run(["git", "rev-parse", "--short", "HEAD"]),
+        "git_dirty": None if commit else bool(_run(["git", "status", "--porcelain", "--untracked-files=no"])),
         "command": " ".join(["python -m compare"] + (argv if argv is not None else sys.argv[1:])),
     }

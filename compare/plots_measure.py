@@ -414,6 +414,21 @@ def error_table(records, device, scenario) -> str:
                          "on overall front"]) if rows else ""
 
 
+def front_table(records, device, scenario) -> str:
+    """The overall Pareto front, fastest first: for a target error, the first row at or below it
+    is the fastest cell measured that reaches it."""
+    rows = []
+    for p in sorted((p for p in error_points(records, device, scenario) if p["front_all"]),
+                    key=lambda p: p["time"]):
+        r, knob = p["rec"], p["rec"].get("knob") or {}
+        iqr = ((r.get("time") or {}).get("wall") or {}).get("iqr_s")
+        rows.append([fmt_num(r["converged"]["error"]), fmt_time(p["time"]), fmt_time(iqr),
+                     r["backend"], r.get("variant", "default"), r["precision"],
+                     "-" if knob.get("value") is None else f"{knob['name']}={knob['value']}"])
+    return _table(rows, ["error reached", "wall median", "wall IQR", "backend", "variant",
+                         "precision", "knob"]) if rows else ""
+
+
 def scaling_table(records, device) -> str:
     rows = []
     for r in sorted(ok(records, sweep="scaling", device=device),
@@ -455,7 +470,8 @@ def environment(runs: list[dict[str, Any]], records: list[dict[str, Any]]) -> st
                                                    if env.get("cuda_toolkit") else ""),
              f"- OS: {env.get('os')}; Python {env.get('python')}; host {env.get('hostname')}",
              f"- packages: {pk}",
-             f"- git commit {env.get('git_commit')}{' (with uncommitted changes)' if env.get('git_dirty') else ''}",
+             f"- git commit of the last run {env.get('git_commit') or 'not recorded'}"
+             f"{' (with uncommitted changes)' if env.get('git_dirty') else ''}",
              f"- runs from {runs[0].get('created')} to {env.get('created')}"]
     if loads:
         lines.append(f"- host 1-minute load average at the end of each cell: min {min(loads):.2f}, "
@@ -477,7 +493,9 @@ def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title:
            f"Generated from `{'`, `'.join(sources)}` by `compare/plots_measure.py`; every number "
            f"below is a measured value "
            f"from those records. The protocol (clocks, caches, definitions) is in [{proto}]({proto}).\n",
-           "## Commands\n", "Measured with:\n\n" + "\n".join(f"    {r.get('command')}" for r in runs)
+           "## Commands\n", "Measured with (in order; each run's start time and commit):\n\n"
+           + "\n".join(f"    {r.get('command')}\n        # {r.get('created')}, commit "
+                       f"{r.get('git_commit') or 'not recorded'}" for r in runs)
            + "\n" + (f"\nThis page and its plots rebuilt, without rerunning, by:\n\n    {rebuild}\n"
                       if rebuild else ""),
            "## Environment\n", environment(runs, records)]
@@ -507,7 +525,10 @@ def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title:
             ref = rec["converged"].get("reference", {})
             refline = "; ".join(f"{k} = {fmt_num(v) if not isinstance(v, str) else v}"
                                 for k, v in ref.items())
-            out.append(f"### {s}\n\nError: {rec['converged']['metric']}. Reference: {refline}.\n\n{tab}")
+            out.append(f"### {s}\n\nError: {rec['converged']['metric']}. Reference: {refline}.\n\n"
+                       "Fastest at each accuracy (the Pareto front over all backends; rows whose "
+                       "times differ by less than their IQRs are ties):\n\n"
+                       f"{front_table(records, d, s)}\nAll cells:\n\n{tab}")
         out.append(f"## {d}: particles scaling\n")
         out.append(_img(written, f"scaling-{d}", page_path, f"particles scaling, {d}"))
         out.append(scaling_table(records, d) or "No data.\n")

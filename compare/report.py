@@ -90,6 +90,7 @@ def atomic_write(path: Path, text: str) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     with os.fdopen(fd, "w") as f:
         f.write(text)
+    os.chmod(tmp, 0o644)          # mkstemp creates 0600; results are meant to be shared
     os.replace(tmp, path)
 
 

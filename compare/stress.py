@@ -1075,11 +1075,22 @@ def lr_matrix(rows: list[dict[str, Any]]) -> str:
                                     *[f"lr {lr:g}" for lr in cols]], tablefmt="github", disable_numparse=True)
 
 
+def produced_by(data: dict[str, Any]) -> list[str]:
+    """One line per run that produced rows: its command, when, and which experiments."""
+    runs: dict[tuple, list[str]] = {}
+    for e, r in provenance(data).items():
+        runs.setdefault((r.get("command") or "?", r.get("created") or "?", r.get("git_commit") or "?"), []).append(e)
+    lines = ["- produced by:" if len(runs) > 1 else "- produced by"]
+    for (cmd, when, commit), exps in runs.items():
+        lines.append(f"  - `{cmd}` ({when}, commit {commit or '?'}): {', '.join(exps)}")
+    return lines
+
+
 def markdown(data: dict[str, Any]) -> str:
     from tabulate import tabulate
     env = data.get("environment", {})
     lines = ["# Stress suite results", "",
-             f"- command: `{env.get('command', '?')}`", f"- host: {env.get('hostname', '?')}, "
+             *produced_by(data), f"- host: {env.get('hostname', '?')}, "
              f"CPU {env.get('cpu', '?')}, GPUs: {', '.join(g.get('name', '?') for g in env.get('gpus', [])) or 'none'}",
              f"- Python {env.get('python', '?')}; " + ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items()),
              "- How each verdict is decided: docs/stress.md. Verdicts in CAPITALS flag a problem or a "
@@ -1108,22 +1119,39 @@ def markdown(data: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def provenance(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """experiment -> the run that produced its rows (command, time, commit): a results file
+    assembled from several runs says which run each experiment came from."""
+    if "provenance" in data:
+        return data["provenance"]
+    env = data.get("environment", {})
+    run = {k: env.get(k) for k in ("command", "created", "git_commit")}
+    if "merged_from" in env:      # an old merged file: its parts' commands were not kept
+        run["command"] = f"merge of {len(env['merged_from'])} parts (commands not recorded)"
+    return {r["experiment"]: run for r in data.get("rows", [])}
+
+
 def write_outputs(out: Path, env: dict[str, Any], rows: list[dict[str, Any]], series: dict[str, Any],
-                  ran: list[str], plots: bool = True) -> dict[str, Any]:
+                  ran: list[str], plots: bool = True,
+                  prov: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """Merge with an existing stress.json (experiments not run now are kept), write json, md, png."""
     from compare.worker import jsonable
     path = out / "stress.json"
-    old_rows, old_series = [], {}
+    old_rows, old_series, old_prov = [], {}, {}
     if path.exists():
         try:
             old = json.loads(path.read_text())
             old_rows = [r for r in old.get("rows", []) if r["experiment"] not in ran]
             old_series = {k: v for k, v in old.get("series", {}).items() if k not in ran}
+            old_prov = {k: v for k, v in provenance(old).items() if k not in ran}
         except (OSError, ValueError, KeyError):
             pass
     order = list(EXPERIMENTS)
     all_rows = sorted(old_rows + rows, key=lambda r: order.index(r["experiment"]) if r["experiment"] in order else 99)
-    data = {"environment": env, "rows": jsonable(all_rows), "series": jsonable({**old_series, **series})}
+    new_prov = prov if prov is not None else provenance({"environment": env, "rows": rows})
+    prov = {**old_prov, **{e: v for e, v in new_prov.items() if e in ran}}
+    data = {"environment": env, "provenance": prov, "rows": jsonable(all_rows),
+            "series": jsonable({**old_series, **series})}
     atomic_write(path, json.dumps(data, indent=1))
     if plots:
         for name, s in data["series"].items():
@@ -1169,6 +1197,7 @@ def merge(files: list[str], out: Path, plots: bool) -> int:
     rows: list[dict[str, Any]] = []
     series: dict[str, Any] = {}
     envs = []
+    prov: dict[str, dict[str, Any]] = {}
     for f in files:
         try:
             data = json.loads(Path(f).read_text())
@@ -1177,11 +1206,12 @@ def merge(files: list[str], out: Path, plots: bool) -> int:
             raise UsageError(f"cannot read stress results {f}: {exc}") from None
         ran = {r["experiment"] for r in part_rows}
         rows = [r for r in rows if r["experiment"] not in ran] + part_rows
+        prov.update({e: v for e, v in provenance(data).items() if e in ran})
         series = {**{k: v for k, v in series.items() if k not in ran}, **part_series}
         envs.append(env)
     env = {**envs[-1], "merged_from": files}
     out.mkdir(parents=True, exist_ok=True)
-    write_outputs(out, env, rows, series, sorted({r["experiment"] for r in rows}), plots=plots)
+    write_outputs(out, env, rows, series, sorted({r["experiment"] for r in rows}), plots=plots, prov=prov)
     print(f"merged {len(files)} files into {out / 'stress.json'} ({len(rows)} rows)", file=sys.stderr)
     return EXIT_OK
 
