@@ -297,6 +297,7 @@ def cmd_report(args) -> int:
     if not args.files:
         raise ParamError("report needs at least one results.json")
     records, envs = [], []
+    outputs: dict[int, dict[str, np.ndarray]] = {}
     for f in args.files:
         try:
             data = json.loads(Path(f).read_text())
@@ -306,6 +307,10 @@ def cmd_report(args) -> int:
         machine = (env.get("gpus") or [{}])[0].get("name") or env.get("hostname", "?")
         for r in recs:
             r.setdefault("machine", machine)
+        # outputs kept beside the file (--save-arrays) redraw the scenario pictures too
+        mine: dict[int, dict[str, np.ndarray]] = {}
+        load_saved_outputs(Path(f).parent, recs, mine)
+        outputs.update({len(records) + i: o for i, o in mine.items()})
         records += recs
         envs.append(env)
     out = Path(args.out)
@@ -313,6 +318,7 @@ def cmd_report(args) -> int:
     if not args.no_plots:
         (out / "plots").mkdir(parents=True, exist_ok=True)
         report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")
+        report.plot_outputs(records, outputs, out / "plots")
     print(report.tables(records))
     return EXIT_OK
 

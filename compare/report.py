@@ -152,43 +152,23 @@ def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
 
 
 def plot_outputs(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], out: Path) -> list[Path]:
-    """One picture per scenario from the reference backend's float32 run (or the first ok run)."""
+    """One picture per scenario, drawn by the scenario (``Scenario.figure``) from the runs whose
+    outputs are at hand, reference backend first."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import backends
+    import scenarios
+    ref = backends.reference()
     written = []
-    for scenario, recs in by_scenario(records).items():
-        ok = [(i, r) for i, r in enumerate(records) if r["scenario"] == scenario and i in outputs]
-        if not ok:
+    for scenario in by_scenario(records):
+        runs = [(r, outputs[i]) for i, r in enumerate(records) if r["scenario"] == scenario and i in outputs]
+        runs.sort(key=lambda ro: ro[0]["backend"] != ref)
+        fig = scenarios.get(scenario).figure(runs) if runs else None
+        if fig is None:
             continue
-        if scenario == "projectile":
-            fig, ax = plt.subplots(figsize=(6, 4))
-            for i, r in ok:
-                h = np.asarray(outputs[i]["loss_history"], np.float64)
-                ax.plot(np.arange(h.size), np.maximum(h, 1e-30),
-                        label=f"{r['backend']}/{r['device']}/{r['precision']}", lw=1)
-            ax.set_yscale("log"); ax.set_xlabel("gradient-descent iteration"); ax.set_ylabel("loss [m²]")
-            ax.set_title(f"projectile loss ({params_line(recs)[:60]}…)", fontsize=8)
-            ax.legend(fontsize=6)
-        else:
-            i, r = ok[0]
-            o = outputs[i]
-            fig, ax = plt.subplots(figsize=(5, 5))
-            if scenario == "sdf":
-                im = ax.imshow(o["image"], origin="lower", cmap="magma")
-                fig.colorbar(im, ax=ax, label="exp(-18|d|)")
-                ax.set_xlabel("pixel column i"); ax.set_ylabel("pixel row j")
-            elif scenario == "particles":
-                if "traj_x" in o:
-                    ax.plot(o["traj_x"], o["traj_y"], lw=0.4, alpha=0.6)
-                ax.scatter(o["x"], o["y"], s=4, color="k")
-                ax.set_xlim(-1, 1); ax.set_xlabel("x [m]"); ax.set_ylabel("y [m]")
-            elif scenario == "saxpy":
-                n = o["out"].size
-                idx = np.unique(np.linspace(0, n - 1, min(n, 2000)).astype(int))
-                ax.plot(idx, o["out"][idx]); ax.set_xlabel("element index"); ax.set_ylabel("a·x + y")
-            ax.set_title(f"{scenario}: {r['backend']}/{r['device']}/{r['precision']}")
         p = out / f"{scenario}.png"
-        fig.tight_layout(); fig.savefig(p, dpi=110); plt.close(fig)
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
         written.append(p)
     return written

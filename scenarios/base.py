@@ -154,3 +154,27 @@ class Scenario:
     def work(self, params, precision: str) -> dict[str, float]:
         """Useful work per run, for throughput figures: {'bytes': moved, 'items': ...}."""
         return {}
+
+    # ---- report -----------------------------------------------------------------------------
+    def figure(self, runs: list[tuple[dict[str, Any], dict[str, np.ndarray]]]) -> Any:
+        """A matplotlib Figure of this scenario's results for the report, or None.
+
+        ``runs``: (record, outputs) of every cell that kept its outputs, reference backend first.
+        The scenario draws what its results mean (it owns the oracle), the driver only saves it."""
+        return None
+
+
+def run_label(record: dict[str, Any]) -> str:
+    v = record.get("variant", "default")
+    return f"{record['backend']}/{record['device']}/{record['precision']}" + ("" if v == "default" else f"/{v}")
+
+
+def pick_runs(runs: list[tuple[dict[str, Any], dict[str, np.ndarray]]], limit: int
+              ) -> list[tuple[dict[str, Any], dict[str, np.ndarray]]]:
+    """One float32 default-variant run per (backend, device) if there are any, else the first runs."""
+    seen, out = set(), []
+    for rec, o in runs:
+        key = (rec["backend"], rec["device"])
+        if rec["precision"] == "float32" and rec.get("variant", "default") == "default" and key not in seen:
+            seen.add(key); out.append((rec, o))
+    return (out or runs)[:limit]

@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, require
+from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, require, run_label
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +74,37 @@ class Saxpy(Scenario):
 
     def distance(self, params, inputs, outputs, other) -> float:
         return self.normalised_error(inputs, outputs["out"], other["out"])
+
+    def figure(self, runs):
+        """Distribution of each float32 run's error in ulps of the exact result (float64 a*x + y
+        of the float32 inputs: the product is exact, the sum far below a float32 ulp): <= 0.5 is
+        correctly rounded (an FMA), up to ~1 for the two roundings of a*x then + y."""
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(6.5, 4.2))
+        edges = np.linspace(0.0, 1.5, 31)
+        p = self.params(runs[0][0]["params"])
+        runs = [(r, o) for r, o in runs if r["precision"] == "float32"]
+        if not runs:
+            return None
+        for r, o in runs:
+            inputs = self.inputs(p, r["precision"])
+            ref = self.oracle(p, inputs)["out"]
+            out = np.asarray(o["out"], np.float64)
+            if out.shape != ref.shape:
+                continue
+            ulp = np.spacing(np.abs(ref).astype(np.float32)).astype(np.float64)
+            ulps = np.abs(out - ref) / np.maximum(ulp, np.finfo(np.float64).tiny)
+            ax.hist(np.clip(ulps, 0, edges[-1]), bins=edges, histtype="step", lw=1.2,
+                    weights=np.full(ulps.size, 100.0 / max(ulps.size, 1)),
+                    label=f"{run_label(r)} (max {ulps.max():.2f})")
+        ax.axvline(0.5, color="0.4", ls=":", lw=1)
+        ax.set_xlabel("|out - exact| in float32 ulps of the exact result")
+        ax.set_ylabel("% of elements"); ax.set_yscale("log")
+        ax.set_title(f"saxpy float32 error distribution (n={p.n}, inputs={p.inputs}); "
+                     "identical runs overlap", fontsize=8)
+        ax.legend(fontsize=6)
+        fig.tight_layout()
+        return fig
 
     def footprint(self, params: SaxpyParams, precision: str) -> float:
         return params.n * (3 * 8 + 4 * 8.0)       # inputs/outputs + float64 oracle temporaries

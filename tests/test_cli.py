@@ -106,6 +106,15 @@ def test_save_arrays_contract(quick_run):
                     assert z[k].dtype == np.dtype(precision)
 
 
+def test_every_scenario_draws_its_picture_and_report_redraws_it(quick_run, tmp_path):
+    _, out = quick_run
+    names = {"saxpy", "sdf", "particles", "projectile", "time_vs_error"}
+    assert {f.stem for f in (out / "plots").glob("*.png")} == names
+    p = compare("report", str(out / "results.json"), "--out", str(tmp_path))
+    assert p.returncode == 0, p.stderr
+    assert {f.stem for f in (tmp_path / "plots").glob("*.png")} == names   # from the saved arrays
+
+
 @pytest.mark.parametrize("fault,status,needle", [
     ("mismatch", "mismatch", "exceeds tolerance"),
     ("raise", "error", "RuntimeError: injected fault"),
