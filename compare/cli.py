@@ -49,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run cells as tasks on a Dask distributed scheduler ('local': a LocalCluster)")
+    p.add_argument("--page", default=None, metavar="FILE",
+                   help="report: write one Markdown page (environment, tables, pictures) instead of results.*")
+    p.add_argument("--title", default=None, help="report --page: the page title")
+    p.add_argument("--notes", default=None, metavar="FILE",
+                   help="report --page: hand-written Markdown put under the title (never numbers)")
     p.add_argument("--resume", action="store_true",
                    help="keep the cells already in DIR/results.json and run only the missing ones")
     return p
@@ -279,12 +284,12 @@ def cmd_run(args, chosen, argv) -> int:
     fill_vs_reference(records, outputs)
     if args.save_arrays:
         save_arrays(out, records, outputs, inputs_of)
-    report.write_results(out, env, records)
     if not args.no_plots:
         plots = out / "plots"
         plots.mkdir(parents=True, exist_ok=True)
         report.plot_time_vs_error(records, plots / "time_vs_error.png")
         report.plot_outputs(records, outputs, plots)
+    report.write_results(out, env, records, images=report.images_in(out / "plots", out))
     print(report.tables(records))
     print(f"wrote {out / 'results.json'}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
     bad = [r for r in records if r["status"] in ("mismatch", "error")]
@@ -314,11 +319,26 @@ def cmd_report(args) -> int:
         records += recs
         envs.append(env)
     out = Path(args.out)
-    report.write_results(out, {"merged_from": args.files, "environments": envs}, records)
     if not args.no_plots:
         (out / "plots").mkdir(parents=True, exist_ok=True)
         report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")
-        report.plot_outputs(records, outputs, out / "plots")
+        report.plot_outputs(records, outputs, out / "plots")   # where saved arrays allow
+    if args.page:
+        # a published page: only the page (and plots); the source results.json stay untouched
+        page = Path(args.page)
+        try:
+            notes = Path(args.notes).read_text() if args.notes else ""
+        except OSError as exc:
+            raise ParamError(f"cannot read --notes {args.notes}: {exc.strerror}") from None
+        rebuild = "python -m compare report " + " ".join(args.files) + f" --out {args.out} --page {args.page}" \
+            + (f" --title '{args.title}'" if args.title else "") + (f" --notes {args.notes}" if args.notes else "") \
+            + (" --no-plots" if args.no_plots else "")
+        report.atomic_write(page, report.page(args.title or "Results", envs, records,
+                                              report.images_in(out / "plots", page.parent), notes, rebuild))
+        print(f"wrote {page}")
+        return EXIT_OK
+    report.write_results(out, {"merged_from": args.files, "environments": envs}, records,
+                         images=report.images_in(out / "plots", out))
     print(report.tables(records))
     return EXIT_OK
 

@@ -75,13 +75,51 @@ def params_line(recs: list[dict[str, Any]]) -> str:
     return ", ".join(f"{k}={v}" for k, v in p.items())
 
 
-def tables(records: list[dict[str, Any]], fmt: str = "simple") -> str:
+def tables(records: list[dict[str, Any]], fmt: str = "simple", images: dict[str, str] | None = None) -> str:
+    """One table per scenario; in Markdown, each followed by its picture when ``images`` has one."""
     parts = []
     for scenario, recs in by_scenario(records).items():
         head = f"{scenario} ({params_line(recs)})"
+        img = (images or {}).get(scenario)
         parts.append(("## " if fmt == "github" else "") + head + "\n\n" +
-                     tabulate([row(r) for r in recs], headers=COLUMNS, tablefmt=fmt, disable_numparse=True))
+                     tabulate([row(r) for r in recs], headers=COLUMNS, tablefmt=fmt, disable_numparse=True)
+                     + (f"\n\n![{scenario}]({img})" if img else ""))
     return "\n\n".join(parts) + "\n"
+
+
+def images_in(plots: Path, relative_to: Path) -> dict[str, str]:
+    """scenario (or 'time_vs_error') -> path of its PNG in ``plots``, relative to a page's folder."""
+    if not plots.is_dir():
+        return {}
+    return {p.stem: os.path.relpath(p, relative_to) for p in sorted(plots.glob("*.png"))}
+
+
+def environment_lines(env: dict[str, Any]) -> list[str]:
+    gpus = ", ".join(f"{g.get('name')} ({g.get('memory')}, driver {g.get('driver')})" for g in env.get("gpus") or [])
+    pkgs = ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items())
+    dirty = {True: " (with uncommitted changes)", None: " (copied tree: dirtiness not known)"}.get(env.get("git_dirty"), "")
+    return [f"- command: `{env.get('command')}`",
+            f"- run {env.get('created')} on {env.get('hostname')}, git commit {env.get('git_commit') or 'not recorded'}{dirty}",
+            f"- CPU: {env.get('cpu')}, {env.get('cores')} cores, {env.get('memory_gib')} GiB; GPU: {gpus or 'none'}"
+            + (f"; CUDA toolkit: {env['cuda_toolkit']}" if env.get("cuda_toolkit") else ""),
+            f"- OS: {env.get('os')}; Python {env.get('python')}", f"- packages: {pkgs}"]
+
+
+def page(title: str, envs: list[dict[str, Any]], records: list[dict[str, Any]], images: dict[str, str],
+         notes: str = "", rebuild: str = "") -> str:
+    """A results page: title, hand-written notes, environments, time against error, then each
+    scenario's table and picture. Every number comes from ``records``."""
+    out = [f"# {title}", ""]
+    if notes:
+        out += [notes.strip(), ""]
+    if rebuild:
+        out += ["Page rebuilt, without rerunning, by:", "", f"    {rebuild}", ""]
+    out += ["## Environment", ""]
+    for env in envs:
+        out += environment_lines(env) + [""]
+    if "time_vs_error" in images:
+        out += ["## Run time against error", "", f"![time vs error]({images['time_vs_error']})", ""]
+    return "\n".join(out) + "\n" + tables(records, "github", images)
 
 
 def atomic_write(path: Path, text: str) -> None:
@@ -95,7 +133,7 @@ def atomic_write(path: Path, text: str) -> None:
 
 
 def write_results(out: Path, environment: dict[str, Any], records: list[dict[str, Any]],
-                  json_only: bool = False) -> None:
+                  json_only: bool = False, images: dict[str, str] | None = None) -> None:
     """results.json (and, unless json_only, results.csv and results.md), each written atomically."""
     atomic_write(out / "results.json", json.dumps({"environment": environment, "records": records}, indent=1))
     if json_only:
@@ -111,7 +149,7 @@ def write_results(out: Path, environment: dict[str, Any], records: list[dict[str
     env_lines = "\n".join(f"- {k}: {v}" for k, v in environment.items() if k != "packages")
     pkgs = ", ".join(f"{k} {v}" for k, v in environment.get("packages", {}).items())
     atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n- packages: {pkgs}\n\n"
-                 + tables(records, "github"))
+                 + tables(records, "github", images))
 
 
 def _err_floor(e: float) -> float:

@@ -115,6 +115,26 @@ def test_every_scenario_draws_its_picture_and_report_redraws_it(quick_run, tmp_p
     assert {f.stem for f in (tmp_path / "plots").glob("*.png")} == names   # from the saved arrays
 
 
+def test_report_page_links_tables_and_pictures_and_leaves_the_source(quick_run, tmp_path):
+    _, out = quick_run
+    src = (out / "results.json").read_text()
+    notes = tmp_path / "notes.md"
+    notes.write_text("Hand-written notes.")
+    page = tmp_path / "page.md"
+    p = compare("report", str(out / "results.json"), "--out", str(out), "--page", str(page),
+                "--title", "Quick page", "--notes", str(notes))
+    assert p.returncode == 0, p.stderr
+    text = page.read_text()
+    assert text.startswith("# Quick page") and "Hand-written notes." in text and "git commit" in text
+    for s in ("saxpy", "sdf", "particles", "projectile", "time_vs_error"):
+        link = next(line for line in text.splitlines() if line.startswith("![") and f"plots/{s}.png" in line)
+        assert (page.parent / link[link.index("(") + 1:-1]).exists(), link
+    assert (out / "results.json").read_text() == src
+    p = compare("report", str(out / "results.json"), "--out", str(out), "--page", str(page),
+                "--notes", str(tmp_path / "missing.md"))
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--notes" in p.stderr
+
+
 @pytest.mark.parametrize("fault,status,needle", [
     ("mismatch", "mismatch", "exceeds tolerance"),
     ("raise", "error", "RuntimeError: injected fault"),
