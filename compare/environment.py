@@ -53,10 +53,8 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
         except importlib.metadata.PackageNotFoundError:
             pass
     try:
-        import os
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
-        import os
         cores = os.cpu_count() or 0
     import psutil
     cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []

@@ -78,22 +78,22 @@ def backend_evaluator(backend: str, device: str, precision: str, params: dict[st
     be.setup(device, precision, "default")
     kernel_cls = be.kernel("projectile")
     dtype = base["v0"].dtype
-    kernel: list[Any] = []                  # the reusable kernel, once built
+    kernel, reusable = None, True
 
     def evaluate(v: np.ndarray) -> tuple[float, np.ndarray]:
+        nonlocal kernel, reusable
         if not np.all(np.isfinite(v)):
             return math.nan, np.full(2, math.nan)
         with np.errstate(over="ignore"):
             v0 = np.asarray(v, np.float64).astype(dtype)
-        k = kernel[0] if kernel else None
-        try:
-            if k is None:
-                raise NotImplementedError
-            k.set_input("v0", v0)
-        except NotImplementedError:
-            k = kernel_cls(p, {**base, "v0": v0}, device, precision, "default")
-            if not kernel:
-                kernel.append(k)
+        if kernel is not None and reusable:
+            try:
+                kernel.set_input("v0", v0)
+            except NotImplementedError:
+                reusable = False
+        if kernel is None or not reusable:
+            kernel = kernel_cls(p, {**base, "v0": v0}, device, precision, "default")
+        k = kernel
         be.synchronize(device, k.run())
         out = k.outputs()
         return float(np.asarray(out["loss"]).reshape(())), np.asarray(out["grad"], np.float64).reshape(2)

@@ -193,7 +193,10 @@ class Particles(Scenario):
         p = self.params(rec0["params"])
         if p.n * (p.steps + 1) > 5e7:              # the oracle would be too big for a picture
             return None
-        ref = self.oracle(dataclasses.replace(p, record_every=1), self.inputs(p, rec0["precision"]))
+        # one float64 oracle per precision (with every frame), for the trajectories and the errors
+        refs = {prec: self.oracle(dataclasses.replace(p, record_every=1), self.inputs(p, prec))
+                for prec in {r["precision"] for r, _ in runs}}
+        ref = refs[rec0["precision"]]
         fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.6))
         shown = np.unique(np.linspace(0, p.n - 1, min(p.n, 48)).astype(int))
         own = "traj_x" in out0
@@ -210,8 +213,7 @@ class Particles(Scenario):
         ax.legend(fontsize=6, loc="upper right")
         idx = np.arange(p.n)
         for (r, o), m in zip(runs, markers):
-            r64 = self.oracle(p, self.inputs(p, r["precision"]))
-            err = self._state_error(o, r64)
+            err = self._state_error(o, refs[r["precision"]])
             ax2.scatter(idx, np.maximum(err, 1e-18), s=6, marker=m, label=run_label(r), alpha=0.7)
         ax2.plot(idx, ref["error_bound"], "r-", lw=1, label=f"derived bound ({rec0['precision']})")
         ill = ref["ill_conditioned"]
