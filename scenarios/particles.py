@@ -83,6 +83,71 @@ def n_frames(params: ParticlesParams) -> int:
     return params.steps // params.record_every + 1 if params.record_every else 0
 
 
+# ---- the one NumPy stepper (oracle, converged references, stress emulation all use it) --------
+def constants(inputs: dict[str, np.ndarray], dtype: type[np.floating] = np.float64) -> dict[str, np.floating]:
+    """The physical constants of ``inputs`` as ``dtype`` scalars, plus the derived ones a port
+    computes once per launch: lo = -1 + radius, hi = 1 - radius, gdt = gravity * dt (each rounded
+    in ``dtype``, as the port rounds them)."""
+    c = {k: dtype(inputs[k]) for k in CONSTANTS}
+    one = dtype(1.0)
+    c.update(lo=-one + c["radius"], hi=one - c["radius"], gdt=c["gravity"] * c["dt"])
+    return c
+
+
+def fly(x, y, u, v, c):
+    """Free flight of one step (semi-implicit Euler): v += g dt; x += u dt; y += v dt."""
+    v = v + c["gdt"]
+    return x + u * c["dt"], y + v * c["dt"], u, v
+
+
+def clamp(x, y, u, v, c):
+    """The contact rule after free flight: floor, then left wall, then right wall.
+    Returns the clamped state and the three hit masks."""
+    floor = y < c["radius"]
+    y = np.where(floor, c["radius"], y); v = np.where(floor, -c["bounce"] * v, v)
+    u = np.where(floor, c["damping"] * u, u)
+    left = x < c["lo"]
+    x = np.where(left, c["lo"], x); u = np.where(left, -c["bounce"] * u, u)
+    right = x > c["hi"]
+    x = np.where(right, c["hi"], x); u = np.where(right, -c["bounce"] * u, u)
+    return x.astype(u.dtype, copy=False), y.astype(u.dtype, copy=False), u, v, (floor, left, right)
+
+
+def simulate(inputs: dict[str, np.ndarray], steps: int, dtype: type[np.floating] = np.float64,
+             until_nonfinite: bool = False):
+    """The scenario's step in NumPy at ``dtype``, operation by operation (no FMA), from the
+    initial state in ``inputs``. Returns ((x, y, u, v), steps taken); with ``until_nonfinite``
+    it stops after the first step that leaves some state value non-finite."""
+    c = constants(inputs, dtype)
+    x, y, u, v = (np.asarray(inputs[k]).astype(dtype) for k in ("x0", "y0", "vx0", "vy0"))
+    with np.errstate(all="ignore"):
+        for s in range(1, steps + 1):
+            x, y, u, v = fly(x, y, u, v, c)
+            x, y, u, v, _ = clamp(x, y, u, v, c)
+            if until_nonfinite and not all(np.all(np.isfinite(a)) for a in (x, y, u, v)):
+                return (x, y, u, v), s
+    return (x, y, u, v), steps
+
+
+def energy(x, y, u, v, gravity: float, radius: float) -> np.ndarray:
+    """Per-particle mechanical energy per unit mass, 0 at rest on the floor (float64)."""
+    f = lambda a: np.asarray(a, np.float64)  # noqa: E731
+    with np.errstate(over="ignore", invalid="ignore"):
+        return 0.5 * (f(u) ** 2 + f(v) ** 2) + abs(gravity) * (f(y) - radius)
+
+
+def energy_bound(inputs: dict[str, np.ndarray]) -> np.ndarray:
+    """Per-particle energy bound of the exact scheme for bounce < 1, damping <= 1 (docs/stress.md):
+    horizontal energy never grows; free flight loses g^2 dt^2/2 per step; a floor contact leaves
+    vertical energy <= max(before, E_floor), E_floor = (b |g| dt/(1-b))^2 / 2."""
+    c = {k: float(inputs[k]) for k in ("dt", "gravity", "bounce", "radius")}
+    b = c["bounce"]
+    e_floor = 0.5 * (b * abs(c["gravity"]) * c["dt"] / (1.0 - b)) ** 2
+    u0 = inputs["vx0"].astype(np.float64)
+    ev0 = 0.5 * inputs["vy0"].astype(np.float64) ** 2 + abs(c["gravity"]) * (inputs["y0"] - c["radius"])
+    return 0.5 * u0 ** 2 + np.maximum(ev0, e_floor)
+
+
 class Particles(Scenario):
     name = "particles"
     title = "Bouncing particles"
@@ -100,38 +165,36 @@ class Particles(Scenario):
         """Float64 rollout, plus the running error bound for the inputs' precision and margins."""
         # the port's rounding (u) plus the float64 oracle's own (u64): the bound is linear in u
         u = UNIT_ROUNDOFF[precision_of(inputs["x0"])] + UNIT_ROUNDOFF["float64"]
-        c = {k: float(inputs[k]) for k in CONSTANTS}
-        dt, g, damp, bounce, rad = c["dt"], c["gravity"], c["damping"], c["bounce"], c["radius"]
-        lo, hi = -1.0 + rad, 1.0 - rad
+        c = constants(inputs, np.float64)
+        dt, gdt, damp, bounce, rad, lo, hi = (c[k] for k in ("dt", "gdt", "damping", "bounce", "radius", "lo", "hi"))
         x, y = inputs["x0"].astype(np.float64), inputs["y0"].astype(np.float64)
         vx, vy = inputs["vx0"].astype(np.float64), inputs["vy0"].astype(np.float64)
         ex = np.zeros_like(x); ey = np.zeros_like(x); eu = np.zeros_like(x); ev = np.zeros_like(x)
         margin = np.full(x.shape, np.inf); ill = np.zeros(x.shape, dtype=bool)
-        gdt = g * dt
         frames, frame_bounds = [], []
         if params.record_every:
             frames.append((x.copy(), y.copy())); frame_bounds.append(np.maximum(ex, ey))
         for s in range(params.steps):
-            vy = vy + gdt
-            ev = ev + u * (np.abs(vy) + 2.0 * abs(gdt))
+            # rounding of the free flight, from the operands before it (bound update first)
+            ev = ev + u * (np.abs(vy + gdt) + 2.0 * abs(gdt))
             ex = ex + dt * eu + u * (np.abs(x + vx * dt) + 2.0 * np.abs(vx * dt))
-            x = x + vx * dt
-            ey = ey + dt * ev + u * (np.abs(y + vy * dt) + 2.0 * np.abs(vy * dt))
-            y = y + vy * dt
+            ey = ey + dt * ev + u * (np.abs(y + (vy + gdt) * dt) + 2.0 * np.abs((vy + gdt) * dt))
+            x, y, vx, vy = fly(x, y, vx, vy, c)
             # contact thresholds: record the closest approach and whether it was within the bound
             for dist, err in ((np.abs(y - rad), ey), (np.abs(x - lo), ex), (np.abs(x - hi), ex)):
                 margin = np.minimum(margin, dist)
                 ill |= dist <= err
-            hit = y < rad
-            y = np.where(hit, rad, y); ey = np.where(hit, 0.0, ey)
-            vy = np.where(hit, -bounce * vy, vy); ev = np.where(hit, bounce * ev + u * np.abs(vy), ev)
-            vx = np.where(hit, damp * vx, vx); eu = np.where(hit, damp * eu + u * np.abs(vx), eu)
-            hit = x < lo
-            x = np.where(hit, lo, x); ex = np.where(hit, u * abs(lo), ex)   # the port rounds -1 + radius
-            vx = np.where(hit, -bounce * vx, vx); eu = np.where(hit, bounce * eu + u * np.abs(vx), eu)
-            hit = x > hi
-            x = np.where(hit, hi, x); ex = np.where(hit, u * abs(hi), ex)
-            vx = np.where(hit, -bounce * vx, vx); eu = np.where(hit, bounce * eu + u * np.abs(vx), eu)
+            vx_free = vx
+            x, y, vx, vy, (floor, left, right) = clamp(x, y, vx, vy, c)
+            ey = np.where(floor, 0.0, ey)
+            ev = np.where(floor, bounce * ev + u * np.abs(vy), ev)
+            vx_now = np.where(floor, damp * vx_free, vx_free)      # vx after each clamp in turn
+            eu = np.where(floor, damp * eu + u * np.abs(vx_now), eu)
+            # a wall clamp leaves the rounding of -1 + radius (resp. 1 - radius) the port computes
+            for hit, wall in ((left, lo), (right, hi)):
+                vx_now = np.where(hit, -bounce * vx_now, vx_now)
+                ex = np.where(hit, u * abs(wall), ex)
+                eu = np.where(hit, bounce * eu + u * np.abs(vx_now), eu)
             if params.record_every and (s + 1) % params.record_every == 0:
                 frames.append((x.copy(), y.copy())); frame_bounds.append(np.maximum(ex, ey))
         out = {"x": x, "y": y, "vx": vx, "vy": vy,
