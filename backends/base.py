@@ -15,7 +15,8 @@ host<->device transfers and no allocations where the framework lets us avoid the
 from __future__ import annotations
 
 import importlib
-from typing import Any, ClassVar
+from pathlib import Path
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -48,12 +49,51 @@ class ScenarioKernel:
         return {}
 
 
+class EventTimer(Protocol):
+    """Device events around one call: ``start()``, run, ``stop()``, synchronise, ``elapsed_s()``."""
+    description: str
+
+    def start(self) -> None: ...
+    def stop(self) -> None: ...
+    def elapsed_s(self) -> float: ...
+
+
 class Backend:
+    """A framework port. Required: ``name``, ``package``, ``available``, ``synchronize``.
+
+    Everything else is an optional capability with a harmless default that a backend overrides
+    (PhiFlow-style): the driver asks the backend, never switches on its name.
+    """
+
     name: ClassVar[str]
     package: ClassVar[str]                     # the pip distribution the backend needs
     gradient_method: ClassVar[str] = "-"       # 'tape', 'ad', 'adjoint'
     variants: ClassVar[tuple[str, ...]] = ("default",)   # e.g. 'fastmath'
     is_reference: ClassVar[bool] = False
+    # Deliberately wrong variants the stress suite runs as controls its detectors must flag:
+    # scenario -> {variant: what is wrong}. Never listed in ``variants``, never in tables.
+    control_variants: ClassVar[dict[str, dict[str, str]]] = {}
+    # Table/plot order (lower first; the reference is always first) and a fixed matplotlib colour,
+    # so a backend keeps its colour in every plot whatever else ran.
+    display_order: ClassVar[int] = 100
+    color: ClassVar[str | None] = None
+    # Distributions whose versions go into a results file's environment (besides ``package``).
+    related_packages: ClassVar[tuple[str, ...]] = ()
+    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
+        """Environment variables that point this framework's on-disk kernel caches into
+        ``cache_dir`` (an empty directory per cell), so the first call includes compilation.
+        Set before the framework is imported. Default: the framework keeps no cache on disk."""
+        return {}
+
+    def worker_environment(self) -> dict[str, str]:
+        """Environment variables every worker process of this backend needs (set with
+        ``setdefault``, so the user's own settings win), e.g. not to preallocate GPU memory."""
+        return {}
+
+    def event_timer(self, device: str) -> EventTimer | None:
+        """Device events bracketing one call on the stream the kernels run on, or None when the
+        framework's public API has none (then the wall clock alone is the clock)."""
+        return None
 
     def available(self) -> dict[str, str | None]:
         """device -> None when usable, else the reason it is not (not installed, no GPU...)."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -62,6 +63,17 @@ class NumbaBackend(Backend):
     package = "numba"
     gradient_method = "adjoint"          # hand-written discrete adjoint: Numba has no autodiff
     variants = ("default", "fastmath")
+    display_order, color = 3, "C3"
+    related_packages = ("numba-cuda", "llvmlite")
+
+    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
+        # Numba caches on disk only for cache=True functions (none here); the driver's JIT cache
+        # holds PTX compiled for numba.cuda kernels
+        return {"NUMBA_CACHE_DIR": str(cache_dir / "numba"),
+                "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
+
+    def event_timer(self, device: str) -> "NumbaEvents | None":
+        return NumbaEvents() if device == "cuda" else None
 
     def available(self) -> dict[str, str | None]:
         reason = not_installed("numba", self.package)
@@ -100,6 +112,25 @@ class NumbaBackend(Backend):
         if device == "cuda":
             from numba import cuda
             cuda.synchronize()
+
+
+class NumbaEvents:
+    description = "CUDA events (numba.cuda.event on the default stream) around run()"
+
+    def __init__(self) -> None:
+        from numba import cuda
+        self.cuda = cuda
+        self.a, self.b = cuda.event(timing=True), cuda.event(timing=True)
+
+    def start(self) -> None:
+        self.a.record()
+
+    def stop(self) -> None:
+        self.b.record()
+
+    def elapsed_s(self) -> float:
+        self.b.synchronize()
+        return self.cuda.event_elapsed_time(self.a, self.b) * 1e-3       # milliseconds
 
 
 BACKEND = NumbaBackend()

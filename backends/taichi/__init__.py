@@ -8,6 +8,7 @@ process runs exactly one precision, so no kernel is ever compiled for two.
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Any
 
 from ..base import Backend, not_installed
@@ -43,6 +44,12 @@ class TaichiBackend(Backend):
     package = "taichi"
     gradient_method = "ad"
     variants = ("default", "fastmath")
+    display_order, color = 1, "C1"
+
+    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
+        # setup() also passes offline_cache=False to ti.init; the variable covers Taichi's default
+        return {"TI_OFFLINE_CACHE_FILE_PATH": str(cache_dir / "taichi"),
+                "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
 
     def available(self) -> dict[str, str | None]:
         _quiet()

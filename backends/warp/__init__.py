@@ -1,6 +1,7 @@
 """NVIDIA Warp, the reference backend."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from ..base import Backend, not_installed
@@ -20,6 +21,17 @@ class WarpBackend(Backend):
     package = "warp-lang"
     gradient_method = "tape"
     is_reference = True
+    display_order, color = 0, "C0"
+    control_variants = {"particles": {
+        "racy-one-launch": "the seed's single launch over (step, particle): step s reads what "
+                           "step s-1 of the same launch has not yet written"}}
+
+    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
+        return {"WARP_CACHE_PATH": str(cache_dir / "warp"),
+                "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
+
+    def event_timer(self, device: str) -> "WarpEvents | None":
+        return WarpEvents(device) if device == "cuda" else None
 
     def available(self) -> dict[str, str | None]:
         reason = not_installed("warp", self.package)
@@ -54,6 +66,25 @@ class WarpBackend(Backend):
             return {"device_memory_source": "warp mempool disabled on this device (see nvml_*)"}
         return {"device_peak_bytes": int(wp.get_mempool_used_mem_high(dev)),
                 "device_memory_source": "warp mempool high-water mark"}
+
+
+class WarpEvents:
+    description = "CUDA events (wp.Event on the device's current stream) around run()"
+
+    def __init__(self, device: str) -> None:
+        import warp as wp
+        self.wp, self.dev = wp, wp_device(device)
+        self.a = wp.Event(self.dev, enable_timing=True)
+        self.b = wp.Event(self.dev, enable_timing=True)
+
+    def start(self) -> None:
+        self.wp.get_stream(self.dev).record_event(self.a)
+
+    def stop(self) -> None:
+        self.wp.get_stream(self.dev).record_event(self.b)
+
+    def elapsed_s(self) -> float:
+        return self.wp.get_event_elapsed_time(self.a, self.b) * 1e-3   # milliseconds
 
 
 BACKEND = WarpBackend()
