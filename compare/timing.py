@@ -8,7 +8,7 @@
    at least 3 calls;
 4. median, inter-quartile range and min of the per-call times.
 Every timed call is measured on the wall clock (time.perf_counter, around run + synchronise). On a
-GPU, where the framework offers device events (Warp, Numba), the same call is also bracketed by
+GPU, where the framework offers device events (``Backend.event_timer``), the same call is also bracketed by
 two events on the stream the kernels run on; the event times are then the primary figures
 (``clock`` says which), and the wall-clock figures stay in ``wall``.
 Host<->device transfers are outside the timed calls (uploads in the kernel's constructor,
@@ -17,70 +17,26 @@ downloads in ``outputs()``); both are timed separately by the worker.
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, Protocol
+from typing import Any, Callable
 
 import numpy as np
 
+from backends.base import Backend, EventTimer
+
 CLOCK = "wall clock (time.perf_counter) around run() + backend synchronize"
-EVENT_CLOCKS = {"warp": "CUDA events (wp.Event on the device's current stream) around run()",
-                "numba": "CUDA events (numba.cuda.event on the default stream) around run()"}
 
 
-class EventTimer(Protocol):
-    """Device events around one call: ``start()``, run, ``stop()``, synchronise, ``elapsed_s()``."""
-    def start(self) -> None: ...
-    def stop(self) -> None: ...
-    def elapsed_s(self) -> float: ...
-
-
-class _WarpEvents:
-    def __init__(self, device: str) -> None:
-        import warp as wp
-        self.wp, self.dev = wp, "cuda:0" if device == "cuda" else device
-        self.a = wp.Event(self.dev, enable_timing=True)
-        self.b = wp.Event(self.dev, enable_timing=True)
-
-    def start(self) -> None:
-        self.wp.get_stream(self.dev).record_event(self.a)
-
-    def stop(self) -> None:
-        self.wp.get_stream(self.dev).record_event(self.b)
-
-    def elapsed_s(self) -> float:
-        return self.wp.get_event_elapsed_time(self.a, self.b) * 1e-3   # milliseconds
-
-
-class _NumbaEvents:
-    def __init__(self, device: str) -> None:
-        from numba import cuda
-        self.cuda = cuda
-        self.a, self.b = cuda.event(timing=True), cuda.event(timing=True)
-
-    def start(self) -> None:
-        self.a.record()
-
-    def stop(self) -> None:
-        self.b.record()
-
-    def elapsed_s(self) -> float:
-        self.b.synchronize()
-        return self.cuda.event_elapsed_time(self.a, self.b) * 1e-3       # milliseconds
-
-
-# Frameworks whose public API has timing events (Taichi and JAX have none around a call).
-# TODO(integrator): this belongs behind a Backend hook in backends/base.py; it lives here because
-# that contract is not this module's to change.
-_EVENTS: dict[str, Callable[[str], EventTimer]] = {"warp": _WarpEvents, "numba": _NumbaEvents}
-
-
-def event_timer(backend: str, device: str, mode: str = "auto") -> tuple[EventTimer | None, str]:
-    """(timer or None, description of the primary clock) for a cell. mode: 'auto' | 'wall'."""
-    if mode == "wall" or device == "cpu" or backend not in _EVENTS:
+def event_timer(backend: Backend, device: str, mode: str = "auto") -> tuple[EventTimer | None, str]:
+    """(timer or None, description of the primary clock) for a cell. mode: 'auto' | 'wall'.
+    The timer is the backend's own (``Backend.event_timer``): frameworks without device events
+    around a call (Taichi, JAX) are timed on the wall clock alone."""
+    if mode == "wall":
         return None, CLOCK
     try:
-        return _EVENTS[backend](device), EVENT_CLOCKS[backend]
+        timer = backend.event_timer(device)
     except Exception as exc:  # e.g. the CUDA simulator: say why and fall back
         return None, f"{CLOCK} (events unavailable: {type(exc).__name__}: {exc})"
+    return (timer, timer.description) if timer is not None else (None, CLOCK)
 
 
 def call(run: Callable[[], Any], sync: Callable[[Any], None]) -> float:

@@ -143,6 +143,12 @@ class Scenario:
         """The scenario's error metric between two backends' outputs (e.g. a port vs Warp)."""
         raise NotImplementedError
 
+    def output_shapes(self, params) -> dict[str, tuple[int, ...] | None]:
+        """The contract a kernel's ``outputs()`` must meet: exactly these names, each an array of
+        this shape (None: any shape) with the cell's precision as dtype. The worker checks it and
+        turns a violation into an ``error`` record naming it."""
+        return {name: None for name in self.outputs}
+
     def footprint(self, params, precision: str) -> float:
         """Bytes of host memory a cell needs (inputs, outputs, oracle), to refuse absurd sizes."""
         return 0.0

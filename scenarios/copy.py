@@ -36,6 +36,9 @@ class Copy(Scenario):
         # distinct, non-trivial values (not zeros, which a wrong copy could still match)
         return {"x": np.linspace(-1.0, 1.0, params.n, dtype=np.float64).astype(dt)}
 
+    def output_shapes(self, params: CopyParams) -> dict[str, tuple[int, ...]]:
+        return {"out": (params.n,)}
+
     def oracle(self, params: CopyParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {"out": inputs["x"]}
 

@@ -36,6 +36,9 @@ class Launch(Scenario):
         dt = dtype_of(precision)
         return {"x": np.arange(params.n, dtype=dt)}
 
+    def output_shapes(self, params: LaunchParams) -> dict[str, tuple[int, ...]]:
+        return {"out": (params.n,)}
+
     def oracle(self, params: LaunchParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {"out": inputs["x"].astype(np.float64) + 1.0}
 

@@ -161,6 +161,12 @@ class Particles(Scenario):
         out.update({k: np.array(getattr(params, k), dtype=dt) for k in CONSTANTS})
         return out
 
+    def output_shapes(self, params: ParticlesParams) -> dict[str, tuple[int, ...]]:
+        shapes = {k: (params.n,) for k in self.outputs}
+        if params.record_every:      # trajectory frames only when asked for (no history otherwise)
+            shapes.update(traj_x=(n_frames(params), params.n), traj_y=(n_frames(params), params.n))
+        return shapes
+
     def oracle(self, params: ParticlesParams, inputs):
         """Float64 rollout, plus the running error bound for the inputs' precision and margins."""
         # the port's rounding (u) plus the float64 oracle's own (u64): the bound is linear in u

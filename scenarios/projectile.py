@@ -294,6 +294,9 @@ class Projectile(Scenario):
         out["v0"] = np.array([params.vx0, params.vy0], dtype=dt)
         return out
 
+    def output_shapes(self, params: ProjectileParams) -> dict[str, tuple[int, ...]]:
+        return {"loss": (), "grad": (2,), "loss_history": (params.iters + 1,), "v_final": (2,)}
+
     def oracle(self, params: ProjectileParams, inputs) -> dict[str, np.ndarray]:
         # the port's rounding (u) plus the float64 oracle's own (u64): the bounds are linear in u
         u = UNIT_ROUNDOFF[precision_of(inputs["v0"])] + UNIT_ROUNDOFF["float64"]

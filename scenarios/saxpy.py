@@ -51,6 +51,9 @@ class Saxpy(Scenario):
             y = rng.standard_normal(params.n) * 10.0 ** rng.uniform(-3, 3, params.n)
         return {"a": np.array(params.a, dtype=dt), "x": x.astype(dt), "y": y.astype(dt)}
 
+    def output_shapes(self, params: SaxpyParams) -> dict[str, tuple[int, ...]]:
+        return {"out": (params.n,)}
+
     def oracle(self, params: SaxpyParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         a = np.float64(inputs["a"])
         return {"out": a * inputs["x"].astype(np.float64) + inputs["y"].astype(np.float64)}

@@ -55,6 +55,9 @@ class Sdf(Scenario):
     def inputs(self, params: SdfParams, precision: str) -> dict[str, np.ndarray]:
         return {}  # the image is a pure function of the pixel index
 
+    def output_shapes(self, params: SdfParams) -> dict[str, tuple[int, ...]]:
+        return {"image": (params.height, params.width)}
+
     def oracle(self, params: SdfParams, inputs) -> dict[str, np.ndarray]:
         i = np.arange(params.width, dtype=np.float64)
         j = np.arange(params.height, dtype=np.float64)

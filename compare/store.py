@@ -1,0 +1,224 @@
+"""The one results store: load / validate / upgrade / merge / save records, and cell arrays.
+
+Every suite keeps one JSON file (``results.json``, ``sweep.json``, ``stress.json``) of the same
+shape (pyperf-style: versioned, and a merge of different suites or versions is refused):
+
+    {"format_version": 2, "suite": "run" | "sweep" | "stress",
+     "runs": [environment, ...],          one per invocation that added records (provenance)
+     "records": [record, ...],            compare.spec's record schema, one per cell key
+     "analysis": {...}}                   what a suite derives from its records (stress findings)
+
+Files written before format 2 (no ``format_version``) are read and upgraded in memory: old
+results.json ``{environment, records}``, sweep.json ``{runs, records}``, stress.json
+``{environment, provenance, rows, series}``; saving writes format 2. Every write is atomic
+(temporary file + rename in the same directory, removed on failure).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from compare.spec import FORMAT_VERSION, KEPT_ON_RESUME, key, record_problem
+
+SUITES = {"run": "results.json", "sweep": "sweep.json", "stress": "stress.json"}
+# per suite: turn a record of an older format into today's (registered by the suite's module)
+UPGRADES: dict[str, Callable[[dict[str, Any]], dict[str, Any]]] = {}
+
+
+class StoreError(ValueError):
+    """A results file that cannot be used; the message is one line naming the file."""
+
+
+def jsonable(x: Any) -> Any:
+    """Plain JSON types; non-finite floats as the strings 'nan', 'inf', '-inf'."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)) and not isinstance(x, bool):
+        x = float(x)
+        return x if math.isfinite(x) else str(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def atomic_write(path: Path, data: str | bytes) -> None:
+    """Write via a temporary file in the same directory and rename, so a reader never sees half
+    a file and a failed write (a full disk) leaves neither a partial file nor the temporary."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+        os.chmod(tmp, 0o644)          # mkstemp creates 0600; results are meant to be shared
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def _upgrade(data: Any, path: Path) -> dict[str, Any]:
+    """Any supported layout -> format 2 (in memory)."""
+    if not isinstance(data, dict):
+        raise StoreError(f"{path}: not a results file (top level is {type(data).__name__}, not an object)")
+    version = data.get("format_version")
+    if version is None:                                   # format 1: three layouts
+        if "rows" in data:
+            suite = "stress"
+            analysis = {k: data[k] for k in ("rows", "series", "provenance") if k in data}
+            data = {"suite": suite, "runs": [data.get("environment", {})], "records": [],
+                    "analysis": analysis}
+        elif "runs" in data:
+            data = {"suite": "sweep", "runs": data["runs"], "records": data.get("records")}
+        elif "environment" in data:
+            data = {"suite": "run", "runs": [data["environment"]], "records": data.get("records")}
+        else:
+            raise StoreError(f"{path}: not a results file (no format_version, records or rows)")
+        data["format_version"] = 1
+    elif version != FORMAT_VERSION:
+        raise StoreError(f"{path}: format_version {version!r} is not supported (this tool reads 1 and {FORMAT_VERSION})")
+    if data.get("suite") not in SUITES:
+        raise StoreError(f"{path}: unknown suite {data.get('suite')!r} (known: {', '.join(SUITES)})")
+    if not isinstance(data.get("runs"), list) or not all(isinstance(r, dict) for r in data["runs"]):
+        raise StoreError(f"{path}: 'runs' must be a list of objects")
+    if not isinstance(data.get("records"), list):
+        raise StoreError(f"{path}: 'records' must be a list")
+    if not isinstance(data.setdefault("analysis", {}), dict):
+        raise StoreError(f"{path}: 'analysis' must be an object")
+    upgrade = UPGRADES.get(data["suite"])
+    for i, rec in enumerate(data["records"]):
+        problem = record_problem(rec)
+        if problem:
+            raise StoreError(f"{path}: record {i}: {problem}")
+        if data["format_version"] == 1 and upgrade:
+            data["records"][i] = upgrade(rec)
+    data["upgraded_from"] = data.pop("format_version") if data["format_version"] != FORMAT_VERSION else None
+    return data
+
+
+class Store:
+    """Records of one suite in one JSON file, keyed by cell (a later record of a key replaces
+    the earlier one); ``analysis`` is the suite's derived data."""
+
+    def __init__(self, path: Path, suite: str, runs: list[dict[str, Any]] | None = None,
+                 records: Iterable[dict[str, Any]] = (), analysis: dict[str, Any] | None = None,
+                 upgraded_from: int | None = None) -> None:
+        if suite not in SUITES:
+            raise ValueError(f"unknown suite {suite!r}")
+        self.path, self.suite = Path(path), suite
+        self.runs: list[dict[str, Any]] = list(runs or [])
+        self.analysis: dict[str, Any] = dict(analysis or {})
+        self.upgraded_from = upgraded_from
+        self._records: dict[str, dict[str, Any]] = {}
+        for r in records:
+            self.put(r)
+
+    # ---- reading --------------------------------------------------------------------------
+    @classmethod
+    def read(cls, path: str | Path, suite: str | None = None) -> "Store":
+        """An existing file, validated; a different suite than asked for is refused."""
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise StoreError(f"{path}: no such file") from None
+        except IsADirectoryError:
+            raise StoreError(f"{path}: is a directory, not a results file") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise StoreError(f"{path}: cannot read ({exc})") from None
+        except ValueError as exc:
+            raise StoreError(f"{path}: not JSON ({exc})") from None
+        data = _upgrade(data, path)
+        if suite is not None and data["suite"] != suite:
+            raise StoreError(f"{path}: holds {data['suite']} results, not {suite} results")
+        return cls(path, data["suite"], data["runs"], data["records"], data["analysis"],
+                   data["upgraded_from"])
+
+    @classmethod
+    def open(cls, directory: str | Path, suite: str, keep: bool = True) -> "Store":
+        """The suite's file in ``directory``: its records when ``keep`` and it exists, else empty."""
+        path = Path(directory) / SUITES[suite]
+        if keep and path.exists():
+            return cls.read(path, suite)
+        return cls(path, suite)
+
+    # ---- records --------------------------------------------------------------------------
+    @property
+    def records(self) -> list[dict[str, Any]]:
+        return list(self._records.values())
+
+    def put(self, record: dict[str, Any]) -> None:
+        self._records[key(record)] = record
+
+    def get(self, cell_key: str) -> dict[str, Any] | None:
+        return self._records.get(cell_key)
+
+    def done(self, cell_key: str) -> bool:
+        """True when a rerun (--resume) keeps this cell's record instead of running it again."""
+        r = self._records.get(cell_key)
+        return r is not None and r.get("status") in KEPT_ON_RESUME
+
+    def retry_only(self) -> None:
+        """Drop the records --resume retries (error rows), keep the rest."""
+        self._records = {k: r for k, r in self._records.items() if r.get("status") in KEPT_ON_RESUME}
+
+    def merge(self, other: "Store") -> None:
+        """Add ``other``'s runs and records (a later record of a cell wins)."""
+        if other.suite != self.suite:
+            raise StoreError(f"{other.path}: holds {other.suite} results; cannot merge into {self.suite} results")
+        self.runs += other.runs
+        for r in other.records:
+            self.put(r)
+
+    # ---- writing --------------------------------------------------------------------------
+    def to_json(self) -> str:
+        return json.dumps(jsonable({"format_version": FORMAT_VERSION, "suite": self.suite,
+                                    "runs": self.runs, "records": self.records,
+                                    "analysis": self.analysis}), indent=1)
+
+    def save(self) -> None:
+        atomic_write(self.path, self.to_json())
+
+
+# ---- arrays (--save-arrays): one .npz per cell beside the results file ------------------------
+def array_file(directory: Path, rec: dict[str, Any]) -> Path:
+    name = f"{rec['scenario']}-{rec['backend']}-{rec['device']}-{rec['precision']}"
+    if rec.get("variant", "default") != "default":
+        name += f"-{rec['variant']}"
+    return Path(directory) / "arrays" / f"{name}.npz"
+
+
+def save_arrays(directory: Path, rec: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    import io
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    atomic_write(array_file(directory, rec), buf.getvalue())
+
+
+def load_arrays(directory: Path, rec: dict[str, Any], names: Iterable[str]) -> dict[str, np.ndarray] | None:
+    """The named arrays of a cell saved beside a results file, or None (absent or unreadable:
+    a truncated file must not take a report down)."""
+    f = array_file(directory, rec)
+    if not f.exists():
+        return None
+    try:
+        with np.load(f) as z:
+            return {k: z[k] for k in names if k in z.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):
+        return None
