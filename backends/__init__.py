@@ -13,34 +13,54 @@ from scenarios.base import ParamError
 
 from .base import DEVICES, Backend, ScenarioKernel
 
-ORDER = ("warp", "taichi", "jax", "numba")   # table order; the reference first
-
 
 class Broken(Backend):
-    """Stands in for a backend package that failed to import; every device says why."""
+    """Stands in for a backend package that cannot be used (failed import, no or duplicate name);
+    every device says why, so its cells are skips with the reason, never a crash."""
 
     def __init__(self, name: str, reason: str) -> None:
-        self.name, self.reason = name, f"backend package failed to import: {reason}"
-        self.package = name
+        self.name, self.reason, self.package = name, reason, name
 
     def available(self) -> dict[str, str | None]:
         return {d: self.reason for d in DEVICES}
 
 
+# One line per backend package that could not be registered as it is (listed by `compare list`).
+PROBLEMS: list[str] = []
+
+
 def _discover() -> dict[str, Backend]:
-    found = {}
-    for mod in pkgutil.iter_modules([str(Path(__file__).parent)]):
+    found: dict[str, Backend] = {}
+    for mod in sorted(pkgutil.iter_modules([str(Path(__file__).parent)]), key=lambda m: m.name):
         if not mod.ispkg:
             continue
+        where = f"backends/{mod.name}"
         try:
             pkg = importlib.import_module(f"{__name__}.{mod.name}")
             backend = getattr(pkg, "BACKEND", None)
         except Exception as exc:  # a broken port must not take the driver down: list it as unusable
-            backend = Broken(mod.name, f"{type(exc).__name__}: {exc}")
-        if isinstance(backend, Backend):
-            found[backend.name] = backend
-    return dict(sorted(found.items(), key=lambda kv: (ORDER.index(kv[0]) if kv[0] in ORDER
-                                                      else len(ORDER), kv[0])))
+            backend = Broken(mod.name, f"backend package failed to import: {type(exc).__name__}: {exc}")
+        if backend is None:
+            continue                          # a helper package, not a backend
+        if not isinstance(backend, Backend):
+            backend = Broken(mod.name, f"{where}: BACKEND is a {type(backend).__name__}, not a Backend")
+        name = getattr(backend, "name", None)
+        if not isinstance(name, str) or not name:
+            backend = Broken(mod.name, f"{where}: BACKEND has no name (set the class attribute 'name')")
+        elif name in found:
+            backend = Broken(mod.name, f"{where}: BACKEND calls itself {name!r}, which "
+                                       f"{found[name].__module__.replace('.', '/')} already is; rename one")
+        elif not isinstance(getattr(backend, "package", None), str):
+            backend = Broken(name, f"{where}: BACKEND has no package (the pip distribution it needs)")
+        if isinstance(backend, Broken):
+            if backend.name in found:     # a folder named like another backend's name
+                backend.name = f"{backend.name}@{where}"
+            PROBLEMS.append(backend.reason)
+        found[backend.name] = backend
+    refs = [n for n, b in found.items() if b.is_reference]
+    if len(refs) > 1:
+        PROBLEMS.append(f"several reference backends ({', '.join(refs)}); the first is used")
+    return dict(sorted(found.items(), key=lambda kv: (not kv[1].is_reference, kv[1].display_order, kv[0])))
 
 
 BACKENDS: dict[str, Backend] = _discover()
@@ -53,7 +73,8 @@ def get(name: str) -> Backend:
 
 
 def reference() -> str:
-    return next(n for n, b in BACKENDS.items() if b.is_reference)
+    """The reference backend's name (the first marked ``is_reference``; else the first listed)."""
+    return next((n for n, b in BACKENDS.items() if b.is_reference), next(iter(BACKENDS), ""))
 
 
-__all__ = ["BACKENDS", "DEVICES", "Backend", "ScenarioKernel", "get", "reference"]
+__all__ = ["BACKENDS", "DEVICES", "PROBLEMS", "Backend", "ScenarioKernel", "get", "reference"]

@@ -15,6 +15,7 @@ host<->device transfers and no allocations where the framework lets us avoid the
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
@@ -116,6 +117,13 @@ class Backend:
     def kernel(self, scenario: str) -> type[ScenarioKernel]:
         module = importlib.import_module(f"{type(self).__module__}.{scenario}")
         return module.Kernel
+
+    def has_kernel(self, scenario: str) -> bool:
+        """Whether the backend has a kernel file for ``scenario`` (found without importing it)."""
+        try:
+            return importlib.util.find_spec(f"{type(self).__module__}.{scenario}") is not None
+        except (ImportError, ValueError):
+            return False
 
 
 def not_installed(module: str, package: str) -> str | None:

@@ -11,12 +11,17 @@ a store can save it before the next cell starts.
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
 import threading
 from typing import Any, Callable, Iterable
 
 import numpy as np
 
+import backends
+import scenarios
 from compare import cells
+from compare.spec import IDENTITY, CellSpec, key
+from compare.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
 Result = tuple[dict[str, Any], Outputs | None]
@@ -63,17 +68,47 @@ def availability(names: Iterable[str]) -> dict[str, dict[str, Any]]:
         return dict(zip(names, pool.map(cells.probe, names)))
 
 
+def prepare(spec: dict[str, Any]) -> dict[str, Any]:
+    """A checked ``CellSpec`` as a dict, with the scenario's parameters resolved (defaults, quick
+    overrides, the spec's own), so a cell has one identity however it was asked for."""
+    cs = CellSpec.from_dict(spec)
+    params = dataclasses.asdict(scenarios.get(cs.scenario).params(cs.params, quick=cs.quick))
+    return dataclasses.replace(cs, params=params, quick=False).to_dict()
+
+
+def not_runnable(spec: dict[str, Any], probes: dict[str, dict[str, Any]]) -> tuple[str, str] | None:
+    """(status, reason) of a cell that must not start: its backend cannot use the device, or has
+    no kernel file for the scenario (an error for a scenario every backend must have, a skip for
+    a measurement-only one)."""
+    why = probes.get(spec["backend"], {}).get("available", {}).get(spec["device"],
+                                                                   "device not probed")
+    if why:
+        return "skipped", why
+    be = backends.get(spec["backend"])
+    if not be.has_kernel(spec["scenario"]):
+        where = f"{type(be).__module__.replace('.', '/')}/{spec['scenario']}.py"
+        if scenarios.get(spec["scenario"]).in_all:
+            return "error", f"contract: no {where} (every backend needs one per scenario in 'all')"
+        return "skipped", f"no {where} (optional: measurement-only scenario)"
+    return None
+
+
 def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
               probes: dict[str, dict[str, Any]] | None = None,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
-              runner: Callable[[dict[str, Any]], Result] | None = None) -> list[Result]:
+              runner: Callable[[dict[str, Any]], Result] | None = None,
+              store: Store | None = None, resume: bool = False) -> list[Result]:
     """Run every cell spec in its own worker process; returns (record, outputs) per spec, in order.
 
-    A record always carries the spec's identity (scenario, backend, device, precision, variant)
-    and its ``tags``; a backend that cannot use the device gives a ``skipped`` record (reason
-    from its probe) without starting a process. ``jobs`` > 1 overlaps cells (only for suites
-    whose figures are not timings). ``runner`` replaces the local worker (e.g. a Dask client).
+    A record always carries the cell's identity (scenario, backend, device, precision, variant,
+    resolved params, tags). A cell that must not start (``not_runnable``) gets its record without
+    a process. ``jobs`` > 1 overlaps cells (only for suites whose figures are not timings).
+    ``runner`` replaces the local worker (e.g. a Dask client). With a ``store``, every record is
+    put and saved as it arrives (a killed run keeps what finished), and with ``resume`` a cell
+    the store already holds as ok/mismatch/skipped is not run again (its record is returned,
+    outputs None); error records are retried.
     """
+    specs = [prepare(s) for s in specs]
     probes = probes if probes is not None else availability({s["backend"] for s in specs})
     run = runner or (lambda s: cells.run(s, timeout=timeout))
     lock = threading.Lock()
@@ -81,24 +116,34 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
 
     def one(i: int) -> Result:
         spec = specs[i]
-        ident = {k: spec[k] for k in ("scenario", "backend", "device", "precision")}
-        ident["variant"] = spec.get("variant", "default")
+        ident = {k: spec[k] for k in (*IDENTITY, "params")}
         if spec.get("tags"):
             ident["tags"] = spec["tags"]
-        why = probes.get(spec["backend"], {}).get("available", {}).get(spec["device"], "not probed")
-        if why:
-            rec: dict[str, Any] = {**ident, "status": "skipped", "reason": why}
+        if store is not None and resume and store.done(key(ident)):
+            done[i] = (store.get(key(ident)), None)
+            return done[i]
+        blocked = not_runnable(spec, probes)
+        if blocked:
+            rec: dict[str, Any] = {**ident, "status": blocked[0], "reason": blocked[1]}
             out = None
         else:
             got, out = run(spec)
-            rec = {**ident, **got}
+            inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
+            if inputs and out is not None:
+                out = {**inputs, **out}
+            rec = {**got, **ident}
         rec.setdefault("reason", "")
-        if on_record is not None:
-            with lock:
+        for k in ("time", "error"):
+            rec.setdefault(k, None)
+        rec = jsonable(rec)
+        with lock:
+            if store is not None:
+                store.put(rec)
+                store.save()
+            if on_record is not None:
                 on_record(i, rec, out)
         done[i] = (rec, out)
-        return rec, out
+        return done[i]
 
-    pool_map(lambda i: one(i), list(range(len(specs))), jobs=jobs,
-             lane=lambda i: gpu_lane(specs[i]))
+    pool_map(one, list(range(len(specs))), jobs=jobs, lane=lambda i: gpu_lane(specs[i]))
     return [r for r in done if r is not None]

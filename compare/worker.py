@@ -2,18 +2,14 @@
 
 Process-global framework state (ti.init's precision, JAX's x64 flag, CUDA contexts) lives and dies
 with this process, and a crash here becomes an ``error`` record in the parent, not a lost run.
-Writes OUT_DIR/record.json and OUT_DIR/outputs.npz (the outputs, for cross-backend comparison).
+Reads a ``compare.spec.CellSpec``; writes OUT_DIR/record.json and OUT_DIR/outputs.npz.
 
-Spec keys beyond the cell's identity (all optional): ``repeat``, ``min_time``, ``max_time``
-(timing.steady_state); ``cache`` 'cold' (default: every framework's on-disk kernel cache pointed
-at an empty directory, so the first call compiles) or 'warm' (the framework defaults, noted as
-such); ``timer`` 'auto' (CUDA events where the framework has them) or 'wall'; ``check_sample`` k
-(check k evenly spaced items against the oracle when n > k, for per-item scenarios at sizes where
-a full float64 oracle would dominate the run); ``save_outputs`` (default true); ``save_inputs``.
-"""
+The kernel is not trusted: its outputs must be exactly the scenario's declared outputs
+(``Scenario.output_shapes``: names and shapes) with the cell's precision as dtype, or the cell is
+an ``error`` naming the violation; a float32 cell that computed in float64 is caught here.
+
 from __future__ import annotations
 
-import ctypes
 import dataclasses
 import json
 import os
@@ -28,24 +24,12 @@ import numpy as np
 
 import backends
 import scenarios
+from backends.base import Backend
 from compare import timing
-
-
-def jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        x = float(x)
-        return x if np.isfinite(x) else str(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
+from compare.nvml import Nvml
+from compare.spec import CellSpec
+from compare.store import jsonable
+from scenarios.base import dtype_of
 
 
 def peak_rss_bytes() -> int:
@@ -66,112 +50,30 @@ def peak_rss_bytes() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * scale
 
 
-def injected_fault(spec: dict[str, Any]) -> str | None:
+def injected_fault(spec: CellSpec) -> str | None:
     """Test hook: COMPARE_FAULT="<scenario>/<backend>:<kind>" (kind: crash, hang, raise, mismatch, oom)
     makes matching cells misbehave, so the driver's handling of each failure can be tested."""
     rule = os.environ.get("COMPARE_FAULT", "")
     if ":" not in rule:
         return None
     target, kind = rule.rsplit(":", 1)
-    return kind if target == f"{spec['scenario']}/{spec['backend']}" else None
+    return kind if target == f"{spec.scenario}/{spec.backend}" else None
 
 
 
-# Where each framework keeps compiled kernels between processes. 'cold' points every one at an
-# empty directory inside the cell's own temporary directory (deleted with it), so first_call_s
-# always includes compilation; Taichi's offline cache is also off in its setup(), Numba caches on
-# disk only for cache=True functions (none here), and JAX's persistent cache is off by default.
-CACHE_DIRS = {"WARP_CACHE_PATH": "warp", "CUDA_CACHE_PATH": "cuda-driver-jit",
-              "TI_OFFLINE_CACHE_FILE_PATH": "taichi", "NUMBA_CACHE_DIR": "numba"}
-
-
-def apply_cache_policy(policy: str, out_dir: Path) -> str:
-    """Set the framework cache locations (before any framework is imported); returns the note."""
+def apply_cache_policy(policy: str, backend: Backend, out_dir: Path) -> str:
+    """Point the backend's on-disk kernel caches at empty directories inside the cell's own
+    temporary directory (deleted with it), so first_call_s always includes compilation; set before
+    the framework is imported. Returns the note recorded with the time."""
     if policy == "warm":
         return "warm: framework default caches, which may hold kernels compiled by earlier runs"
-    if policy != "cold":
-        raise ValueError(f"cache must be 'cold' or 'warm', got {policy!r}")
-    for var, sub in CACHE_DIRS.items():
-        (out_dir / "cache" / sub).mkdir(parents=True, exist_ok=True)
-        os.environ[var] = str(out_dir / "cache" / sub)
-    os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
-    os.environ["JAX_ENABLE_COMPILATION_CACHE"] = "false"
-    return ("cold: empty " + ", ".join(CACHE_DIRS) + "; JAX persistent cache off; "
-            "Taichi offline_cache off")
-
-
-class _NvmlMem(ctypes.Structure):
-    _fields_ = [("total", ctypes.c_ulonglong), ("free", ctypes.c_ulonglong),
-                ("used", ctypes.c_ulonglong)]
-
-
-class _NvmlProc(ctypes.Structure):
-    _fields_ = [("pid", ctypes.c_uint), ("usedGpuMemory", ctypes.c_ulonglong),
-                ("gpuInstanceId", ctypes.c_uint), ("computeInstanceId", ctypes.c_uint)]
-
-
-class Nvml:
-    """Device memory from NVML (the driver's libnvidia-ml, through ctypes: no Python package).
-
-    NVML has no per-process peak, so the worker samples at the cell's milestones and keeps the
-    largest value; it reports this process's usage where NVML lists our PID (not inside some
-    containers' PID namespaces), and otherwise the whole device's usage minus a baseline taken
-    before the framework started. Framework-independent, so it is recorded for every CUDA cell.
-    """
-
-    def __init__(self) -> None:
-        self.lib = ctypes.CDLL("libnvidia-ml.so.1")
-        if self.lib.nvmlInit_v2() != 0:
-            raise OSError("nvmlInit failed")
-        visible = os.environ.get("CUDA_VISIBLE_DEVICES", "0").split(",")[0].strip()
-        self.handle = ctypes.c_void_p()
-        idx = int(visible) if visible.isdigit() else 0
-        if self.lib.nvmlDeviceGetHandleByIndex_v2(idx, ctypes.byref(self.handle)) != 0:
-            raise OSError(f"no NVML device {idx}")
-        self.baseline = self.device_used()
-        self.peak_device = self.baseline
-        self.peak_process: int | None = None
-
-    def device_used(self) -> int:
-        mem = _NvmlMem()
-        if self.lib.nvmlDeviceGetMemoryInfo(self.handle, ctypes.byref(mem)) != 0:
-            raise OSError("nvmlDeviceGetMemoryInfo failed")
-        return int(mem.used)
-
-    def process_used(self) -> int | None:
-        for name in ("nvmlDeviceGetComputeRunningProcesses_v3", "nvmlDeviceGetComputeRunningProcesses_v2"):
-            fn = getattr(self.lib, name, None)
-            if fn is None:
-                continue
-            count = ctypes.c_uint(256)
-            procs = (_NvmlProc * 256)()
-            if fn(self.handle, ctypes.byref(count), procs) != 0:
-                return None
-            for p in procs[:count.value]:
-                if p.pid == os.getpid() and p.usedGpuMemory < 2**63:   # 2^64-1: not available
-                    return int(p.usedGpuMemory)
-            return None
-        return None
-
-    def sample(self) -> None:
-        try:
-            self.peak_device = max(self.peak_device, self.device_used())
-            mine = self.process_used()
-        except Exception:  # a reading lost is a sample lost, never the cell
-            return
-        if mine is not None:
-            self.peak_process = max(self.peak_process or 0, mine)
-
-    def figures(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"nvml_device_used_before_bytes": self.baseline,
-                               "nvml_device_delta_peak_bytes": self.peak_device - self.baseline}
-        if self.peak_process is not None:
-            out["nvml_process_peak_bytes"] = self.peak_process
-            out["nvml_source"] = "NVML, this process, max of samples after set-up, first call, steady state"
-        else:
-            out["nvml_source"] = ("NVML, whole device minus the use before the framework started "
-                                  "(this PID not listed by NVML), max of samples")
-        return out
+    env = backend.cache_environment(out_dir / "cache")
+    for var, value in env.items():
+        if value:
+            Path(value).mkdir(parents=True, exist_ok=True)
+        os.environ[var] = value
+    return "cold: " + (", ".join(f"{k} empty" if v else f"{k} off" for k, v in env.items())
+                       or "the framework keeps no kernel cache on disk")
 
 
 def open_nvml(device: str) -> tuple[Nvml | None, str | None]:
@@ -181,6 +83,25 @@ def open_nvml(device: str) -> tuple[Nvml | None, str | None]:
         return Nvml(), None
     except Exception as exc:  # no driver library, or no device
         return None, f"NVML unavailable: {type(exc).__name__}: {exc}"
+
+
+def contract_violation(sc: Any, params: Any, precision: str, outputs: dict[str, Any]) -> str | None:
+    """The first way the kernel's outputs break the scenario's declared contract, or None."""
+    want = sc.output_shapes(params)
+    missing = [k for k in want if k not in outputs]
+    if missing:
+        return f"contract: kernel returned no {missing[0]!r} (declared outputs: {', '.join(want)})"
+    extra = [k for k in outputs if k not in want]
+    if extra:
+        return f"contract: kernel returned undeclared output {extra[0]!r} (declared: {', '.join(want)})"
+    dtype = np.dtype(dtype_of(precision))
+    for k, shape in want.items():
+        a = outputs[k]
+        if a.dtype != dtype:
+            return f"contract: output {k!r} has dtype {a.dtype}, the cell's precision is {precision}"
+        if shape is not None and a.shape != tuple(shape):
+            return f"contract: output {k!r} has shape {a.shape}, expected {tuple(shape)}"
+    return None
 
 
 def device_memory(be: Any, device: str) -> dict[str, Any]:
@@ -210,12 +131,12 @@ def sample_items(params: Any, inputs: dict[str, np.ndarray], outputs: dict[str, 
     return pick(inputs), pick(outputs), int(idx.size)
 
 
-def run_cell(spec: dict[str, Any], out_dir: Path, cache_note: str = "") -> dict[str, Any]:
+def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "") -> dict[str, Any]:
     """Build, time, download and check one cell. Exceptions propagate (the parent records them)."""
-    sc = scenarios.get(spec["scenario"])
-    be = backends.get(spec["backend"])
-    device, precision, variant = spec["device"], spec["precision"], spec.get("variant", "default")
-    params = sc.params(spec.get("params", {}), quick=spec.get("quick", False))
+    sc = scenarios.get(spec.scenario)
+    be = backends.get(spec.backend)
+    device, precision, variant = spec.device, spec.precision, spec.variant
+    params = sc.params(spec.params, quick=spec.quick)
     inputs = sc.inputs(params, precision)
 
     nvml, nvml_note = open_nvml(device)       # baseline before the framework touches the GPU
@@ -230,15 +151,17 @@ def run_cell(spec: dict[str, Any], out_dir: Path, cache_note: str = "") -> dict[
     first_call_s = timing.call(kernel.run, sync)
     if nvml:
         nvml.sample()
-    timer, clock = timing.event_timer(be.name, device, spec.get("timer", "auto"))
-    t = timing.steady_state(kernel.run, sync, repeat=spec.get("repeat", 10),
-                            min_time=spec.get("min_time", 0.2), max_time=spec.get("max_time", 10.0),
-                            timer=timer)
+    timer, clock = timing.event_timer(be, device, spec.timer)
+    t = timing.steady_state(kernel.run, sync, repeat=spec.repeat, min_time=spec.min_time,
+                            max_time=spec.max_time, timer=timer)
     if nvml:
         nvml.sample()
     t0 = time.perf_counter()
-    outputs = {k: np.asarray(v) for k, v in kernel.outputs().items()}
+    got = kernel.outputs()
     download_s = time.perf_counter() - t0
+    if not isinstance(got, dict):
+        raise ContractError(f"contract: outputs() returned {type(got).__name__}, not a dict of arrays")
+    outputs = {k: np.asarray(v) for k, v in got.items()}
 
     fault = injected_fault(spec)
     if fault == "crash":
@@ -254,7 +177,10 @@ def run_cell(spec: dict[str, Any], out_dir: Path, cache_note: str = "") -> dict[
     if fault == "mismatch":
         outputs = {k: v + np.asarray(1, v.dtype) if v.dtype.kind == "f" else v for k, v in outputs.items()}
 
-    sampled = sample_items(params, inputs, outputs, int(spec.get("check_sample") or 0))
+    violation = contract_violation(sc, params, precision, outputs)
+    if violation:
+        raise ContractError(violation)
+    sampled = sample_items(params, inputs, outputs, spec.check_sample)
     c_in, c_out = (sampled[0], sampled[1]) if sampled else (inputs, outputs)
     reference = sc.oracle(params, c_in)
     check = sc.check(params, c_in, c_out, reference, precision)
@@ -267,7 +193,7 @@ def run_cell(spec: dict[str, Any], out_dir: Path, cache_note: str = "") -> dict[
                  "clock": timing.CLOCK if "events_error" in t else clock,
                  "timer": "events" if timer is not None and "events_error" not in t else "wall",
                  "first_call_clock": timing.CLOCK, "cache": cache_note},
-        "error": {"vs_oracle": check.error, "tolerance": check.tolerance, "vs_warp": None,
+        "error": {"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
                   **{k: v for k, v in check.details.items()},
                   "checked_items": f"{sampled[2]} of {params.n} (evenly spaced)" if sampled else "all"},
         "work": work,
@@ -290,19 +216,25 @@ def run_cell(spec: dict[str, Any], out_dir: Path, cache_note: str = "") -> dict[
             "vs_fd64_rel": check.details.get("gradient_vs_fd64_rel"),
             "tolerance": check.details.get("gradient_tolerance"),
         }
-    if spec.get("save_outputs", True):
+    if spec.save_outputs:
         np.savez(out_dir / "outputs.npz", **outputs)
-    if spec.get("save_inputs"):
+    if spec.save_inputs:
         np.savez(out_dir / "inputs.npz", **inputs)
     return record
 
 
+class ContractError(RuntimeError):
+    """A kernel's outputs break the scenario's declared contract."""
+
+
 def main(argv: list[str]) -> int:
-    spec = json.loads(Path(argv[0]).read_text())
     out_dir = Path(argv[1])
     try:
-        cache_note = apply_cache_policy(spec.get("cache", "cold"), out_dir)
+        spec = CellSpec.from_dict(json.loads(Path(argv[0]).read_text()))
+        cache_note = apply_cache_policy(spec.cache, backends.get(spec.backend), out_dir)
         record = run_cell(spec, out_dir, cache_note)
+    except ContractError as exc:  # the port broke the contract: say how, no traceback needed
+        record = {"status": "error", "reason": str(exc)}
     except Exception as exc:  # the record says what went wrong; the parent keeps going
         record = {"status": "error", "reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
                   "traceback": traceback.format_exc()}
