@@ -147,3 +147,26 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
 
     pool_map(one, list(range(len(specs))), jobs=jobs, lane=lambda i: gpu_lane(specs[i]))
     return [r for r in done if r is not None]
+
+
+def progress(total: int) -> Callable[[int, dict[str, Any], Outputs | None], None]:
+    """An ``on_record`` that reports each finished cell on stderr: a tqdm bar on a terminal, one
+    line per cell otherwise (CI logs)."""
+    import os
+    import sys
+    quiet = bool(os.environ.get("CI")) or not sys.stderr.isatty()
+    bar = None
+    if not quiet:
+        from tqdm import tqdm
+        bar = tqdm(total=total, unit="cell", file=sys.stderr)
+
+    def on_record(i: int, rec: dict[str, Any], out: Outputs | None) -> None:
+        label = "/".join(str(rec.get(k)) for k in IDENTITY)
+        if bar is not None:
+            bar.set_description(label)
+            bar.update(1)
+            if bar.n >= total:
+                bar.close()
+        else:
+            print(f"  {label}: {rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr)
+    return on_record

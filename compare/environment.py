@@ -12,8 +12,14 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("numpy", "warp-lang", "taichi", "jax", "jaxlib", "jax-cuda12-plugin", "jax-cuda13-plugin",
-            "numba", "numba-cuda", "matplotlib")
+
+def packages() -> tuple[str, ...]:
+    """The distributions whose versions a results file records: ours, and every backend's."""
+    import backends
+    names = ["numpy", "matplotlib"]
+    for b in backends.BACKENDS.values():
+        names += [b.package, *b.related_packages]
+    return tuple(dict.fromkeys(names))
 
 
 def _run(cmd: list[str]) -> str:
@@ -47,7 +53,7 @@ def gpus() -> list[dict[str, str]]:
 
 def collect(argv: list[str] | None = None) -> dict[str, Any]:
     versions = {}
-    for pkg in PACKAGES:
+    for pkg in packages():
         try:
             versions[pkg] = importlib.metadata.version(pkg)
         except importlib.metadata.PackageNotFoundError:

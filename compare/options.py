@@ -138,3 +138,35 @@ def scenario_sets(raw: dict[str, str], chosen: list[scenarios.Scenario]) -> dict
         allk = sorted(set().union(*known.values())) if known else []
         raise ParamError(f"unknown parameter {unknown[0]!r} (known: {', '.join(allk)})")
     return {sc.name: {k: v for k, v in raw.items() if k in known[sc.name]} for sc in chosen}
+
+
+def output_directory(path: str) -> "Path":
+    """The output directory, created if needed and checked writable before any cell runs."""
+    import os
+    import tempfile
+    from pathlib import Path
+    if not path or not path.strip():
+        raise UsageError("--out is empty (give a directory)")
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {path}: is a file, not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise UsageError(f"--out {path}: cannot write there ({exc.strerror or exc})") from None
+    if not os.access(out, os.W_OK):
+        raise UsageError(f"--out {path}: not writable")
+    return out
+
+
+def read_notes(path: str | None) -> str:
+    """--notes FILE's text ('' without one)."""
+    if not path:
+        return ""
+    try:
+        with open(path, encoding="utf-8") as f:
+            return f.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"cannot read --notes {path}: {getattr(exc, 'strerror', None) or exc}") from None

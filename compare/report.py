@@ -2,18 +2,29 @@
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
 from tabulate import tabulate
 
+from compare.store import atomic_write
+
 COLUMNS = ("backend", "device", "precision", "variant", "status", "first call", "median", "IQR",
-           "min", "events median", "err vs oracle", "tolerance", "err vs warp", "gradient", "note")
+           "min", "events median", "err vs oracle", "tolerance", "err vs reference", "gradient", "note")
+
+
+def backend_color(name: str) -> str:
+    """A backend's own colour (``Backend.color``) in every plot, whatever else ran; a backend
+    without one gets the colour of its place in the registry."""
+    import backends
+    b = backends.BACKENDS.get(name)
+    if b is not None and b.color:
+        return b.color
+    names = list(backends.BACKENDS)
+    return f"C{names.index(name) % 10}" if name in names else "0.4"
 
 
 def fmt_time(s: Any) -> str:
@@ -60,7 +71,7 @@ def row(rec: dict[str, Any]) -> list[str]:
             rec["status"], fmt_time(t.get("first_call_s")), fmt_time(wall.get("median_s")),
             fmt_time(wall.get("iqr_s")), fmt_time(wall.get("min_s")),
             fmt_time(t.get("median_s")) if t.get("timer") == "events" else "-", fmt_num(e.get("vs_oracle")),
-            fmt_num(e.get("tolerance")), fmt_num(e.get("vs_warp")), fmt_gradient(rec), note[:120]]
+            fmt_num(e.get("tolerance")), fmt_num(e.get("vs_reference")), fmt_gradient(rec), note[:120]]
 
 
 def by_scenario(records: Iterable[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
@@ -122,22 +133,9 @@ def page(title: str, envs: list[dict[str, Any]], records: list[dict[str, Any]], 
     return "\n".join(out) + "\n" + tables(records, "github", images)
 
 
-def atomic_write(path: Path, text: str) -> None:
-    """Write via a temporary file and rename, so a reader never sees half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.chmod(tmp, 0o644)          # mkstemp creates 0600; results are meant to be shared
-    os.replace(tmp, path)
-
-
-def write_results(out: Path, environment: dict[str, Any], records: list[dict[str, Any]],
-                  json_only: bool = False, images: dict[str, str] | None = None) -> None:
-    """results.json (and, unless json_only, results.csv and results.md), each written atomically."""
-    atomic_write(out / "results.json", json.dumps({"environment": environment, "records": records}, indent=1))
-    if json_only:
-        return
+def write_tables(out: Path, environment: dict[str, Any], records: list[dict[str, Any]],
+                 images: dict[str, str] | None = None) -> None:
+    """results.csv and results.md beside results.json (which the store writes), atomically."""
     header = ["scenario"] + list(COLUMNS)
     rows = [[r["scenario"]] + row(r) for r in records]
     import io
@@ -167,7 +165,7 @@ def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
     colors = {}
     for ax, (scenario, recs) in zip(axes[0], groups.items()):
         for r in recs:
-            c = colors.setdefault(r["backend"], f"C{len(colors)}")
+            c = colors.setdefault(r["backend"], backend_color(r["backend"]))
             err = r["error"]["vs_oracle"]
             if not isinstance(err, (int, float)) or not math.isfinite(err):
                 continue

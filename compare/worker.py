@@ -7,7 +7,7 @@ Reads a ``compare.spec.CellSpec``; writes OUT_DIR/record.json and OUT_DIR/output
 The kernel is not trusted: its outputs must be exactly the scenario's declared outputs
 (``Scenario.output_shapes``: names and shapes) with the cell's precision as dtype, or the cell is
 an ``error`` naming the violation; a float32 cell that computed in float64 is caught here.
-
+"""
 from __future__ import annotations
 
 import dataclasses

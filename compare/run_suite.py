@@ -1,0 +1,199 @@
+"""``python -m compare all | run SCENARIO... | <scenario>``: every cell timed, checked and tabled.
+
+Plan: every chosen scenario x backend x device x precision x variant (reference backend first).
+Run: ``engine.run_cells`` (one worker process per cell, one at a time: timed cells never share
+the machine) into the ``run`` store (DIR/results.json, saved after every cell). Render: each
+port's distance to the reference backend, --save-arrays outputs, plots, results.csv/.md, and
+the console table.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+import backends
+import scenarios
+from compare import engine, environment, options, report
+from compare.store import Store, array_file, load_arrays, save_arrays
+from scenarios.base import ParamError
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    options.add_selection(p)
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="scenario parameter (repeatable; applies to every chosen scenario that has it)")
+    p.add_argument("--quick", action="store_true", help="small sizes (CI)")
+    options.add_timing(p)
+    options.add_output(p, "results")
+    p.add_argument("--save-arrays", action="store_true", help="write inputs/outputs per cell (npz)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run cells as tasks on a Dask distributed scheduler ('local': a LocalCluster)")
+
+
+def check_memory(sc: scenarios.Scenario, params: Any) -> None:
+    """Refuse sizes that cannot fit in this machine's memory before any worker starts."""
+    import psutil
+    need = sc.footprint(params, "float64")
+    have = psutil.virtual_memory().total
+    if need > have:
+        raise ParamError(f"{sc.name} with {sc.size_text(params)} needs about {need / 2**30:.1f} GiB "
+                         f"of host memory; this machine has {have / 2**30:.1f} GiB")
+
+
+def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dict[str, Any]]:
+    sel = options.selection(args)
+    sets = options.scenario_sets(options.parse_sets(args.set), chosen)
+    for sc in chosen:     # validate now: bad input never reaches a worker
+        check_memory(sc, sc.params(sets[sc.name], quick=args.quick))
+    return [{"scenario": sc.name, "backend": b, "device": d, "precision": p, "variant": v,
+             "params": sets[sc.name], "quick": args.quick, "repeat": args.repeat,
+             "min_time": args.min_time, "save_inputs": args.save_arrays}
+            for sc in chosen for b in sel["backends"] for d in sel["devices"]
+            for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants]
+
+
+def dask_runner(scheduler: str, timeout: float, specs: list[dict[str, Any]]
+                ) -> Callable[[dict[str, Any]], engine.Result]:
+    """Cells as tasks on a Dask distributed scheduler (``local``: a one-worker LocalCluster), all
+    submitted at once and collected in order. Each task still starts its own worker process, so
+    isolation and timeouts are the same; give Dask workers one thread each so cells sharing a
+    host do not time each other."""
+    from compare import cells
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise ParamError("--scheduler needs the 'distributed' package (pip install distributed)") from None
+    if scheduler == "local":
+        client = Client(LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                     dashboard_address=None))
+    else:
+        try:
+            client = Client(scheduler, timeout="30s")
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            raise ParamError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {exc})") from None
+    prepared = [engine.prepare(s) for s in specs]
+    futures = {json.dumps(s, sort_keys=True): client.submit(cells.run, s, timeout, pure=False)
+               for s in prepared}
+    return lambda spec: futures[json.dumps(spec, sort_keys=True)].result()
+
+
+def fill_vs_reference(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]]) -> None:
+    """Distance of every port's outputs to the reference backend's, same device and precision
+    (or, if the reference did not run there, the reference on another device)."""
+    ref = backends.reference()
+    for i, r in enumerate(records):
+        if i not in outputs or r.get("error") is None:
+            continue
+        cands = [j for j, q in enumerate(records) if j in outputs and q["backend"] == ref
+                 and q["scenario"] == r["scenario"] and q["precision"] == r["precision"]
+                 and q.get("variant", "default") == "default" and q.get("params") == r.get("params")]
+        cands.sort(key=lambda j: records[j]["device"] != r["device"])
+        if not cands:
+            continue
+        sc = scenarios.get(r["scenario"])
+        p = sc.params(r["params"])
+        r["error"]["vs_reference"] = sc.distance(p, sc.inputs(p, r["precision"]), outputs[i], outputs[cands[0]])
+        r["error"]["reference"] = ref
+        r["error"]["vs_reference_device"] = records[cands[0]]["device"]
+
+
+def saved_outputs(directory: Path, records: list[dict[str, Any]],
+                  outputs: dict[int, dict[str, np.ndarray]]) -> None:
+    """Outputs of cells not run now (resumed, or a report) from --save-arrays files, where kept."""
+    for i, r in enumerate(records):
+        if i not in outputs and r.get("status") in ("ok", "mismatch"):
+            got = load_arrays(directory, r, scenarios.get(r["scenario"]).outputs)
+            if got:
+                outputs[i] = got
+
+
+def render(out: Path, env: dict[str, Any], records: list[dict[str, Any]],
+           outputs: dict[int, dict[str, np.ndarray]], plots: bool) -> None:
+    """Plots (time against error, each scenario's picture) and results.csv/.md in ``out``."""
+    if plots:
+        (out / "plots").mkdir(parents=True, exist_ok=True)
+        report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")
+        report.plot_outputs(records, outputs, out / "plots")
+    report.write_tables(out, env, records, images=report.images_in(out / "plots", out))
+
+
+def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
+    specs = plan(args, chosen)
+    out = options.output_directory(args.out)
+    store = Store.open(out, "run", keep=args.resume)
+    sel_backends = sorted({s["backend"] for s in specs})
+    probes = engine.availability(sel_backends)
+    env = environment.collect(argv)
+    env["backends"] = probes
+    store.runs = [*store.runs, env] if args.resume else [env]
+    runner = dask_runner(args.scheduler, args.timeout, specs) if args.scheduler else None
+    results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
+                               store=store, resume=args.resume, on_record=engine.progress(len(specs)))
+    # the records of this plan, in plan order; with --resume also the kept records of other plans
+    records = [r for r, _ in results]
+    outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
+    mine = {engine.key(r) for r in records}
+    records += [r for r in store.records if engine.key(r) not in mine]
+    if args.save_arrays or args.resume:
+        saved_outputs(out, records, outputs)
+    fill_vs_reference(records, outputs)
+    for r in records:
+        store.put(r)
+    store.save()
+    if args.save_arrays:
+        for i, o in outputs.items():
+            save_arrays(out, records[i], o)
+    render(out, env, records, outputs, plots=not args.no_plots)
+    print(report.tables(records))
+    print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
+    return options.EXIT_FAIL if any(r["status"] in ("mismatch", "error") for r in records) else options.EXIT_OK
+
+
+def report_command(args: argparse.Namespace) -> int:
+    """Rebuild tables and plots from saved results.json files (merged), without running anything.
+    Records from different machines are told apart by a 'machine' field (GPU model or host)."""
+    records: list[dict[str, Any]] = []
+    envs: list[dict[str, Any]] = []
+    outputs: dict[int, dict[str, np.ndarray]] = {}
+    for f in args.files:
+        store = Store.read(f, "run")
+        for env in store.runs:
+            envs.append(env)
+        machine = next(((e.get("gpus") or [{}])[0].get("name") or e.get("hostname") for e in store.runs), "?")
+        recs = store.records
+        for r in recs:
+            r.setdefault("machine", machine)
+        mine: dict[int, dict[str, np.ndarray]] = {}
+        saved_outputs(Path(f).parent, recs, mine)     # --save-arrays outputs redraw the pictures
+        outputs.update({len(records) + i: o for i, o in mine.items()})
+        records += recs
+    out = options.output_directory(args.out)
+    if args.page:
+        page = Path(args.page)
+        notes = options.read_notes(args.notes)
+        if not args.no_plots:
+            (out / "plots").mkdir(parents=True, exist_ok=True)
+            report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")
+            report.plot_outputs(records, outputs, out / "plots")
+        rebuild = " ".join(["python -m compare report", *args.files, "--out", args.out, "--page", args.page]
+                           + ([f"--title '{args.title}'"] if args.title else [])
+                           + (["--notes", args.notes] if args.notes else [])
+                           + (["--no-plots"] if args.no_plots else []))
+        report.atomic_write(page, report.page(args.title or "Results", envs, records,
+                                              report.images_in(out / "plots", page.parent), notes, rebuild))
+        print(f"wrote {page}")
+        return options.EXIT_OK
+    merged = Store(out / "results.json", "run", [{"merged_from": list(args.files), "environments": envs}], records)
+    merged.save()
+    render(out, merged.runs[0], records, outputs, plots=not args.no_plots)
+    print(report.tables(records))
+    return options.EXIT_OK
+
+
+__all__ = ["add_arguments", "run", "report_command", "array_file"]
