@@ -102,6 +102,17 @@ class Scenario:
     outputs: ClassVar[tuple[str, ...]]     # names of the arrays a backend returns
     has_gradient: ClassVar[bool] = False
     in_all: ClassVar[bool] = True          # False for measurement-only scenarios (launch, copy)
+    # Measurement sweeps (compare/sweep, docs/measurement.md). ``measures``: the generic role the
+    # sweep page finds rows by: 'launch' (trivial-launch overhead yardstick), 'copy' (bandwidth
+    # roofline yardstick), 'bandwidth' (the size sweep). ``error_metric``: what ``converged_error``
+    # measures, in words. ``sweep_labels``: the words the sweep page and plots use for this
+    # scenario, all optional: 'name' (display name; default the scenario name), 'bytes' (how the
+    # bytes per call are counted), 'error_axis' (time-against-error y label; '{floor}' is replaced
+    # by the value an exact 0 is drawn at), and for the scaling sweep 'items' (what the swept size
+    # counts), 'per_run' (the parameter counted per run, e.g. steps), 'item_rate' (the work item).
+    measures: ClassVar[str | None] = None
+    error_metric: ClassVar[str] = ""
+    sweep_labels: ClassVar[dict[str, str]] = {}
 
     # ---- parameters -------------------------------------------------------------------------
     def params(self, overrides: dict[str, Any] | None = None, quick: bool = False):
@@ -161,6 +172,24 @@ class Scenario:
         """Useful work per run, for throughput figures: {'bytes': moved, 'items': ...}."""
         return {}
 
+    # ---- measurement sweeps ---------------------------------------------------------------
+    def sweep_points(self, kind: str, device: str, quick: bool) -> list[dict[str, Any]]:
+        """The points of measurement sweep ``kind`` ('bandwidth', 'error', 'scaling') on ``device``.
+
+        Each point: {'params': {...}, 'knob': {'name', 'value'}} (knob optional), plus optional
+        cell-spec options ('check_sample', 'save_outputs') and 'reference' (what
+        ``converged_error`` compares against; the suite hands it back in the record's tags).
+        Default: the scenario takes part in no sweep of that kind."""
+        return []
+
+    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
+                        record: dict[str, Any], cache: dict[Any, Any]) -> dict[str, Any] | None:
+        """Error of an error-sweep cell against a converged float64 reference of the same quantity:
+        {'error': ..., 'metric': ..., 'reference': {...}, ...}, or None when it cannot be measured
+        (e.g. the outputs were not kept). ``params``: the cell's parameters; ``record``: its
+        record; ``cache``: a dict the suite keeps for a whole run, for memoising references."""
+        return None
+
     # ---- report -----------------------------------------------------------------------------
     def figure(self, runs: list[tuple[dict[str, Any], dict[str, np.ndarray]]]) -> Any:
         """A matplotlib Figure of this scenario's results for the report, or None.
@@ -168,6 +197,27 @@ class Scenario:
         ``runs``: (record, outputs) of every cell that kept its outputs, reference backend first.
         The scenario draws what its results mean (it owns the oracle), the driver only saves it."""
         return None
+
+
+SWEEP_CHECK_SAMPLE = 1 << 16     # items checked against the oracle in large per-item sweep cells
+REF_FACTOR = 16                  # converged dt references: smallest swept dt / REF_FACTOR
+
+
+def dt_reference(cache: dict[Any, Any], key: Any, solve, distance, dt: float,
+                 simulated_time: float) -> tuple[Any, dict[str, Any]]:
+    """A converged float64 reference at time step ``dt`` over ``simulated_time``, memoised in
+    ``cache`` under ``key``, and what it is: ``solve(dt, steps)`` computes it; its
+    ``self_difference`` is ``distance(coarse, reference)`` to the same at 2 dt (its own error
+    scale, which must be far below the errors it measures)."""
+    if key not in cache:
+        steps = round(simulated_time / dt)
+        ref = solve(dt, steps)
+        coarse = solve(2 * dt, round(simulated_time / (2 * dt)))
+        cache[key] = (ref, {"dt": dt, "steps": steps, "simulated_time_s": simulated_time,
+                            "self_difference": distance(coarse, ref),
+                            "note": "float64 NumPy rollout; self_difference: same metric "
+                                    "against a reference at 2 dt (its own error scale)"})
+    return cache[key]
 
 
 def run_label(record: dict[str, Any]) -> str:

@@ -29,13 +29,23 @@ state must lie within the bound. Ill-conditioned particles are counted and repor
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
 
-from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, pick_runs, precision_of, require, run_label
+from .base import (REF_FACTOR, Check, Scenario, UNIT_ROUNDOFF, dt_reference, dtype_of, pick_runs,
+                   precision_of, require, run_label)
 
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
+# Time-against-error sweep: dt halves down the list at a fixed simulated time SWEEP_T (the
+# default 300 steps of 0.01 s; every dt divides it exactly). Scaling sweep: n per (device, quick).
+SWEEP_T = 3.0
+SWEEP_DT = {False: (0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125), True: (0.02, 0.01, 0.005)}
+SWEEP_N = {("cpu", False): (256, 4096, 65536, 1 << 20), ("cpu", True): (256, 4096, 65536),
+           ("cuda", False): (256, 4096, 65536, 1 << 20, 1 << 22, 1 << 24),
+           ("cuda", True): (256, 4096, 65536, 1 << 20)}
+SWEEP_CHECKED = 4096       # particles checked against the oracle in a large scaling cell
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,6 +164,47 @@ class Particles(Scenario):
     Params = ParticlesParams
     quick = {"n": 1000, "steps": 300}     # n not a multiple of any block size
     outputs = ("x", "y", "vx", "vy")
+    error_metric = "RMS over particles of |position - reference| [m] at the same simulated time"
+    sweep_labels = {"error_axis": "RMS position error vs converged ref. [m] (log)",
+                    "items": "particles", "per_run": "steps", "item_rate": "particle-steps"}
+
+    def sweep_points(self, kind, device, quick):
+        if kind == "error":        # reference: the smallest dt / REF_FACTOR
+            ref = {"dt": min(SWEEP_DT[quick]) / REF_FACTOR}
+            return [{"params": {"dt": dt, "steps": round(SWEEP_T / dt)},
+                     "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in SWEEP_DT[quick]]
+        if kind == "scaling":      # no trajectory: every array is per particle, so sampled checks
+            return [{"params": {"n": n, "record_every": 0}, "knob": {"name": "n", "value": n},
+                     "check_sample": SWEEP_CHECKED, "save_outputs": False}
+                    for n in SWEEP_N.get((device, quick), ())]
+        return []
+
+    def converged_positions(self, params: dict, dt: float, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Float64 positions after ``steps`` steps of ``dt`` (the one NumPy stepper, ``simulate``)
+        from the float64 initial state of ``params``."""
+        p = self.params({**params, "dt": dt, "steps": steps})
+        (x, y, _, _), _ = simulate(self.inputs(p, "float64"), steps, np.float64)
+        return x, y
+
+    @staticmethod
+    def position_error(px, py, rx, ry) -> dict[str, float]:
+        """RMS (``error``) and max over particles of the position distance to (rx, ry)."""
+        d = np.hypot(np.asarray(px, np.float64) - rx, np.asarray(py, np.float64) - ry)
+        return {"error": float(np.sqrt(np.mean(d * d))), "max": float(d.max())}
+
+    def converged_error(self, params, outputs, record, cache):
+        """Positions at SWEEP_T against a float64 rollout at the reference dt of the record's tags
+        (default: the full sweep's smallest dt / REF_FACTOR)."""
+        if outputs is None:
+            return None
+        dt = ((record.get("tags") or {}).get("reference") or {}).get("dt") \
+            or min(SWEEP_DT[False]) / REF_FACTOR
+        base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
+        key = (self.name, json.dumps(base, sort_keys=True), dt)
+        ref, info = dt_reference(cache, key, lambda h, n: self.converged_positions(base, h, n),
+                                 lambda a, b: self.position_error(*a, *b)["error"], dt, SWEEP_T)
+        return {**self.position_error(outputs["x"], outputs["y"], *ref), "metric": self.error_metric,
+                "reference": info}
 
     def inputs(self, params: ParticlesParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)

@@ -25,15 +25,23 @@ loss, gradient and history are derived (see ``check``).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from typing import Literal
 
 import numpy as np
 
-from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require, run_label
+from .base import (REF_FACTOR, Check, Scenario, UNIT_ROUNDOFF, dt_reference, dtype_of, precision_of,
+                   require, run_label)
 
 CONSTANTS = ("dt", "gravity", "target_x", "target_y", "bounce", "damping", "stiffness",
              "softness", "lr")
+# Time-against-error sweep: dt halves down the list at a fixed simulated time SWEEP_T (the
+# default 180 steps of 0.025 s; every dt divides it exactly), loss and gradient at v0 (iters 0),
+# soft contact unless the sweep's --set contact=... says otherwise.
+SWEEP_T = 4.5
+SWEEP_DT = {False: (0.05, 0.025, 0.0125, 0.00625, 0.003125, 0.0015625), True: (0.05, 0.025, 0.0125)}
+SWEEP_CONTACT = "soft"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -287,6 +295,46 @@ class Projectile(Scenario):
     quick = {"iters": 20}
     outputs = ("loss", "grad", "loss_history", "v_final")
     has_gradient = True
+    error_metric = "max(rel. error of loss, rel. error of |grad|) at v0 against the reference"
+    sweep_labels = {"error_axis": "max rel. error of loss, grad vs converged ref. (log)"}
+
+    def sweep_points(self, kind, device, quick):
+        if kind != "error":
+            return []
+        ref = {"dt": min(SWEEP_DT[quick]) / REF_FACTOR}   # reference: the smallest dt / REF_FACTOR
+        return [{"params": {"dt": dt, "steps": round(SWEEP_T / dt), "iters": 0,
+                            "contact": SWEEP_CONTACT},
+                 "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in SWEEP_DT[quick]]
+
+    def converged_loss_grad(self, params: dict, dt: float, steps: int) -> tuple[float, np.ndarray]:
+        """Float64 loss and discrete-adjoint gradient at v0 (``rollout`` + ``adjoint``) after
+        ``steps`` steps of ``dt``, the other parameters from ``params``."""
+        p = self.params({**params, "dt": dt, "steps": steps})
+        c = {k: float(getattr(p, k)) for k in CONSTANTS}
+        (x, y, _, _), tape = rollout(c, p.contact, steps, p.vx0, p.vy0)
+        dx, dy = x - p.target_x, y - p.target_y
+        return dx * dx + dy * dy, np.array(adjoint(c, tape, 2.0 * dx, 2.0 * dy))
+
+    @staticmethod
+    def loss_grad_error(loss, grad, rloss: float, rgrad: np.ndarray) -> dict[str, float]:
+        """max(relative error of the loss, relative 2-norm error of the gradient) (``error``)."""
+        el = abs(float(np.asarray(loss).reshape(())) - rloss) / abs(rloss)
+        eg = float(np.linalg.norm(np.asarray(grad, np.float64).reshape(2) - rgrad) / np.linalg.norm(rgrad))
+        return {"error": max(el, eg), "loss_rel": el, "grad_rel": eg}
+
+    def converged_error(self, params, outputs, record, cache):
+        """Loss and gradient at v0 against a float64 rollout + adjoint at the reference dt of the
+        record's tags (default: the full sweep's smallest dt / REF_FACTOR)."""
+        if outputs is None:
+            return None
+        dt = ((record.get("tags") or {}).get("reference") or {}).get("dt") \
+            or min(SWEEP_DT[False]) / REF_FACTOR
+        base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
+        key = (self.name, json.dumps(base, sort_keys=True), dt)
+        ref, info = dt_reference(cache, key, lambda h, n: self.converged_loss_grad(base, h, n),
+                                 lambda a, b: self.loss_grad_error(*a, *b)["error"], dt, SWEEP_T)
+        return {**self.loss_grad_error(outputs["loss"], outputs["grad"], *ref),
+                "metric": self.error_metric, "reference": info}
 
     def inputs(self, params: ProjectileParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)

@@ -17,7 +17,12 @@ from typing import Literal
 
 import numpy as np
 
-from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, require, run_label
+from .base import SWEEP_CHECK_SAMPLE, Check, Scenario, UNIT_ROUNDOFF, dtype_of, require, run_label
+
+# Bandwidth-sweep sizes per (device, quick), exponents of 2: CPU sizes stop where a cell still
+# takes seconds on a small machine, GPU sizes where the arrays are ~1 GiB.
+SWEEP_EXP = {("cpu", False): range(10, 25, 2), ("cpu", True): range(10, 21, 2),
+             ("cuda", False): range(10, 29, 2), ("cuda", True): range(10, 23, 2)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,6 +44,25 @@ class Saxpy(Scenario):
     Params = SaxpyParams
     quick = {"n": 100_003}          # not a multiple of any block size
     outputs = ("out",)
+    measures = "bandwidth"          # the sweeps' size sweep (achieved bandwidth against size)
+    error_metric = "scenario metric against the float64 oracle: max |err|/(|a x|+|y|)"
+    sweep_labels = {"name": "SAXPY", "bytes": "3·n·itemsize",
+                    "error_axis": "max |err|/(|a x|+|y|) vs float64 oracle (0 drawn at {floor:g})"}
+
+    def sweep_points(self, kind, device, quick):
+        if kind == "bandwidth":
+            return [{"params": {"n": 1 << e}, "knob": {"name": "n", "value": 1 << e},
+                     "check_sample": SWEEP_CHECK_SAMPLE, "save_outputs": False}
+                    for e in SWEEP_EXP.get((device, quick), ())]
+        if kind == "error":        # knobs: precision and variant only
+            return [{"params": {"n": self.params(quick=quick).n},
+                     "knob": {"name": "precision", "value": None}}]
+        return []
+
+    def converged_error(self, params, outputs, record, cache):
+        """The oracle's error is already converged: float64 of the same rounded inputs."""
+        return {"error": record["error"]["vs_oracle"], "metric": self.error_metric,
+                "reference": {"note": "float64 oracle of the same rounded inputs"}}
 
     def inputs(self, params: SaxpyParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)

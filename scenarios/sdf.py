@@ -25,6 +25,11 @@ import numpy as np
 from .base import UNIT_ROUNDOFF, Check, Scenario, pick_runs, require, run_label
 
 TOLERANCE_ULPS = 300.0
+# Time-against-error sweep: resolutions r x r per (device, quick), and the evaluation grid (per
+# axis) of the reconstruction error against the analytic field.
+SWEEP_RES = {("cpu", False): (64, 128, 256, 512, 1024, 2048), ("cpu", True): (32, 64, 128),
+             ("cuda", False): (64, 128, 256, 512, 1024, 2048, 4096), ("cuda", True): (32, 64, 128)}
+SWEEP_EVAL = 2001
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,6 +56,44 @@ class Sdf(Scenario):
     Params = SdfParams
     quick = {"width": 203, "height": 97}   # non-square, not a multiple of any block size
     outputs = ("image",)
+    error_metric = (f"max |bilinear(image) - f| over a {SWEEP_EVAL}x{SWEEP_EVAL} grid, "
+                    "f the analytic field in float64")
+    sweep_labels = {"error_axis": "max |bilinear(image) - field| (log)"}
+
+    def sweep_points(self, kind, device, quick):
+        if kind != "error":
+            return []
+        return [{"params": {"width": r, "height": r}, "knob": {"name": "resolution", "value": r}}
+                for r in SWEEP_RES.get((device, quick), ())]
+
+    def reconstruction_error(self, image: np.ndarray, cache: dict | None = None) -> dict[str, float]:
+        """Bilinear reconstruction of the image against the analytic field on a fixed fine grid
+        (SWEEP_EVAL points per axis over [-1, 1]^2): max and RMS of the difference."""
+        img = np.asarray(image, np.float64)
+        h, w = img.shape
+        t = np.linspace(-1.0, 1.0, SWEEP_EVAL)
+        cache = {} if cache is None else cache
+        if ("sdf-field", SWEEP_EVAL) not in cache:
+            cache["sdf-field", SWEEP_EVAL] = sdf_field(t[None, :], t[:, None])
+        exact = cache["sdf-field", SWEEP_EVAL]
+
+        def axis(n):
+            pos = (t + 1.0) * 0.5 * (n - 1)
+            i0 = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
+            return i0, pos - i0
+        i0, fx = axis(w)
+        j0, fy = axis(h)
+        rows0, rows1 = img[j0], img[j0 + 1]
+        top = rows0[:, i0] * (1 - fx) + rows0[:, i0 + 1] * fx
+        bot = rows1[:, i0] * (1 - fx) + rows1[:, i0 + 1] * fx
+        d = np.abs(top * (1 - fy)[:, None] + bot * fy[:, None] - exact)
+        return {"error": float(d.max()), "rms": float(np.sqrt(np.mean(d * d)))}
+
+    def converged_error(self, params, outputs, record, cache):
+        if outputs is None:
+            return None
+        return {**self.reconstruction_error(outputs["image"], cache), "metric": self.error_metric,
+                "reference": {"eval_grid": SWEEP_EVAL, "note": "analytic field, float64"}}
 
     def inputs(self, params: SdfParams, precision: str) -> dict[str, np.ndarray]:
         return {}  # the image is a pure function of the pixel index
