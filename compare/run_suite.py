@@ -18,8 +18,23 @@ import numpy as np
 import backends
 import scenarios
 from compare import engine, environment, options, report
-from compare.store import Store, array_file, load_arrays, save_arrays
+from compare.store import UPGRADES, Store, array_file, load_arrays, save_arrays
 from scenarios.base import ParamError
+
+
+def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
+    """A format-1 record: its distance to the reference backend was keyed ``vs_<name>``."""
+    err = rec.get("error")
+    ref = backends.reference()
+    if isinstance(err, dict) and f"vs_{ref}" in err:
+        err["vs_reference"] = err.pop(f"vs_{ref}")
+        err["reference"] = ref
+        if f"vs_{ref}_device" in err:
+            err["vs_reference_device"] = err.pop(f"vs_{ref}_device")
+    return rec
+
+
+UPGRADES["run"] = upgrade_record
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
