@@ -178,16 +178,20 @@ class Scenario:
 
         Each point: {'params': {...}, 'knob': {'name', 'value'}} (knob optional), plus optional
         cell-spec options ('check_sample', 'save_outputs') and 'reference' (what
-        ``converged_error`` compares against; the suite hands it back in the record's tags).
-        Default: the scenario takes part in no sweep of that kind."""
+        ``converged_error`` compares against, e.g. the dt of a converged rollout: a property of
+        the sweep, not of the cell, so it is handed back to ``converged_error``, never stored
+        in the cell's identity). Default: the scenario takes part in no sweep of that kind."""
         return []
 
     def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
-                        record: dict[str, Any], cache: dict[Any, Any]) -> dict[str, Any] | None:
+                        record: dict[str, Any], cache: dict[Any, Any],
+                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
         """Error of an error-sweep cell against a converged float64 reference of the same quantity:
         {'error': ..., 'metric': ..., 'reference': {...}, ...}, or None when it cannot be measured
         (e.g. the outputs were not kept). ``params``: the cell's parameters; ``record``: its
-        record; ``cache``: a dict the suite keeps for a whole run, for memoising references."""
+        record; ``cache``: a dict the suite keeps for a whole run, for memoising references;
+        ``reference``: the point's 'reference' from ``sweep_points`` (None: the scenario's
+        default)."""
         return None
 
     # ---- report -----------------------------------------------------------------------------

@@ -192,13 +192,12 @@ class Particles(Scenario):
         d = np.hypot(np.asarray(px, np.float64) - rx, np.asarray(py, np.float64) - ry)
         return {"error": float(np.sqrt(np.mean(d * d))), "max": float(d.max())}
 
-    def converged_error(self, params, outputs, record, cache):
-        """Positions at SWEEP_T against a float64 rollout at the reference dt of the record's tags
+    def converged_error(self, params, outputs, record, cache, reference=None):
+        """Positions at SWEEP_T against a float64 rollout at the sweep point's reference dt
         (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        dt = ((record.get("tags") or {}).get("reference") or {}).get("dt") \
-            or min(SWEEP_DT[False]) / REF_FACTOR
+        dt = (reference or {}).get("dt") or min(SWEEP_DT[False]) / REF_FACTOR
         base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
         key = (self.name, json.dumps(base, sort_keys=True), dt)
         ref, info = dt_reference(cache, key, lambda h, n: self.converged_positions(base, h, n),

@@ -322,13 +322,12 @@ class Projectile(Scenario):
         eg = float(np.linalg.norm(np.asarray(grad, np.float64).reshape(2) - rgrad) / np.linalg.norm(rgrad))
         return {"error": max(el, eg), "loss_rel": el, "grad_rel": eg}
 
-    def converged_error(self, params, outputs, record, cache):
-        """Loss and gradient at v0 against a float64 rollout + adjoint at the reference dt of the
-        record's tags (default: the full sweep's smallest dt / REF_FACTOR)."""
+    def converged_error(self, params, outputs, record, cache, reference=None):
+        """Loss and gradient at v0 against a float64 rollout + adjoint at the sweep point's
+        reference dt (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        dt = ((record.get("tags") or {}).get("reference") or {}).get("dt") \
-            or min(SWEEP_DT[False]) / REF_FACTOR
+        dt = (reference or {}).get("dt") or min(SWEEP_DT[False]) / REF_FACTOR
         base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
         key = (self.name, json.dumps(base, sort_keys=True), dt)
         ref, info = dt_reference(cache, key, lambda h, n: self.converged_loss_grad(base, h, n),

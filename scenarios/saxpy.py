@@ -59,7 +59,7 @@ class Saxpy(Scenario):
                      "knob": {"name": "precision", "value": None}}]
         return []
 
-    def converged_error(self, params, outputs, record, cache):
+    def converged_error(self, params, outputs, record, cache, reference=None):
         """The oracle's error is already converged: float64 of the same rounded inputs."""
         return {"error": record["error"]["vs_oracle"], "metric": self.error_metric,
                 "reference": {"note": "float64 oracle of the same rounded inputs"}}

@@ -89,7 +89,7 @@ class Sdf(Scenario):
         d = np.abs(top * (1 - fy)[:, None] + bot * fy[:, None] - exact)
         return {"error": float(d.max()), "rms": float(np.sqrt(np.mean(d * d)))}
 
-    def converged_error(self, params, outputs, record, cache):
+    def converged_error(self, params, outputs, record, cache, reference=None):
         if outputs is None:
             return None
         return {**self.reconstruction_error(outputs["image"], cache), "metric": self.error_metric,
