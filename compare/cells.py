@@ -7,14 +7,16 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from backends.base import DEVICES
 
 ROOT = Path(__file__).resolve().parent.parent
+Result = tuple[dict[str, Any], "dict[str, np.ndarray] | None"]
 
 
 def worker_env(backend: str | None = None) -> dict[str, str]:
@@ -37,32 +39,83 @@ def _tail(text: str, lines: int = 5) -> str:
     return " | ".join(rows[-lines:])
 
 
-def run(spec: dict[str, Any], timeout: float | None = 600.0) -> tuple[dict[str, Any], dict[str, np.ndarray] | None]:
-    """Run one cell in a fresh interpreter; returns (record, outputs or None)."""
-    with tempfile.TemporaryDirectory(prefix="cell-") as tmp:
+def _died(proc: subprocess.Popen, err: str) -> str:
+    rc = proc.returncode
+    how = f"killed by signal {signal.Signals(-rc).name}" if rc is not None and rc < 0 else f"exit code {rc}"
+    return f"worker died ({how}): {_tail(err)}"
+
+
+def _collect(cell_dir: Path, spec: dict[str, Any]) -> Result:
+    record = json.loads((cell_dir / "record.json").read_text())
+    outputs = None
+    if (cell_dir / "outputs.npz").exists():
+        with np.load(cell_dir / "outputs.npz") as z:
+            outputs = {k: z[k] for k in z.files}
+    if spec.get("save_inputs") and (cell_dir / "inputs.npz").exists():
+        with np.load(cell_dir / "inputs.npz") as z:
+            record["_inputs"] = {k: z[k] for k in z.files}
+    return record, outputs
+
+
+def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
+              on_result: Callable[[int, Result], None] | None = None) -> list[Result]:
+    """Run cells one after another in ONE fresh interpreter; returns (record, outputs) per spec.
+
+    Only for cells that may share a process: same backend, device, precision and variant (the
+    framework's process-global set-up) and warm kernel caches (a cold first call needs its own
+    process). ``timeout`` applies to each cell: the worker writes each record as it finishes,
+    and a cell that takes longer is killed with its process; the cells after it run again in a
+    new process, so one crash or hang costs one record, never the batch. ``on_result(i, result)``
+    is called as each cell finishes (so a store keeps it even if the driver dies later).
+    """
+    def got(result: Result) -> None:
+        results.append(result)
+        if on_result is not None:
+            on_result(len(results) - 1, result)
+
+    if not specs:
+        return []
+    results: list[Result] = []
+    with tempfile.TemporaryDirectory(prefix="cells-") as tmp:
         tmp_path = Path(tmp)
-        (tmp_path / "spec.json").write_text(json.dumps(spec))
-        cmd = [sys.executable, "-m", "compare.worker", str(tmp_path / "spec.json"), str(tmp_path)]
-        try:
-            proc = subprocess.run(cmd, cwd=ROOT, env=worker_env(spec["backend"]), capture_output=True, text=True,
-                                  timeout=timeout, stdin=subprocess.DEVNULL)
-        except subprocess.TimeoutExpired as exc:
-            err = exc.stderr.decode() if isinstance(exc.stderr, bytes) else (exc.stderr or "")
-            return {"status": "error", "reason": f"timed out after {timeout:g} s; {_tail(err, 2)}".rstrip("; ")}, None
-        rec_file = tmp_path / "record.json"
-        if proc.returncode != 0 or not rec_file.exists():
-            rc = proc.returncode
-            how = f"killed by signal {signal.Signals(-rc).name}" if rc < 0 else f"exit code {rc}"
-            return {"status": "error", "reason": f"worker died ({how}): {_tail(proc.stderr)}"}, None
-        record = json.loads(rec_file.read_text())
-        outputs = None
-        if (tmp_path / "outputs.npz").exists():
-            with np.load(tmp_path / "outputs.npz") as z:
-                outputs = {k: z[k] for k in z.files}
-        if spec.get("save_inputs") and (tmp_path / "inputs.npz").exists():
-            with np.load(tmp_path / "inputs.npz") as z:
-                record["_inputs"] = {k: z[k] for k in z.files}
-        return record, outputs
+        (tmp_path / "specs.json").write_text(json.dumps(specs))
+        cmd = [sys.executable, "-m", "compare.worker", str(tmp_path / "specs.json"), str(tmp_path)]
+        with tempfile.TemporaryFile("w+") as err:
+            proc = subprocess.Popen(cmd, cwd=ROOT, env=worker_env(specs[0]["backend"]), stdout=subprocess.DEVNULL,
+                                    stderr=err, text=True, stdin=subprocess.DEVNULL)
+            started, done = time.monotonic(), 0
+            reason = None
+            while done < len(specs):
+                if (tmp_path / f"cell-{done}" / "record.json").exists():
+                    got(_collect(tmp_path / f"cell-{done}", specs[done]))
+                    done, started = done + 1, time.monotonic()
+                    continue
+                if proc.poll() is not None:
+                    if (tmp_path / f"cell-{done}" / "record.json").exists():
+                        continue
+                    err.seek(0)
+                    reason = _died(proc, err.read())
+                    break
+                if timeout is not None and time.monotonic() - started > timeout:
+                    proc.kill()
+                    proc.wait()
+                    err.seek(0)
+                    reason = f"timed out after {timeout:g} s; {_tail(err.read(), 2)}".rstrip("; ")
+                    break
+                time.sleep(0.02)
+            if proc.poll() is None:
+                proc.wait()
+    if reason is not None:
+        got(({"status": "error", "reason": reason}, None))
+        start = len(results)
+        results += run_batch(specs[start:], timeout,
+                             None if on_result is None else lambda k, r: on_result(start + k, r))
+    return results
+
+
+def run(spec: dict[str, Any], timeout: float | None = 600.0) -> Result:
+    """Run one cell in a fresh interpreter; returns (record, outputs or None)."""
+    return run_batch([spec], timeout)[0]
 
 
 PROBE = """

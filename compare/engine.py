@@ -97,55 +97,69 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
               probes: dict[str, dict[str, Any]] | None = None,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
               runner: Callable[[dict[str, Any]], Result] | None = None,
-              store: Store | None = None, resume: bool = False) -> list[Result]:
-    """Run every cell spec in its own worker process; returns (record, outputs) per spec, in order.
+              store: Store | None = None, resume: bool = False,
+              share_process: bool = False) -> list[Result]:
+    """Run every cell spec in a worker process; returns (record, outputs) per spec, in order.
 
     A record always carries the cell's identity (scenario, backend, device, precision, variant,
     resolved params, tags). A cell that must not start (``not_runnable``) gets its record without
-    a process. ``jobs`` > 1 overlaps cells (only for suites whose figures are not timings).
-    ``runner`` replaces the local worker (e.g. a Dask client). With a ``store``, every record is
-    put and saved as it arrives (a killed run keeps what finished), and with ``resume`` a cell
-    the store already holds as ok/mismatch/skipped is not run again (its record is returned,
-    outputs None); error records are retried.
+    a process. ``jobs`` > 1 overlaps cells, and ``share_process`` lets warm-cache cells of one
+    backend, device, precision and variant share one worker (``cells.run_batch``): both only for
+    suites whose figures are not timings. ``runner`` replaces the local worker (e.g. a Dask
+    client). With a ``store``, every record is put and saved as it arrives (a killed run keeps
+    what finished), and with ``resume`` a cell the store holds as ok/mismatch/skipped is not run
+    again (its record is returned, outputs None); error records are retried.
     """
     specs = [prepare(s) for s in specs]
     probes = probes if probes is not None else availability({s["backend"] for s in specs})
-    run = runner or (lambda s: cells.run(s, timeout=timeout))
     lock = threading.Lock()
     done: list[Result | None] = [None] * len(specs)
-
-    def one(i: int) -> Result:
-        spec = specs[i]
+    idents = []
+    for spec in specs:
         ident = {k: spec[k] for k in (*IDENTITY, "params")}
         if spec.get("tags"):
             ident["tags"] = spec["tags"]
-        if store is not None and resume and store.done(key(ident)):
-            done[i] = (store.get(key(ident)), None)
-            return done[i]
-        blocked = not_runnable(spec, probes)
-        if blocked:
-            rec: dict[str, Any] = {**ident, "status": blocked[0], "reason": blocked[1]}
-            out = None
-        else:
-            got, out = run(spec)
-            inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
-            if inputs and out is not None:
-                out = {**inputs, **out}
-            rec = {**got, **ident}
+        idents.append(ident)
+
+    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True) -> None:
+        inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
+        if inputs and out is not None:
+            out = {**inputs, **out}
+        rec = {**got, **idents[i]}
         rec.setdefault("reason", "")
         for k in ("time", "error"):
             rec.setdefault(k, None)
         rec = jsonable(rec)
         with lock:
-            if store is not None:
+            if store is not None and save:
                 store.put(rec)
                 store.save()
             if on_record is not None:
                 on_record(i, rec, out)
         done[i] = (rec, out)
-        return done[i]
 
-    pool_map(one, list(range(len(specs))), jobs=jobs, lane=lambda i: gpu_lane(specs[i]))
+    groups: dict[Any, list[int]] = {}
+    for i, spec in enumerate(specs):
+        if store is not None and resume and store.done(key(idents[i])):
+            finish(i, dict(store.get(key(idents[i])) or {}), None, save=False)
+            continue
+        blocked = not_runnable(spec, probes)
+        if blocked:
+            finish(i, {"status": blocked[0], "reason": blocked[1]}, None)
+            continue
+        shared = share_process and runner is None and spec["cache"] == "warm"
+        group = (spec["backend"], spec["device"], spec["precision"], spec["variant"]) if shared else ("solo", i)
+        groups.setdefault(group, []).append(i)
+
+    def run_group(idx: list[int]) -> None:
+        if runner is not None:
+            for i in idx:
+                finish(i, *runner(specs[i]))
+        else:
+            cells.run_batch([specs[i] for i in idx], timeout,
+                            on_result=lambda k, result: finish(idx[k], *result))
+
+    pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(specs[g[0]]))
     return [r for r in done if r is not None]
 
 

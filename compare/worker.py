@@ -131,7 +131,7 @@ def sample_items(params: Any, inputs: dict[str, np.ndarray], outputs: dict[str, 
     return pick(inputs), pick(outputs), int(idx.size)
 
 
-def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "") -> dict[str, Any]:
+def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool = False) -> dict[str, Any]:
     """Build, time, download and check one cell. Exceptions propagate (the parent records them)."""
     sc = scenarios.get(spec.scenario)
     be = backends.get(spec.backend)
@@ -140,7 +140,8 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "") -> dict[str, A
     inputs = sc.inputs(params, precision)
 
     nvml, nvml_note = open_nvml(device)       # baseline before the framework touches the GPU
-    be.setup(device, precision, variant)
+    if not set_up:
+        be.setup(device, precision, variant)
     sync = lambda r: be.synchronize(device, r)  # noqa: E731
     t0 = time.perf_counter()
     kernel = be.kernel(sc.name)(params, inputs, device, precision, variant)
@@ -227,18 +228,41 @@ class ContractError(RuntimeError):
     """A kernel's outputs break the scenario's declared contract."""
 
 
-def main(argv: list[str]) -> int:
-    out_dir = Path(argv[1])
+_SET_UP: set[tuple[str, str, str, str]] = set()
+
+
+def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
+    """One cell of the batch: its record (and outputs) in ``cell_dir``, whatever happens."""
+    cell_dir.mkdir(parents=True, exist_ok=True)
     try:
-        spec = CellSpec.from_dict(json.loads(Path(argv[0]).read_text()))
-        cache_note = apply_cache_policy(spec.cache, backends.get(spec.backend), out_dir)
-        record = run_cell(spec, out_dir, cache_note)
+        spec = CellSpec.from_dict(raw)
+        be = backends.get(spec.backend)
+        if not _SET_UP:       # the first cell of the process sets the caches, then the framework
+            cache_note = apply_cache_policy(spec.cache, be, cell_dir)
+        else:
+            if spec.cache != "warm":
+                raise ValueError("only warm-cache cells may share a worker process")
+            cache_note = "warm: shares a worker process with earlier cells of the same set-up"
+        ident = (spec.backend, spec.device, spec.precision, spec.variant)
+        if _SET_UP and ident not in _SET_UP:
+            raise ValueError(f"cells sharing a worker must share backend, device, precision and variant; got {ident}")
+        record = run_cell(spec, cell_dir, cache_note, set_up=ident in _SET_UP)
+        _SET_UP.add(ident)
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
         record = {"status": "error", "reason": str(exc)}
     except Exception as exc:  # the record says what went wrong; the parent keeps going
         record = {"status": "error", "reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
                   "traceback": traceback.format_exc()}
-    (out_dir / "record.json").write_text(json.dumps(jsonable(record)))
+    tmp = cell_dir / "record.json.tmp"     # the parent polls for record.json: never half a file
+    tmp.write_text(json.dumps(jsonable(record)))
+    os.replace(tmp, cell_dir / "record.json")
+
+
+def main(argv: list[str]) -> int:
+    """argv: SPECS.json (a list of cell specs) and OUT_DIR; cell i writes OUT_DIR/cell-i/."""
+    specs = json.loads(Path(argv[0]).read_text())
+    for i, raw in enumerate(specs if isinstance(specs, list) else [specs]):
+        run_one(raw, Path(argv[1]) / f"cell-{i}")
     return 0
 
 

@@ -13,7 +13,7 @@ import math
 import pytest
 
 import backends
-from compare import cells
+from compare import engine
 from conftest import require_device
 
 CASES = [
@@ -33,7 +33,7 @@ CASES = [
 # algorithm, so they may differ only by float64 rounding, e.g. FMA contraction.
 TIGHT_VS_WARP = {"saxpy": 1e-15, "sdf": 1e-13, "particles": 1e-12, "projectile": 1e-12}
 
-_warp_outputs: dict = {}
+_runs: dict = {}
 
 
 def _params(case):
@@ -49,23 +49,30 @@ def _spec(backend, device, precision, scenario, overrides):
             "cache": "warm"}   # correctness only: reuse compiled kernels (timing runs start cold)
 
 
+def run_case(backend, device, precision, scenario, overrides):
+    """Every case of one backend, device and precision runs in one worker process (the first
+    test of the group runs them all): the framework starts once, not once per case."""
+    group = (backend, device, precision)
+    if group not in _runs:
+        results = engine.run_cells([_spec(*group, s, o) for s, o in CASES], timeout=900, share_process=True)
+        _runs[group] = {(s, tuple(sorted(o.items()))): r for (s, o), r in zip(CASES, results)}
+    return _runs[group][(scenario, tuple(sorted(overrides.items())))]
+
+
 @pytest.mark.parametrize("backend,device,precision,scenario,overrides", _params(CASES))
 def test_parity(backend, device, precision, scenario, overrides):
     require_device(backend, device)
-    record, outputs = cells.run(_spec(backend, device, precision, scenario, overrides), timeout=900)
+    record, outputs = run_case(backend, device, precision, scenario, overrides)
     assert record["status"] == "ok", f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
     err = record["error"]
     assert math.isfinite(err["vs_oracle"]) and err["vs_oracle"] <= err["tolerance"]
     assert record["time"]["first_call_s"] > 0 and record["time"]["median_s"] > 0
     if precision == "float64" and backend != backends.reference():
-        key = (device, scenario, tuple(sorted(overrides.items())))
-        if key not in _warp_outputs:
-            require_device(backends.reference(), device)
-            ref_rec, ref_out = cells.run(_spec(backends.reference(), device, "float64", scenario, overrides))
-            assert ref_rec["status"] == "ok", ref_rec.get("reason")
-            _warp_outputs[key] = ref_out
+        require_device(backends.reference(), device)
+        ref_rec, ref_out = run_case(backends.reference(), device, "float64", scenario, overrides)
+        assert ref_rec["status"] == "ok", ref_rec.get("reason")
         import scenarios
         sc = scenarios.get(scenario)
         p = sc.params(overrides, quick=True)
-        d = sc.distance(p, sc.inputs(p, "float64"), outputs, _warp_outputs[key])
-        assert d <= TIGHT_VS_WARP[scenario], f"float64 {backend} vs warp differ by {d:.3g}"
+        d = sc.distance(p, sc.inputs(p, "float64"), outputs, ref_out)
+        assert d <= TIGHT_VS_WARP[scenario], f"float64 {backend} vs {backends.reference()} differ by {d:.3g}"
