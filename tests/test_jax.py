@@ -104,6 +104,7 @@ print("REMAT" + json.dumps(res))
 """
 
 
+@pytest.mark.slow
 def test_remat_and_unroll_options_keep_the_results():
     require_device("jax", "cpu")
     proc = subprocess.run([sys.executable, "-c", REMAT], cwd=ROOT, env=cells.worker_env(),
