@@ -11,6 +11,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+if typing.TYPE_CHECKING:
+    from .numerics import Experiment
+
 PRECISIONS: tuple[str, ...] = ("float32", "float64")
 
 # Unit roundoff u = 2^-p (p = significand bits incl. the hidden one): |fl(x) - x| <= u |x|.
@@ -201,6 +204,17 @@ class Scenario:
         ``runs``: (record, outputs) of every cell that kept its outputs, reference backend first.
         The scenario draws what its results mean (it owns the oracle), the driver only saves it."""
         return None
+
+    # ---- stress suite (compare/stress, docs/stress.md) ---------------------------------------
+    def ulp_cases(self, quick: bool) -> list[tuple[dict[str, Any], str, str]]:
+        """Cases of the stress suite's float32 ulp-distribution experiment: (parameter overrides,
+        output whose elements are measured in ulps, setting label). Default: none."""
+        return []
+
+    def stress_experiments(self) -> dict[str, "Experiment"]:
+        """This scenario's own stress experiments by name (``scenarios.numerics.Experiment``), run
+        through the context the suite hands them. Default: none."""
+        return {}
 
 
 SWEEP_CHECK_SAMPLE = 1 << 16     # items checked against the oracle in large per-item sweep cells

@@ -205,6 +205,10 @@ class Particles(Scenario):
         return {**self.position_error(outputs["x"], outputs["y"], *ref), "metric": self.error_metric,
                 "reference": info}
 
+    def stress_experiments(self):
+        from . import particles_stress
+        return particles_stress.EXPERIMENTS
+
     def inputs(self, params: ParticlesParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)
         out = {k: v.astype(dt) for k, v in initial_state(params).items()}

@@ -246,6 +246,14 @@ def loss_of(c: dict[str, float], contact: str, steps: int, v) -> float:
     return (x - c["target_x"]) ** 2 + (y - c["target_y"]) ** 2
 
 
+def loss_and_gradient(c: dict[str, float], contact: str, steps: int, v) -> tuple[float, np.ndarray]:
+    """Loss and adjoint gradient from one float64 rollout (as ``evaluate``, without the bounds):
+    what a host loop needs per evaluation."""
+    (x, y, _, _), tape = rollout(c, contact, steps, float(v[0]), float(v[1]))
+    dx, dy = x - c["target_x"], y - c["target_y"]
+    return dx * dx + dy * dy, np.array(adjoint(c, tape, 2.0 * dx, 2.0 * dy))
+
+
 def finite_difference_gradient(c: dict[str, float], contact: str, steps: int, v,
                                h: float = 1e-4) -> np.ndarray:
     """Float64 central differences with one Richardson step (error O(h^4)), so a stiff soft
@@ -334,6 +342,10 @@ class Projectile(Scenario):
                                  lambda a, b: self.loss_grad_error(*a, *b)["error"], dt, SWEEP_T)
         return {**self.loss_grad_error(outputs["loss"], outputs["grad"], *ref),
                 "metric": self.error_metric, "reference": info}
+
+    def stress_experiments(self):
+        from . import projectile_stress
+        return projectile_stress.EXPERIMENTS
 
     def inputs(self, params: ProjectileParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)

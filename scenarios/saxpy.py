@@ -64,6 +64,12 @@ class Saxpy(Scenario):
         return {"error": record["error"]["vs_oracle"], "metric": self.error_metric,
                 "reference": {"note": "float64 oracle of the same rounded inputs"}}
 
+    def ulp_cases(self, quick):
+        """Both input kinds (cancellation in random ones), at the quick or the full size."""
+        n = 100_003 if quick else 1_000_000
+        return [({"n": n, "inputs": "linspace"}, "out", "saxpy (linspace)"),
+                ({"n": n, "inputs": "random", "seed": 3}, "out", "saxpy (random)")]
+
     def inputs(self, params: SaxpyParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)
         if params.inputs == "linspace":

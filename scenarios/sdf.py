@@ -95,6 +95,9 @@ class Sdf(Scenario):
         return {**self.reconstruction_error(outputs["image"], cache), "metric": self.error_metric,
                 "reference": {"eval_grid": SWEEP_EVAL, "note": "analytic field, float64"}}
 
+    def ulp_cases(self, quick):
+        return [({"width": 512, "height": 512}, "image", "sdf")]
+
     def inputs(self, params: SdfParams, precision: str) -> dict[str, np.ndarray]:
         return {}  # the image is a pure function of the pixel index
 
