@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, require_device
-from compare import stress
+from compare.stress import context, generic, host_loop
+from scenarios import numerics, particles, particles_stress, projectile_stress
 
 pytestmark = pytest.mark.cli
 
@@ -29,7 +30,7 @@ pytestmark = pytest.mark.cli
     ([], "diverged"),
 ])
 def test_classify(history, expected):
-    assert stress.classify(history) == expected
+    assert projectile_stress.classify(history) == expected
 
 
 def test_classify_gradient_descent_on_a_quadratic_matches_the_stability_bound():
@@ -42,16 +43,16 @@ def test_classify_gradient_descent_on_a_quadratic_matches_the_stability_bound():
             out.append(0.5 * lam * v * v)
             v -= lr * lam * v
         return out
-    assert stress.classify(hist(0.01)) == "converged"
-    assert stress.classify(hist(0.049)) == "stalled"          # |1 - lr lam| = 0.98: slow
-    assert stress.classify(hist(0.08)) == "diverged"
+    assert projectile_stress.classify(hist(0.01)) == "converged"
+    assert projectile_stress.classify(hist(0.049)) == "stalled"          # |1 - lr lam| = 0.98: slow
+    assert projectile_stress.classify(hist(0.08)) == "diverged"
     lrs = [0.01, 0.045, 0.055, 0.08]
-    below, first = stress.observed_boundary(lrs, [stress.classify(hist(lr)) for lr in lrs])
+    below, first = projectile_stress.observed_boundary(lrs, [projectile_stress.classify(hist(lr)) for lr in lrs])
     assert below == 0.045 and first == 0.055 and below < 2 / lam <= first
 
 
 def test_observed_boundary_without_divergence():
-    assert stress.observed_boundary([0.1, 0.2], ["stalled", "converged"]) == (0.2, None)
+    assert projectile_stress.observed_boundary([0.1, 0.2], ["stalled", "converged"]) == (0.2, None)
 
 
 # ---- race detector ----------------------------------------------------------------------------
@@ -64,15 +65,15 @@ def _outputs(seed=0):
 def test_bitwise_differences_counts_elements_and_treats_equal_nans_as_equal():
     a = _outputs()
     b = {k: v.copy() for k, v in a.items()}
-    assert stress.bitwise_differences(a, b) == 0
+    assert numerics.bitwise_differences(a, b) == 0
     a["x"][3] = b["x"][3] = np.nan
-    assert stress.bitwise_differences(a, b) == 0
+    assert numerics.bitwise_differences(a, b) == 0
     b["y"][7] = np.nextafter(b["y"][7], np.float32(np.inf))      # one ulp
     b["vx"][0] = -b["vx"][0]
-    assert stress.bitwise_differences(a, b) == 2
-    assert stress.bitwise_differences({"z": np.float32([0.0])}, {"z": np.float32([-0.0])}) == 1
-    assert stress.bitwise_differences(a, {**b, "extra": b["x"]}) == -1
-    assert stress.bitwise_differences({"x": a["x"]}, {"x": a["x"][:5]}) == -1
+    assert numerics.bitwise_differences(a, b) == 2
+    assert numerics.bitwise_differences({"z": np.float32([0.0])}, {"z": np.float32([-0.0])}) == 1
+    assert numerics.bitwise_differences(a, {**b, "extra": b["x"]}) == -1
+    assert numerics.bitwise_differences({"x": a["x"]}, {"x": a["x"][:5]}) == -1
 
 
 @pytest.mark.parametrize("device,differing,oracle_ok,flagged", [
@@ -85,7 +86,7 @@ def test_bitwise_differences_counts_elements_and_treats_equal_nans_as_equal():
     ("cpu", 5, (True, True), True),
 ])
 def test_race_verdict(device, differing, oracle_ok, flagged):
-    verdict = stress.race_verdict(device, differing, oracle_ok)
+    verdict = generic.race_verdict(device, differing, oracle_ok)
     assert verdict.startswith("RACE DETECTED") == flagged
     if not flagged:
         assert verdict == ("race not observable on CPU" if device == "cpu" else "MISSED: race not flagged")
@@ -97,9 +98,9 @@ def test_race_detector_flags_a_synthetic_read_before_write():
     clean = _outputs()
     stale = {k: v.copy() for k, v in clean.items()}
     stale["y"][::3] = 0.0                       # some threads read the zeroed history
-    differing = stress.bitwise_differences(clean, stale)
+    differing = numerics.bitwise_differences(clean, stale)
     assert differing > 0
-    assert stress.race_verdict("cuda", differing, (True, False)).startswith("RACE DETECTED")
+    assert generic.race_verdict("cuda", differing, (True, False)).startswith("RACE DETECTED")
 
 
 # ---- other rules ------------------------------------------------------------------------------
@@ -109,10 +110,10 @@ def test_contacts_and_first_flips():
     lo = float(np.float32(-1) + np.float32(radius))
     ty = np.array([[0.5, radius], [radius, 0.4], [0.2, 0.1]])
     tx = np.array([[0.0, 0.0], [0.0, 0.0], [lo, 0.0]])
-    c = stress.contacts(tx, ty, radius, np.float32)
+    c = particles_stress.contacts(tx, ty, radius, np.float32)
     assert c.tolist() == [[False, True], [True, False], [True, False]]
     other = c.copy(); other[1, 0] = False
-    assert stress.first_flips(c, other).tolist() == [1, -1]
+    assert particles_stress.first_flips(c, other).tolist() == [1, -1]
 
 
 def test_energy_bound_holds_for_the_float64_oracle():
@@ -123,32 +124,32 @@ def test_energy_bound_holds_for_the_float64_oracle():
     inp = sc.inputs(p, "float64")
     ref = sc.oracle(p, inp)
     g, r = float(inp["gravity"]), float(inp["radius"])
-    e = stress.energy(ref["x"], ref["y"], ref["vx"], ref["vy"], g, r)
-    assert np.all(e <= stress.energy_bound(inp))
+    e = particles.energy(ref["x"], ref["y"], ref["vx"], ref["vy"], g, r)
+    assert np.all(e <= particles.energy_bound(inp))
 
 
 def test_loss_mispredictions_separates_jumps_from_curvature_and_rounding():
     vy = np.linspace(0.0, 1.0, 11)
     smooth = [[0.0, 2 * v] for v in vy]                      # L = v^2, exact gradient
-    assert stress.loss_mispredictions(vy, vy ** 2, smooth) == (0, 0)
+    assert projectile_stress.loss_mispredictions(vy, vy ** 2, smooth) == (0, 0)
     jump = vy ** 2 + (vy > 0.55)                             # a step the gradient cannot see
-    assert stress.loss_mispredictions(vy, jump, smooth) == (1, 0)
+    assert projectile_stress.loss_mispredictions(vy, jump, smooth) == (1, 0)
     flat = np.full(11, 25.0) + 1e-7 * (-1.0) ** np.arange(11)  # rounding noise on a flat loss
-    assert stress.loss_mispredictions(vy, flat, [[0.0, 0.0]] * 11, noise_rel=2 ** -23) == (0, 10)
+    assert projectile_stress.loss_mispredictions(vy, flat, [[0.0, 0.0]] * 11, noise_rel=2 ** -23) == (0, 10)
 
 
 def test_ulps_of_correctly_rounded_results_are_at_most_half():
     ref = np.random.default_rng(1).standard_normal(1000)
-    assert np.max(stress.ulps(ref.astype(np.float32), ref)) <= 0.5
-    assert stress.ulps(np.float32([1.0 + 2 ** -23]), np.array([1.0]))[0] == 1.0
+    assert np.max(numerics.ulps(ref.astype(np.float32), ref)) <= 0.5
+    assert numerics.ulps(np.float32([1.0 + 2 ** -23]), np.array([1.0]))[0] == 1.0
 
 
 def test_emulation_finds_the_overflow_step():
     """bounce > 1 at the walls: the horizontal speed overflows sooner in float32 than in float64."""
-    s32 = stress.emulate_first_nonfinite({"n": 16, "bounce": 3.0}, "float32", 5000)
-    s64 = stress.emulate_first_nonfinite({"n": 16, "bounce": 3.0}, "float64", 5000)
+    s32 = particles_stress.first_nonfinite_step({"n": 16, "bounce": 3.0}, "float32", 5000)
+    s64 = particles_stress.first_nonfinite_step({"n": 16, "bounce": 3.0}, "float64", 5000)
     assert s32 is not None and s64 is not None and s32 < s64
-    assert stress.emulate_first_nonfinite({"n": 16, "bounce": 0.5}, "float32", 500) is None
+    assert particles_stress.first_nonfinite_step({"n": 16, "bounce": 0.5}, "float32", 500) is None
 
 
 # ---- command line -----------------------------------------------------------------------------
@@ -182,7 +183,7 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
     rows = data["rows"]
     assert {r["experiment"] for r in rows} == {"particles-inf", "races"}
     for r in rows:
-        assert set(stress.COLUMNS) <= set(r) and r["verdict"]
+        assert set(context.COLUMNS) <= set(r) and r["verdict"]
     inf = [r for r in rows if r["experiment"] == "particles-inf"]
     assert {r["precision"] for r in inf} == {"float32", "float64"}
     for r in inf:   # the overflow step is found and agrees with the NumPy emulation
@@ -213,14 +214,14 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
 def test_host_loop_scan_reuses_one_kernel_and_matches_the_oracle(backend):
     """A scan moves v0 in place (set_input); in float64 every point must match the float64 adjoint,
     so a stale v0 (the kernel not seeing the new input) fails here."""
-    from compare import stress_tasks
+    from scenarios import projectile_tasks
     require_device(backend, "cpu")
     scans = {"s": [6.3, 6.45, 6.5, 6.7]}
-    task = {"kind": "scan", "backend": backend, "device": "cpu", "precision": "float64",
-            "contacts": ["hard", "soft"], "scans": scans, "budget_s": 600.0}
-    got = stress_tasks.run(task, timeout=600)
+    task = projectile_tasks.task("scan", backend=backend, device="cpu", precision="float64",
+                                 contacts=["hard", "soft"], scans=scans, budget_s=600.0)
+    got = host_loop.run(task, timeout=600)
     assert "results" in got, got
-    ref = stress_tasks.run_task({**task, "backend": "oracle64", "device": "host"})
+    ref = projectile_tasks.run_task({**task, "backend": "oracle64", "device": "host"})
     for g, r in zip(got["results"], ref["results"]):
         assert g["contact"] == r["contact"]
         assert len(set(g["loss"])) == len(scans["s"])            # every point really evaluated
@@ -231,7 +232,7 @@ def test_host_loop_scan_reuses_one_kernel_and_matches_the_oracle(backend):
 def test_pool_map_runs_one_gpu_item_per_backend_at_a_time():
     import threading
     import time
-    ctx = stress.Ctx(["a", "b"], ["cpu", "cuda"], True, 8, 1.0, {})
+    ctx = context.Ctx(["a", "b"], ["cpu", "cuda"], True, 8, 1.0, {})
     items = [{"backend": b, "device": d, "i": i} for i in range(4) for b in ("a", "b") for d in ("cpu", "cuda")]
     busy: dict = {}
     peak: dict = {}
@@ -247,6 +248,6 @@ def test_pool_map_runs_one_gpu_item_per_backend_at_a_time():
             busy[key] -= 1
         return it["i"]
 
-    assert stress.pool_map(ctx, fn, items) == [it["i"] for it in items]    # order kept
+    assert ctx.map(fn, items) == [it["i"] for it in items]    # order kept
     assert peak[("a", "cuda")] == peak[("b", "cuda")] == 1
     assert peak[("a", "cpu")] > 1                                          # CPU items overlap

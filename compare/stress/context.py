@@ -1,0 +1,102 @@
+"""The context every stress experiment runs in: which backends and devices, and how to run things.
+
+Experiments (``scenarios.numerics.Experiment``) receive a ``Ctx`` and use only its methods and
+pure numerics, so the scenario modules that define most of them never import the driver. Cells
+go through ``compare.engine.run_cells`` (a worker process per cell, ``jobs`` at a time, one lane
+per backend and GPU); host work and host-loop tasks through the same lanes.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable
+
+import numpy as np
+
+import backends
+from compare import engine
+from compare.report import fmt_num
+
+COLUMNS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
+
+
+def lane(item: Any) -> Any:
+    """Items that must not overlap (``engine.gpu_lane``): a cell spec or task dict, or a
+    (backend, device, ...) tuple."""
+    return engine.gpu_lane(item if isinstance(item, dict) else {"backend": item[0], "device": item[1]})
+
+
+@dataclasses.dataclass
+class Ctx:
+    backends: list[str]
+    devices: list[str]
+    quick: bool
+    jobs: int
+    timeout: float
+    probes: dict[str, dict[str, Any]]
+
+    @property
+    def reference(self) -> str:
+        return backends.reference()
+
+    def why_not(self, backend: str, device: str) -> str | None:
+        return self.probes[backend]["available"].get(device)
+
+    def targets(self, variants: bool = False) -> list[tuple[str, str, str]]:
+        """(backend, device, variant) that can run, reference first."""
+        out = []
+        for d in self.devices:
+            for b in self.backends:
+                if self.why_not(b, d):
+                    continue
+                for v in (backends.get(b).variants if variants else ("default",)):
+                    out.append((b, d, v))
+        return out
+
+    def skip_rows(self, experiment: str) -> list[dict[str, Any]]:
+        return [self.row(experiment, b, d, "-", "-", "-", None, "skipped", self.why_not(b, d))
+                for d in self.devices for b in self.backends if self.why_not(b, d)]
+
+    @staticmethod
+    def spec(scenario: str, backend: str, device: str, precision: str, params: dict[str, Any],
+             variant: str = "default") -> dict[str, Any]:
+        # Timing is not measured here: one timed call (the worker adds its first call and warm-ups),
+        # and the frameworks' kernel caches stay warm so cells do not recompile the same kernels.
+        return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
+                "variant": variant, "params": params, "quick": False, "repeat": 1, "min_time": 0.0,
+                "cache": "warm", "timer": "wall"}
+
+    @staticmethod
+    def row(experiment: str, backend: str, device: str, precision: str, setting: str, figure: str,
+            value: Any, verdict: str, detail: str | None = "") -> dict[str, Any]:
+        if isinstance(value, (np.floating, np.integer)):
+            value = value.item()
+        return dict(zip(COLUMNS, (experiment, backend, device, precision, setting, figure, value,
+                                  verdict, detail or "")))
+
+    @staticmethod
+    def label(spec_or_rec: dict[str, Any]) -> str:
+        s = spec_or_rec
+        v = s.get("variant", "default")
+        return f"{s['backend']}/{s['device']}" + ("" if v == "default" else f"/{v}")
+
+    def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: dict[str, Any]) -> dict[str, Any]:
+        return self.row(experiment, self.label(s).split("/", 1)[0], s["device"], s["precision"], setting,
+                        "cell", None, "error", rec.get("reason", "?"))
+
+    @staticmethod
+    def fmt(x: Any) -> str:
+        return fmt_num(x)
+
+    def run_cells(self, specs: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, np.ndarray] | None]]:
+        """Each spec in its own worker process; (record, outputs) per spec, in order."""
+        return engine.run_cells(specs, timeout=self.timeout, jobs=self.jobs, probes=self.probes)
+
+    def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
+        """``fn`` over ``items`` on threads, ``--jobs`` at a time, one GPU item per backend at a time
+        (stress figures are not timings); results in the order of ``items``."""
+        return engine.pool_map(fn, items, jobs=self.jobs, lane=lane)
+
+    def run_tasks(self, tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        """Host-loop tasks (``compare.stress.host_loop``), each in its own worker process."""
+        from compare.stress import host_loop
+        return self.map(lambda t: host_loop.run(t, timeout=self.timeout), tasks)

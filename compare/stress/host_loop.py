@@ -1,0 +1,86 @@
+"""Host-loop tasks, each in a fresh worker process: ``python -m compare.stress.host_loop TASK.json OUT.json``.
+
+Some experiments need more than one cell gives, e.g. an optimiser no backend implements, driven
+on the host with the backend's loss and gradient. Such a task is a JSON-able dict whose ``call``
+names the function that runs it (``"package.module:function"``, a scenario's module); the
+function gets the task and returns a JSON-able dict. Process isolation is as for cells
+(``compare.cells``): frameworks' global state lives and dies with the process, and a crash or
+a hang becomes ``{"error": ...}`` instead of a lost run.
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import subprocess
+import sys
+import tempfile
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from compare.cells import ROOT, worker_env
+
+
+def call(task: dict[str, Any]) -> dict[str, Any]:
+    """Run ``task`` in this process: import and call its ``call`` target."""
+    target = task.get("call")
+    if not isinstance(target, str) or ":" not in target:
+        raise ValueError(f"a host-loop task names its function as 'module:function', got {target!r}")
+    module, function = target.split(":", 1)
+    return getattr(importlib.import_module(module), function)(task)
+
+
+def run(task: dict[str, Any], timeout: float = 900.0) -> dict[str, Any]:
+    """Run ``task`` in a fresh interpreter (as compare.cells.run does for a cell); never raises."""
+    with tempfile.TemporaryDirectory(prefix="stress-task-") as tmp:
+        spec, out = Path(tmp) / "task.json", Path(tmp) / "out.json"
+        spec.write_text(json.dumps(task))
+        try:
+            proc = subprocess.run([sys.executable, "-m", __name__, str(spec), str(out)],
+                                  cwd=ROOT, env=worker_env(task.get("backend")), capture_output=True,
+                                  text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            return {"error": f"task timed out after {timeout:g} s"}
+        if not out.exists():
+            tail = " | ".join(proc.stderr.strip().splitlines()[-3:])
+            return {"error": f"task process died (exit {proc.returncode}): {tail}"}
+        return json.loads(out.read_text(), parse_constant=float,
+                          object_hook=lambda d: {k: _unstr(v) for k, v in d.items()})
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else str(float(x))
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def _unstr(v: Any) -> Any:
+    if isinstance(v, str) and v in ("nan", "inf", "-inf"):
+        return float(v)
+    if isinstance(v, list):
+        return [_unstr(x) for x in v]
+    return v
+
+
+def main(argv: list[str]) -> int:
+    task = json.loads(Path(argv[0]).read_text())
+    try:
+        result = call(task)
+    except Exception as exc:  # reported as an error row by the parent, never a lost run
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        result = {"error": f"{type(exc).__name__}: {first}", "traceback": traceback.format_exc()}
+    Path(argv[1]).write_text(json.dumps(_jsonable(result)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

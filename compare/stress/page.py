@@ -1,0 +1,140 @@
+"""stress.json and stress.md: the one place that reads and writes the suite's results.
+
+``stress.json`` is ``{environment, provenance, rows, series}``; ``provenance`` says, per
+experiment, which run (command, time, commit) produced its rows, since a results file may be
+assembled from several runs (``--only`` parts, ``--merge``).
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+from compare.options import UsageError
+from compare.report import fmt_num
+from compare.store import atomic_write, jsonable
+from compare.stress import plots
+from compare.stress.context import COLUMNS
+from scenarios.numerics import Experiment
+
+Registry = dict[str, Experiment]
+
+
+def fmt_value(v: Any) -> str:
+    if isinstance(v, int) and not isinstance(v, bool):
+        return str(v)
+    if isinstance(v, float) and math.isfinite(v) and v != 0:
+        return f"{v:.4g}"
+    return fmt_num(v) if not isinstance(v, bool) else str(v)
+
+
+def provenance(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """experiment -> the run that produced its rows (command, time, commit)."""
+    if "provenance" in data:
+        return data["provenance"]
+    env = data.get("environment", {})
+    run = {k: env.get(k) for k in ("command", "created", "git_commit")}
+    if "merged_from" in env:      # an old merged file: its parts' commands were not kept
+        run["command"] = f"merge of {len(env['merged_from'])} parts (commands not recorded)"
+    return {r["experiment"]: run for r in data.get("rows", [])}
+
+
+def produced_by(data: dict[str, Any]) -> list[str]:
+    """One line per run that produced rows: its command, when, and which experiments."""
+    runs: dict[tuple, list[str]] = {}
+    for e, r in provenance(data).items():
+        runs.setdefault((r.get("command") or "?", r.get("created") or "?", r.get("git_commit") or "?"), []).append(e)
+    lines = ["- produced by:" if len(runs) > 1 else "- produced by"]
+    for (cmd, when, commit), exps in runs.items():
+        lines.append(f"  - `{cmd}` ({when}, commit {commit or '?'}): {', '.join(exps)}")
+    return lines
+
+
+def markdown(data: dict[str, Any], experiments: Registry) -> str:
+    from tabulate import tabulate
+    env = data.get("environment", {})
+    lines = ["# Stress suite results", "",
+             *produced_by(data), f"- host: {env.get('hostname', '?')}, "
+             f"CPU {env.get('cpu', '?')}, GPUs: {', '.join(g.get('name', '?') for g in env.get('gpus', [])) or 'none'}",
+             f"- Python {env.get('python', '?')}; " + ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items()),
+             "- How each verdict is decided: docs/stress.md. Verdicts in CAPITALS flag a problem or a "
+             "limit found; 'skipped' rows say why.", "", "## Verdicts per experiment", ""]
+    counts: dict[str, dict[str, int]] = {}
+    for r in data["rows"]:
+        v = re.sub(r"(?<![\w.])\d[\d.e+-]*%?", "#", r["verdict"].split(" (")[0])    # numbers apart: one class
+        counts.setdefault(r["experiment"], {}).setdefault(v, 0)
+        counts[r["experiment"]][v] += 1
+    lines += [f"- **{e}**: " + "; ".join(f"{v} x{k}" for v, k in c.items()) for e, c in counts.items()] + [""]
+    for name, exp in experiments.items():
+        rows = [r for r in data["rows"] if r["experiment"] == name]
+        if not rows:
+            continue
+        lines += [f"## {name}: {exp.title}", ""]
+        if (Path(data["_out"]) / f"{name}.png").exists():
+            lines += [f"![{name}]({name}.png)", ""]
+        if exp.extra_markdown is not None:
+            lines += [exp.extra_markdown(rows), ""]
+        if exp.table_rows is not None:
+            rows = exp.table_rows(rows)
+        table = [[r["backend"], r["device"], r["precision"], r["setting"], r["figure"], fmt_value(r["value"]),
+                  r["verdict"], r["detail"]] for r in rows]
+        lines += [tabulate(table, headers=COLUMNS[1:], tablefmt="github", disable_numparse=True), ""]
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(out: Path, env: dict[str, Any], rows: list[dict[str, Any]], series: dict[str, Any],
+                  ran: list[str], experiments: Registry, plots_: bool = True,
+                  prov: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Merge with an existing stress.json (experiments not run now are kept), write json, md, png."""
+    path = out / "stress.json"
+    old_rows, old_series, old_prov = [], {}, {}
+    if path.exists():
+        try:
+            old = json.loads(path.read_text())
+            old_rows = [r for r in old.get("rows", []) if r["experiment"] not in ran]
+            old_series = {k: v for k, v in old.get("series", {}).items() if k not in ran}
+            old_prov = {k: v for k, v in provenance(old).items() if k not in ran}
+        except (OSError, ValueError, KeyError):
+            pass
+    order = list(experiments)
+    all_rows = sorted(old_rows + rows, key=lambda r: order.index(r["experiment"]) if r["experiment"] in order else 99)
+    new_prov = prov if prov is not None else provenance({"environment": env, "rows": rows})
+    prov = {**old_prov, **{e: v for e, v in new_prov.items() if e in ran}}
+    data = {"environment": env, "provenance": prov, "rows": jsonable(all_rows),
+            "series": jsonable({**old_series, **series})}
+    atomic_write(path, json.dumps(data, indent=1))
+    if plots_:
+        for name, s in data["series"].items():
+            if name in experiments:
+                plots.draw(experiments[name], s, out / f"{name}.png")
+    atomic_write(out / "stress.md", markdown({**data, "_out": str(out)}, experiments))
+    return data
+
+
+def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = True) -> int:
+    """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each);
+    later files win per experiment."""
+    rows: list[dict[str, Any]] = []
+    series: dict[str, Any] = {}
+    envs = []
+    prov: dict[str, dict[str, Any]] = {}
+    for f in files:
+        try:
+            data = json.loads(Path(f).read_text())
+            part_rows, part_series, env = data["rows"], data.get("series", {}), data["environment"]
+        except (OSError, ValueError, KeyError) as exc:
+            raise UsageError(f"cannot read stress results {f}: {exc}") from None
+        ran = {r["experiment"] for r in part_rows}
+        rows = [r for r in rows if r["experiment"] not in ran] + part_rows
+        prov.update({e: v for e, v in provenance(data).items() if e in ran})
+        series = {**{k: v for k, v in series.items() if k not in ran}, **part_series}
+        envs.append(env)
+    env = {**envs[-1], "merged_from": files}
+    out.mkdir(parents=True, exist_ok=True)
+    write_outputs(out, env, rows, series, sorted({r["experiment"] for r in rows}), experiments,
+                  plots_=plots_, prov=prov)
+    print(f"merged {len(files)} files into {out / 'stress.json'} ({len(rows)} rows)", file=sys.stderr)
+    return 0

@@ -1,0 +1,49 @@
+"""Plot helpers shared by every stress experiment's plot (drawn from the series in stress.json).
+
+An experiment's ``plot(series, path, style)`` gets ``style`` from here, so a backend keeps its
+colour (``Backend.color``) and a device its marker in every plot, whatever else ran.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import backends
+from scenarios.numerics import ORACLE, Experiment
+from scenarios.numerics import log_floor as _floor  # noqa: F401  (shared with generic plots)
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _colour(name: str) -> str:
+    """The backend's own colour, else that of its place in display order; the float64 oracle
+    comes after every backend; anything else (a prediction) is black."""
+    ranked = sorted(backends.BACKENDS.values(), key=lambda b: (not b.is_reference, b.display_order, b.name))
+    names = [b.name for b in ranked]
+    if name in names:
+        return backends.BACKENDS[name].color or f"C{names.index(name) % 10}"
+    return f"C{len(names) % 10}" if name == ORACLE else "k"
+
+
+def _style(lbl: str) -> dict[str, Any]:
+    """One colour per backend and one marker per device, in every plot."""
+    return {"color": _colour(lbl.split("/", 1)[0]), "marker": "^" if "/cuda" in lbl else "o", "markersize": 4}
+
+
+def draw(experiment: Experiment, series: dict[str, Any], path: Path) -> None:
+    """Draw one experiment's plot; a failing plot warns and must not lose the table."""
+    if experiment.plot is None or not series:
+        return
+    plt = _plt()
+    try:
+        experiment.plot(series, path, _style)
+    except Exception as exc:
+        print(f"warning: plot {experiment.name} failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+    finally:
+        plt.close("all")
