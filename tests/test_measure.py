@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 import backends
-from compare import cells, plots_measure, sweep, timing, worker
+from compare import cells, sweep, timing, worker
+from compare.sweep import page as sweep_page
+from compare.sweep import plots as sweep_plots
 from conftest import ROOT, require_device
 
 pytestmark = pytest.mark.cli
@@ -98,14 +100,16 @@ def test_failing_events_fall_back_to_the_wall_clock():
 
 
 def test_event_timer_choice():
-    assert timing.event_timer("warp", "cpu") == (None, timing.CLOCK)
-    assert timing.event_timer("jax", "cuda") == (None, timing.CLOCK)
-    assert timing.event_timer("warp", "cuda", mode="wall") == (None, timing.CLOCK)
+    assert timing.event_timer(backends.get("warp"), "cpu") == (None, timing.CLOCK)
+    assert timing.event_timer(backends.get("jax"), "cuda") == (None, timing.CLOCK)
+    assert timing.event_timer(backends.get("warp"), "cuda", mode="wall") == (None, timing.CLOCK)
 
 
 # ---- roofline and Pareto math ---------------------------------------------------------------
 def _rec(role, backend, n, median, nbytes, wall=None, timer="wall", device="cuda"):
-    return {"sweep": "bandwidth", "role": role, "scenario": role, "backend": backend,
+    scenario = {"bandwidth": "saxpy"}.get(role, role)
+    return {"tags": {"sweep": "bandwidth", "role": role, "knob": {"name": "n", "value": n}},
+            "scenario": scenario, "backend": backend,
             "device": device, "precision": "float32", "status": "ok", "params": {"n": n},
             "work": {"bytes": nbytes},
             "time": {"median_s": median, "timer": timer,
@@ -115,46 +119,48 @@ def _rec(role, backend, n, median, nbytes, wall=None, timer="wall", device="cuda
 def test_roofline_and_bandwidth_rows():
     recs = [_rec("copy", "a", 1 << 20, 1e-3, 2e9), _rec("copy", "b", 1 << 20, 2e-3, 2e9),
             _rec("launch", "a", 1, 1e-5, 8, wall=1e-5),
-            _rec("saxpy", "a", 1 << 10, 2e-6, 3e3, wall=1.2e-5, timer="events"),
-            _rec("saxpy", "a", 1 << 28, 2e-3, 3e9, wall=2.1e-3, timer="events")]
-    roof = plots_measure.roofline(recs, "cuda")
+            _rec("bandwidth", "a", 1 << 10, 2e-6, 3e3, wall=1.2e-5, timer="events"),
+            _rec("bandwidth", "a", 1 << 28, 2e-3, 3e9, wall=2.1e-3, timer="events")]
+    roof = sweep_page.roofline(recs, "cuda")
     assert roof["backend"] == "a" and math.isclose(roof["gbps"], 2000.0)
-    assert plots_measure.roofline(recs, "cpu") is None
-    small = plots_measure.bandwidth_row(recs[3], recs)
+    assert sweep_page.roofline(recs, "cpu") is None
+    small = sweep_page.bandwidth_row(recs[3], recs)
     assert math.isclose(small["gbps"], 3e3 / 2e-6 / 1e9)              # primary clock (events)
     assert math.isclose(small["wall_gbps"], 3e3 / 1.2e-5 / 1e9)
     assert math.isclose(small["launch_share"], 1e-5 / 1.2e-5) and small["regime"] == "overhead-bound"
-    big = plots_measure.bandwidth_row(recs[4], recs)
+    big = sweep_page.bandwidth_row(recs[4], recs)
     assert math.isclose(big["roof_share"], 1500.0 / 2000.0) and big["regime"] == "bandwidth-bound"
-    assert plots_measure.regime(0.1, 0.2) == "mixed" and plots_measure.regime(None, None) == "-"
-    assert plots_measure.gbps(1e9, 0.5) == 2.0
+    assert sweep_page.regime(0.1, 0.2) == "mixed" and sweep_page.regime(None, None) == "-"
+    assert sweep_page.gbps(1e9, 0.5) == 2.0
 
 
 def test_pareto_front():
     pts = [(1.0, 10.0), (2.0, 5.0), (3.0, 6.0), (4.0, 1.0), (2.0, 5.0), (0.5, 20.0), (5.0, 1.0)]
-    assert plots_measure.pareto_front(pts) == [True, True, False, True, True, True, False]
-    assert plots_measure.pareto_front([]) == []
-    assert plots_measure.pareto_front([(1.0, 1.0)]) == [True]
+    assert sweep_page.pareto_front(pts) == [True, True, False, True, True, True, False]
+    assert sweep_page.pareto_front([]) == []
+    assert sweep_page.pareto_front([(1.0, 1.0)]) == [True]
 
 
 # ---- converged references -------------------------------------------------------------------
 def test_references_converge():
     import scenarios
     sdf = scenarios.get("sdf")
-    errs = [sweep.sdf_error(sdf.oracle(sdf.params({"width": r, "height": r}), {})["image"])["error"]
+    errs = [sdf.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {})["image"])["error"]
             for r in (32, 128, 512)]
     assert errs[0] > errs[1] > errs[2] > 0
+    part = scenarios.get("particles")
     params = {"n": 16, "seed": 0}
-    ref = sweep.particles_positions(params, 0.001, 3000)
-    e = [sweep.particles_error(*sweep.particles_positions(params, dt, round(3.0 / dt)), *ref)["error"]
+    ref = part.converged_positions(params, 0.001, 3000)
+    e = [part.position_error(*part.converged_positions(params, dt, round(3.0 / dt)), *ref)["error"]
          for dt in (0.02, 0.004)]
     assert e[0] > e[1] > 0
     p = {"contact": "none", "iters": 0}
-    exact = scenarios.get("projectile").params(p)       # continuous limit of the no-contact case
+    proj = scenarios.get("projectile")
+    exact = proj.params(p)       # continuous limit of the no-contact case
     T = 4.5
     x, y = exact.vx0 * T, exact.vy0 * T + 0.5 * exact.gravity * T * T
     dx, dy = x - exact.target_x, y - exact.target_y
-    loss, grad = sweep.projectile_loss_grad(p, 0.0005, 9000)
+    loss, grad = proj.converged_loss_grad(p, 0.0005, 9000)
     assert abs(loss - (dx * dx + dy * dy)) / (dx * dx + dy * dy) < 1e-3
     assert np.allclose(grad, [2 * dx * T, 2 * dy * T], rtol=1e-3)
 
@@ -180,12 +186,14 @@ def test_sweep_quick_runs_everything_ok(quick_sweep):
     data = json.loads((out / "sweep.json").read_text())
     recs = data["records"]
     assert all(r["status"] == "ok" for r in recs), [r.get("reason") for r in recs]
-    roles = {(r["sweep"], r["role"]) for r in recs}
-    assert {("bandwidth", "launch"), ("bandwidth", "copy"), ("bandwidth", "saxpy"),
-            ("error", "sdf"), ("error", "particles"), ("error", "projectile"),
-            ("scaling", "particles")} <= roles
+    assert not any(k in r for r in recs for k in ("sweep", "role", "knob"))   # all under tags
+    roles = {(r["tags"]["sweep"], r["tags"]["role"], r["scenario"]) for r in recs}
+    assert {("bandwidth", "launch", "launch"), ("bandwidth", "copy", "copy"),
+            ("bandwidth", "bandwidth", "saxpy"), ("error", "sdf", "sdf"),
+            ("error", "particles", "particles"), ("error", "projectile", "projectile"),
+            ("scaling", "particles", "particles")} <= roles
     for r in recs:
-        if r["sweep"] == "error":
+        if r["tags"]["sweep"] == "error":
             c = r["converged"]
             assert c["metric"] and math.isfinite(c["error"]) and c["error"] >= 0
             if r["scenario"] in ("particles", "projectile"):    # the reference is far finer
@@ -223,10 +231,83 @@ def test_sweep_resume_skips_ok_cells(quick_sweep):
     (("bandwidth", "--repeat", "0"), "--repeat"),
     (("report",), "at least one"),
     (("report", "/nonexistent/sweep.json"), "cannot read"),
-    (("error", "--contact", "sticky"), "invalid choice"),
+    (("error", "--set", "contact=sticky"), "contact must be one of"),
+    (("bandwidth", "--set", "contact=soft"), "unknown parameter 'contact'"),
+    (("error", "--scenarios", "particles", "--set", "dt=0.1"), "varies it"),
+    (("error", "--set", "contact"), "KEY=VALUE"),
 ])
 def test_sweep_bad_usage_exits_2_with_one_line(args, needle):
     p = run_sweep(*args)
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], p.stderr
+
+
+# ---- the suite's plan, record shape and page, without running cells --------------------------
+def plan_of(*argv):
+    from compare import options
+    p = options.Parser()
+    sweep.add_arguments(p)
+    return sweep.plan(p.parse_args(list(argv)))
+
+
+def test_plan_comes_from_the_scenarios_hooks():
+    import scenarios
+    specs = [s for s, _ in plan_of("bandwidth", "--quick", "--backends", "warp", "--devices", "cpu")]
+    assert [s["tags"]["role"] for s in specs[:2]] == ["launch", "copy"]      # yardsticks first
+    assert {s["scenario"] for s in specs if s["tags"]["role"] == "bandwidth"} == {
+        sc.name for sc in scenarios.SCENARIOS.values() if sc.measures == "bandwidth"}
+    assert all(s["check_sample"] for s in specs if s["tags"]["role"] != "launch")
+    err = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--precision", "float32")
+    assert {s["scenario"] for s, _ in err} == set(sweep.error_scenarios()) == {
+        "saxpy", "sdf", "particles", "projectile"}
+    proj = [(s, ref) for s, ref in err if s["scenario"] == "projectile"]
+    assert {s["params"]["contact"] for s, _ in proj} == {"soft"}             # the sweep's default
+    assert all(ref["dt"] == min(s["params"]["dt"] for s, _ in proj) / 16 for _, ref in proj)
+    assert all("reference" not in s["tags"] for s, _ in err)                 # not the cell's identity
+    hard = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--set", "contact=hard",
+                   "--scenarios", "projectile,saxpy")
+    assert {s["params"]["contact"] for s, _ in hard if s["scenario"] == "projectile"} == {"hard"}
+    assert [s["scenario"] for s, _ in hard][:4] == ["projectile"] * 3 + ["saxpy"]   # the given order
+    scal = plan_of("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--record-every", "50")
+    assert {s["params"]["record_every"] for s, _ in scal} == {50}
+
+
+def test_old_records_are_upgraded_to_tags():
+    old = {"scenario": "saxpy", "backend": "warp", "device": "cpu", "precision": "float32",
+           "variant": "default", "params": {"n": 1024}, "sweep": "bandwidth", "role": "saxpy",
+           "knob": {"name": "n", "value": 1024}, "status": "ok"}
+    new = sweep.upgrade_record(old)
+    assert new["tags"] == {"sweep": "bandwidth", "role": "bandwidth", "knob": {"name": "n", "value": 1024}}
+    assert not {"sweep", "role", "knob"} & set(new) and new["params"] == {"n": 1024}
+    assert sweep.upgrade_record(new) is new
+    err = sweep.upgrade_record({**old, "scenario": "sdf", "sweep": "error", "role": "sdf", "knob": {}})
+    assert err["tags"] == {"sweep": "error", "role": "sdf", "knob": {}}
+    assert sweep.key(new) == sweep.key(old | {"tags": {"sweep": "bandwidth"}})
+
+
+def test_published_sweep_file_still_renders(tmp_path):
+    data = sweep.load(ROOT / "docs" / "results" / "cpu" / "sweep.json")
+    assert all("tags" in r for r in data["records"])
+    text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
+    for heading in ("## cpu: launch overhead", "## cpu: copy bandwidth (roofline)",
+                    "## cpu: SAXPY bandwidth against size", "### projectile", "## cpu: particles scaling"):
+        assert heading in text
+    assert "| 2^24 " in text and "| particle-steps/s " in text and "No data." not in text
+    assert "Roofline for this device" in text
+
+
+def test_plot_colours_belong_to_the_backend():
+    recs = [{"backend": "numba"}, {"backend": "warp"}, {"backend": "elsewhere"}]
+    c = sweep_plots.colors(recs)
+    assert c["numba"] == backends.get("numba").color and c["warp"] == backends.get("warp").color
+    assert list(c)[:2] == ["warp", "numba"] and c["elsewhere"] not in (c["warp"], c["numba"])
+
+
+def test_sweep_suite_names_no_framework_and_no_scenario():
+    import re
+    pat = re.compile(r"['\"](warp|taichi|jax|numba|saxpy|sdf|particles|projectile)['\"]")
+    for f in (ROOT / "compare" / "sweep").glob("*.py"):
+        for i, line in enumerate(f.read_text().splitlines(), 1):
+            code = line.split("#", 1)[0]
+            assert not pat.search(code), f"{f.name}:{i}: {line.strip()}"

@@ -1,0 +1,276 @@
+"""Measurement sweeps (docs/measurement.md): bandwidth, time against error, scaling.
+
+    sweep bandwidth   launch overhead, copy roofline, achieved bandwidth against size
+    sweep error       time against error: precision, fast-math variants and each scenario's own
+                      knobs (resolution, dt, ...) against a converged float64 reference
+    sweep scaling     throughput and memory against problem size
+    sweep all         the three above
+    sweep report F... rebuild the page and plots from saved sweep.json files (no rerun)
+
+What is swept is the scenarios' business (``Scenario.sweep_points``, ``measures``,
+``converged_error``): this suite plans the cells, runs them on ``compare.engine.run_cells`` (one
+worker process each, the same protocol as ``python -m compare``), attaches each error-sweep
+cell's converged error, and keeps DIR/sweep.json ({runs, records}; a cell run again replaces its
+old record; --resume skips cells already ok). A record's suite identity is its ``tags``: sweep
+kind, role (the scenario's ``measures`` in the bandwidth sweep, else its name) and knob. Every run
+rebuilds the Markdown page (--page, default DIR/measurement.md) and the PNGs in DIR from the whole
+file (compare/sweep/page.py, compare/sweep/plots.py).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+import backends
+import scenarios
+from compare import engine, environment, options
+from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError
+from compare.store import UPGRADES, atomic_write, jsonable
+from compare.sweep import page as pages
+from compare.sweep import plots
+from scenarios.base import PRECISIONS, ParamError
+
+KINDS = ("bandwidth", "error", "scaling")
+PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32"}
+ROLE_ORDER = ("launch", "copy", "bandwidth")    # the bandwidth sweep measures its yardsticks first
+SPEC_OPTIONS = ("check_sample", "save_outputs")  # what a sweep point may set in its cell's spec
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("kind", help="bandwidth | error | scaling | all | report")
+    p.add_argument("files", nargs="*", help="report: sweep.json files to merge")
+    options.add_selection(p, precision=None, variants=False)   # error: every variant a backend has
+    p.add_argument("--scenarios", default=None, help="error: which scenarios to sweep (default: "
+                   f"every one with error-sweep points: {','.join(error_scenarios())})")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a scenario parameter for every swept scenario that has it (repeatable), "
+                        "e.g. contact=hard; a parameter the sweep varies cannot be set")
+    p.add_argument("--record-every", type=int, default=0, metavar="K",
+                   help="scaling: also keep every K-th state (default 0: no trajectory)")
+    p.add_argument("--quick", action="store_true", help="few, small points (minutes on 2 cores)")
+    options.add_timing(p, repeat=None, min_time=None, timeout=600.0)
+    p.add_argument("--cache", default="cold", choices=("cold", "warm"),
+                   help="framework kernel caches for the first call (docs/measurement.md)")
+    options.add_output(p, "results/sweep")
+    options.add_page(p)
+    p.add_argument("--resume", action="store_true", help="skip cells already ok in OUT/sweep.json")
+    p.add_argument("--fresh", action="store_true", help="drop OUT/sweep.json's records first")
+
+
+def error_scenarios() -> list[str]:
+    """Every scenario with time-against-error points on some device."""
+    return [sc.name for sc in scenarios.SCENARIOS.values()
+            if any(sc.sweep_points("error", d, q) for d in backends.DEVICES for q in (False, True))]
+
+
+# ---- plans ----------------------------------------------------------------------------------
+def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scenarios.Scenario]:
+    """The scenarios sweep ``kind`` runs, in the order it runs them."""
+    if kind == "error":
+        return [scenarios.get(n) for n in
+                options.names(args.scenarios or ",".join(error_scenarios()), error_scenarios(), "scenarios")]
+    found = [sc for sc in scenarios.SCENARIOS.values()
+             if any(sc.sweep_points(kind, d, args.quick) for d in devices)]
+    rank = {role: i for i, role in enumerate(ROLE_ORDER)}
+    return sorted(found, key=lambda sc: rank.get(sc.measures, len(rank)))
+
+
+def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str, Any]) -> list[dict[str, Any]]:
+    """The scenario's points with --set (and, for scaling, --record-every) applied and the
+    parameters resolved: each {'params', 'knob', 'options', 'reference'}."""
+    raw = sc.sweep_points(kind, device, args.quick)
+    over = dict(sets)
+    if kind == "scaling" and args.record_every and "record_every" in sc.Params.__dataclass_fields__:
+        over["record_every"] = args.record_every
+    for k in over:
+        if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
+            raise ParamError(f"--set {k}: the {kind} sweep of {sc.name} varies it")
+    return [{"params": dataclasses.asdict(sc.params({**pt["params"], **over})),
+             "knob": pt.get("knob") or {}, "reference": pt.get("reference"),
+             "options": {k: pt[k] for k in SPEC_OPTIONS if k in pt}} for pt in raw]
+
+
+def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] | None]]:
+    """Every cell of the requested sweeps as (spec, the point's converged-error reference), in
+    run order: kind, device, backend, variant (error sweep only), precision, scenario, point."""
+    sel = options.selection(args)
+    kinds = KINDS if args.kind == "all" else (args.kind,)
+    precisions = {k: options.names(args.precision or PRECISION[k], PRECISIONS, "precision") for k in kinds}
+    if args.record_every < 0:
+        raise ParamError(f"--record-every must be >= 0, got {args.record_every}")
+    chosen = {k: swept(k, args, sel["devices"]) for k in kinds}
+    everyone = list({sc.name: sc for k in kinds for sc in chosen[k]}.values())
+    sets = options.scenario_sets(options.parse_sets(args.set), everyone)
+    repeat = args.repeat or (3 if args.quick else 10)
+    min_time = args.min_time if args.min_time is not None else (0.05 if args.quick else 0.2)
+    out = []
+    for kind in kinds:
+        for dev in sel["devices"]:
+            pts = {sc.name: points(sc, kind, dev, args, sets[sc.name]) for sc in chosen[kind]}
+            for be in sel["backends"]:
+                for variant in (backends.get(be).variants if kind == "error" else ("default",)):
+                    for prec in precisions[kind]:
+                        for sc in chosen[kind]:
+                            role = sc.measures if kind == "bandwidth" and sc.measures else sc.name
+                            for pt in pts[sc.name]:
+                                spec = {"scenario": sc.name, "backend": be, "device": dev,
+                                        "precision": prec, "variant": variant,
+                                        "params": dict(pt["params"]),
+                                        "tags": {"sweep": kind, "role": role, "knob": dict(pt["knob"])},
+                                        "repeat": repeat, "min_time": min_time, "cache": args.cache,
+                                        **pt["options"]}
+                                out.append((spec, pt["reference"]))
+    return out
+
+
+# ---- records and the results file ----------------------------------------------------------
+def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
+    """A record of an older sweep.json (top-level 'sweep', 'role', 'knob'; the size sweep's role
+    was its scenario's name) in today's shape: the three under ``tags``, the bandwidth sweep's
+    role the scenario's ``measures``."""
+    if "tags" in rec or not any(k in rec for k in ("sweep", "role", "knob")):
+        return rec
+    new = {k: v for k, v in rec.items() if k not in ("sweep", "role", "knob")}
+    role = rec.get("role")
+    sc = scenarios.SCENARIOS.get(rec.get("scenario"))
+    if rec.get("sweep") == "bandwidth" and sc is not None and sc.measures:
+        role = sc.measures
+    new["tags"] = {"sweep": rec.get("sweep"), "role": role, "knob": rec.get("knob") or {}}
+    return new
+
+
+def key(rec: dict[str, Any]) -> str:
+    return json.dumps([pages.tag(rec, "sweep"), rec["scenario"], rec["backend"], rec["device"],
+                       rec["precision"], rec.get("variant", "default"), rec.get("params")],
+                      sort_keys=True)
+
+
+# The one load/save pair of this suite's results file (to be replaced by the common store).
+def load(path: Path) -> dict[str, Any]:
+    """A sweep.json as {'runs': [...], 'records': [...]}, older records upgraded."""
+    try:
+        data = json.loads(Path(path).read_text())
+        return {"runs": data.get("runs", []), "records": [upgrade_record(r) for r in data["records"]]}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise ParamError(f"cannot read sweep results {path}: {exc}") from None
+
+
+def save(path: Path, data: dict[str, Any]) -> None:
+    """Write {'runs', 'records'} atomically (a reader never sees half a file)."""
+    atomic_write(path, json.dumps(jsonable({"runs": data["runs"], "records": data["records"]}), indent=1))
+
+
+def put(data: dict[str, Any], index: dict[str, int], rec: dict[str, Any]) -> None:
+    """Add a record; one of the same cell already there (``index``: key -> position) is replaced."""
+    k = key(rec)
+    if k in index:
+        data["records"][index[k]] = rec
+    else:
+        index[k] = len(data["records"])
+        data["records"].append(rec)
+
+
+# ---- running --------------------------------------------------------------------------------
+def run_plan(todo: list[tuple[dict[str, Any], dict[str, Any] | None]], probes, args, data,
+             path: Path, total: int, first: list[int]) -> None:
+    """Run the cells (one at a time: they would share cores and the GPU), attach converged errors,
+    save sweep.json after every record."""
+    cache: dict[Any, Any] = {}
+    index = {key(r): i for i, r in enumerate(data["records"])}
+
+    def on_record(j: int, rec: dict[str, Any], outputs) -> None:
+        spec, reference = todo[j]
+        if pages.tag(rec, "sweep") == "error" and rec["status"] in ("ok", "mismatch"):
+            conv = scenarios.get(rec["scenario"]).converged_error(rec["params"], outputs, rec, cache,
+                                                                  reference=reference)
+            if conv is not None:
+                rec["converged"] = conv
+        print(f"[{first[j] + 1}/{total}] {spec['tags']['sweep']} {spec['scenario']}/{spec['backend']}/"
+              f"{spec['device']}/{spec['precision']}/{spec['variant']} {spec['tags']['knob'] or ''}: "
+              f"{rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr, flush=True)
+        put(data, index, rec)
+        save(path, data)
+    engine.run_cells([s for s, _ in todo], timeout=args.timeout, probes=probes, on_record=on_record)
+
+
+def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
+    """Write the PNGs into --out and the Markdown page (--page); returns the page's path."""
+    out = Path(args.out)
+    page = Path(args.page) if args.page else out / "measurement.md"
+    written = plots.write_plots(data["records"], out) if not args.no_plots else {}
+    cmd = ["python -m compare sweep report", *map(shlex.quote, [*sources, "--out", str(out),
+                                                                "--page", str(page)])]
+    if args.title:
+        cmd += ["--title", shlex.quote(args.title)]
+    if args.notes:
+        cmd += ["--notes", shlex.quote(args.notes)]
+    atomic_write(page, pages.page(data, written, page, args.title, sources, " ".join(cmd), notes))
+    return page
+
+
+def run(args: argparse.Namespace, argv: list[str]) -> int:
+    """``argv``: the command line after ``python -m compare`` (``sweep ...``), for the record."""
+    if args.kind == "report":
+        return report(args)
+    if args.kind not in (*KINDS, "all"):
+        raise UsageError(f"unknown sweep {args.kind!r} (bandwidth, error, scaling, all, report)")
+    if args.files:
+        raise UsageError(f"unexpected argument {args.files[0]!r}")
+    planned = plan(args)
+    notes = options.read_notes(args.notes)
+    path = options.output_directory(args.out) / "sweep.json"
+    data = load(path) if path.exists() and not args.fresh else {"runs": [], "records": []}
+    done = {key(r) for r in data["records"] if r.get("status") == "ok"}
+    keep = [i for i, (spec, _) in enumerate(planned) if not (args.resume and key(spec) in done)]
+    probes = engine.availability(dict.fromkeys(s["backend"] for s, _ in planned))
+    env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
+    env["backends"] = probes
+    env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
+    data["runs"].append(env)
+    save(path, data)
+    run_plan([planned[i] for i in keep], probes, args, data, path, len(planned), keep)
+    page = rebuild(data, args, [str(path)], notes)
+    print(pages.summary(data["records"]))
+    print(f"wrote {path} and {page}")
+    bad = [r for r in data["records"] if r["status"] in ("mismatch", "error")]
+    return EXIT_FAIL if bad else EXIT_OK
+
+
+def report(args: argparse.Namespace) -> int:
+    if not args.files:
+        raise UsageError("report needs at least one sweep.json")
+    notes = options.read_notes(args.notes)
+    merged: dict[str, Any] = {"runs": [], "records": []}
+    index: dict[str, int] = {}
+    for f in args.files:                  # a later file's record of the same cell wins
+        data = load(Path(f))
+        merged["runs"] += data["runs"]
+        for r in data["records"]:
+            put(merged, index, r)
+    rebuild(merged, args, list(args.files), notes)
+    print(pages.summary(merged["records"]))
+    return EXIT_OK
+
+
+# Older sweep.json files read through the common store get today's record shape.
+UPGRADES.setdefault("sweep", upgrade_record)
+
+
+def main(argv: list[str]) -> int:
+    """``python -m compare sweep ...`` until the one CLI calls ``add_arguments``/``run``."""
+    p = options.Parser(prog="python -m compare sweep", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_arguments(p)
+    try:
+        return run(p.parse_args(argv), ["sweep", *argv])
+    except (UsageError, ParamError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED

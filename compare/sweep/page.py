@@ -1,0 +1,422 @@
+"""Derived figures, tables and the Markdown page of the measurement sweeps (compare/sweep).
+
+Pure functions of saved records: ``python -m compare sweep report sweep.json`` rebuilds everything
+without rerunning. Rows are found by the suite's tags (``rec["tags"]``: sweep kind, role, knob),
+never by scenario name; the words for a scenario come from the scenario (``sweep_labels``).
+Definitions (docs/measurement.md):
+  * achieved bandwidth = bytes the kernel must move (scenario ``work``) / median time per call;
+  * copy roofline = the highest bandwidth of any backend on that device in the run, measured by
+    the scenario whose role is 'copy';
+  * launch share = trivial-launch wall time (role 'launch') / the cell's wall time
+    (>= 1/2: overhead-bound);
+  * Pareto front = points no other point beats in both time and error.
+Cross-backend plots use the wall-clock median (what a caller waits, the same clock for every
+framework); CUDA-event medians, where a framework has events, are shown beside it.
+"""
+from __future__ import annotations
+
+import math
+import os
+import statistics
+from pathlib import Path
+from typing import Any, Iterable
+
+from tabulate import tabulate
+
+import backends
+import scenarios
+from compare.report import fmt_num, fmt_time
+
+OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
+BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
+CACHE_SHARE = 1.25       # above the roofline by more than write-allocate accounting (9/8) explains
+ERROR_FLOOR = 1e-17      # where an exact (0) error is drawn on a log axis
+
+
+# ---- records and scenarios --------------------------------------------------------------------
+def tag(rec: dict[str, Any], name: str) -> Any:
+    return (rec.get("tags") or {}).get(name)
+
+
+def knob(rec: dict[str, Any]) -> dict[str, Any]:
+    return tag(rec, "knob") or {}
+
+
+def ok(records: Iterable[dict[str, Any]], sweep: str | None = None, role: str | None = None,
+       **match: Any) -> list[dict[str, Any]]:
+    """ok records with timings, of one sweep kind / role (tags) and matching fields."""
+    return [r for r in records if r.get("status") == "ok" and r.get("time")
+            and (sweep is None or tag(r, "sweep") == sweep) and (role is None or tag(r, "role") == role)
+            and all(r.get(k) == v for k, v in match.items())]
+
+
+def with_role(role: str) -> list[scenarios.Scenario]:
+    """The scenarios that measure ``role`` ('launch', 'copy', 'bandwidth')."""
+    return [sc for sc in scenarios.SCENARIOS.values() if sc.measures == role]
+
+
+def label(scenario: str, what: str, default: str = "") -> str:
+    """A scenario's word for the sweep page (``Scenario.sweep_labels``); 'name' defaults to its name."""
+    sc = scenarios.SCENARIOS.get(scenario)
+    words = sc.sweep_labels if sc is not None else {}
+    return words.get(what, scenario if what == "name" else default)
+
+
+def in_registry_order(names: Iterable[str]) -> list[str]:
+    names = set(names)
+    return [n for n in scenarios.SCENARIOS if n in names] + sorted(names - set(scenarios.SCENARIOS))
+
+
+def swept(records: list[dict[str, Any]], kind: str, device: str) -> list[str]:
+    """Scenarios of sweep ``kind`` on ``device``: those with points there, and any with records."""
+    planned = [sc.name for sc in scenarios.SCENARIOS.values() if sc.sweep_points(kind, device, False)]
+    return in_registry_order([*planned, *(r["scenario"] for r in records
+                                          if tag(r, "sweep") == kind and r["device"] == device)])
+
+
+def error_scenarios(records: list[dict[str, Any]], device: str) -> list[str]:
+    """Scenarios with time-against-error points on ``device``, in registry order."""
+    return [s for s in in_registry_order(r["scenario"] for r in records if tag(r, "sweep") == "error")
+            if error_points(records, device, s)]
+
+
+# ---- numbers ----------------------------------------------------------------------------------
+def wall_s(rec: dict[str, Any]) -> float:
+    t = rec["time"]
+    return float((t.get("wall") or {}).get("median_s", t["median_s"]))
+
+
+def event_s(rec: dict[str, Any]) -> float | None:
+    t = rec["time"]
+    return float(t["median_s"]) if t.get("timer") == "events" else None
+
+
+def gbps(nbytes: float, seconds: float) -> float:
+    """Achieved bandwidth in GB/s (10^9 bytes per second)."""
+    return nbytes / seconds / 1e9 if seconds > 0 else math.nan
+
+
+def roofline(records: list[dict[str, Any]], device: str) -> dict[str, Any] | None:
+    """The best copy bandwidth on ``device`` (primary clock of each backend), or None."""
+    best = None
+    for r in ok(records, sweep="bandwidth", role="copy", device=device):
+        bw = gbps(r["work"]["bytes"], r["time"]["median_s"])
+        if best is None or bw > best["gbps"]:
+            best = {"gbps": bw, "backend": r["backend"], "precision": r["precision"],
+                    "n": r["params"]["n"], "clock": r["time"].get("timer", "wall")}
+    return best
+
+
+def launch_wall(records: list[dict[str, Any]], backend: str, device: str, precision: str) -> float | None:
+    hits = ok(records, sweep="bandwidth", role="launch", backend=backend, device=device, precision=precision)
+    return wall_s(hits[-1]) if hits else None
+
+
+def regime(launch_share: float | None, roof_share: float | None) -> str:
+    if launch_share is not None and launch_share >= OVERHEAD_SHARE:
+        return "overhead-bound"
+    if roof_share is not None and roof_share > CACHE_SHARE:
+        return "cache-resident"
+    if roof_share is not None and roof_share >= BANDWIDTH_SHARE:
+        return "bandwidth-bound"
+    return "mixed" if launch_share is not None and roof_share is not None else "-"
+
+
+def bandwidth_row(rec: dict[str, Any], records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Achieved GB/s, % of the copy roofline, launch share and regime of one bandwidth cell."""
+    nbytes = rec["work"]["bytes"]
+    bw = gbps(nbytes, rec["time"]["median_s"])
+    roof = roofline(records, rec["device"])
+    lw = launch_wall(records, rec["backend"], rec["device"], rec["precision"])
+    share = lw / wall_s(rec) if lw else None
+    frac = bw / roof["gbps"] if roof else None
+    return {"gbps": bw, "wall_gbps": gbps(nbytes, wall_s(rec)), "roof_share": frac,
+            "launch_share": share, "regime": regime(share, frac)}
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
+    """For each (time, error) point: True if no other point is <= in both and < in one."""
+    flags = []
+    for i, (t, e) in enumerate(points):
+        dominated = any((t2 <= t and e2 <= e) and (t2 < t or e2 < e)
+                        for j, (t2, e2) in enumerate(points) if j != i)
+        flags.append(not dominated)
+    return flags
+
+
+def error_points(records: list[dict[str, Any]], device: str, scenario: str) -> list[dict[str, Any]]:
+    """Time-against-error points (ok cells with a finite error), with Pareto flags."""
+    pts = []
+    for r in ok(records, sweep="error", device=device, scenario=scenario):
+        e = (r.get("converged") or {}).get("error")
+        if isinstance(e, (int, float)) and math.isfinite(e):
+            pts.append({"rec": r, "time": wall_s(r), "error": max(float(e), ERROR_FLOOR)})
+    overall = pareto_front([(p["time"], p["error"]) for p in pts])
+    for backend in {p["rec"]["backend"] for p in pts}:
+        mine = [p for p in pts if p["rec"]["backend"] == backend]
+        for p, f in zip(mine, pareto_front([(p["time"], p["error"]) for p in mine])):
+            p["front_backend"] = f
+    for p, f in zip(pts, overall):
+        p["front_all"] = f
+    return pts
+
+
+def device_bytes(rec: dict[str, Any]) -> tuple[int | None, str]:
+    m = rec.get("memory") or {}
+    for k, src in (("device_peak_bytes", m.get("device_memory_source", "framework")),
+                   ("nvml_process_peak_bytes", "nvml process"),
+                   ("nvml_device_delta_peak_bytes", "nvml device delta")):
+        if isinstance(m.get(k), (int, float)):
+            return int(m[k]), src
+    return None, m.get("nvml_note", "-") if rec["device"] != "cpu" else "-"
+
+
+def fmt_bytes(b: float | None) -> str:
+    if b is None or not math.isfinite(b):
+        return "-"
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if b >= scale:
+            return f"{b / scale:.3g} {unit}"
+    return f"{int(b)} B"
+
+
+def fmt_rate(x: float | None, unit: str = "") -> str:
+    if x is None or not math.isfinite(x):
+        return "-"
+    for suffix, scale in (("T", 1e12), ("G", 1e9), ("M", 1e6), ("k", 1e3)):
+        if abs(x) >= scale:
+            return f"{x / scale:.3g} {suffix}{unit}"
+    return f"{x:.3g} {unit}".strip()
+
+
+def pct(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{100 * x:.0f}%"
+
+
+def knob_text(rec: dict[str, Any]) -> str:
+    k = knob(rec)
+    return "-" if k.get("value") is None else f"{k['name']}={k['value']}"
+
+
+# ---- tables -----------------------------------------------------------------------------------
+def _table(rows: list[list[Any]], headers: list[str]) -> str:
+    return tabulate(rows, headers=headers, tablefmt="github", disable_numparse=True) + "\n"
+
+
+def _img(written: dict[str, Path], name: str, page: Path, alt: str) -> str:
+    if name not in written:
+        return ""
+    rel = os.path.relpath(written[name], page.parent)
+    return f"![{alt}]({rel})\n\n"
+
+
+def launch_table(records, device) -> str:
+    rows = []
+    for r in ok(records, sweep="bandwidth", role="launch", device=device):
+        t = r["time"]
+        ev = event_s(r)
+        rows.append([r["backend"], r["precision"], fmt_time(wall_s(r)), fmt_time(t["wall"]["iqr_s"]
+                     if t.get("wall") else t["iqr_s"]), fmt_time(t["wall"]["min_s"] if t.get("wall")
+                     else t["min_s"]), fmt_time(ev), fmt_time(t["first_call_s"]), t["repeats"]])
+    return _table(rows, ["backend", "precision", "wall median", "wall IQR", "wall min",
+                         "CUDA-event median", "first call (cold)", "timed calls"]) if rows else ""
+
+
+def copy_table(records, device) -> str:
+    rows = []
+    for r in ok(records, sweep="bandwidth", role="copy", device=device):
+        rows.append([r["backend"], r["precision"], r["params"]["n"], fmt_bytes(r["work"]["bytes"]),
+                     fmt_time(wall_s(r)), fmt_time(event_s(r)),
+                     f"{gbps(r['work']['bytes'], r['time']['median_s']):.3g}",
+                     r["time"].get("timer", "wall")])
+    return _table(rows, ["backend", "precision", "n", "bytes/call (read + write)", "wall median",
+                         "CUDA-event median", "GB/s", "clock of GB/s"]) if rows else ""
+
+
+def size_table(records, device, scenario) -> str:
+    """The size sweep (role 'bandwidth') of one scenario: GB/s, roofline and launch shares."""
+    rows = []
+    mine = sorted(ok(records, sweep="bandwidth", role="bandwidth", device=device, scenario=scenario),
+                  key=lambda r: (r["backend"], r["precision"], knob(r).get("value") or 0))
+    for r in mine:
+        b = bandwidth_row(r, records)
+        rows.append([r["backend"], r["precision"], f"2^{int(math.log2(knob(r)['value']))}",
+                     fmt_bytes(r["work"]["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
+                     f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"]])
+    return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "bytes/call",
+                         "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
+                         "launch share", "regime"]) if rows else ""
+
+
+def error_table(records, device, scenario) -> str:
+    pts = error_points(records, device, scenario)
+    rows = []
+    for p in sorted(pts, key=lambda p: (p["rec"]["backend"], p["rec"].get("variant", ""),
+                                        p["rec"]["precision"], knob(p["rec"]).get("value") or 0)):
+        r = p["rec"]
+        rows.append([r["backend"], r.get("variant", "default"), r["precision"], knob_text(r),
+                     fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(r["converged"]["error"]),
+                     "yes" if p["front_backend"] else "", "yes" if p["front_all"] else ""])
+    return _table(rows, ["backend", "variant", "precision", "knob", "wall median",
+                         "CUDA-event median", "error", "on backend's front",
+                         "on overall front"]) if rows else ""
+
+
+def front_table(records, device, scenario) -> str:
+    """The overall Pareto front, fastest first: for a target error, the first row at or below it
+    is the fastest cell measured that reaches it."""
+    rows = []
+    for p in sorted((p for p in error_points(records, device, scenario) if p["front_all"]),
+                    key=lambda p: p["time"]):
+        r = p["rec"]
+        iqr = ((r.get("time") or {}).get("wall") or {}).get("iqr_s")
+        rows.append([fmt_num(r["converged"]["error"]), fmt_time(p["time"]), fmt_time(iqr),
+                     r["backend"], r.get("variant", "default"), r["precision"], knob_text(r)])
+    return _table(rows, ["error reached", "wall median", "wall IQR", "backend", "variant",
+                         "precision", "knob"]) if rows else ""
+
+
+def scaling_table(records, device, scenario) -> str:
+    """Throughput and memory against the swept size; the per-run count and the work item are
+    the scenario's words ('per_run', 'item_rate')."""
+    per_run, items = label(scenario, "per_run"), label(scenario, "item_rate", "items")
+    rows = []
+    mine = sorted(ok(records, sweep="scaling", device=device, scenario=scenario),
+                  key=lambda r: (r["backend"], r["precision"], knob(r).get("value") or 0))
+    for r in mine:
+        t = wall_s(r)
+        db, src = device_bytes(r)
+        rates = [fmt_rate(r["params"][per_run] / t, f"{per_run}/s")] if per_run else []
+        rows.append([r["backend"], r["precision"], knob(r).get("value"), fmt_time(t),
+                     fmt_time(event_s(r)), *rates, fmt_rate(r["work"]["items"] / t, "/s"),
+                     fmt_bytes(r["memory"]["peak_host_rss_bytes"]),
+                     f"{fmt_bytes(db)} ({src})" if db is not None else src,
+                     r["error"].get("checked_items", "all")])
+    return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "wall median",
+                         "CUDA-event median", *([f"{per_run}/s"] if per_run else []), f"{items}/s",
+                         "peak host RSS", "device memory", "checked vs oracle"]) if rows else ""
+
+
+def problems(records) -> str:
+    bad = [r for r in records if r.get("status") != "ok"]
+    lines = [f"- {tag(r, 'sweep')} {r['scenario']}/{r['backend']}/{r['device']}/{r['precision']}/"
+             f"{r.get('variant', 'default')} {_knob(r)}: **{r['status']}**: {r.get('reason', '')}"
+             for r in bad]
+    return "\n".join(lines) + "\n" if lines else "None: every cell ran and passed its check.\n"
+
+
+def _knob(r) -> str:
+    k = knob(r)
+    return f"({k['name']}={k['value']})" if k.get("name") and k.get("value") is not None else ""
+
+
+def environment(runs: list[dict[str, Any]], records: list[dict[str, Any]]) -> str:
+    if not runs:
+        return ""
+    env = runs[-1]
+    gpus = "; ".join(f"{g['name']} ({g['memory']}, driver {g['driver']})" for g in env.get("gpus", []))
+    pk = ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items())
+    loads = [r["host_load_1m"] for r in records if isinstance(r.get("host_load_1m"), (int, float))]
+    lines = [f"- CPU: {env.get('cpu')}, {env.get('cores')} cores available, {env.get('memory_gib')} GiB",
+             f"- GPU: {gpus or 'none visible'}" + (f"; CUDA toolkit: {env['cuda_toolkit']}"
+                                                   if env.get("cuda_toolkit") else ""),
+             f"- OS: {env.get('os')}; Python {env.get('python')}; host {env.get('hostname')}",
+             f"- packages: {pk}",
+             f"- git commit of the last run {env.get('git_commit') or 'not recorded'}"
+             f"{' (with uncommitted changes)' if env.get('git_dirty') else ''}",
+             f"- runs from {runs[0].get('created')} to {env.get('created')}"]
+    if loads:
+        lines.append(f"- host 1-minute load average at the end of each cell: min {min(loads):.2f}, "
+                     f"median {statistics.median(loads):.2f}, max {max(loads):.2f} "
+                     f"({env.get('cores')} cores: a load above that means more runnable threads than cores)")
+    return "\n".join(lines) + "\n"
+
+
+# ---- the page ---------------------------------------------------------------------------------
+def plot_key(kind: str, device: str, scenario: str, scenarios_of_kind: list[str]) -> str:
+    """The key (and file stem) of a per-scenario plot: one scenario of a kind keeps the short name."""
+    return f"{kind}-{device}" if len(scenarios_of_kind) <= 1 else f"{kind}-{scenario}-{device}"
+
+
+def _launch_section(records, d) -> list[str]:
+    intro = "A trivial launch"
+    for sc in with_role("launch")[:1]:
+        pts = sc.sweep_points("bandwidth", d, False)
+        size = ", ".join(f"{k} = {v}" for k, v in (pts[0]["params"] if pts else {}).items())
+        intro += f" (`{sc.name}` scenario" + (f", {size})" if size else ")")
+    return [f"## {d}: launch overhead\n",
+            f"{intro}. Small cells whose time is mostly this are overhead-bound.\n\n"
+            + (launch_table(records, d) or "No data.\n")]
+
+
+def _error_section(records, d, s) -> str:
+    rec = error_points(records, d, s)[0]["rec"]
+    ref = rec["converged"].get("reference", {})
+    refline = "; ".join(f"{k} = {fmt_num(v) if not isinstance(v, str) else v}" for k, v in ref.items())
+    return (f"### {s}\n\nError: {rec['converged']['metric']}. Reference: {refline}.\n\n"
+            "Fastest at each accuracy (the Pareto front over all backends; rows whose "
+            "times differ by less than their IQRs are ties):\n\n"
+            f"{front_table(records, d, s)}\nAll cells:\n\n{error_table(records, d, s)}")
+
+
+def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title: str | None,
+         sources: list[str], rebuild: str = "", notes: str = "") -> str:
+    """The Markdown page: commands, environment, optional notes, then one set of sections per
+    device (launch, copy roofline, size sweep, time against error, scaling) and the problems."""
+    records, runs = data["records"], data["runs"]
+    devices = [d for d in backends.DEVICES if any(r["device"] == d and r["status"] != "skipped"
+                                                  for r in records)]
+    proto = os.path.relpath(Path(__file__).resolve().parents[2] / "docs" / "measurement.md",
+                            page_path.resolve().parent)
+    out = [f"# {title or 'Measurement sweeps'}\n",
+           f"Generated from `{'`, `'.join(sources)}` by `compare/sweep/page.py`; every number "
+           f"below is a measured value "
+           f"from those records. The protocol (clocks, caches, definitions) is in [{proto}]({proto}).\n",
+           "## Commands\n", "Measured with (in order; each run's start time and commit):\n\n"
+           + "\n".join(f"    {r.get('command')}\n        # {r.get('created')}, commit "
+                       f"{r.get('git_commit') or 'not recorded'}" for r in runs)
+           + "\n" + (f"\nThis page and its plots rebuilt, without rerunning, by:\n\n    {rebuild}\n"
+                      if rebuild else ""),
+           "## Environment\n", environment(runs, records)]
+    if notes:
+        out += ["## Notes\n", notes.strip() + "\n"]
+    for d in devices:
+        roof = roofline(records, d)
+        out += _launch_section(records, d)
+        out.append(f"## {d}: copy bandwidth (roofline)\n")
+        out.append(copy_table(records, d) or "No data.\n")
+        if roof:
+            out.append(f"\nRoofline for this device: **{roof['gbps']:.3g} GB/s** "
+                       f"({roof['backend']}, {roof['precision']}, n = {roof['n']}, "
+                       f"{roof['clock']} clock).\n")
+        sized = [sc.name for sc in with_role("bandwidth")]
+        for s in sized:
+            name = label(s, "name")
+            out.append(f"## {d}: {name} bandwidth against size\n")
+            out.append(_img(written, plot_key("bandwidth", d, s, sized), page_path,
+                            f"{name} bandwidth vs size, {d}"))
+            out.append(size_table(records, d, s) or "No data.\n")
+        out.append(f"## {d}: run time against error\n")
+        out.append(_img(written, f"time_vs_error-{d}", page_path, f"time vs error, {d}"))
+        out += [_error_section(records, d, s) for s in error_scenarios(records, d)]
+        scaled = swept(records, "scaling", d)
+        for s in scaled:
+            name = label(s, "name")
+            out.append(f"## {d}: {name} scaling\n")
+            out.append(_img(written, plot_key("scaling", d, s, scaled), page_path, f"{name} scaling, {d}"))
+            out.append(scaling_table(records, d, s) or "No data.\n")
+    out.append("## Skipped and failed cells\n")
+    out.append(problems(records))
+    return "\n".join(out)
+
+
+def summary(records: list[dict[str, Any]]) -> str:
+    counts: dict[str, int] = {}
+    for r in records:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    parts = [", ".join(f"{v} {k}" for k, v in sorted(counts.items()))]
+    for d in backends.DEVICES:
+        roof = roofline(records, d)
+        if roof:
+            parts.append(f"{d} copy roofline: {roof['gbps']:.3g} GB/s ({roof['backend']})")
+    return "; ".join(parts)
