@@ -57,7 +57,9 @@ def colors(records: list[dict[str, Any]]) -> dict[str, str]:
     out: dict[str, str] = {}
     for n in names:
         fixed = known[n].color if n in known else None
-        out[n] = fixed or spare[sum(1 for m in out if out[m] in spare) % len(spare)]
+        if not fixed:
+            fixed = spare[len([c for c in out.values() if c in spare]) % len(spare)]
+        out[n] = fixed
     return out
 
 
