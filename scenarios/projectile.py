@@ -315,13 +315,11 @@ class Projectile(Scenario):
                  "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in SWEEP_DT[quick]]
 
     def converged_loss_grad(self, params: dict, dt: float, steps: int) -> tuple[float, np.ndarray]:
-        """Float64 loss and discrete-adjoint gradient at v0 (``rollout`` + ``adjoint``) after
-        ``steps`` steps of ``dt``, the other parameters from ``params``."""
+        """Float64 loss and discrete-adjoint gradient at v0 (``loss_and_gradient``: ``rollout`` +
+        ``adjoint``) after ``steps`` steps of ``dt``, the other parameters from ``params``."""
         p = self.params({**params, "dt": dt, "steps": steps})
         c = {k: float(getattr(p, k)) for k in CONSTANTS}
-        (x, y, _, _), tape = rollout(c, p.contact, steps, p.vx0, p.vy0)
-        dx, dy = x - p.target_x, y - p.target_y
-        return dx * dx + dy * dy, np.array(adjoint(c, tape, 2.0 * dx, 2.0 * dy))
+        return loss_and_gradient(c, p.contact, steps, (p.vx0, p.vy0))
 
     @staticmethod
     def loss_grad_error(loss, grad, rloss: float, rgrad: np.ndarray) -> dict[str, float]:
