@@ -108,7 +108,7 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
     suites whose figures are not timings. ``runner`` replaces the local worker (e.g. a Dask
     client). With a ``store``, every record is put and saved as it arrives (a killed run keeps
     what finished), and with ``resume`` a cell the store holds as ok/mismatch/skipped is not run
-    again (its record is returned, outputs None); error records are retried.
+    again (its record is returned, outputs None, without ``on_record``); error records are retried.
     """
     specs = [prepare(s) for s in specs]
     probes = probes if probes is not None else availability({s["backend"] for s in specs})
@@ -131,11 +131,11 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
             rec.setdefault(k, None)
         rec = jsonable(rec)
         with lock:
+            if on_record is not None and save:    # first: it may add to the record (a sweep's
+                on_record(i, rec, out)            # converged error) before the store keeps it
             if store is not None and save:
                 store.put(rec)
                 store.save()
-            if on_record is not None:
-                on_record(i, rec, out)
         done[i] = (rec, out)
 
     groups: dict[Any, list[int]] = {}

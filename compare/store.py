@@ -137,13 +137,13 @@ class Store:
         try:
             data = json.loads(path.read_text())
         except FileNotFoundError:
-            raise StoreError(f"{path}: no such file") from None
+            raise StoreError(f"cannot read {path}: no such file") from None
         except IsADirectoryError:
-            raise StoreError(f"{path}: is a directory, not a results file") from None
+            raise StoreError(f"cannot read {path}: a directory, not a results file") from None
         except (OSError, UnicodeDecodeError) as exc:
-            raise StoreError(f"{path}: cannot read ({exc})") from None
+            raise StoreError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
         except ValueError as exc:
-            raise StoreError(f"{path}: not JSON ({exc})") from None
+            raise StoreError(f"cannot read {path}: not JSON ({exc})") from None
         data = _upgrade(data, path)
         if suite is not None and data["suite"] != suite:
             raise StoreError(f"{path}: holds {data['suite']} results, not {suite} results")

@@ -12,6 +12,7 @@ import pytest
 
 import backends
 from compare import cells, sweep, timing, worker
+from compare.store import Store
 from compare.sweep import page as sweep_page
 from compare.sweep import plots as sweep_plots
 from conftest import ROOT, require_device
@@ -283,11 +284,14 @@ def test_old_records_are_upgraded_to_tags():
     assert sweep.upgrade_record(new) is new
     err = sweep.upgrade_record({**old, "scenario": "sdf", "sweep": "error", "role": "sdf", "knob": {}})
     assert err["tags"] == {"sweep": "error", "role": "sdf", "knob": {}}
-    assert sweep.key(new) == sweep.key(old | {"tags": {"sweep": "bandwidth"}})
+    store = Store(ROOT / "unused.json", "sweep", records=[new, sweep.upgrade_record(dict(old))])
+    assert len(store.records) == 1                 # the same cell, old or new shape: one key
 
 
 def test_published_sweep_file_still_renders(tmp_path):
-    data = sweep.load(ROOT / "docs" / "results" / "cpu" / "sweep.json")
+    store = Store.read(ROOT / "docs" / "results" / "cpu" / "sweep.json", "sweep")
+    assert store.upgraded_from == 1
+    data = sweep.contents(store)
     assert all("tags" in r for r in data["records"])
     text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
     for heading in ("## cpu: launch overhead", "## cpu: copy bandwidth (roofline)",

@@ -10,8 +10,9 @@
 What is swept is the scenarios' business (``Scenario.sweep_points``, ``measures``,
 ``converged_error``): this suite plans the cells, runs them on ``compare.engine.run_cells`` (one
 worker process each, the same protocol as ``python -m compare``), attaches each error-sweep
-cell's converged error, and keeps DIR/sweep.json ({runs, records}; a cell run again replaces its
-old record; --resume skips cells already ok). A record's suite identity is its ``tags``: sweep
+cell's converged error, and keeps DIR/sweep.json in the common store (compare/store.py; a cell
+run again replaces its old record; --resume keeps ok, mismatch and skipped cells and retries
+errors, as every suite does). A record's suite identity is its ``tags``: sweep
 kind, role (the scenario's ``measures`` in the bandwidth sweep, else its name) and knob. Every run
 rebuilds the Markdown page (--page, default DIR/measurement.md) and the PNGs in DIR from the whole
 file (compare/sweep/page.py, compare/sweep/plots.py).
@@ -30,7 +31,7 @@ import backends
 import scenarios
 from compare import engine, environment, options
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError
-from compare.store import UPGRADES, atomic_write, jsonable
+from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
 from scenarios.base import PRECISIONS, ParamError
@@ -58,7 +59,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="framework kernel caches for the first call (docs/measurement.md)")
     options.add_output(p, "results/sweep")
     options.add_page(p)
-    p.add_argument("--resume", action="store_true", help="skip cells already ok in OUT/sweep.json")
+    p.add_argument("--resume", action="store_true",
+                   help="keep OUT/sweep.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
     p.add_argument("--fresh", action="store_true", help="drop OUT/sweep.json's records first")
 
 
@@ -144,58 +146,31 @@ def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
     return new
 
 
-def key(rec: dict[str, Any]) -> str:
-    return json.dumps([pages.tag(rec, "sweep"), rec["scenario"], rec["backend"], rec["device"],
-                       rec["precision"], rec.get("variant", "default"), rec.get("params")],
-                      sort_keys=True)
-
-
-# The one load/save pair of this suite's results file (to be replaced by the common store).
-def load(path: Path) -> dict[str, Any]:
-    """A sweep.json as {'runs': [...], 'records': [...]}, older records upgraded."""
-    try:
-        data = json.loads(Path(path).read_text())
-        return {"runs": data.get("runs", []), "records": [upgrade_record(r) for r in data["records"]]}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise ParamError(f"cannot read sweep results {path}: {exc}") from None
-
-
-def save(path: Path, data: dict[str, Any]) -> None:
-    """Write {'runs', 'records'} atomically (a reader never sees half a file)."""
-    atomic_write(path, json.dumps(jsonable({"runs": data["runs"], "records": data["records"]}), indent=1))
-
-
-def put(data: dict[str, Any], index: dict[str, int], rec: dict[str, Any]) -> None:
-    """Add a record; one of the same cell already there (``index``: key -> position) is replaced."""
-    k = key(rec)
-    if k in index:
-        data["records"][index[k]] = rec
-    else:
-        index[k] = len(data["records"])
-        data["records"].append(rec)
+def contents(store: Store) -> dict[str, Any]:
+    """What the page and plots read: {'runs': [...], 'records': [...]}."""
+    return {"runs": store.runs, "records": store.records}
 
 
 # ---- running --------------------------------------------------------------------------------
-def run_plan(todo: list[tuple[dict[str, Any], dict[str, Any] | None]], probes, args, data,
-             path: Path, total: int, first: list[int]) -> None:
-    """Run the cells (one at a time: they would share cores and the GPU), attach converged errors,
-    save sweep.json after every record."""
+def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None], probes, args,
+             store: Store) -> None:
+    """Run the cells (one at a time: they would share cores and the GPU) into the store (saved
+    after every record), each error-sweep record with its converged error attached first."""
     cache: dict[Any, Any] = {}
-    index = {key(r): i for i, r in enumerate(data["records"])}
+    count = iter(range(1, len(specs) + 1))
 
     def on_record(j: int, rec: dict[str, Any], outputs) -> None:
-        spec, reference = todo[j]
         if pages.tag(rec, "sweep") == "error" and rec["status"] in ("ok", "mismatch"):
             conv = scenarios.get(rec["scenario"]).converged_error(rec["params"], outputs, rec, cache,
-                                                                  reference=reference)
+                                                                  reference=references[j])
             if conv is not None:
                 rec["converged"] = conv
-        print(f"[{first[j] + 1}/{total}] {spec['tags']['sweep']} {spec['scenario']}/{spec['backend']}/"
-              f"{spec['device']}/{spec['precision']}/{spec['variant']} {spec['tags']['knob'] or ''}: "
+        tags = rec.get("tags") or {}
+        print(f"[{next(count)}/{len(specs)}] {tags.get('sweep')} {rec['scenario']}/{rec['backend']}/"
+              f"{rec['device']}/{rec['precision']}/{rec['variant']} {tags.get('knob') or ''}: "
               f"{rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr, flush=True)
-        put(data, index, rec)
-        save(path, data)
-    engine.run_cells([s for s, _ in todo], timeout=args.timeout, probes=probes, on_record=on_record)
+    engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
+                     resume=args.resume)
 
 
 def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
@@ -223,21 +198,18 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"unexpected argument {args.files[0]!r}")
     planned = plan(args)
     notes = options.read_notes(args.notes)
-    path = options.output_directory(args.out) / "sweep.json"
-    data = load(path) if path.exists() and not args.fresh else {"runs": [], "records": []}
-    done = {key(r) for r in data["records"] if r.get("status") == "ok"}
-    keep = [i for i, (spec, _) in enumerate(planned) if not (args.resume and key(spec) in done)]
+    store = Store.open(options.output_directory(args.out), "sweep", keep=not args.fresh)
     probes = engine.availability(dict.fromkeys(s["backend"] for s, _ in planned))
     env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
     env["backends"] = probes
     env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
-    data["runs"].append(env)
-    save(path, data)
-    run_plan([planned[i] for i in keep], probes, args, data, path, len(planned), keep)
-    page = rebuild(data, args, [str(path)], notes)
-    print(pages.summary(data["records"]))
-    print(f"wrote {path} and {page}")
-    bad = [r for r in data["records"] if r["status"] in ("mismatch", "error")]
+    store.runs.append(env)
+    store.save()
+    run_plan([s for s, _ in planned], [r for _, r in planned], probes, args, store)
+    page = rebuild(contents(store), args, [str(store.path)], notes)
+    print(pages.summary(store.records))
+    print(f"wrote {store.path} and {page}")
+    bad = [r for r in store.records if r["status"] in ("mismatch", "error")]
     return EXIT_FAIL if bad else EXIT_OK
 
 
@@ -245,32 +217,13 @@ def report(args: argparse.Namespace) -> int:
     if not args.files:
         raise UsageError("report needs at least one sweep.json")
     notes = options.read_notes(args.notes)
-    merged: dict[str, Any] = {"runs": [], "records": []}
-    index: dict[str, int] = {}
+    merged = Store(Path(args.out) / "sweep.json", "sweep")
     for f in args.files:                  # a later file's record of the same cell wins
-        data = load(Path(f))
-        merged["runs"] += data["runs"]
-        for r in data["records"]:
-            put(merged, index, r)
-    rebuild(merged, args, list(args.files), notes)
-    print(pages.summary(merged["records"]))
+        merged.merge(Store.read(f, "sweep"))
+    rebuild(contents(merged), args, list(args.files), notes)
+    print(pages.summary(merged.records))
     return EXIT_OK
 
 
 # Older sweep.json files read through the common store get today's record shape.
-UPGRADES.setdefault("sweep", upgrade_record)
-
-
-def main(argv: list[str]) -> int:
-    """``python -m compare sweep ...`` until the one CLI calls ``add_arguments``/``run``."""
-    p = options.Parser(prog="python -m compare sweep", description=__doc__,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_arguments(p)
-    try:
-        return run(p.parse_args(argv), ["sweep", *argv])
-    except (UsageError, ParamError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+UPGRADES["sweep"] = upgrade_record
