@@ -15,13 +15,13 @@ import numpy as np
 
 from .base import UNIT_ROUNDOFF, dtype_of
 from .numerics import Experiment, Result, StressContext, Style, bitwise_differences, log_floor
-from .particles import Particles, energy, energy_bound, simulate
+from .particles import Particles, ParticlesParams, energy, energy_bound, simulate
 
 SC = Particles()
 STATE = ("x", "y", "vx", "vy")
 
 
-def particle_inputs(params: dict[str, Any], precision: str):
+def particle_inputs(params: dict[str, Any], precision: str) -> tuple[ParticlesParams, dict[str, np.ndarray]]:
     p = SC.params(params)
     return p, SC.inputs(p, precision)
 

@@ -64,6 +64,8 @@ def failure(r: dict[str, Any]) -> bool:
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """Run the chosen experiments (or merge saved parts); raises UsageError/ParamError for bad usage."""
     registry = experiments()
+    if getattr(args, "precision", None):
+        raise UsageError("--precision does not apply: each stress experiment states its precisions")
     chosen = options.selection(args)
     only = options.names(args.only, registry, "only") if args.only else list(registry)
     if args.merge:

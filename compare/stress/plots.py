@@ -1,7 +1,8 @@
 """Plot helpers shared by every stress experiment's plot (drawn from the series in stress.json).
 
 An experiment's ``plot(series, path, style)`` gets ``style`` from here, so a backend keeps its
-colour (``Backend.color``) and a device its marker in every plot, whatever else ran.
+colour (``Backend.color``) and a device its marker in every plot, whatever else ran. The log-axis
+floor every plot uses is ``scenarios.numerics.log_floor`` (scenario plots cannot import this).
 """
 from __future__ import annotations
 
@@ -11,7 +12,6 @@ from typing import Any
 
 import backends
 from scenarios.numerics import ORACLE, Experiment
-from scenarios.numerics import log_floor as _floor  # noqa: F401  (shared with generic plots)
 
 
 def _plt():
