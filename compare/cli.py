@@ -44,8 +44,6 @@ def build_parser() -> argparse.ArgumentParser:
     options.add_output(rep, "results")
     options.add_page(rep)
     for name, mod in suite_modules().items():
-        if not hasattr(mod, "add_arguments"):
-            continue
         sp = sub.add_parser(name, help=(mod.__doc__ or "").strip().splitlines()[0])
         mod.add_arguments(sp)
     return p
@@ -96,9 +94,6 @@ def main(argv: list[str]) -> int:
     try:
         if argv and not argv[0].startswith("-") and argv[0] not in known_commands():
             raise UsageError(f"unknown scenario or command {argv[0]!r} (known: {', '.join(known_commands())})")
-        legacy = suite_modules().get(argv[0]) if argv else None
-        if legacy is not None and not hasattr(legacy, "add_arguments"):
-            return legacy.main(argv[1:])
         args = build_parser().parse_args(argv)
         if args.command == "list":
             return cmd_list()

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import Any, Iterable
 
 import backends
@@ -140,11 +141,10 @@ def scenario_sets(raw: dict[str, str], chosen: list[scenarios.Scenario]) -> dict
     return {sc.name: {k: v for k, v in raw.items() if k in known[sc.name]} for sc in chosen}
 
 
-def output_directory(path: str) -> "Path":
+def output_directory(path: str) -> Path:
     """The output directory, created if needed and checked writable before any cell runs."""
     import os
     import tempfile
-    from pathlib import Path
     if not path or not path.strip():
         raise UsageError("--out is empty (give a directory)")
     out = Path(path)

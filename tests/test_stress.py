@@ -180,7 +180,9 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
                    "particles-inf,races", "--out", str(tmp_path), "--jobs", "2")
     assert p.returncode == 0, p.stderr[-3000:]
     data = json.loads((tmp_path / "stress.json").read_text())
-    rows = data["rows"]
+    assert data["format_version"] == 2 and data["suite"] == "stress"
+    assert {r["scenario"] for r in data["records"]} >= {"particles"}    # the cells it ran
+    rows = data["analysis"]["rows"]
     assert {r["experiment"] for r in rows} == {"particles-inf", "races"}
     for r in rows:
         assert set(context.COLUMNS) <= set(r) and r["verdict"]
@@ -198,12 +200,12 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
     p = run_stress("--quick", "--backends", "warp", "--devices", "cpu", "--only", "particles-inf",
                    "--out", str(tmp_path), "--no-plots")
     assert p.returncode == 0, p.stderr[-3000:]
-    again = json.loads((tmp_path / "stress.json").read_text())["rows"]
+    again = json.loads((tmp_path / "stress.json").read_text())["analysis"]["rows"]
     assert {r["experiment"] for r in again} == {"particles-inf", "races"}
     # parts run separately (one GPU call each) merge into one report
     p = run_stress("--merge", str(tmp_path / "stress.json"), "--out", str(tmp_path / "merged"), "--no-plots")
     assert p.returncode == 0, p.stderr
-    merged = json.loads((tmp_path / "merged" / "stress.json").read_text())["rows"]
+    merged = json.loads((tmp_path / "merged" / "stress.json").read_text())["analysis"]["rows"]
     assert len(merged) == len(again) and (tmp_path / "merged" / "stress.md").exists()
 
 

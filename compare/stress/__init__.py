@@ -24,10 +24,10 @@ from typing import Any
 
 import scenarios
 from compare import engine, environment, options
-from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError
+from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
+from compare.store import Store
 from compare.stress import generic, page
 from compare.stress.context import COLUMNS, Ctx
-from scenarios.base import ParamError
 from scenarios.numerics import Experiment
 
 __all__ = ["COLUMNS", "Ctx", "add_arguments", "experiments", "main", "run"]
@@ -70,11 +70,10 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     only = options.names(args.only, registry, "only") if args.only else list(registry)
     if args.merge:
         return page.merge(args.merge, Path(args.out), registry, plots_=not args.no_plots)
+    store = Store.open(options.output_directory(args.out), "stress")
     ctx = Ctx(chosen["backends"], chosen["devices"], args.quick, args.jobs, args.timeout,
-              engine.availability(chosen["backends"]))
+              engine.availability(chosen["backends"]), store)
     env = environment.collect(argv)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     series: dict[str, Any] = {}
     try:
@@ -90,26 +89,15 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             rows += r
             series[name] = s
             print(f"stress: {name} done in {time.perf_counter() - t0:.0f} s ({len(r)} rows)", file=sys.stderr, flush=True)
-            page.write_outputs(out, env, rows, series, only[:only.index(name) + 1], registry, plots_=False)
+            page.write_outputs(store, env, rows, series, only[:only.index(name) + 1], registry, plots_=False)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    data = page.write_outputs(out, env, rows, series, only, registry, plots_=not args.no_plots)
+    data = page.write_outputs(store, env, rows, series, only, registry, plots_=not args.no_plots)
     failed = [r for r in data["rows"] if r["experiment"] in only and failure(r)]
-    print(f"wrote {out / 'stress.json'}, stress.md" + ("" if args.no_plots else ", *.png")
+    print(f"wrote {store.path}, stress.md" + ("" if args.no_plots else ", *.png")
           + f": {len(rows)} rows, {len(failed)} failures", file=sys.stderr)
     for r in failed:
         print(f"  {r['experiment']} {r['backend']}/{r['device']} {r['setting']}: {r['verdict']} {r['detail'][:160]}",
               file=sys.stderr)
     return EXIT_FAIL if failed else EXIT_OK
-
-
-def main(argv: list[str]) -> int:
-    """Temporary stand-alone entry (``compare.cli`` dispatches to ``add_arguments`` + ``run``)."""
-    p = options.Parser(prog="python -m compare stress", description="numerical stability stress suite")
-    add_arguments(p)
-    try:
-        return run(p.parse_args(argv), ["stress", *argv])
-    except (UsageError, ParamError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_USAGE

@@ -15,6 +15,7 @@ import numpy as np
 import backends
 from compare import engine
 from compare.report import fmt_num
+from compare.store import Store
 
 COLUMNS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 
@@ -33,6 +34,7 @@ class Ctx:
     jobs: int
     timeout: float
     probes: dict[str, dict[str, Any]]
+    store: Store | None = None
 
     @property
     def reference(self) -> str:
@@ -87,9 +89,14 @@ class Ctx:
     def fmt(x: Any) -> str:
         return fmt_num(x)
 
-    def run_cells(self, specs: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, np.ndarray] | None]]:
-        """Each spec in its own worker process; (record, outputs) per spec, in order."""
-        return engine.run_cells(specs, timeout=self.timeout, jobs=self.jobs, probes=self.probes)
+    def run_cells(self, specs: list[dict[str, Any]], fresh_process: bool = False
+                  ) -> list[tuple[dict[str, Any], dict[str, np.ndarray] | None]]:
+        """(record, outputs) per spec, in order. Stress figures are not timings, so cells of one
+        backend, device, precision and variant share a worker process (the framework starts once),
+        unless ``fresh_process`` (run-to-run comparisons want two separate processes). Every
+        record also goes into the suite's store."""
+        return engine.run_cells(specs, timeout=self.timeout, jobs=self.jobs, probes=self.probes,
+                                share_process=not fresh_process, store=self.store)
 
     def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
         """``fn`` over ``items`` on threads, ``--jobs`` at a time, one GPU item per backend at a time

@@ -105,7 +105,7 @@ def exp_races(ctx: Ctx) -> Result:
     control = controls(ctx)
     wrong = {(s["backend"], s["scenario"], s["variant"]): why for s, why in control}
     specs += [s for s, _ in control for _ in range(2)]
-    results = ctx.run_cells(specs)
+    results = ctx.run_cells(specs, fresh_process=True)      # run to run: two separate processes
     rows, first_run = ctx.skip_rows(name), {}
     for i in range(0, len(specs), 2):
         s = specs[i]

@@ -1,21 +1,20 @@
 """stress.json and stress.md: the one place that reads and writes the suite's results.
 
-``stress.json`` is ``{environment, provenance, rows, series}``; ``provenance`` says, per
+``stress.json`` is the suite's common store (compare/store.py): the cell records of the runs, and
+as ``analysis`` the findings: ``rows``, plot ``series`` and ``provenance``, which says, per
 experiment, which run (command, time, commit) produced its rows, since a results file may be
 assembled from several runs (``--only`` parts, ``--merge``).
 """
 from __future__ import annotations
 
-import json
 import math
 import re
 import sys
 from pathlib import Path
 from typing import Any
 
-from compare.options import UsageError
 from compare.report import fmt_num
-from compare.store import atomic_write, jsonable
+from compare.store import Store, atomic_write, jsonable
 from compare.stress import plots
 from compare.stress.context import COLUMNS
 from scenarios.numerics import Experiment
@@ -85,27 +84,30 @@ def markdown(data: dict[str, Any], experiments: Registry) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_outputs(out: Path, env: dict[str, Any], rows: list[dict[str, Any]], series: dict[str, Any],
+def old_provenance(store: Store) -> dict[str, dict[str, Any]]:
+    """Provenance of the store's findings (a file of the first format kept none: its one run)."""
+    return provenance({"environment": store.runs[-1] if store.runs else {}, **store.analysis})
+
+
+def write_outputs(store: Store, env: dict[str, Any], rows: list[dict[str, Any]], series: dict[str, Any],
                   ran: list[str], experiments: Registry, plots_: bool = True,
                   prov: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
-    """Merge with an existing stress.json (experiments not run now are kept), write json, md, png."""
-    path = out / "stress.json"
-    old_rows, old_series, old_prov = [], {}, {}
-    if path.exists():
-        try:
-            old = json.loads(path.read_text())
-            old_rows = [r for r in old.get("rows", []) if r["experiment"] not in ran]
-            old_series = {k: v for k, v in old.get("series", {}).items() if k not in ran}
-            old_prov = {k: v for k, v in provenance(old).items() if k not in ran}
-        except (OSError, ValueError, KeyError):
-            pass
+    """Findings of the experiments in ``ran`` replace the store's (the others are kept); save
+    the store (stress.json), then stress.md and the plots beside it."""
+    out = store.path.parent
+    old = store.analysis
+    old_rows = [r for r in old.get("rows", []) if r["experiment"] not in ran]
+    old_series = {k: v for k, v in old.get("series", {}).items() if k not in ran}
+    old_prov = {k: v for k, v in old_provenance(store).items() if k not in ran}
     order = list(experiments)
     all_rows = sorted(old_rows + rows, key=lambda r: order.index(r["experiment"]) if r["experiment"] in order else 99)
     new_prov = prov if prov is not None else provenance({"environment": env, "rows": rows})
-    prov = {**old_prov, **{e: v for e, v in new_prov.items() if e in ran}}
-    data = {"environment": env, "provenance": prov, "rows": jsonable(all_rows),
-            "series": jsonable({**old_series, **series})}
-    atomic_write(path, json.dumps(data, indent=1))
+    store.analysis = jsonable({"provenance": {**old_prov, **{e: v for e, v in new_prov.items() if e in ran}},
+                               "rows": all_rows, "series": {**old_series, **series}})
+    if not store.runs or store.runs[-1] is not env:
+        store.runs.append(env)
+    store.save()
+    data = {"environment": env, **store.analysis}
     if plots_:
         for name, s in data["series"].items():
             if name in experiments:
@@ -116,25 +118,24 @@ def write_outputs(out: Path, env: dict[str, Any], rows: list[dict[str, Any]], se
 
 def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = True) -> int:
     """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each);
-    later files win per experiment."""
+    later files win per experiment (and per cell record)."""
+    target = Store.open(out, "stress")
     rows: list[dict[str, Any]] = []
     series: dict[str, Any] = {}
     envs = []
     prov: dict[str, dict[str, Any]] = {}
     for f in files:
-        try:
-            data = json.loads(Path(f).read_text())
-            part_rows, part_series, env = data["rows"], data.get("series", {}), data["environment"]
-        except (OSError, ValueError, KeyError) as exc:
-            raise UsageError(f"cannot read stress results {f}: {exc}") from None
+        part = Store.read(f, "stress")
+        part_rows = part.analysis.get("rows", [])
         ran = {r["experiment"] for r in part_rows}
         rows = [r for r in rows if r["experiment"] not in ran] + part_rows
-        prov.update({e: v for e, v in provenance(data).items() if e in ran})
-        series = {**{k: v for k, v in series.items() if k not in ran}, **part_series}
-        envs.append(env)
+        prov.update({e: v for e, v in old_provenance(part).items() if e in ran})
+        series = {**{k: v for k, v in series.items() if k not in ran}, **part.analysis.get("series", {})}
+        envs.append(part.runs[-1] if part.runs else {})
+        for r in part.records:
+            target.put(r)
     env = {**envs[-1], "merged_from": files}
-    out.mkdir(parents=True, exist_ok=True)
-    write_outputs(out, env, rows, series, sorted({r["experiment"] for r in rows}), experiments,
+    write_outputs(target, env, rows, series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov=prov)
-    print(f"merged {len(files)} files into {out / 'stress.json'} ({len(rows)} rows)", file=sys.stderr)
+    print(f"merged {len(files)} files into {target.path} ({len(rows)} rows)", file=sys.stderr)
     return 0

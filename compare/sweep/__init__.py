@@ -30,7 +30,7 @@ from typing import Any
 import backends
 import scenarios
 from compare import engine, environment, options
-from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError
+from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
