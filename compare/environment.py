@@ -14,9 +14,16 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 
 def packages() -> tuple[str, ...]:
-    """The distributions whose versions a results file records: ours, and every backend's."""
+    """The distributions whose versions a results file records: this project's own requirements
+    (from its installed metadata) and every backend's package."""
+    import re
+
     import backends
-    names = ["numpy", "matplotlib"]
+    try:
+        reqs = importlib.metadata.requires("gpu-python-compare") or []
+    except importlib.metadata.PackageNotFoundError:      # run from a tree that was not installed
+        reqs = []
+    names = [re.split(r"[\s<>=!~;\[(]", r, maxsplit=1)[0] for r in reqs if "extra ==" not in r]
     for b in backends.BACKENDS.values():
         names += [b.package, *b.related_packages]
     return tuple(dict.fromkeys(names))
