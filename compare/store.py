@@ -108,7 +108,8 @@ def _upgrade(data: Any, path: Path) -> dict[str, Any]:
             raise StoreError(f"{path}: record {i}: {problem}")
         if data["format_version"] == 1 and upgrade:
             data["records"][i] = upgrade(rec)
-    data["upgraded_from"] = data.pop("format_version") if data["format_version"] != FORMAT_VERSION else None
+    version = data.pop("format_version")
+    data["upgraded_from"] = version if version != FORMAT_VERSION else data.get("upgraded_from")
     return data
 
 
@@ -188,9 +189,11 @@ class Store:
 
     # ---- writing --------------------------------------------------------------------------
     def to_json(self) -> str:
-        return json.dumps(jsonable({"format_version": FORMAT_VERSION, "suite": self.suite,
-                                    "runs": self.runs, "records": self.records,
-                                    "analysis": self.analysis}), indent=1)
+        data = {"format_version": FORMAT_VERSION, "suite": self.suite, "runs": self.runs,
+                "records": self.records, "analysis": self.analysis}
+        if self.upgraded_from is not None:      # a file converted from an older format says so
+            data["upgraded_from"] = self.upgraded_from
+        return json.dumps(jsonable(data), indent=1)
 
     def save(self) -> None:
         atomic_write(self.path, self.to_json())
