@@ -26,7 +26,7 @@ import backends
 import scenarios
 from backends.base import Backend
 from compare import timing
-from compare.nvml import Nvml
+from compare.nvml import open_nvml
 from compare.spec import CellSpec
 from compare.store import jsonable
 from scenarios.base import dtype_of
@@ -74,15 +74,6 @@ def apply_cache_policy(policy: str, backend: Backend, out_dir: Path) -> str:
         os.environ[var] = value
     return "cold: " + (", ".join(f"{k} empty" if v else f"{k} off" for k, v in env.items())
                        or "the framework keeps no kernel cache on disk")
-
-
-def open_nvml(device: str) -> tuple[Nvml | None, str | None]:
-    if device != "cuda":
-        return None, None
-    try:
-        return Nvml(), None
-    except Exception as exc:  # no driver library, or no device
-        return None, f"NVML unavailable: {type(exc).__name__}: {exc}"
 
 
 def contract_violation(sc: Any, params: Any, precision: str, outputs: dict[str, Any]) -> str | None:

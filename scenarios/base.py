@@ -221,16 +221,22 @@ SWEEP_CHECK_SAMPLE = 1 << 16     # items checked against the oracle in large per
 REF_FACTOR = 16                  # converged dt references: smallest swept dt / REF_FACTOR
 
 
-def dt_reference(cache: dict[Any, Any], key: Any, solve, distance, dt: float,
+def dt_reference(cache: dict[Any, Any], scenario: str, params: dict[str, Any],
+                 reference: dict[str, Any] | None, default_dt: float, solve, distance,
                  simulated_time: float) -> tuple[Any, dict[str, Any]]:
-    """A converged float64 reference at time step ``dt`` over ``simulated_time``, memoised in
-    ``cache`` under ``key``, and what it is: ``solve(dt, steps)`` computes it; its
+    """A converged float64 reference over ``simulated_time`` at the sweep point's reference time
+    step (``reference["dt"]``, else ``default_dt``) for ``params`` without their dt and steps,
+    memoised in ``cache``, and what it is: ``solve(base_params, dt, steps)`` computes it; its
     ``self_difference`` is ``distance(coarse, reference)`` to the same at 2 dt (its own error
     scale, which must be far below the errors it measures)."""
+    import json
+    dt = (reference or {}).get("dt") or default_dt
+    base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
+    key = (scenario, json.dumps(base, sort_keys=True), dt)
     if key not in cache:
         steps = round(simulated_time / dt)
-        ref = solve(dt, steps)
-        coarse = solve(2 * dt, round(simulated_time / (2 * dt)))
+        ref = solve(base, dt, steps)
+        coarse = solve(base, 2 * dt, round(simulated_time / (2 * dt)))
         cache[key] = (ref, {"dt": dt, "steps": steps, "simulated_time_s": simulated_time,
                             "self_difference": distance(coarse, ref),
                             "note": "float64 NumPy rollout; self_difference: same metric "

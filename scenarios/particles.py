@@ -29,7 +29,6 @@ state must lie within the bound. Ill-conditioned particles are counted and repor
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 
 import numpy as np
@@ -197,11 +196,9 @@ class Particles(Scenario):
         (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        dt = (reference or {}).get("dt") or min(SWEEP_DT[False]) / REF_FACTOR
-        base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
-        key = (self.name, json.dumps(base, sort_keys=True), dt)
-        ref, info = dt_reference(cache, key, lambda h, n: self.converged_positions(base, h, n),
-                                 lambda a, b: self.position_error(*a, *b)["error"], dt, SWEEP_T)
+        ref, info = dt_reference(cache, self.name, params, reference, min(SWEEP_DT[False]) / REF_FACTOR,
+                                 self.converged_positions,
+                                 lambda a, b: self.position_error(*a, *b)["error"], SWEEP_T)
         return {**self.position_error(outputs["x"], outputs["y"], *ref), "metric": self.error_metric,
                 "reference": info}
 

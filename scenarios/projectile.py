@@ -25,7 +25,6 @@ loss, gradient and history are derived (see ``check``).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from typing import Literal
 
@@ -333,11 +332,9 @@ class Projectile(Scenario):
         reference dt (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        dt = (reference or {}).get("dt") or min(SWEEP_DT[False]) / REF_FACTOR
-        base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
-        key = (self.name, json.dumps(base, sort_keys=True), dt)
-        ref, info = dt_reference(cache, key, lambda h, n: self.converged_loss_grad(base, h, n),
-                                 lambda a, b: self.loss_grad_error(*a, *b)["error"], dt, SWEEP_T)
+        ref, info = dt_reference(cache, self.name, params, reference, min(SWEEP_DT[False]) / REF_FACTOR,
+                                 self.converged_loss_grad,
+                                 lambda a, b: self.loss_grad_error(*a, *b)["error"], SWEEP_T)
         return {**self.loss_grad_error(outputs["loss"], outputs["grad"], *ref),
                 "metric": self.error_metric, "reference": info}
 
