@@ -73,8 +73,8 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
             for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants]
 
 
-def dask_runner(scheduler: str, timeout: float, specs: list[dict[str, Any]]
-                ) -> Callable[[dict[str, Any]], engine.Result]:
+def dask_runner(scheduler: str, timeout: float, specs: list[dict[str, Any]],
+                probes: dict[str, dict[str, Any]]) -> Callable[[dict[str, Any]], engine.Result]:
     """Cells as tasks on a Dask distributed scheduler (``local``: a one-worker LocalCluster), all
     submitted at once and collected in order. Each task still starts its own worker process, so
     isolation and timeouts are the same; give Dask workers one thread each so cells sharing a
@@ -92,7 +92,7 @@ def dask_runner(scheduler: str, timeout: float, specs: list[dict[str, Any]]
             client = Client(scheduler, timeout="30s")
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
             raise ParamError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {exc})") from None
-    prepared = [engine.prepare(s) for s in specs]
+    prepared = [s for s in map(engine.prepare, specs) if not engine.not_runnable(s, probes)]
     futures = {json.dumps(s, sort_keys=True): client.submit(cells.run, s, timeout, pure=False)
                for s in prepared}
     return lambda spec: futures[json.dumps(spec, sort_keys=True)].result()
@@ -147,7 +147,7 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     env = environment.collect(argv)
     env["backends"] = probes
     store.runs = [*store.runs, env] if args.resume else [env]
-    runner = dask_runner(args.scheduler, args.timeout, specs) if args.scheduler else None
+    runner = dask_runner(args.scheduler, args.timeout, specs, probes) if args.scheduler else None
     results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=engine.progress(len(specs)))
     # the records of this plan, in plan order; with --resume also the kept records of other plans
