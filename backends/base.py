@@ -91,6 +91,16 @@ class Backend:
         ``setdefault``, so the user's own settings win), e.g. not to preallocate GPU memory."""
         return {}
 
+    def ensure_context(self, device: str) -> None:
+        """Create the framework's device context now (not lazily inside the first kernel), so the
+        device-memory baseline taken after it leaves the context out. Default: ``setup`` did."""
+
+    def capture(self, device: str, run: Any) -> Any:
+        """The framework's graph fast path: capture one ``run()`` and return a function that
+        replays it (the throughput regime then also times the replays), or None where the
+        framework offers no graph capture for it. Raising says why capture failed."""
+        return None
+
     def event_timer(self, device: str) -> EventTimer | None:
         """Device events bracketing one call on the stream the kernels run on, or None when the
         framework's public API has none (then the wall clock alone is the clock)."""

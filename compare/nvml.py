@@ -1,63 +1,57 @@
-"""Device memory from NVML, for every CUDA cell whatever its framework."""
+"""Device memory from NVML (nvidia-ml-py), one metric for every CUDA cell whatever its framework.
+
+The figure users compare across frameworks is ``memory.device_bytes``: this process's device
+memory at its peak minus a baseline taken *after* the framework's device context exists
+(``Backend.ensure_context``), so the CUDA context (hundreds of MiB, the same for every framework)
+is left out and what remains is what the cell's allocations, kernels and framework pools hold.
+NVML keeps no per-process peak, so the worker samples at the cell's milestones (after set-up,
+after the first call, after each timing regime) and keeps the largest. Where NVML does not list
+this process (some containers' PID namespaces), the whole device's use is used instead and the
+record says so (``device_bytes_source``). A framework's own figure (a pool's high-water mark,
+``peak_bytes_in_use``) stays in its own column, ``device_peak_bytes``.
+"""
 from __future__ import annotations
 
-import ctypes
 import os
 from typing import Any
 
 
-class _NvmlMem(ctypes.Structure):
-    _fields_ = [("total", ctypes.c_ulonglong), ("free", ctypes.c_ulonglong),
-                ("used", ctypes.c_ulonglong)]
-
-
-class _NvmlProc(ctypes.Structure):
-    _fields_ = [("pid", ctypes.c_uint), ("usedGpuMemory", ctypes.c_ulonglong),
-                ("gpuInstanceId", ctypes.c_uint), ("computeInstanceId", ctypes.c_uint)]
-
-
 class Nvml:
-    """Device memory from NVML (the driver's libnvidia-ml, through ctypes: no Python package).
-
-    NVML has no per-process peak, so the worker samples at the cell's milestones and keeps the
-    largest value; it reports this process's usage where NVML lists our PID (not inside some
-    containers' PID namespaces), and otherwise the whole device's usage minus a baseline taken
-    before the framework started. Framework-independent, so it is recorded for every CUDA cell.
-    """
-
     def __init__(self) -> None:
-        self.lib = ctypes.CDLL("libnvidia-ml.so.1")
-        if self.lib.nvmlInit_v2() != 0:
-            raise OSError("nvmlInit failed")
+        import pynvml
+        self.nv = pynvml
+        pynvml.nvmlInit()
         visible = os.environ.get("CUDA_VISIBLE_DEVICES", "0").split(",")[0].strip()
-        self.handle = ctypes.c_void_p()
-        idx = int(visible) if visible.isdigit() else 0
-        if self.lib.nvmlDeviceGetHandleByIndex_v2(idx, ctypes.byref(self.handle)) != 0:
-            raise OSError(f"no NVML device {idx}")
-        self.baseline = self.device_used()
-        self.peak_device = self.baseline
+        if visible.startswith(("GPU-", "MIG-")):
+            self.handle = pynvml.nvmlDeviceGetHandleByUUID(visible)
+        else:
+            self.handle = pynvml.nvmlDeviceGetHandleByIndex(int(visible) if visible.isdigit() else 0)
+        self.start_device = self.device_used()         # before the framework touched the GPU
+        self.base: tuple[int, int | None] | None = None   # (device, process) after the context
+        self.peak_device = self.start_device
         self.peak_process: int | None = None
 
     def device_used(self) -> int:
-        mem = _NvmlMem()
-        if self.lib.nvmlDeviceGetMemoryInfo(self.handle, ctypes.byref(mem)) != 0:
-            raise OSError("nvmlDeviceGetMemoryInfo failed")
-        return int(mem.used)
+        return int(self.nv.nvmlDeviceGetMemoryInfo(self.handle).used)
 
     def process_used(self) -> int | None:
-        for name in ("nvmlDeviceGetComputeRunningProcesses_v3", "nvmlDeviceGetComputeRunningProcesses_v2"):
-            fn = getattr(self.lib, name, None)
-            if fn is None:
-                continue
-            count = ctypes.c_uint(256)
-            procs = (_NvmlProc * 256)()
-            if fn(self.handle, ctypes.byref(count), procs) != 0:
-                return None
-            for p in procs[:count.value]:
-                if p.pid == os.getpid() and p.usedGpuMemory < 2**63:   # 2^64-1: not available
-                    return int(p.usedGpuMemory)
+        try:
+            procs = self.nv.nvmlDeviceGetComputeRunningProcesses(self.handle)
+        except self.nv.NVMLError:
             return None
+        for p in procs:
+            if p.pid == os.getpid() and p.usedGpuMemory is not None:
+                return int(p.usedGpuMemory)
         return None
+
+    def mark_baseline(self) -> None:
+        """The framework's context exists now: what is in use is the baseline of the metric."""
+        try:
+            self.base = (self.device_used(), self.process_used())
+        except Exception:  # a reading lost is a figure lost, never the cell
+            self.base = None
+        if self.base:
+            self.peak_device, self.peak_process = self.base[0], self.base[1]
 
     def sample(self) -> None:
         try:
@@ -69,14 +63,21 @@ class Nvml:
             self.peak_process = max(self.peak_process or 0, mine)
 
     def figures(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"nvml_device_used_before_bytes": self.baseline,
-                               "nvml_device_delta_peak_bytes": self.peak_device - self.baseline}
+        out: dict[str, Any] = {"nvml_device_used_before_bytes": self.start_device,
+                               "nvml_device_delta_peak_bytes": self.peak_device - self.start_device}
         if self.peak_process is not None:
             out["nvml_process_peak_bytes"] = self.peak_process
-            out["nvml_source"] = "NVML, this process, max of samples after set-up, first call, steady state"
-        else:
-            out["nvml_source"] = ("NVML, whole device minus the use before the framework started "
-                                  "(this PID not listed by NVML), max of samples")
+        if self.base is not None:
+            if self.base[1] is not None and self.peak_process is not None:
+                out["device_bytes"] = self.peak_process - self.base[1]
+                out["context_bytes"] = self.base[1]
+                out["device_bytes_source"] = ("NVML, this process: peak of samples minus its use once "
+                                              "the framework's context existed")
+            else:
+                out["device_bytes"] = self.peak_device - self.base[0]
+                out["context_bytes"] = self.base[0] - self.start_device
+                out["device_bytes_source"] = ("NVML, whole device (this PID not listed): peak of "
+                                              "samples minus the use once the framework's context existed")
         return out
 
 
@@ -85,5 +86,5 @@ def open_nvml(device: str) -> tuple[Nvml | None, str | None]:
         return None, None
     try:
         return Nvml(), None
-    except Exception as exc:  # no driver library, or no device
+    except Exception as exc:  # no package, no driver library, or no device
         return None, f"NVML unavailable: {type(exc).__name__}: {exc}"

@@ -47,6 +47,7 @@ class CellSpec:
     max_time: float = 10.0              # stop early past this with at least 3 calls
     timer: str = "auto"                 # 'auto': device events where the backend has them; 'wall'
     cache: str = "cold"                 # 'cold': empty kernel caches for the first call; 'warm'
+    throughput: bool = True             # also time the throughput (and graph) regimes
     check_sample: int = 0               # check k evenly spaced items of large per-item cells
     save_outputs: bool = True           # hand the outputs back (cross-backend comparison)
     save_inputs: bool = False           # also the inputs (--save-arrays)

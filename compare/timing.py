@@ -6,7 +6,11 @@
 3. timed calls, each ``run(); synchronize()``, until at least ``repeat`` calls *and* ``min_time``
    seconds (wall clock) have been measured, stopping early only when ``max_time`` is exceeded with
    at least 3 calls;
-4. median, inter-quartile range and min of the per-call times.
+4. median, inter-quartile range and min of the per-call times (the *latency* regime: one call and
+   its synchronisation, what an interactive caller or a host loop waits);
+5. the *throughput* regime (``pipelined``): k back-to-back calls, one synchronisation, time / k,
+   what a simulation loop that synchronises rarely pays per call; and, where the backend can
+   capture a call as a graph (``Backend.capture``), the same with graph replays.
 Every timed call is measured on the wall clock (time.perf_counter, around run + synchronise). On a
 GPU, where the framework offers device events (``Backend.event_timer``), the same call is also bracketed by
 two events on the stream the kernels run on; the event times are then the primary figures
@@ -93,6 +97,41 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
     if events_error:
         out["events_error"] = events_error
     return out
+
+
+def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: float = 0.02,
+              repeat: int = 5, max_k: int = 1 << 16, max_time: float = 10.0) -> dict[str, Any]:
+    """The throughput regime: ``k`` back-to-back ``run()`` calls, one synchronise, time / k.
+
+    What a simulation loop that synchronises rarely pays per call: launches are queued while the
+    device works, so per-call host overhead hides behind device time (or shows, where the host is
+    slower than the device). ``k`` doubles from 1 until one batch lasts at least ``batch_s``
+    (stable against the one synchronise and the clock), at most ``max_k``; then ``repeat`` batches
+    are timed on the wall clock. Returns median/IQR/min of the per-call time, ``repeats`` and ``k``.
+    """
+    k, spent = 1, 0.0
+    while True:
+        t0 = time.perf_counter()
+        r = None
+        for _ in range(k):
+            r = run()
+        sync(r)
+        dt = time.perf_counter() - t0
+        spent += dt
+        if dt >= batch_s or k >= max_k or spent >= max_time:
+            break
+        k = min(max_k, k * 2 if dt <= 0 else max(k * 2, int(k * batch_s / dt * 1.2)))
+    per_call: list[float] = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for _ in range(k):
+            r = run()
+        sync(r)
+        per_call.append((time.perf_counter() - t0) / k)
+        spent += per_call[-1] * k
+        if spent >= max_time and len(per_call) >= 3:
+            break
+    return {**summarise(per_call), "k": k}
 
 
 def summarise(times: list[float]) -> dict[str, Any]:

@@ -76,6 +76,19 @@ def apply_cache_policy(policy: str, backend: Backend, out_dir: Path) -> str:
                        or "the framework keeps no kernel cache on disk")
 
 
+def graph_regime(be: Backend, device: str, kernel: Any, sync: Any, max_time: float) -> dict[str, Any]:
+    """The throughput regime with the backend's graph replays (``Backend.capture``), or why not."""
+    try:
+        replay = be.capture(device, kernel.run)
+        if replay is None:
+            return {"unavailable": f"{be.name} offers no graph capture on {device}"}
+        sync(None)
+        return {**timing.pipelined(replay, sync, max_time=max_time), "how": "captured run() replayed"}
+    except Exception as exc:  # a failed capture is a finding, never the cell
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        return {"failed": f"{type(exc).__name__}: {first}"}
+
+
 def contract_violation(sc: Any, params: Any, precision: str, outputs: dict[str, Any]) -> str | None:
     """The first way the kernel's outputs break the scenario's declared contract, or None."""
     want = sc.output_shapes(params)
@@ -133,6 +146,9 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     nvml, nvml_note = open_nvml(device)       # baseline before the framework touches the GPU
     if not set_up:
         be.setup(device, precision, variant)
+    be.ensure_context(device)
+    if nvml:
+        nvml.mark_baseline()                  # the metric leaves the framework's context out
     sync = lambda r: be.synchronize(device, r)  # noqa: E731
     t0 = time.perf_counter()
     kernel = be.kernel(sc.name)(params, inputs, device, precision, variant)
@@ -148,6 +164,11 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
                             max_time=spec.max_time, timer=timer)
     if nvml:
         nvml.sample()
+    regimes = {"latency": {k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")} | {"repeats": t["repeats"]}}
+    if spec.throughput:
+        regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=spec.max_time)
+        if nvml:
+            nvml.sample()
     t0 = time.perf_counter()
     got = kernel.outputs()
     download_s = time.perf_counter() - t0
@@ -169,6 +190,8 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     if fault == "mismatch":
         outputs = {k: v + np.asarray(1, v.dtype) if v.dtype.kind == "f" else v for k, v in outputs.items()}
 
+    if spec.throughput:     # after the download: a failed capture cannot touch the outputs
+        regimes["graph"] = graph_regime(be, device, kernel, sync, spec.max_time)
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
@@ -181,7 +204,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         "status": "ok" if check.ok else "mismatch",
         "reason": "" if check.ok else f"error {check.error:.3g} exceeds tolerance {check.tolerance:.3g}",
         "params": dataclasses.asdict(params),
-        "time": {"first_call_s": first_call_s, **t, "setup_s": setup_s, "download_s": download_s,
+        "time": {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
                  "clock": timing.CLOCK if "events_error" in t else clock,
                  "timer": "events" if timer is not None and "events_error" not in t else "wall",
                  "first_call_clock": timing.CLOCK, "cache": cache_note},

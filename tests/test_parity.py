@@ -46,7 +46,7 @@ def _params(case):
 def _spec(backend, device, precision, scenario, overrides):
     return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
             "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0,
-            "cache": "warm"}   # correctness only: reuse compiled kernels (timing runs start cold)
+            "cache": "warm", "throughput": False}   # correctness only: reuse compiled kernels (timing runs start cold)
 
 
 def run_case(backend, device, precision, scenario, overrides):

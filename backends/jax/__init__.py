@@ -95,6 +95,10 @@ class JaxBackend(Backend):
         # JAX's persistent compilation cache is off unless configured: keep it off
         return {"JAX_ENABLE_COMPILATION_CACHE": "false", "JAX_COMPILATION_CACHE_DIR": ""}
 
+    def ensure_context(self, device: str) -> None:
+        import jax
+        jax.device_put(0.0, jax_device(device)).block_until_ready()
+
     def worker_environment(self) -> dict[str, str]:
         # JAX would otherwise grab 75% of GPU memory at start; measure what it needs instead
         return {"XLA_PYTHON_CLIENT_PREALLOCATE": "false"}

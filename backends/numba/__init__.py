@@ -72,6 +72,11 @@ class NumbaBackend(Backend):
         return {"NUMBA_CACHE_DIR": str(cache_dir / "numba"),
                 "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
 
+    def ensure_context(self, device: str) -> None:
+        if device == "cuda":
+            from numba import cuda
+            cuda.current_context()
+
     def event_timer(self, device: str) -> "NumbaEvents | None":
         return NumbaEvents() if device == "cuda" else None
 

@@ -30,6 +30,21 @@ class WarpBackend(Backend):
         return {"WARP_CACHE_PATH": str(cache_dir / "warp"),
                 "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
 
+    def ensure_context(self, device: str) -> None:
+        import warp as wp
+        wp.get_device(wp_device(device)).context   # noqa: B018 (creates the CUDA context)
+
+    def capture(self, device: str, run: Any) -> Any:
+        """``wp.ScopedCapture`` of one call, replayed with ``wp.capture_launch`` (Warp's documented
+        way to remove per-launch CPU overhead); CUDA only."""
+        if device != "cuda":
+            return None
+        import warp as wp
+        with wp.ScopedCapture(device=wp_device(device)) as cap:
+            run()
+        graph = cap.graph
+        return lambda: wp.capture_launch(graph)
+
     def event_timer(self, device: str) -> "WarpEvents | None":
         return WarpEvents(device) if device == "cuda" else None
 

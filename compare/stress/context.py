@@ -65,7 +65,7 @@ class Ctx:
         # and the frameworks' kernel caches stay warm so cells do not recompile the same kernels.
         return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
                 "variant": variant, "params": params, "quick": False, "repeat": 1, "min_time": 0.0,
-                "cache": "warm", "timer": "wall"}
+                "cache": "warm", "timer": "wall", "throughput": False}
 
     @staticmethod
     def row(experiment: str, backend: str, device: str, precision: str, setting: str, figure: str,
