@@ -12,8 +12,12 @@ from tabulate import tabulate
 
 from compare.store import atomic_write
 
-COLUMNS = ("backend", "device", "precision", "variant", "status", "first call", "median", "IQR",
-           "min", "events median", "err vs oracle", "tolerance", "err vs reference", "gradient", "note")
+COLUMNS = ("backend", "device", "precision", "variant", "status", "first call", "latency", "IQR",
+           "min", "events median", "throughput", "graph", "hw fraction", "device mem", "err vs oracle",
+           "tolerance", "err vs reference", "gradient", "note")
+# the terminal's default view (fits 120 columns); --wide and the Markdown/CSV files have all
+COMPACT = ("backend", "device", "precision", "variant", "status", "latency", "throughput",
+           "hw fraction", "err vs oracle", "tolerance", "note")
 
 
 def backend_color(name: str) -> str:
@@ -57,21 +61,58 @@ def fmt_gradient(rec: dict[str, Any]) -> str:
     return text
 
 
-def row(rec: dict[str, Any]) -> list[str]:
+def fmt_bytes(b: Any) -> str:
+    if not isinstance(b, (int, float)):
+        return "-"
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if abs(b) >= scale:
+            return f"{b / scale:.3g} {unit}"
+    return f"{int(b)} B"
+
+
+def row(rec: dict[str, Any], width: int = 120) -> list[str]:
     t = rec.get("time") or {}
-    # the same clock for every backend: wall clock around run() + synchronize; where the
-    # framework offers device events their median is shown in its own column
-    wall = t.get("wall") or t
+    # the same clock for every backend: wall clock around run() + synchronize (latency), k calls
+    # and one synchronize (throughput); where the framework offers device events their median is
+    # shown in its own column
+    lat = t.get("latency") or t.get("wall") or t
+    thr, graph = t.get("throughput") or {}, t.get("graph") or {}
     e = rec.get("error") or {}
     note = rec.get("reason", "") or ""
     if rec.get("status") == "ok" and e.get("ill_conditioned"):
         note = f"{e['ill_conditioned']} ill-conditioned particles not checked"
     device = rec["device"] + (f" ({rec['machine']})" if rec.get("machine") else "")
+    hw = (rec.get("throughput") or {}).get("hw_fraction")
+    kind = (rec.get("throughput") or {}).get("floor_kind", "")
     return [rec["backend"], device, rec["precision"], rec.get("variant", "default"),
-            rec["status"], fmt_time(t.get("first_call_s")), fmt_time(wall.get("median_s")),
-            fmt_time(wall.get("iqr_s")), fmt_time(wall.get("min_s")),
-            fmt_time(t.get("median_s")) if t.get("timer") == "events" else "-", fmt_num(e.get("vs_oracle")),
-            fmt_num(e.get("tolerance")), fmt_num(e.get("vs_reference")), fmt_gradient(rec), note[:120]]
+            rec["status"], fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")),
+            fmt_time(lat.get("iqr_s")), fmt_time(lat.get("min_s")),
+            fmt_time(t.get("median_s")) if t.get("timer") == "events" else "-",
+            fmt_time(thr.get("median_s")), fmt_time(graph.get("median_s")),
+            f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",
+            fmt_bytes((rec.get("memory") or {}).get("device_bytes")),
+            fmt_num(e.get("vs_oracle")), fmt_num(e.get("tolerance")), fmt_num(e.get("vs_reference")),
+            fmt_gradient(rec), note[:width]]
+
+
+def compact(records: list[dict[str, Any]]) -> list[list[str]]:
+    """The terminal view: the COMPACT columns, and one line per backend and device whose cells
+    were all skipped for the same reason (instead of one per precision and variant)."""
+    idx = [COLUMNS.index(c) for c in COMPACT]
+    out, seen = [], set()
+    for r in records:
+        if r["status"] == "skipped":
+            same = [q for q in records if q["backend"] == r["backend"] and q["device"] == r["device"]]
+            if all(q["status"] == "skipped" and q.get("reason") == r.get("reason") for q in same):
+                if (r["backend"], r["device"]) in seen:
+                    continue
+                seen.add((r["backend"], r["device"]))
+                out.append([r["backend"], r["device"], "all", "all", "skipped", "-", "-", "-", "-", "-",
+                            (r.get("reason") or "")[:40]])
+                continue
+        full = row(r, width=40)
+        out.append([full[i] for i in idx])
+    return out
 
 
 def by_scenario(records: Iterable[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
@@ -86,14 +127,17 @@ def params_line(recs: list[dict[str, Any]]) -> str:
     return ", ".join(f"{k}={v}" for k, v in p.items())
 
 
-def tables(records: list[dict[str, Any]], fmt: str = "simple", images: dict[str, str] | None = None) -> str:
-    """One table per scenario; in Markdown, each followed by its picture when ``images`` has one."""
+def tables(records: list[dict[str, Any]], fmt: str = "simple", images: dict[str, str] | None = None,
+           wide: bool = True) -> str:
+    """One table per scenario; in Markdown, each followed by its picture when ``images`` has one.
+    ``wide=False``: the terminal's compact view (``compact``)."""
     parts = []
     for scenario, recs in by_scenario(records).items():
         head = f"{scenario} ({params_line(recs)})"
         img = (images or {}).get(scenario)
+        body, headers = ([row(r) for r in recs], COLUMNS) if wide else (compact(recs), COMPACT)
         parts.append(("## " if fmt == "github" else "") + head + "\n\n" +
-                     tabulate([row(r) for r in recs], headers=COLUMNS, tablefmt=fmt, disable_numparse=True)
+                     tabulate(body, headers=headers, tablefmt=fmt, disable_numparse=True)
                      + (f"\n\n![{scenario}]({img})" if img else ""))
     return "\n\n".join(parts) + "\n"
 

@@ -17,7 +17,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import engine, environment, options, report
+from compare import engine, environment, hardware, options, report
 from compare.store import UPGRADES, Store, array_file, load_arrays, save_arrays
 from scenarios.base import ParamError
 
@@ -49,6 +49,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run cells as tasks on a Dask distributed scheduler ('local': a LocalCluster)")
+    p.add_argument("--wide", action="store_true", help="print every column (default: a view that fits 120)")
 
 
 def check_memory(sc: scenarios.Scenario, params: Any) -> None:
@@ -146,6 +147,9 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     probes = engine.availability(sel_backends)
     env = environment.collect(argv)
     env["backends"] = probes
+    # the framework-neutral yardstick of every device some backend can use, in this same run
+    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s in specs)
+                       if any(p["available"].get(d) is None for p in probes.values())}
     store.runs = [*store.runs, env] if args.resume else [env]
     runner = dask_runner(args.scheduler, args.timeout, specs, probes) if args.scheduler else None
     results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
@@ -158,6 +162,7 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     if args.save_arrays or args.resume:
         saved_outputs(out, records, outputs)
     fill_vs_reference(records, outputs)
+    hardware.annotate(records, env["hardware"])
     for r in records:
         store.put(r)
     store.save()
@@ -165,7 +170,7 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
         for i, o in outputs.items():
             save_arrays(out, records[i], o)
     render(out, env, records, outputs, plots=not args.no_plots)
-    print(report.tables(records))
+    print(report.tables(records, wide=args.wide))
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
     return options.EXIT_FAIL if any(r["status"] in ("mismatch", "error") for r in records) else options.EXIT_OK
 
@@ -207,7 +212,7 @@ def report_command(args: argparse.Namespace) -> int:
     merged = Store(out / "results.json", "run", [{"merged_from": list(args.files), "environments": envs}], records)
     merged.save()
     render(out, merged.runs[0], records, outputs, plots=not args.no_plots)
-    print(report.tables(records))
+    print(report.tables(records, wide=False))
     return options.EXIT_OK
 
 

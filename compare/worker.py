@@ -212,7 +212,9 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
                   **{k: v for k, v in check.details.items()},
                   "checked_items": f"{sampled[2]} of {params.n} (evenly spaced)" if sampled else "all"},
         "work": work,
-        "throughput": {f"{k}_per_s": v / t["median_s"] for k, v in work.items() if t["median_s"] > 0},
+        # useful work per second in the throughput regime (the latency regime where not measured)
+        "throughput": {f"{k}_per_s": v / per_call for k, v in work.items()
+                       if (per_call := (regimes.get("throughput") or t)["median_s"]) > 0},
         "memory": {"peak_host_rss_bytes": peak_rss_bytes(), **device_memory(be, device),
                    **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})},
         "info": kernel.info(),

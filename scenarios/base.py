@@ -172,8 +172,30 @@ class Scenario:
                          if hasattr(params, k))
 
     def work(self, params, precision: str) -> dict[str, float]:
-        """Useful work per run, for throughput figures: {'bytes': moved, 'items': ...}."""
+        """Useful work per run, for throughput figures and floors: {'bytes': the bytes a run must
+        move to and from device memory, 'flops': the floating-point operations it must do,
+        'items': ...}."""
         return {}
+
+    def floor(self, params, precision: str, hardware: dict[str, Any]) -> dict[str, Any] | None:
+        """The least time one run can take on this hardware (``compare.hardware``'s same-run
+        yardstick): {'kind', 'seconds', 'derivation'}, or None where nothing is stated.
+
+        Default: the larger of the bandwidth floor (``work()['bytes']`` at the measured copy
+        bandwidth) and the FLOP floor (``work()['flops']`` at the vendor's stated peak rate for
+        this precision). A scenario bound by something else (a serial chain, a launch) overrides.
+        """
+        w = self.work(params, precision)
+        floors = []
+        if w.get("bytes") and hardware.get("copy_bytes_per_s"):
+            floors.append({"kind": "bandwidth", "seconds": w["bytes"] / hardware["copy_bytes_per_s"],
+                           "derivation": f"{w['bytes']:.4g} bytes at the same-run copy bandwidth"})
+        peak = (hardware.get("peak_flops") or {}).get(precision)
+        if w.get("flops") and peak:
+            floors.append({"kind": "flops", "seconds": w["flops"] / peak,
+                           "derivation": f"{w['flops']:.4g} FLOP at the stated peak {peak / 1e12:.3g} TFLOP/s "
+                                         f"({hardware['peak_flops'].get('source', '')})"})
+        return max(floors, key=lambda f: f["seconds"]) if floors else None
 
     # ---- measurement sweeps ---------------------------------------------------------------
     def sweep_points(self, kind: str, device: str, quick: bool) -> list[dict[str, Any]]:

@@ -63,6 +63,14 @@ class Launch(Scenario):
     def footprint(self, params: LaunchParams, precision: str) -> float:
         return params.n * 4 * 8.0
 
+    def floor(self, params: LaunchParams, precision: str, hardware: dict) -> dict | None:
+        """An empty kernel launched through the CUDA driver, pipelined (the same-run yardstick):
+        what a framework's call costs beyond the hardware's own launch path."""
+        if not hardware.get("launch_pipelined_s"):
+            return None
+        return {"kind": "launch", "seconds": hardware["launch_pipelined_s"],
+                "derivation": "empty PTX kernel via cuLaunchKernel, pipelined, same run"}
+
     def work(self, params: LaunchParams, precision: str) -> dict[str, float]:
         itemsize = 4 if precision == "float32" else 8
         return {"items": float(params.n), "bytes": 2.0 * params.n * itemsize}

@@ -353,4 +353,7 @@ class Particles(Scenario):
 
     def work(self, params: ParticlesParams, precision: str) -> dict[str, float]:
         itemsize = 4 if precision == "float32" else 8
-        return {"items": float(params.n) * params.steps, "bytes": 8.0 * params.n * itemsize}
+        # 5 FLOP per particle-step: v += g dt (1), x += u dt and y += v dt (an FMA each, 2 + 2);
+        # the three compares and clamps are not counted, so the FLOP floor is a lower bound
+        return {"items": float(params.n) * params.steps, "bytes": 8.0 * params.n * itemsize,
+                "flops": 5.0 * params.n * params.steps}

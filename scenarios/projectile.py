@@ -466,3 +466,17 @@ class Projectile(Scenario):
 
     def work(self, params: ProjectileParams, precision: str) -> dict[str, float]:
         return {"items": float(params.steps) * (params.iters + 1)}
+
+    def floor(self, params: ProjectileParams, precision: str, hardware: dict) -> dict | None:
+        """One trajectory is a serial chain: each step's forward pass needs vy <- vy + acc dt, then
+        y <- y + vy dt (two dependent FMAs), and the reverse sweep two more, so an evaluation is at
+        least 4 x steps dependent operations; at 4 cycles each (the FMA latency of recent NVIDIA
+        GPUs) and the GPU's maximum SM clock, iters + 1 evaluations take at least
+        16 x steps x (iters + 1) / clock. GPU only (the clock comes from NVML)."""
+        clock = hardware.get("sm_clock_max_hz")
+        if not clock:
+            return None
+        n = 16.0 * params.steps * (params.iters + 1)
+        return {"kind": "serial latency", "seconds": n / clock,
+                "derivation": f"4 dependent FMAs x 4 cycles x {params.steps} steps x {params.iters + 1} "
+                              f"evaluations at {clock / 1e9:.3g} GHz"}

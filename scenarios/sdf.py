@@ -175,4 +175,7 @@ class Sdf(Scenario):
     def work(self, params: SdfParams, precision: str) -> dict[str, float]:
         itemsize = 4 if precision == "float32" else 8
         n = params.width * params.height
-        return {"items": n, "bytes": float(n * itemsize)}
+        # 30 FLOP per pixel: pixel -> (fx, fy) 6, two circle distances 12 (sqrt as one), the wave 3
+        # (sin as one), min/max/negate 3, exp(-18|d|) 3 (exp as one), rounded to 30 (a floor that
+        # counts a transcendental as one operation is loose: the SFU path costs more)
+        return {"items": n, "bytes": float(n * itemsize), "flops": 30.0 * n}

@@ -82,11 +82,24 @@ def test_results_json_contract(quick_run):
             assert key in r
         assert r["status"] == "ok"
         assert set(r["time"]) >= {"first_call_s", "median_s", "iqr_s", "min_s", "repeats"}
+        # both regimes, documented keys (README); no graph capture on a CPU, with the reason
+        assert set(r["time"]["latency"]) == {"median_s", "iqr_s", "min_s", "repeats"}
+        assert set(r["time"]["throughput"]) == {"median_s", "iqr_s", "min_s", "repeats", "k"}
+        assert r["time"]["throughput"]["k"] >= 1 and r["time"]["throughput"]["median_s"] > 0
+        assert "unavailable" in r["time"]["graph"] or "median_s" in r["time"]["graph"]
         assert set(r["error"]) >= {"vs_oracle", "vs_reference", "tolerance"}
         assert r["error"]["vs_oracle"] <= r["error"]["tolerance"]
         if r["scenario"] == "projectile":
             assert len(r["gradient"]["value"]) == 2
             assert r["gradient"]["method"] == "tape"
+    # the same-run hardware yardstick, and every bandwidth-bound cell's fraction of it
+    hw = data["runs"][0]["hardware"]["cpu"]
+    assert hw["copy_bytes_per_s"] > 0, hw
+    saxpy = [r for r in recs if r["scenario"] == "saxpy"]
+    for r in saxpy:
+        assert r["throughput"]["floor_kind"] == "bandwidth"
+        want = r["work"]["bytes"] / hw["copy_bytes_per_s"] / r["time"]["throughput"]["median_s"]
+        assert abs(r["throughput"]["hw_fraction"] - want) <= 1e-9 * want
     rows = list(csv.DictReader((out / "results.csv").open()))
     assert len(rows) == len(recs)
     md = (out / "results.md").read_text()
