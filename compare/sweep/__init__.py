@@ -29,7 +29,7 @@ from typing import Any
 
 import backends
 import scenarios
-from compare import engine, environment, options
+from compare import engine, environment, hardware, options
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
@@ -153,7 +153,7 @@ def contents(store: Store) -> dict[str, Any]:
 
 # ---- running --------------------------------------------------------------------------------
 def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None], probes, args,
-             store: Store) -> None:
+             store: Store, yardstick: dict[str, dict[str, Any]]) -> None:
     """Run the cells (one at a time: they would share cores and the GPU) into the store (saved
     after every record), each error-sweep record with its converged error attached first."""
     cache: dict[Any, Any] = {}
@@ -165,6 +165,7 @@ def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None
                                                                   reference=references[j])
             if conv is not None:
                 rec["converged"] = conv
+        hardware.annotate([rec], yardstick)
         tags = rec.get("tags") or {}
         print(f"[{next(count)}/{len(specs)}] {tags.get('sweep')} {rec['scenario']}/{rec['backend']}/"
               f"{rec['device']}/{rec['precision']}/{rec['variant']} {tags.get('knob') or ''}: "
@@ -203,9 +204,11 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
     env["backends"] = probes
     env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
+    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s, _ in planned)
+                       if any(p["available"].get(d) is None for p in probes.values())}
     store.runs.append(env)
     store.save()
-    run_plan([s for s, _ in planned], [r for _, r in planned], probes, args, store)
+    run_plan([s for s, _ in planned], [r for _, r in planned], probes, args, store, env["hardware"])
     page = rebuild(contents(store), args, [str(store.path)], notes)
     print(pages.summary(store.records))
     print(f"wrote {store.path} and {page}")
