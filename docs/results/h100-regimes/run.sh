@@ -19,15 +19,17 @@ python -m compare run saxpy --devices cuda --precision float32 --set n=67108864 
   --no-plots > "$OUT/large.log" 2>&1
 echo "large rc=$?"
 # Clock validation: the GPU time Nsight Compute measures for the kernels of one small (n = 1e6)
-# and one large (n = 2^26) SAXPY cell per framework, steady-state launches only (skip the first
-# 10 kernels: compilation, first call, warm-up); compared on the page with the same cells' CUDA
-# event and wall-clock medians from the unprofiled runs above.
+# and one large (n = 2^26) SAXPY cell per framework (the worker alone, so no probe or yardstick
+# process is profiled), steady-state launches only (skip the first 10 kernels: first call and
+# warm-up); compared on the page with the same cells' CUDA event and wall-clock medians from the
+# unprofiled runs above.
 for b in warp taichi jax numba; do
   for n in 1000000 67108864; do
+    mkdir -p "/tmp/ncu-$b-$n"
+    echo "[{\"scenario\": \"saxpy\", \"backend\": \"$b\", \"device\": \"cuda\", \"precision\": \"float32\",
+      \"params\": {\"n\": $n}, \"repeat\": 3, \"min_time\": 0, \"throughput\": false}]" > "/tmp/ncu-$b-$n/spec.json"
     ncu --metrics gpu__time_duration.sum --csv --launch-skip 10 --launch-count 20 \
-        --target-processes all python -m compare run saxpy --devices cuda --backends "$b" \
-        --precision float32 --set n=$n --repeat 3 --min-time 0 --no-plots --out "/tmp/ncu-$b-$n" \
-        > "/tmp/ncu-$b-$n.csv" 2>/dev/null
+        python -m compare.worker "/tmp/ncu-$b-$n/spec.json" "/tmp/ncu-$b-$n" > "/tmp/ncu-$b-$n.csv" 2>/dev/null
     grep '"gpu__time_duration.sum"' "/tmp/ncu-$b-$n.csv" | sed "s/^/$b,$n,/" >> "$OUT/ncu.csv"
   done
 done
