@@ -114,6 +114,12 @@ def roofline(records: list[dict[str, Any]], device: str) -> dict[str, Any] | Non
     return best
 
 
+def throughput_s(rec: dict[str, Any]) -> float | None:
+    """Per-call time in the throughput regime (k calls, one synchronise), where measured."""
+    thr = (rec.get("time") or {}).get("throughput") or {}
+    return float(thr["median_s"]) if thr.get("median_s") else None
+
+
 def launch_wall(records: list[dict[str, Any]], backend: str, device: str, precision: str) -> float | None:
     hits = ok(records, sweep="bandwidth", role="launch", backend=backend, device=device, precision=precision)
     return wall_s(hits[-1]) if hits else None
@@ -170,6 +176,10 @@ def error_points(records: list[dict[str, Any]], device: str, scenario: str) -> l
 
 def device_bytes(rec: dict[str, Any]) -> tuple[int | None, str]:
     m = rec.get("memory") or {}
+    if isinstance(m.get("device_bytes"), (int, float)):   # the one metric every backend shares
+        own = m.get("device_peak_bytes")
+        return int(m["device_bytes"]), "NVML above the context" + (
+            f"; framework's own figure {fmt_bytes(own)}" if isinstance(own, (int, float)) else "")
     for k, src in (("device_peak_bytes", m.get("device_memory_source", "framework")),
                    ("nvml_process_peak_bytes", "nvml process"),
                    ("nvml_device_delta_peak_bytes", "nvml device delta")):
@@ -247,12 +257,16 @@ def size_table(records, device, scenario) -> str:
                   key=lambda r: (r["backend"], r["precision"], knob(r).get("value") or 0))
     for r in mine:
         b = bandwidth_row(r, records)
+        thr = throughput_s(r)
         rows.append([r["backend"], r["precision"], f"2^{int(math.log2(knob(r)['value']))}",
                      fmt_bytes(r["work"]["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
-                     f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"]])
+                     f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"],
+                     fmt_time(thr), f"{gbps(r['work']['bytes'], thr):.3g}" if thr else "-",
+                     pct((r.get("throughput") or {}).get("hw_fraction"))])
     return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "bytes/call",
                          "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
-                         "launch share", "regime"]) if rows else ""
+                         "launch share", "regime", "throughput: per call", "throughput: GB/s",
+                         "hw fraction"]) if rows else ""
 
 
 def error_table(records, device, scenario) -> str:
@@ -294,13 +308,15 @@ def scaling_table(records, device, scenario) -> str:
         t = wall_s(r)
         db, src = device_bytes(r)
         rates = [fmt_rate(r["params"][per_run] / t, f"{per_run}/s")] if per_run else []
+        thr = throughput_s(r)
         rows.append([r["backend"], r["precision"], knob(r).get("value"), fmt_time(t),
-                     fmt_time(event_s(r)), *rates, fmt_rate(r["work"]["items"] / t, "/s"),
+                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(r["work"]["items"] / (thr or t), "/s"),
                      fmt_bytes(r["memory"]["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
                      r["error"].get("checked_items", "all")])
     return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "wall median",
-                         "CUDA-event median", *([f"{per_run}/s"] if per_run else []), f"{items}/s",
+                         "CUDA-event median", "throughput: per call", *([f"{per_run}/s"] if per_run else []),
+                         f"{items}/s (throughput regime where measured)",
                          "peak host RSS", "device memory", "checked vs oracle"]) if rows else ""
 
 
