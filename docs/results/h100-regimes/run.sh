@@ -13,6 +13,19 @@ if [ "${1:-}" = "sweeps" ]; then        # part B
   echo "sweep scaling rc=$?"
   exit 0
 fi
+if [ "${1:-}" = "lease2" ]; then        # part D (see the end of this file)
+  python -m compare all --devices cuda --precision float32 --out "$OUT/lease2" --no-plots > "$OUT/lease2.log" 2>&1
+  echo "lease2 all rc=$?"
+  for n in 67108864 268435456; do
+    python -m compare run saxpy --devices cuda --precision float32 --set n=$n --out "$OUT/lease2-saxpy-$n" \
+      --no-plots >> "$OUT/lease2.log" 2>&1
+    echo "lease2 saxpy $n rc=$?"
+  done
+  python -m compare run particles --devices cuda --precision float32 --set n=16777216 \
+    --out "$OUT/lease2-particles" --no-plots >> "$OUT/lease2.log" 2>&1
+  echo "lease2 particles rc=$?"
+  exit 0
+fi
 if [ "${1:-}" = "ncu" ]; then           # part C
   # Clock validation: the GPU time Nsight Compute measures for the kernels of one small (n = 1e6)
   # and one large (n = 2^26) SAXPY cell per framework (the worker alone, so no probe or yardstick
@@ -37,3 +50,5 @@ echo "all rc=$?"
 python -m compare run saxpy --devices cuda --precision float32 --set n=67108864 --out "$OUT/large" \
   --no-plots > "$OUT/large.log" 2>&1
 echo "large rc=$?"
+# Part D (run.sh lease2), on a second lease, for the headline's lease-to-lease spread: the
+# headline cells again (default sizes, SAXPY 2^26 and 2^28, particles 2^24).
