@@ -14,6 +14,7 @@ from typing import Any, Callable
 import numpy as np
 
 from backends.base import DEVICES
+from compare import lifeline
 
 ROOT = Path(__file__).resolve().parent.parent
 Result = tuple[dict[str, Any], "dict[str, np.ndarray] | None"]
@@ -76,35 +77,41 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
     if not specs:
         return []
     results: list[Result] = []
-    with tempfile.TemporaryDirectory(prefix="cells-") as tmp:
+    # under this driver's temporary root: deleted even if the driver is killed (compare.lifeline)
+    with lifeline.temp_dir("cells-") as tmp:
         tmp_path = Path(tmp)
         (tmp_path / "specs.json").write_text(json.dumps(specs))
-        cmd = [sys.executable, "-m", "compare.worker", str(tmp_path / "specs.json"), str(tmp_path)]
+        cmd = lifeline.command("compare.worker", str(tmp_path / "specs.json"), str(tmp_path))
         with tempfile.TemporaryFile("w+") as err:
-            proc = subprocess.Popen(cmd, cwd=ROOT, env=worker_env(specs[0]["backend"]), stdout=subprocess.DEVNULL,
-                                    stderr=err, text=True, stdin=subprocess.DEVNULL)
+            proc = subprocess.Popen(cmd, cwd=ROOT, env=lifeline.child_environment(worker_env(specs[0]["backend"])),
+                                    stdout=subprocess.DEVNULL, stderr=err, text=True, stdin=subprocess.DEVNULL)
             started, done = time.monotonic(), 0
             reason = None
-            while done < len(specs):
-                if (tmp_path / f"cell-{done}" / "record.json").exists():
-                    got(_collect(tmp_path / f"cell-{done}", specs[done]))
-                    done, started = done + 1, time.monotonic()
-                    continue
-                if proc.poll() is not None:
+            try:
+                while done < len(specs):
                     if (tmp_path / f"cell-{done}" / "record.json").exists():
+                        got(_collect(tmp_path / f"cell-{done}", specs[done]))
+                        done, started = done + 1, time.monotonic()
                         continue
-                    err.seek(0)
-                    reason = _died(proc, err.read())
-                    break
-                if timeout is not None and time.monotonic() - started > timeout:
+                    if proc.poll() is not None:
+                        if (tmp_path / f"cell-{done}" / "record.json").exists():
+                            continue
+                        err.seek(0)
+                        reason = _died(proc, err.read())
+                        break
+                    if timeout is not None and time.monotonic() - started > timeout:
+                        proc.kill()
+                        proc.wait()
+                        err.seek(0)
+                        reason = f"timed out after {timeout:g} s; {_tail(err.read(), 2)}".rstrip("; ")
+                        break
+                    time.sleep(0.02)
+                if proc.poll() is None:
+                    proc.wait()
+            finally:        # the driver gives up (a full disk, Ctrl-C): no worker runs on
+                if proc.poll() is None:
                     proc.kill()
                     proc.wait()
-                    err.seek(0)
-                    reason = f"timed out after {timeout:g} s; {_tail(err.read(), 2)}".rstrip("; ")
-                    break
-                time.sleep(0.02)
-            if proc.poll() is None:
-                proc.wait()
     if reason is not None:
         got(({"status": "error", "reason": reason}, None))
         start = len(results)
@@ -145,7 +152,8 @@ print("PROBE" + json.dumps(out))
 def probe(name: str, timeout: float = 180.0) -> dict[str, Any]:
     """Which devices a backend can use (and why not), checked in its own process."""
     try:
-        proc = subprocess.run([sys.executable, "-c", PROBE, name], cwd=ROOT, env=worker_env(name),
+        proc = subprocess.run(lifeline.command("-c", PROBE, name), cwd=ROOT,
+                              env=lifeline.child_environment(worker_env(name)),
                               capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
         why = f"availability probe timed out after {timeout:g} s"

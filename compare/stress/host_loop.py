@@ -14,13 +14,13 @@ import json
 import math
 import subprocess
 import sys
-import tempfile
 import traceback
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from compare import lifeline
 from compare.cells import ROOT, worker_env
 
 
@@ -35,12 +35,12 @@ def call(task: dict[str, Any]) -> dict[str, Any]:
 
 def run(task: dict[str, Any], timeout: float = 900.0) -> dict[str, Any]:
     """Run ``task`` in a fresh interpreter (as compare.cells.run does for a cell); never raises."""
-    with tempfile.TemporaryDirectory(prefix="stress-task-") as tmp:
+    with lifeline.temp_dir("stress-task-") as tmp:
         spec, out = Path(tmp) / "task.json", Path(tmp) / "out.json"
         spec.write_text(json.dumps(task))
         try:
-            proc = subprocess.run([sys.executable, "-m", __name__, str(spec), str(out)],
-                                  cwd=ROOT, env=worker_env(task.get("backend")), capture_output=True,
+            proc = subprocess.run(lifeline.command(__name__, str(spec), str(out)), cwd=ROOT,
+                                  env=lifeline.child_environment(worker_env(task.get("backend"))), capture_output=True,
                                   text=True, timeout=timeout, stdin=subprocess.DEVNULL)
         except subprocess.TimeoutExpired:
             return {"error": f"task timed out after {timeout:g} s"}
