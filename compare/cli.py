@@ -18,7 +18,8 @@ from typing import Any
 import backends
 import scenarios
 from compare import engine, options, run_suite
-from compare.options import EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
+from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
+from compare.spec import SpecError
 from compare.store import StoreError
 from scenarios.base import ParamError
 
@@ -90,11 +91,25 @@ def cmd_list() -> int:
     return EXIT_OK
 
 
+def parse(argv: list[str]) -> argparse.Namespace:
+    """The parsed command line. Words after the options join the command's list of files or
+    scenarios (argparse takes a positional list in one block: ``sweep report --out D a.json``);
+    any other leftover is refused."""
+    args, extra = build_parser().parse_known_args(argv)
+    words = [w for w in extra if not w.startswith("-")]
+    listed = next((k for k in ("files", "scenarios") if isinstance(getattr(args, k, None), list)), None)
+    if extra and (listed is None or len(words) != len(extra)):
+        raise UsageError(f"unrecognized arguments: {' '.join(extra)}")
+    if words:
+        setattr(args, listed, getattr(args, listed) + words)
+    return args
+
+
 def main(argv: list[str]) -> int:
     try:
         if argv and not argv[0].startswith("-") and argv[0] not in known_commands():
             raise UsageError(f"unknown scenario or command {argv[0]!r} (known: {', '.join(known_commands())})")
-        args = build_parser().parse_args(argv)
+        args = parse(argv)
         if args.command == "list":
             return cmd_list()
         if args.command == "report":
@@ -104,13 +119,27 @@ def main(argv: list[str]) -> int:
         if args.command == "all":
             chosen = [sc for sc in scenarios.SCENARIOS.values() if sc.in_all]
         elif args.command == "run":
-            chosen = [scenarios.get(n) for n in dict.fromkeys(args.scenarios)]
+            chosen = [scenarios.get(n) for n in options.no_duplicates(args.scenarios, "run")]
         else:
             chosen = [scenarios.get(args.command)]
         return run_suite.run(args, argv, chosen)
-    except (UsageError, ParamError, StoreError) as exc:
+    except (UsageError, ParamError, StoreError, SpecError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except OSError as exc:      # the disk filled up (or went away) mid-run: what was saved stays
+        print(f"error: {write_failure(exc, argv)}", file=sys.stderr)
+        return EXIT_FAIL
+
+
+def write_failure(exc: OSError, argv: list[str]) -> str:
+    """One line for a failed write: which file, why, and that the saved records are kept."""
+    what = f"cannot write {exc.filename}" if exc.filename else "a write failed"
+    why = exc.strerror or str(exc)
+    suite = bool(argv) and argv[0] not in ("report", "list") and argv[1:2] != ["report"]
+    hint = "" if not suite else "; every record saved before it is kept" + (
+        "" if argv[0] == "stress" else ": free some space and rerun with --resume")
+    return f"{what}: {why}{hint}"
+

@@ -114,6 +114,7 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
     probes = probes if probes is not None else availability({s["backend"] for s in specs})
     lock = threading.Lock()
     done: list[Result | None] = [None] * len(specs)
+    failed: list[BaseException] = []
     idents = []
     for spec in specs:
         ident = {k: spec[k] for k in (*IDENTITY, "params")}
@@ -131,11 +132,17 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
             rec.setdefault(k, None)
         rec = jsonable(rec)
         with lock:
+            if failed:                            # the store could not save (a full disk): no
+                raise failed[0]                   # other cell's record may pretend to be kept
             if on_record is not None and save:    # first: it may add to the record (a sweep's
                 on_record(i, rec, out)            # converged error) before the store keeps it
             if store is not None and save:
                 store.put(rec)
-                store.save()
+                try:
+                    store.save()
+                except BaseException as exc:
+                    failed.append(exc)
+                    raise
         done[i] = (rec, out)
 
     groups: dict[Any, list[int]] = {}

@@ -12,7 +12,7 @@ from typing import Any, Iterable
 
 import backends
 import scenarios
-from scenarios.base import PRECISIONS, ParamError
+from scenarios.base import PRECISIONS, ParamError, dtype_of
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -24,6 +24,12 @@ class UsageError(Exception):
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:   # one line, exit 2, no usage dump
         raise UsageError(message)
+
+    def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> Any:
+        # argparse drops a lone '--' value (``--repeat=--``) and stores [] unchecked
+        if action.option_strings and action.nargs is None and list(arg_strings) == ["--"]:
+            raise UsageError(f"argument {'/'.join(action.option_strings)}: expected a value, got '--'")
+        return super()._get_values(action, arg_strings)
 
 
 def names(value: str, allowed: Iterable[str], what: str) -> list[str]:
@@ -99,6 +105,34 @@ def add_page(p: argparse.ArgumentParser) -> None:
                    help="hand-written Markdown put under the title (never numbers)")
 
 
+def given(args: argparse.Namespace, add_arguments: Any, *positional: str) -> list[str]:
+    """The options of ``args`` that differ from their defaults (as ``--name``), where
+    ``add_arguments`` builds the subcommand's parser and ``positional`` satisfies it."""
+    p = Parser(add_help=False)
+    add_arguments(p)
+    defaults = vars(p.parse_args(list(positional)))
+    dests = {a.dest: a for a in p._actions}
+    return [a.option_strings[0] if a.option_strings else a.dest
+            for k, a in dests.items() if k in defaults and getattr(args, k, defaults[k]) != defaults[k]]
+
+
+def refuse_inapplicable(args: argparse.Namespace, add_arguments: Any, allowed: Iterable[str],
+                        where: str, *positional: str) -> None:
+    """A one-line UsageError for the first option given that does not apply ``where``."""
+    allowed = set(allowed)
+    for opt in given(args, add_arguments, *positional):
+        if opt not in allowed:
+            raise UsageError(f"{opt} does not apply {where}")
+
+
+def no_duplicates(items: Iterable[str], what: str) -> list[str]:
+    items = list(items)
+    dup = next((v for i, v in enumerate(items) if v in items[:i]), None)
+    if dup is not None:
+        raise UsageError(f"{what} names {dup!r} twice")
+    return items
+
+
 def selection(args: argparse.Namespace) -> dict[str, list[str]]:
     """Validated backend, device, precision and variant lists (reference backend first)."""
     chosen = names(args.backends, backends.BACKENDS, "backends")
@@ -107,12 +141,30 @@ def selection(args: argparse.Namespace) -> dict[str, list[str]]:
         "backends": sorted(chosen, key=lambda n: n != ref),
         "devices": names(args.devices, backends.DEVICES, "devices"),
     }
-    if getattr(args, "precision", None):
+    if getattr(args, "precision", None) is not None:
         out["precisions"] = names(args.precision, PRECISIONS, "precision")
     if hasattr(args, "variants"):
         offered = sorted({v for n in chosen for v in backends.get(n).variants})
         out["variants"] = names(args.variants, offered, "variants")
     return out
+
+
+def check_precision(sc: scenarios.Scenario, params: Any, precision: str) -> None:
+    """Refuse a float parameter that is finite in float64 but not in the cell's precision (it
+    would overflow to inf, or a nonzero value round to 0, when the inputs are rounded to it)."""
+    import dataclasses
+
+    import numpy as np
+    dt = np.dtype(dtype_of(precision)).type
+    for f in dataclasses.fields(params):
+        v = getattr(params, f.name)
+        if not isinstance(v, float):
+            continue
+        with np.errstate(over="ignore", under="ignore"):
+            r = dt(v)
+        if not np.isfinite(r) or (v != 0 and r == 0):
+            raise ParamError(f"{sc.name}: {f.name}={v!r} is not representable in {precision} "
+                             f"(rounds to {float(r)!r}); give --precision without {precision}")
 
 
 def parse_sets(pairs: list[str]) -> dict[str, str]:
@@ -141,24 +193,78 @@ def scenario_sets(raw: dict[str, str], chosen: list[scenarios.Scenario]) -> dict
     return {sc.name: {k: v for k, v in raw.items() if k in known[sc.name]} for sc in chosen}
 
 
-def output_directory(path: str) -> Path:
-    """The output directory, created if needed and checked writable before any cell runs."""
+def _existing_ancestor(path: Path) -> Path:
+    p = path.absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def check_output(path: str, flag: str = "--out") -> Path:
+    """--out checked without writing anything: not empty, not a file, not under a file, on a
+    writable filesystem. ``output_directory`` then creates it."""
     import os
-    import tempfile
     if not path or not path.strip():
-        raise UsageError("--out is empty (give a directory)")
+        raise UsageError(f"{flag} is empty (give a directory)")
     out = Path(path)
     if out.exists() and not out.is_dir():
-        raise UsageError(f"--out {path}: is a file, not a directory")
+        raise UsageError(f"{flag} {path}: is a file, not a directory")
+    base = _existing_ancestor(out)
+    if not base.is_dir():
+        raise UsageError(f"{flag} {path}: {base} is a file, not a directory")
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise UsageError(f"{flag} {path}: not writable ({base} does not allow it)")
+    return out
+
+
+def free_bytes(path: Path) -> int:
+    """Free space for an unprivileged writer on the filesystem of ``path`` (or its nearest
+    existing ancestor). Test hook: COMPARE_FAULT_FREE=BYTES pretends that much is free."""
+    import os
+    import shutil
+    fake = os.environ.get("COMPARE_FAULT_FREE", "")
+    if fake.isdigit():
+        return int(fake)
+    return shutil.disk_usage(_existing_ancestor(Path(path))).free
+
+
+def gib(n: float) -> str:
+    return f"{n / 2**30:.2f} GiB" if n >= 2**28 else f"{n / 2**20:.0f} MiB"
+
+
+def output_directory(path: str, need_bytes: float = 0.0, what: str = "the results") -> Path:
+    """The output directory, checked (``check_output``), with room for ``need_bytes`` (refused
+    before anything is written otherwise), then created; before any cell runs."""
+    out = check_output(path)
+    have = free_bytes(out)
+    if need_bytes > have:
+        raise UsageError(f"--out {path}: {gib(have)} free, {what} need about {gib(need_bytes)}; "
+                         "free some space or give another --out")
     try:
         out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
     except OSError as exc:
         raise UsageError(f"--out {path}: cannot write there ({exc.strerror or exc})") from None
-    if not os.access(out, os.W_OK):
-        raise UsageError(f"--out {path}: not writable")
     return out
+
+
+def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results"):
+    """``output_directory`` and then this driver's lock on it (compare.lock; a second driver on
+    the same --out is refused with one line naming the holder's PID), with the temporary files
+    a killed driver left there removed. Returns (directory, lock): release the lock when done
+    (``with lock:``); the kernel releases it if the driver dies."""
+    from compare.lock import Busy, DirectoryLock
+    from compare.store import atomic_figures, remove_stale_temps
+    out = output_directory(path, need_bytes, what)
+    lock = DirectoryLock(out)
+    try:
+        lock.acquire()
+    except Busy as exc:
+        raise UsageError(str(exc)) from None
+    except OSError as exc:          # creating the lock file is the first write: the write test
+        raise UsageError(f"--out {path}: cannot write there ({exc.strerror or exc})") from None
+    remove_stale_temps(out)
+    atomic_figures()
+    return out, lock
 
 
 def read_notes(path: str | None) -> str:

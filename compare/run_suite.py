@@ -19,6 +19,7 @@ import backends
 import scenarios
 from compare import engine, environment, hardware, options, report
 from compare.store import UPGRADES, Store, array_file, load_arrays, save_arrays
+from compare.options import UsageError
 from scenarios.base import ParamError
 
 
@@ -52,47 +53,105 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wide", action="store_true", help="print every column (default: a view that fits 120)")
 
 
-def check_memory(sc: scenarios.Scenario, params: Any) -> None:
-    """Refuse sizes that cannot fit in this machine's memory before any worker starts."""
+# Host memory of one worker process beyond its cell's data (Scenario.footprint): the interpreter,
+# NumPy and the framework. Measured peaks of tiny cells on CPU (tests/test_reliability.py,
+# docs/reliability.md): warp 177 MiB, numba 216, jax 224, taichi 135; kept with room for CUDA
+# runtimes' host-side libraries.
+WORKER_BASELINE_BYTES = 512 * 2**20
+RECORD_BYTES = 64 * 2**10          # one record in results.json, generously (params, info, gradients)
+PAGE_BYTES = 32 * 2**20            # results.csv, results.md and the plots of one run
+
+
+def cell_bytes(spec: dict[str, Any]) -> tuple[float, float, float]:
+    """(worker peak, bytes handed back to the driver, bytes --save-arrays writes) of one cell."""
+    sc = scenarios.get(spec["scenario"])
+    p = sc.params(spec.get("params"), quick=spec.get("quick", False))
+    prec = spec["precision"]
+    outputs = sc.output_bytes(p, prec)
+    arrays = outputs + sc.input_bytes(p, prec)
+    worker = WORKER_BASELINE_BYTES + sc.footprint(p, prec)
+    return worker, (arrays if spec.get("save_inputs") else outputs), arrays
+
+
+def check_memory(specs: list[dict[str, Any]], driver: bool = True, worker: bool = True) -> None:
+    """Refuse a plan this machine's AVAILABLE memory cannot hold, before any worker starts: the
+    largest cell's worker (interpreter and framework + Scenario.footprint, a bound checked
+    against measured peaks by tests/test_reliability.py) plus, with ``driver``, the outputs the
+    driver keeps of every cell until the report is written."""
     import psutil
-    need = sc.footprint(params, "float64")
-    have = psutil.virtual_memory().total
+    if not specs:
+        return
+    sizes = [cell_bytes(s) for s in specs]
+    big = max(range(len(specs)), key=lambda i: sizes[i][0])
+    need = (sizes[big][0] if worker else 0.0) + (sum(b for _, b, _ in sizes) if driver else 0.0)
+    have = psutil.virtual_memory().available
     if need > have:
-        raise ParamError(f"{sc.name} with {sc.size_text(params)} needs about {need / 2**30:.1f} GiB "
-                         f"of host memory; this machine has {have / 2**30:.1f} GiB")
+        s = specs[big]
+        sc = scenarios.get(s["scenario"])
+        what = f"{sc.name} with {sc.size_text(sc.params(s.get('params'), quick=s.get('quick', False)))}"
+        parts = ([f"one {s['precision']} cell's worker {options.gib(sizes[big][0])}"] if worker else []) + \
+                ([f"outputs of {len(specs)} cells kept by the driver {options.gib(sum(b for _, b, _ in sizes))}"]
+                 if driver else [])
+        raise ParamError(f"{what} needs about {options.gib(need)} of memory ({' + '.join(parts)}); "
+                         f"{options.gib(have)} is available")
+
+
+def disk_need(specs: list[dict[str, Any]], save_arrays: bool, existing: Path | None = None) -> float:
+    """Bytes the run writes at most: results.json (rewritten through a temporary beside it, so
+    twice), tables and plots, and with --save-arrays every cell's inputs and outputs."""
+    old = existing.stat().st_size if existing is not None and existing.exists() else 0
+    need = 2 * (old + RECORD_BYTES * len(specs)) + PAGE_BYTES
+    if save_arrays:
+        need += sum(cell_bytes(s)[2] for s in specs)
+    return need
 
 
 def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dict[str, Any]]:
+    """Every cell of the run, validated: bad input never reaches a worker or the output directory."""
     sel = options.selection(args)
     sets = options.scenario_sets(options.parse_sets(args.set), chosen)
-    for sc in chosen:     # validate now: bad input never reaches a worker
-        check_memory(sc, sc.params(sets[sc.name], quick=args.quick))
-    return [{"scenario": sc.name, "backend": b, "device": d, "precision": p, "variant": v,
-             "params": sets[sc.name], "quick": args.quick, "repeat": args.repeat,
-             "min_time": args.min_time, "save_inputs": args.save_arrays}
-            for sc in chosen for b in sel["backends"] for d in sel["devices"]
-            for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants]
+    if args.scheduler is not None and not args.scheduler.strip():
+        raise UsageError("--scheduler is empty (give ADDRESS, or 'local')")
+    for sc in chosen:
+        params = sc.params(sets[sc.name], quick=args.quick)
+        for prec in sel["precisions"]:
+            options.check_precision(sc, params, prec)
+    specs = [{"scenario": sc.name, "backend": b, "device": d, "precision": p, "variant": v,
+              "params": sets[sc.name], "quick": args.quick, "repeat": args.repeat,
+              "min_time": args.min_time, "save_inputs": args.save_arrays}
+             for sc in chosen for b in sel["backends"] for d in sel["devices"]
+             for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants]
+    if not specs:
+        raise UsageError(f"nothing to run: no chosen backend ({', '.join(sel['backends'])}) has "
+                         f"variant(s) {', '.join(sel['variants'])}")
+    if args.scheduler in (None, "local"):      # the worker runs here
+        check_memory(specs, driver=False)
+    return specs
 
 
-def dask_runner(scheduler: str, timeout: float, specs: list[dict[str, Any]],
-                probes: dict[str, dict[str, Any]]) -> Callable[[dict[str, Any]], engine.Result]:
-    """Cells as tasks on a Dask distributed scheduler (``local``: a one-worker LocalCluster), all
-    submitted at once and collected in order. Each task still starts its own worker process, so
-    isolation and timeouts are the same; give Dask workers one thread each so cells sharing a
-    host do not time each other."""
-    from compare import cells
+def dask_client(scheduler: str) -> Any:
+    """A Dask distributed client (``local``: a one-worker LocalCluster); a bad or unreachable
+    address is a one-line ParamError, before anything is written."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:
         raise ParamError("--scheduler needs the 'distributed' package (pip install distributed)") from None
     if scheduler == "local":
-        client = Client(LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                     dashboard_address=None))
-    else:
-        try:
-            client = Client(scheduler, timeout="30s")
-        except (OSError, TimeoutError, ValueError, TypeError) as exc:
-            raise ParamError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {exc})") from None
+        return Client(LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                   dashboard_address=None))
+    try:
+        return Client(scheduler, timeout="30s")
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        first = (str(exc).splitlines() or [""])[0]
+        raise ParamError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {first})") from None
+
+
+def dask_runner(client: Any, timeout: float, specs: list[dict[str, Any]],
+                probes: dict[str, dict[str, Any]]) -> Callable[[dict[str, Any]], engine.Result]:
+    """Cells as tasks on a Dask distributed scheduler, all submitted at once and collected in
+    order. Each task still starts its own worker process, so isolation and timeouts are the
+    same; give Dask workers one thread each so cells sharing a host do not time each other."""
+    from compare import cells
     prepared = [s for s in map(engine.prepare, specs) if not engine.not_runnable(s, probes)]
     futures = {json.dumps(s, sort_keys=True): client.submit(cells.run, s, timeout, pure=False)
                for s in prepared}
@@ -141,17 +200,30 @@ def render(out: Path, env: dict[str, Any], records: list[dict[str, Any]],
 
 def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
     specs = plan(args, chosen)
-    out = options.output_directory(args.out)
-    store = Store.open(out, "run", keep=args.resume)
+    options.check_output(args.out)                    # a bad --out is refused before the probes
+    Store.open(args.out, "run", keep=args.resume)     # and a bad results.json to resume (read only)
     sel_backends = sorted({s["backend"] for s in specs})
     probes = engine.availability(sel_backends)
+    runnable = [s for s in specs if not engine.not_runnable(engine.prepare(s), probes)]
+    check_memory(runnable, worker=args.scheduler in (None, "local"))
+    need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
+    client = dask_client(args.scheduler) if args.scheduler else None
+    out, lock = options.claim_output(args.out, need, "the results" + (" and arrays" if args.save_arrays else ""))
+    with lock:
+        return run_claimed(args, argv, specs, out, probes, client)
+
+
+def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str, Any]], out: Path,
+                probes: dict[str, dict[str, Any]], client: Any = None) -> int:
+    """The run, once its output directory is checked, has room and is locked by this driver."""
+    store = Store.open(out, "run", keep=args.resume)
     env = environment.collect(argv)
     env["backends"] = probes
     # the framework-neutral yardstick of every device some backend can use, in this same run
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s in specs)
                        if any(p["available"].get(d) is None for p in probes.values())}
     store.runs = [*store.runs, env] if args.resume else [env]
-    runner = dask_runner(args.scheduler, args.timeout, specs, probes) if args.scheduler else None
+    runner = dask_runner(client, args.timeout, specs, probes) if client is not None else None
     results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=engine.progress(len(specs)))
     # the records of this plan, in plan order; with --resume also the kept records of other plans
@@ -181,6 +253,10 @@ def report_command(args: argparse.Namespace) -> int:
     records: list[dict[str, Any]] = []
     envs: list[dict[str, Any]] = []
     outputs: dict[int, dict[str, np.ndarray]] = {}
+    options.no_duplicates(args.files, "report")
+    for opt in ("title", "notes"):
+        if getattr(args, opt) is not None and not args.page:
+            raise UsageError(f"--{opt} applies only with --page")
     for f in args.files:
         store = Store.read(f, "run")
         for env in store.runs:
@@ -193,10 +269,18 @@ def report_command(args: argparse.Namespace) -> int:
         saved_outputs(Path(f).parent, recs, mine)     # --save-arrays outputs redraw the pictures
         outputs.update({len(records) + i: o for i, o in mine.items()})
         records += recs
-    out = options.output_directory(args.out)
+    notes = options.read_notes(args.notes)
+    if args.page:
+        options.check_output(str(Path(args.page).parent), "--page's directory")
+    out, lock = options.claim_output(args.out, PAGE_BYTES + 2 * RECORD_BYTES * len(records))
+    with lock:
+        return report_claimed(args, out, envs, records, outputs, notes)
+
+
+def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any]],
+                   records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], notes: str) -> int:
     if args.page:
         page = Path(args.page)
-        notes = options.read_notes(args.notes)
         if not args.no_plots:
             (out / "plots").mkdir(parents=True, exist_ok=True)
             report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")

@@ -101,9 +101,26 @@ def record_problem(rec: Any) -> str | None:
             return f"record field {f!r} must be a string, got {rec.get(f)!r}"
     if rec.get("status") not in STATUSES:
         return f"record status must be one of {', '.join(STATUSES)}, got {rec.get('status')!r}"
-    for f in ("params", "time", "error", "tags"):
+    for f in OBJECT_FIELDS:
         if rec.get(f) is not None and not isinstance(rec[f], dict):
             return f"record field {f!r} must be an object or null, got {type(rec[f]).__name__}"
     if not isinstance(rec.get("variant", "default"), str) or not isinstance(rec.get("reason", ""), str):
         return "record fields 'variant' and 'reason' must be strings"
+    for f, keys in NUMBER_FIELDS.items():
+        for k in keys:
+            v = (rec.get(f) or {}).get(k)
+            if v is not None and not _number(v):
+                return f"record field {f}.{k} must be a number or null, got {v!r}"
     return None
+
+
+# Record fields that are objects (or null), and the figures inside them that are numbers (or
+# null, or the strings 'nan', 'inf', '-inf' that jsonable writes for non-finite floats).
+OBJECT_FIELDS = ("params", "time", "error", "tags", "work", "throughput", "memory", "info", "versions",
+                 "gradient", "converged")
+NUMBER_FIELDS = {"time": ("first_call_s", "median_s", "iqr_s", "min_s"),
+                 "error": ("vs_oracle", "tolerance", "vs_reference")}
+
+
+def _number(v: Any) -> bool:
+    return (isinstance(v, (int, float)) and not isinstance(v, bool)) or v in ("nan", "inf", "-inf")

@@ -15,6 +15,7 @@ results.json ``{environment, records}``, sweep.json ``{runs, records}``, stress.
 """
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -54,23 +55,96 @@ def jsonable(x: Any) -> Any:
     return x
 
 
+_WRITES = [0]          # atomic writes of this process, for the COMPARE_FAULT_DISK test hook
+
+
+def _disk_fault(f: Any, data: bytes) -> None:
+    """Test hook: COMPARE_FAULT_DISK=N makes every atomic write of this process after the first N
+    fail as a full disk does (half the data written, then OSError ENOSPC)."""
+    limit = os.environ.get("COMPARE_FAULT_DISK", "")
+    if not limit.isdigit():
+        return
+    _WRITES[0] += 1
+    if _WRITES[0] > int(limit):
+        f.write(data[: len(data) // 2])
+        f.flush()
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
 def atomic_write(path: Path, data: str | bytes) -> None:
     """Write via a temporary file in the same directory and rename, so a reader never sees half
-    a file and a failed write (a full disk) leaves neither a partial file nor the temporary."""
+    a file and a failed write (a full disk) leaves neither a partial file nor the temporary; the
+    file keeps its previous content. An OSError names ``path``, not the temporary."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    raw = data.encode() if isinstance(data, str) else data
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMP_SUFFIX)
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data.encode() if isinstance(data, str) else data)
+            _disk_fault(f, raw)
+            f.write(raw)
         os.chmod(tmp, 0o644)          # mkstemp creates 0600; results are meant to be shared
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(exc, OSError) and exc.filename != str(path):
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
         raise
+
+
+def atomic_figures() -> None:
+    """Make every ``Figure.savefig(path)`` of this process an ``atomic_write`` (the plots of
+    every suite, wherever they are drawn): a full disk leaves the old picture or none, never
+    half a PNG. Installed by ``compare.options.claim_output``, i.e. by every driver that writes."""
+    import functools
+    import io
+
+    import matplotlib.figure as mfig
+    if getattr(mfig.Figure.savefig, "atomic", False):
+        return
+    original = mfig.Figure.savefig
+
+    @functools.wraps(original)          # pyplot copies Figure.savefig's name and docstring
+    def savefig(self: Any, fname: Any, *args: Any, **kwargs: Any) -> Any:
+        if not isinstance(fname, (str, os.PathLike)):
+            return original(self, fname, *args, **kwargs)
+        buf = io.BytesIO()
+        kwargs.setdefault("format", Path(fname).suffix.lstrip(".") or None)
+        result = original(self, buf, *args, **kwargs)
+        atomic_write(Path(fname), buf.getvalue())
+        return result
+
+    savefig.atomic = True  # type: ignore[attr-defined]
+    mfig.Figure.savefig = savefig  # type: ignore[method-assign]
+
+
+TEMP_SUFFIX = ".tmp"
+OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
+
+
+def remove_stale_temps(directory: Path) -> list[Path]:
+    """Temporary files of atomic writes (``.NAME.XXXX.tmp``) left in ``directory`` (and its
+    arrays/ and plots/) by a driver that was killed mid-write; only call while holding the
+    directory's lock (compare.lock), when no other driver can be writing there."""
+    removed = []
+    for sub in OUTPUT_SUBDIRS:
+        d = Path(directory) / sub
+        if not d.is_dir():
+            continue
+        for p in d.glob(f".*{TEMP_SUFFIX}"):
+            if p.is_file():
+                try:
+                    p.unlink()
+                    removed.append(p)
+                except OSError:
+                    pass
+    return removed
 
 
 def _upgrade(data: Any, path: Path) -> dict[str, Any]:

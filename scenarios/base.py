@@ -164,8 +164,23 @@ class Scenario:
         return {name: None for name in self.outputs}
 
     def footprint(self, params, precision: str) -> float:
-        """Bytes of host memory a cell needs (inputs, outputs, oracle), to refuse absurd sizes."""
+        """Bytes of host memory a cell's worker needs for its data at its peak (inputs, the
+        framework's copies, outputs, oracle and check temporaries), beyond the interpreter and
+        framework (compare.run_suite.WORKER_BASELINE_BYTES). An upper bound: the run suite
+        refuses sizes whose bound exceeds the available memory, and tests/test_reliability.py
+        checks it against measured peaks."""
         return 0.0
+
+    def output_bytes(self, params, precision: str) -> float:
+        """Bytes of the outputs a cell hands back (``output_shapes`` at the cell's precision;
+        an output of undeclared shape counts 0)."""
+        item = np.dtype(dtype_of(precision)).itemsize
+        return float(sum(int(np.prod(s)) * item for s in self.output_shapes(params).values() if s is not None))
+
+    def input_bytes(self, params, precision: str) -> float:
+        """Bytes of the inputs (what --save-arrays writes beside the outputs). Default: as many as
+        the outputs (true of the per-item scenarios); a scenario with more overrides it."""
+        return self.output_bytes(params, precision)
 
     def size_text(self, params) -> str:
         return ", ".join(f"{k}={getattr(params, k)}" for k in ("n", "width", "height", "steps")

@@ -15,6 +15,7 @@ failed unexpectedly or a racy control kernel went unflagged on a GPU, 2 for bad 
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import sys
 import time
@@ -29,6 +30,12 @@ from compare.store import Store
 from compare.stress import generic, page
 from compare.stress.context import COLUMNS, Ctx
 from scenarios.numerics import Experiment
+
+# disk preflight: the cell records and findings of a full suite, generously (the CPU suite's
+# stress.json is ~1 MB), and the page and plots
+RESERVE_BYTES = 256 * 2**20
+PAGE_BYTES = 32 * 2**20
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 __all__ = ["COLUMNS", "Ctx", "add_arguments", "experiments", "main", "run"]
 
@@ -49,7 +56,7 @@ def add_arguments(p: argparse.ArgumentParser, common: bool = True) -> None:
         options.add_output(p, "results/stress")
         p.add_argument("--quick", action="store_true", help="smaller sweeps (a few minutes on 2 cores)")
         p.add_argument("--timeout", type=options.seconds, default=900.0, help="seconds before a cell is killed")
-    p.add_argument("--only", default="", help="comma-separated: " + ",".join(experiments()))
+    p.add_argument("--only", default=None, help="comma-separated: " + ",".join(experiments()))
     p.add_argument("--jobs", type=options.positive_int, default=min(8, os.cpu_count() or 1),
                    help="cells run at once (stress figures are not timings)")
     p.add_argument("--merge", nargs="+", metavar="STRESS_JSON", default=None,
@@ -64,13 +71,31 @@ def failure(r: dict[str, Any]) -> bool:
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """Run the chosen experiments (or merge saved parts); raises UsageError/ParamError for bad usage."""
     registry = experiments()
-    if getattr(args, "precision", None):
+    if getattr(args, "precision", None) is not None:
         raise UsageError("--precision does not apply: each stress experiment states its precisions")
     chosen = options.selection(args)
-    only = options.names(args.only, registry, "only") if args.only else list(registry)
+    only = options.names(args.only, registry, "only") if args.only is not None else list(registry)
     if args.merge:
-        return page.merge(args.merge, Path(args.out), registry, plots_=not args.no_plots)
-    store = Store.open(options.output_directory(args.out), "stress")
+        options.refuse_inapplicable(args, add_arguments, ("--merge", "--out", "--no-plots"), "with --merge")
+        options.no_duplicates(args.merge, "--merge")
+        for f in args.merge:                # every part validated before anything is written
+            Store.read(f, "stress")
+        options.check_output(args.out)
+        Store.open(args.out, "stress")
+        out, lock = options.claim_output(args.out, 2 * sum(Path(f).stat().st_size for f in args.merge)
+                                         + PAGE_BYTES)
+        with lock:
+            return page.merge(args.merge, out, registry, plots_=not args.no_plots)
+    options.check_output(args.out)
+    Store.open(args.out, "stress")                 # a bad stress.json refused (read only)
+    out, lock = options.claim_output(args.out, RESERVE_BYTES)
+    with lock:
+        return run_claimed(args, argv, registry, chosen, only, Store.open(out, "stress"))
+
+
+def run_claimed(args: argparse.Namespace, argv: list[str], registry: dict[str, Experiment],
+                chosen: dict[str, list[str]], only: list[str], store: Store) -> int:
+    """The suite, once its output directory is checked and locked by this driver."""
     ctx = Ctx(chosen["backends"], chosen["devices"], args.quick, args.jobs, args.timeout,
               engine.availability(chosen["backends"]), store)
     env = environment.collect(argv)
@@ -82,6 +107,12 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             print(f"stress: {name} ...", file=sys.stderr, flush=True)
             try:
                 r, s = registry[name].run(ctx)
+            except OSError as exc:
+                if exc.errno in DISK_FULL:   # no experiment can save: stop (one line, exit 1)
+                    raise
+                traceback.print_exc()
+                r, s = [ctx.row(name, "-", "-", "-", "-", "experiment", None, "error",
+                                f"{type(exc).__name__}: {exc}")], {}
             except Exception as exc:  # one broken experiment must not lose the others
                 traceback.print_exc()
                 r, s = [ctx.row(name, "-", "-", "-", "-", "experiment", None, "error",

@@ -40,6 +40,8 @@ KINDS = ("bandwidth", "error", "scaling")
 PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32"}
 ROLE_ORDER = ("launch", "copy", "bandwidth")    # the bandwidth sweep measures its yardsticks first
 SPEC_OPTIONS = ("check_sample", "save_outputs")  # what a sweep point may set in its cell's spec
+RECORD_BYTES = 64 * 2**10      # disk preflight: one record in sweep.json, generously
+PAGE_BYTES = 32 * 2**20        # ... and the page and plots
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -75,7 +77,8 @@ def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scena
     """The scenarios sweep ``kind`` runs, in the order it runs them."""
     if kind == "error":
         return [scenarios.get(n) for n in
-                options.names(args.scenarios or ",".join(error_scenarios()), error_scenarios(), "scenarios")]
+                options.names(",".join(error_scenarios()) if args.scenarios is None else args.scenarios,
+                              error_scenarios(), "scenarios")]
     found = [sc for sc in scenarios.SCENARIOS.values()
              if any(sc.sweep_points(kind, d, args.quick) for d in devices)]
     rank = {role: i for i, role in enumerate(ROLE_ORDER)}
@@ -102,7 +105,8 @@ def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] 
     run order: kind, device, backend, variant (error sweep only), precision, scenario, point."""
     sel = options.selection(args)
     kinds = KINDS if args.kind == "all" else (args.kind,)
-    precisions = {k: options.names(args.precision or PRECISION[k], PRECISIONS, "precision") for k in kinds}
+    precisions = {k: options.names(PRECISION[k] if args.precision is None else args.precision, PRECISIONS,
+                                   "precision") for k in kinds}
     if args.record_every < 0:
         raise ParamError(f"--record-every must be >= 0, got {args.record_every}")
     chosen = {k: swept(k, args, sel["devices"]) for k in kinds}
@@ -114,6 +118,10 @@ def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] 
     for kind in kinds:
         for dev in sel["devices"]:
             pts = {sc.name: points(sc, kind, dev, args, sets[sc.name]) for sc in chosen[kind]}
+            for sc in chosen[kind]:          # --set values each swept precision can represent
+                for pt in pts[sc.name]:
+                    for prec in precisions[kind]:
+                        options.check_precision(sc, sc.params(pt["params"]), prec)
             for be in sel["backends"]:
                 for variant in (backends.get(be).variants if kind == "error" else ("default",)):
                     for prec in precisions[kind]:
@@ -197,10 +205,34 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"unknown sweep {args.kind!r} (bandwidth, error, scaling, all, report)")
     if args.files:
         raise UsageError(f"unexpected argument {args.files[0]!r}")
+    given = options.given(args, add_arguments, args.kind)
+    if "--scenarios" in given and args.kind not in ("error", "all"):
+        raise UsageError(f"--scenarios does not apply to the {args.kind} sweep (only to error)")
+    if "--record-every" in given and args.kind not in ("scaling", "all"):
+        raise UsageError(f"--record-every does not apply to the {args.kind} sweep (only to scaling)")
+    if args.resume and args.fresh:
+        raise UsageError("--resume keeps OUT/sweep.json's records and --fresh drops them: give one")
     planned = plan(args)
     notes = options.read_notes(args.notes)
-    store = Store.open(options.output_directory(args.out), "sweep", keep=not args.fresh)
+    options.check_output(args.out)
+    Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
     probes = engine.availability(dict.fromkeys(s["backend"] for s, _ in planned))
+    runnable = [s for s, _ in planned if not engine.not_runnable(engine.prepare(s), probes)]
+    out, lock = options.claim_output(args.out, 2 * (RECORD_BYTES * len(runnable) + existing_bytes(args.out))
+                                     + PAGE_BYTES)
+    with lock:
+        return run_claimed(args, argv, planned, notes, out, probes)
+
+
+def existing_bytes(out: str) -> int:
+    f = Path(out) / "sweep.json"
+    return f.stat().st_size if f.is_file() else 0
+
+
+def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, out: Path,
+                probes: dict[str, dict[str, Any]]) -> int:
+    """The sweep, once its output directory is checked, has room and is locked by this driver."""
+    store = Store.open(out, "sweep", keep=not args.fresh)
     env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
     env["backends"] = probes
     env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
@@ -219,11 +251,18 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
 def report(args: argparse.Namespace) -> int:
     if not args.files:
         raise UsageError("report needs at least one sweep.json")
+    options.refuse_inapplicable(args, add_arguments, ("kind", "files", "--out", "--no-plots", "--page",
+                                                      "--title", "--notes"), "to sweep report", "report")
+    options.no_duplicates(args.files, "sweep report")
     notes = options.read_notes(args.notes)
     merged = Store(Path(args.out) / "sweep.json", "sweep")
     for f in args.files:                  # a later file's record of the same cell wins
         merged.merge(Store.read(f, "sweep"))
-    rebuild(contents(merged), args, list(args.files), notes)
+    if args.page:
+        options.check_output(str(Path(args.page).parent), "--page's directory")
+    out, lock = options.claim_output(args.out, PAGE_BYTES)
+    with lock:
+        rebuild(contents(merged), args, list(args.files), notes)
     print(pages.summary(merged.records))
     return EXIT_OK
 
