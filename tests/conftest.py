@@ -22,3 +22,21 @@ def require_device(backend: str, device: str) -> None:
     why = availability(backend).get(device, f"unknown device {device}")
     if why:
         pytest.skip(f"{backend}/{device}: {why}")
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """tests/test_reliability.py's figures (docs/reliability.md), when it ran."""
+    mod = sys.modules.get("test_reliability")
+    figures = getattr(mod, "FIGURES", None)
+    if not figures or not (figures["tried"] or figures["json_fuzzed"] or figures["faults"]):
+        return
+    tr = terminalreporter
+    tr.write_sep("-", "reliability figures")
+    tr.write_line(f"bad inputs tried: {figures['tried']}, refused cleanly (exit 2, one line, no traceback, "
+                  f"nothing written): {figures['refused']}")
+    tr.write_line(f"JSON documents fuzzed through Store.read: {figures['json_fuzzed']}, "
+                  f"read or refused in one line: {figures['json_clean']}")
+    tr.write_line(f"faults survived: {len(figures['faults'])} ({'; '.join(figures['faults'])})")
+    tr.write_line(f"records lost: {figures['records_lost']}")
+    if figures.get("memory"):
+        tr.write_line(f"memory estimate against measured peaks: {figures['memory']}")
