@@ -83,7 +83,8 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
         (tmp_path / "specs.json").write_text(json.dumps(specs))
         cmd = lifeline.command("compare.worker", str(tmp_path / "specs.json"), str(tmp_path))
         with tempfile.TemporaryFile("w+") as err:
-            proc = subprocess.Popen(cmd, cwd=ROOT, env=lifeline.child_environment(worker_env(specs[0]["backend"])),
+            env = lifeline.child_environment(worker_env(specs[0]["backend"]), tmp_path)
+            proc = subprocess.Popen(cmd, cwd=ROOT, env=env,
                                     stdout=subprocess.DEVNULL, stderr=err, text=True, stdin=subprocess.DEVNULL)
             started, done = time.monotonic(), 0
             reason = None

@@ -8,7 +8,8 @@ parent's PID), and exits at once if the parent has already gone (``COMPARE_PAREN
 driver killed with SIGKILL leaves no worker running on without its timeout.
 
 Temporary directories (a cell's outputs and its empty kernel caches, gigabytes for large cells)
-live under one root per driver process, ``temp_root()`` (``$TMPDIR/compare-<pid>-XXXX``). With
+live under one root per driver process, ``temp_root()`` (``$TMPDIR/compare-<pid>-XXXX``), and a
+worker's TMPDIR points inside it (frameworks write their own temporaries there too). With
 the root the driver starts a small reaper process that holds the read end of a pipe whose write
 end only the driver has: when the driver exits, however it exits, the kernel closes the pipe and
 the reaper deletes the root. The root holds a flock of its driver (``.owner``); a root whose
@@ -61,9 +62,12 @@ def command(*args: str) -> list[str]:
     return [sys.executable, "-m", "compare.lifeline", *args]
 
 
-def child_environment(env: dict[str, str]) -> dict[str, str]:
-    """``env`` with this process named as the parent a worker must not outlive."""
-    return {**env, PARENT_ENV: str(os.getpid())}
+def child_environment(env: dict[str, str], tmp: str | Path | None = None) -> dict[str, str]:
+    """``env`` with this process named as the parent a worker must not outlive, and its
+    temporary files (``TMPDIR``: a framework's own, e.g. NVRTC's precompiled headers) inside
+    ``tmp`` (default: this driver's root), so they go when the root goes."""
+    tmp = str(tmp if tmp is not None else temp_root())
+    return {**env, PARENT_ENV: str(os.getpid()), "TMPDIR": tmp, "TEMP": tmp, "TMP": tmp}
 
 
 # ---- the worker side -------------------------------------------------------------------------

@@ -54,10 +54,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 # Host memory of one worker process beyond its cell's data (Scenario.footprint): the interpreter,
-# NumPy and the framework. Measured peaks of tiny cells on CPU (tests/test_reliability.py,
-# docs/reliability.md): warp 177 MiB, numba 216, jax 224, taichi 135; kept with room for CUDA
-# runtimes' host-side libraries.
-WORKER_BASELINE_BYTES = 512 * 2**20
+# NumPy, the framework and, on a GPU, its CUDA libraries. Measured peaks of small cells
+# (docs/reliability.md): on CPU at most 222 MiB (warp 222, numba 206, jax 224, taichi 135); on the
+# H100 at most 806 MiB (JAX; warp 429, numba 480, taichi 382).
+WORKER_BASELINE_BYTES = {"cpu": 512 * 2**20, "cuda": 1024 * 2**20}
 RECORD_BYTES = 64 * 2**10          # one record in results.json, generously (params, info, gradients)
 PAGE_BYTES = 32 * 2**20            # results.csv, results.md and the plots of one run
 
@@ -69,7 +69,7 @@ def cell_bytes(spec: dict[str, Any]) -> tuple[float, float, float]:
     prec = spec["precision"]
     outputs = sc.output_bytes(p, prec)
     arrays = outputs + sc.input_bytes(p, prec)
-    worker = WORKER_BASELINE_BYTES + sc.footprint(p, prec)
+    worker = WORKER_BASELINE_BYTES.get(spec["device"], max(WORKER_BASELINE_BYTES.values())) + sc.footprint(p, prec)
     return worker, (arrays if spec.get("save_inputs") else outputs), arrays
 
 

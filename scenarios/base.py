@@ -166,7 +166,7 @@ class Scenario:
     def footprint(self, params, precision: str) -> float:
         """Bytes of host memory a cell's worker needs for its data at its peak (inputs, the
         framework's copies, outputs, oracle and check temporaries), beyond the interpreter and
-        framework (compare.run_suite.WORKER_BASELINE_BYTES). An upper bound: the run suite
+        framework (compare.run_suite.WORKER_BASELINE_BYTES, per device). An upper bound: the run suite
         refuses sizes whose bound exceeds the available memory, and tests/test_reliability.py
         checks it against measured peaks."""
         return 0.0

@@ -34,6 +34,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     tr.write_sep("-", "reliability figures")
     tr.write_line(f"bad inputs tried: {figures['tried']}, refused cleanly (exit 2, one line, no traceback, "
                   f"nothing written): {figures['refused']}")
+    tr.write_line("  by test: " + ", ".join(f"{k.removeprefix('test_')} {v}" for k, v in figures["by_test"].items()))
     tr.write_line(f"JSON documents fuzzed through Store.read: {figures['json_fuzzed']}, "
                   f"read or refused in one line: {figures['json_clean']}")
     tr.write_line(f"faults survived: {len(figures['faults'])} ({'; '.join(figures['faults'])})")

@@ -40,7 +40,14 @@ pytestmark = pytest.mark.cli
 # What the tests measured, printed after the run by tests/conftest.py (docs/reliability.md):
 # bad inputs tried and refused cleanly, JSON documents fuzzed through Store.read, faults survived,
 # records lost (saved before a fault and missing after it).
-FIGURES = {"tried": 0, "refused": 0, "json_fuzzed": 0, "json_clean": 0, "faults": [], "records_lost": 0}
+FIGURES = {"tried": 0, "refused": 0, "json_fuzzed": 0, "json_clean": 0, "faults": [], "records_lost": 0,
+           "by_test": {}}
+
+
+def count_tried() -> None:
+    FIGURES["tried"] += 1
+    test = os.environ.get("PYTEST_CURRENT_TEST", "?").split("::")[-1].split("[")[0].split(" ")[0]
+    FIGURES["by_test"][test] = FIGURES["by_test"].get(test, 0) + 1
 
 QUICK = ("--quick", "--backends", "numba", "--devices", "cpu", "--precision", "float32")
 
@@ -70,7 +77,7 @@ def run_main(argv: list[str]) -> tuple[int, list[str]]:
 def assert_refused(argv: list[str], work: Path, needle: str = "") -> str:
     """Exit 2, one line (``needle`` in it), no exception, nothing written under ``work``."""
     before = snapshot(work)
-    FIGURES["tried"] += 1
+    count_tried()
     rc, lines = run_main(argv)
     assert rc == 2 and len(lines) == 1, (argv, rc, lines)
     assert lines[0].startswith("error: ") and needle in lines[0], (argv, lines)
@@ -387,9 +394,12 @@ def test_property_junk_option_values(work, opt, value):
     assert_refused([*command, f"{opt}={value}", "--out", str(work / "out")], work)
 
 
+def _nested(children):
+    return st.lists(children, max_size=3) | st.dictionaries(st.text(max_size=8), children, max_size=4)
+
+
 json_values = st.recursive(st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=5),
-                           lambda children: st.lists(children, max_size=3) | st.dictionaries(st.text(max_size=8), children, max_size=4),
-                           max_leaves=12)
+                           _nested, max_leaves=12)
 record_like = st.fixed_dictionaries({}, optional={k: json_values for k in (
     "scenario", "backend", "device", "precision", "variant", "status", "reason", "params", "time", "error",
     "memory", "work", "throughput", "info", "gradient", "tags")}).map(
@@ -439,7 +449,7 @@ def test_entry_point_sample(tmp_path):
     for c, p in zip(cases, procs):
         _, err = p.communicate(timeout=120)
         lines = [ln for ln in err.splitlines() if ln.strip()]
-        FIGURES["tried"] += 1
+        count_tried()
         assert p.returncode == 2 and len(lines) == 1 and "Traceback" not in err, (c, err)
         FIGURES["refused"] += 1
     assert snapshot(tmp_path) == before

@@ -40,7 +40,8 @@ def run(task: dict[str, Any], timeout: float = 900.0) -> dict[str, Any]:
         spec.write_text(json.dumps(task))
         try:
             proc = subprocess.run(lifeline.command(__name__, str(spec), str(out)), cwd=ROOT,
-                                  env=lifeline.child_environment(worker_env(task.get("backend"))), capture_output=True,
+                                  env=lifeline.child_environment(worker_env(task.get("backend")), tmp),
+                                  capture_output=True,
                                   text=True, timeout=timeout, stdin=subprocess.DEVNULL)
         except subprocess.TimeoutExpired:
             return {"error": f"task timed out after {timeout:g} s"}
