@@ -31,6 +31,7 @@ from compare.spec import FORMAT_VERSION, KEPT_ON_RESUME, key, record_problem
 SUITES = {"run": "results.json", "sweep": "sweep.json", "stress": "stress.json"}
 # per suite: turn a record of an older format into today's (registered by the suite's module)
 UPGRADES: dict[str, Callable[[dict[str, Any]], dict[str, Any]]] = {}
+UPGRADE_MODULES = {"run": "compare.run_suite", "sweep": "compare.sweep"}
 
 
 class StoreError(ValueError):
@@ -175,6 +176,9 @@ def _upgrade(data: Any, path: Path) -> dict[str, Any]:
         raise StoreError(f"{path}: 'records' must be a list")
     if not isinstance(data.setdefault("analysis", {}), dict):
         raise StoreError(f"{path}: 'analysis' must be an object")
+    if data["suite"] not in UPGRADES and data["suite"] in UPGRADE_MODULES:
+        import importlib   # the suite's module registers its upgrade when imported
+        importlib.import_module(UPGRADE_MODULES[data["suite"]])
     upgrade = UPGRADES.get(data["suite"])
     for i, rec in enumerate(data["records"]):
         problem = record_problem(rec)

@@ -288,6 +288,15 @@ def test_old_records_are_upgraded_to_tags():
     assert len(store.records) == 1                 # the same cell, old or new shape: one key
 
 
+def test_old_files_upgrade_without_importing_the_suite():
+    """The store upgrades a format-1 file's records itself (no import side effect needed), so
+    saving it never writes old-shape records under format 2."""
+    code = ("from compare.store import Store; s = Store.read('docs/results/gpu-measurement/sweep.json', 'sweep'); "
+            "assert s.upgraded_from == 1 and s.records and all('tags' in r for r in s.records), 'not upgraded'")
+    p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+
+
 def test_published_sweep_file_still_renders(tmp_path):
     store = Store.read(ROOT / "docs" / "results" / "cpu" / "sweep.json", "sweep")
     assert store.upgraded_from == 1
