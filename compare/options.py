@@ -253,7 +253,7 @@ def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results"):
     a killed driver left there removed. Returns (directory, lock): release the lock when done
     (``with lock:``); the kernel releases it if the driver dies."""
     from compare.lock import Busy, DirectoryLock
-    from compare.store import atomic_figures, remove_stale_temps
+    from compare.store import remove_stale_temps
     out = output_directory(path, need_bytes, what)
     lock = DirectoryLock(out)
     try:
@@ -263,7 +263,6 @@ def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results"):
     except OSError as exc:          # creating the lock file is the first write: the write test
         raise UsageError(f"--out {path}: cannot write there ({exc.strerror or exc})") from None
     remove_stale_temps(out)
-    atomic_figures()
     return out, lock
 
 

@@ -10,7 +10,7 @@ from typing import Any, Iterable
 import numpy as np
 from tabulate import tabulate
 
-from compare.store import atomic_write
+from compare.store import atomic_write, save_figure
 
 COLUMNS = ("backend", "device", "precision", "variant", "status", "first call", "latency", "IQR",
            "min", "events median", "throughput", "graph", "hw fraction", "device mem", "err vs oracle",
@@ -227,7 +227,7 @@ def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
                 plt.Line2D([], [], color="k", marker="o", ls="", markerfacecolor="none", label="float32 (hollow)")]
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.9))
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -248,7 +248,7 @@ def plot_outputs(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.
         if fig is None:
             continue
         p = out / f"{scenario}.png"
-        fig.savefig(p, dpi=110)
+        save_figure(fig, p, dpi=110)
         plt.close(fig)
         written.append(p)
     return written

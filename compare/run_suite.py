@@ -229,12 +229,13 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]
     outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
+    # judged against this run's yardstick: the cells run now (a kept record keeps its own)
+    hardware.annotate([records[i] for i in outputs], env["hardware"])
     mine = {engine.key(r) for r in records}
     records += [r for r in store.records if engine.key(r) not in mine]
     if args.save_arrays or args.resume:
         saved_outputs(out, records, outputs)
     fill_vs_reference(records, outputs)
-    hardware.annotate(records, env["hardware"])
     for r in records:
         store.put(r)
     store.save()

@@ -99,30 +99,14 @@ def atomic_write(path: Path, data: str | bytes) -> None:
         raise
 
 
-def atomic_figures() -> None:
-    """Make every ``Figure.savefig(path)`` of this process an ``atomic_write`` (the plots of
-    every suite, wherever they are drawn): a full disk leaves the old picture or none, never
-    half a PNG. Installed by ``compare.options.claim_output``, i.e. by every driver that writes."""
-    import functools
+def save_figure(fig: Any, path: Path, **kwargs: Any) -> None:
+    """``fig.savefig`` into memory, then ``atomic_write``: a full disk leaves the old picture or
+    none, never half a PNG. Every plot of every suite is saved through here."""
     import io
-
-    import matplotlib.figure as mfig
-    if getattr(mfig.Figure.savefig, "atomic", False):
-        return
-    original = mfig.Figure.savefig
-
-    @functools.wraps(original)          # pyplot copies Figure.savefig's name and docstring
-    def savefig(self: Any, fname: Any, *args: Any, **kwargs: Any) -> Any:
-        if not isinstance(fname, (str, os.PathLike)):
-            return original(self, fname, *args, **kwargs)
-        buf = io.BytesIO()
-        kwargs.setdefault("format", Path(fname).suffix.lstrip(".") or None)
-        result = original(self, buf, *args, **kwargs)
-        atomic_write(Path(fname), buf.getvalue())
-        return result
-
-    savefig.atomic = True  # type: ignore[attr-defined]
-    mfig.Figure.savefig = savefig  # type: ignore[method-assign]
+    buf = io.BytesIO()
+    kwargs.setdefault("format", Path(path).suffix.lstrip(".") or "png")
+    fig.savefig(buf, **kwargs)
+    atomic_write(Path(path), buf.getvalue())
 
 
 TEMP_SUFFIX = ".tmp"

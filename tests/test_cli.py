@@ -158,7 +158,7 @@ def test_report_page_links_tables_and_pictures_and_leaves_the_source(quick_run, 
 def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, status, needle):
     monkeypatch.setenv("COMPARE_FAULT", f"saxpy/warp:{fault}")
     p = compare("run", "saxpy", "sdf", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
-                "float32", "--repeat", "1", "--timeout", "12", "--out", str(tmp_path), "--no-plots")
+                "float32", "--repeat", "1", "--timeout", "8", "--out", str(tmp_path), "--no-plots")
     assert p.returncode == 1, p.stderr
     recs = json.loads((tmp_path / "results.json").read_text())["records"]
     bad = [r for r in recs if r["scenario"] == "saxpy"]

@@ -24,14 +24,13 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import ROOT
 
-from compare import cli, lifeline, options, run_suite
+from compare import cli, options, run_suite
 from compare.lock import Busy, DirectoryLock
 from compare.store import Store, StoreError, atomic_write
 
@@ -516,6 +515,7 @@ MEMORY_SIZES = {"saxpy": ({"n": 1 << 16}, {"n": 1 << 23}),
                 "projectile": ({"steps": 180, "iters": 2}, {"steps": 100_000, "iters": 1})}
 
 
+@pytest.mark.slow
 def test_memory_estimate_bounds_measured_peaks():
     """WORKER_BASELINE_BYTES + Scenario.footprint >= the worker's measured peak RSS, for every
     scenario at two sizes (warp on CPU, float64: the larger arrays; warm caches)."""

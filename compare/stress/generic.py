@@ -154,7 +154,7 @@ def plot_ulps(series: dict[str, Any], path: Path, style: Style) -> None:
     ax.set_xscale("log"); ax.set_xlabel("error [ulps of the correctly rounded pixel] (0 drawn at 1e-3)")
     ax.set_ylabel("fraction of pixels with error <= x"); ax.set_title("image outputs, float32", fontsize=9)
     ax.grid(True, which="both", alpha=0.3); ax.legend(fontsize=6)
-    fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
+    fig.tight_layout(); fig.savefig(path, dpi=110, format="png"); plt.close(fig)
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (

@@ -6,11 +6,13 @@ floor every plot uses is ``scenarios.numerics.log_floor`` (scenario plots cannot
 """
 from __future__ import annotations
 
+import io
 import sys
 from pathlib import Path
 from typing import Any
 
 import backends
+from compare.store import atomic_write
 from scenarios.numerics import ORACLE, Experiment
 
 
@@ -41,8 +43,10 @@ def draw(experiment: Experiment, series: dict[str, Any], path: Path) -> None:
     if experiment.plot is None or not series:
         return
     plt = _plt()
-    try:
-        experiment.plot(series, path, _style)
+    try:        # the experiment draws into memory; the file is written atomically
+        buf = io.BytesIO()
+        experiment.plot(series, buf, _style)
+        atomic_write(path, buf.getvalue())
     except Exception as exc:
         print(f"warning: plot {experiment.name} failed: {type(exc).__name__}: {exc}", file=sys.stderr)
     finally:

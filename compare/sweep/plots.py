@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
+from compare.store import save_figure
 from compare.sweep.page import (ERROR_FLOOR, device_bytes, error_points, error_scenarios, event_s,
                                 gbps, knob, label, launch_wall, ok, plot_key, roofline, swept,
                                 wall_s, with_role)
@@ -102,7 +103,7 @@ def plot_bandwidth(records: list[dict[str, Any]], device: str, path: Path, scena
     ax.legend(fontsize=7, ncol=2, loc="lower right")
     _tidy_log(ax)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 
@@ -168,7 +169,7 @@ def plot_time_vs_error(records: list[dict[str, Any]], device: str, path: Path) -
     fig.suptitle(f"Run time against error ({device})", y=0.99, fontsize=11)
     fig.legend(handles=handles, loc="upper center", ncol=5, fontsize=8, bbox_to_anchor=(0.5, 0.965))
     fig.tight_layout(rect=(0, 0, 1, 0.925 if rows_n > 1 else 0.82))
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 
@@ -211,7 +212,7 @@ def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenari
     a2.set_ylabel("memory [MiB] (log)")
     a2.set_title(f"{name} memory ({device})", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 
