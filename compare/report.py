@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 from pathlib import Path
@@ -180,18 +181,58 @@ def page(title: str, envs: list[dict[str, Any]], records: list[dict[str, Any]], 
 def write_tables(out: Path, environment: dict[str, Any], records: list[dict[str, Any]],
                  images: dict[str, str] | None = None) -> None:
     """results.csv and results.md beside results.json (which the store writes), atomically."""
-    header = ["scenario"] + list(COLUMNS)
-    rows = [[r["scenario"]] + row(r) for r in records]
     import io
     buf = io.StringIO()
-    w = csv.writer(buf)
-    w.writerow(header)
-    w.writerows(rows)
+    w = csv.DictWriter(buf, fieldnames=list(CSV_COLUMNS))
+    w.writeheader()
+    w.writerows(tidy(r) for r in records)
     atomic_write(out / "results.csv", buf.getvalue())
     env_lines = "\n".join(f"- {k}: {v}" for k, v in environment.items() if k != "packages")
     pkgs = ", ".join(f"{k} {v}" for k, v in environment.get("packages", {}).items())
     atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n- packages: {pkgs}\n\n"
                  + tables(records, "github", images))
+
+
+# results.csv: one row per cell, one column per quantity, plain numbers in SI units (seconds,
+# bytes) or empty; README "results.csv" documents each column. Loaded with pandas as is.
+CSV_COLUMNS = {
+    "scenario": ("scenario",), "backend": ("backend",), "device": ("device",),
+    "precision": ("precision",), "variant": ("variant",), "status": ("status",), "reason": ("reason",),
+    "params": None,                                    # JSON of the resolved parameters
+    "first_call_s": ("time", "first_call_s"),
+    "latency_median_s": ("time", "latency", "median_s"), "latency_iqr_s": ("time", "latency", "iqr_s"),
+    "latency_min_s": ("time", "latency", "min_s"), "latency_repeats": ("time", "latency", "repeats"),
+    "events_median_s": None,                           # CUDA events, where the backend has them
+    "throughput_median_s": ("time", "throughput", "median_s"),
+    "throughput_iqr_s": ("time", "throughput", "iqr_s"), "throughput_min_s": ("time", "throughput", "min_s"),
+    "throughput_k": ("time", "throughput", "k"), "graph_median_s": ("time", "graph", "median_s"),
+    "floor_s": ("throughput", "floor_s"), "floor_kind": ("throughput", "floor_kind"),
+    "hw_fraction": ("throughput", "hw_fraction"),
+    "device_bytes": ("memory", "device_bytes"), "framework_device_peak_bytes": ("memory", "device_peak_bytes"),
+    "peak_host_rss_bytes": ("memory", "peak_host_rss_bytes"),
+    "err_vs_oracle": ("error", "vs_oracle"), "tolerance": ("error", "tolerance"),
+    "err_vs_reference": ("error", "vs_reference"), "reference": ("error", "reference"),
+    "gradient_method": ("gradient", "method"), "gradient_rel_error": ("gradient", "vs_oracle_rel"),
+    "setup_s": ("time", "setup_s"), "download_s": ("time", "download_s"), "machine": ("machine",),
+}
+
+
+def tidy(rec: dict[str, Any]) -> dict[str, Any]:
+    """One results.csv row: every CSV_COLUMNS quantity of the record, or '' where it has none."""
+    out: dict[str, Any] = {}
+    for col, path in CSV_COLUMNS.items():
+        if col == "params":
+            out[col] = json.dumps(rec.get("params"), sort_keys=True)
+            continue
+        if col == "events_median_s":
+            t = rec.get("time") or {}
+            out[col] = t.get("median_s") if t.get("timer") == "events" else ""
+            continue
+        v: Any = rec
+        for k in path:
+            v = v.get(k) if isinstance(v, dict) else None
+        out[col] = "" if v is None or isinstance(v, (dict, list)) else v
+    return out
 
 
 def _err_floor(e: float) -> float:

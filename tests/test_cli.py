@@ -102,6 +102,13 @@ def test_results_json_contract(quick_run):
         assert abs(r["throughput"]["hw_fraction"] - want) <= 1e-9 * want
     rows = list(csv.DictReader((out / "results.csv").open()))
     assert len(rows) == len(recs)
+    # tidy: one row per cell, plain numbers in the documented columns
+    for row, r in zip(rows, recs):
+        assert (row["scenario"], row["backend"], row["precision"]) == (r["scenario"], r["backend"], r["precision"])
+        assert float(row["latency_median_s"]) == r["time"]["latency"]["median_s"]
+        assert int(row["throughput_k"]) == r["time"]["throughput"]["k"]
+        assert float(row["err_vs_oracle"]) == r["error"]["vs_oracle"]
+        assert json.loads(row["params"]) == r["params"]
     md = (out / "results.md").read_text()
     assert "| backend" in md and "projectile" in md
 
