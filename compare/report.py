@@ -63,7 +63,7 @@ def fmt_gradient(rec: dict[str, Any]) -> str:
 
 
 def fmt_bytes(b: Any) -> str:
-    if not isinstance(b, (int, float)):
+    if not isinstance(b, (int, float)) or not math.isfinite(b):
         return "-"
     for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
         if abs(b) >= scale:

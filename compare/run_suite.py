@@ -18,7 +18,7 @@ import numpy as np
 import backends
 import scenarios
 from compare import engine, environment, hardware, options, report
-from compare.store import UPGRADES, Store, array_file, load_arrays, save_arrays
+from compare.store import UPGRADES, Store, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
 
@@ -301,4 +301,4 @@ def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any
     return options.EXIT_OK
 
 
-__all__ = ["add_arguments", "run", "report_command", "array_file"]
+__all__ = ["add_arguments", "run", "report_command"]

@@ -81,9 +81,6 @@ class CellSpec:
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
-    def identity(self) -> dict[str, Any]:
-        return {f: getattr(self, f) for f in IDENTITY}
-
 
 def key(rec_or_spec: dict[str, Any]) -> str:
     """The identity of a cell (spec or record) as a string: the same cell run twice has one key."""

@@ -237,10 +237,6 @@ class Store:
         r = self._records.get(cell_key)
         return r is not None and r.get("status") in KEPT_ON_RESUME
 
-    def retry_only(self) -> None:
-        """Drop the records --resume retries (error rows), keep the rest."""
-        self._records = {k: r for k, r in self._records.items() if r.get("status") in KEPT_ON_RESUME}
-
     def merge(self, other: "Store") -> None:
         """Add ``other``'s runs and records (a later record of a cell wins)."""
         if other.suite != self.suite:

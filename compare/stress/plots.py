@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
+from compare.report import backend_color
 from compare.store import atomic_write
 from scenarios.numerics import ORACLE, Experiment
 
@@ -24,13 +25,11 @@ def _plt():
 
 
 def _colour(name: str) -> str:
-    """The backend's own colour, else that of its place in display order; the float64 oracle
-    comes after every backend; anything else (a prediction) is black."""
-    ranked = sorted(backends.BACKENDS.values(), key=lambda b: (not b.is_reference, b.display_order, b.name))
-    names = [b.name for b in ranked]
-    if name in names:
-        return backends.BACKENDS[name].color or f"C{names.index(name) % 10}"
-    return f"C{len(names) % 10}" if name == ORACLE else "k"
+    """The backend's own colour (``report.backend_color``); the float64 oracle comes after every
+    backend; anything else (a prediction) is black."""
+    if name in backends.BACKENDS:
+        return backend_color(name)
+    return f"C{len(backends.BACKENDS) % 10}" if name == ORACLE else "k"
 
 
 def _style(lbl: str) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from tabulate import tabulate
 
 import backends
 import scenarios
-from compare.report import fmt_num, fmt_time
+from compare.report import fmt_bytes, fmt_num, fmt_time
 
 OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
 BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
@@ -186,15 +186,6 @@ def device_bytes(rec: dict[str, Any]) -> tuple[int | None, str]:
         if isinstance(m.get(k), (int, float)):
             return int(m[k]), src
     return None, m.get("nvml_note", "-") if rec["device"] != "cpu" else "-"
-
-
-def fmt_bytes(b: float | None) -> str:
-    if b is None or not math.isfinite(b):
-        return "-"
-    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
-        if b >= scale:
-            return f"{b / scale:.3g} {unit}"
-    return f"{int(b)} B"
 
 
 def fmt_rate(x: float | None, unit: str = "") -> str:

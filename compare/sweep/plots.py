@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
+from compare.report import backend_color
 from compare.store import save_figure
 from compare.sweep.page import (ERROR_FLOOR, device_bytes, error_points, error_scenarios, event_s,
                                 gbps, knob, label, launch_wall, ok, plot_key, roofline, swept,
@@ -57,7 +58,7 @@ def colors(records: list[dict[str, Any]]) -> dict[str, str]:
     spare = [f"C{i}" for i in range(10) if f"C{i}" not in taken] or ["k"]
     out: dict[str, str] = {}
     for n in names:
-        fixed = known[n].color if n in known else None
+        fixed = backend_color(n) if n in known and known[n].color else None
         if not fixed:
             fixed = spare[len([c for c in out.values() if c in spare]) % len(spare)]
         out[n] = fixed
