@@ -70,6 +70,8 @@ class Backend:
     package: ClassVar[str]                     # the pip distribution the backend needs
     gradient_method: ClassVar[str] = "-"       # 'tape', 'ad', 'adjoint'
     variants: ClassVar[tuple[str, ...]] = ("default",)   # e.g. 'fastmath'
+    # Variants that exist for one scenario only (e.g. a checkpointed projectile): scenario -> names.
+    scenario_variants: ClassVar[dict[str, tuple[str, ...]]] = {}
     is_reference: ClassVar[bool] = False
     # Deliberately wrong variants the stress suite runs as controls its detectors must flag:
     # scenario -> {variant: what is wrong}. Never listed in ``variants``, never in tables.
@@ -80,6 +82,10 @@ class Backend:
     color: ClassVar[str | None] = None
     # Distributions whose versions go into a results file's environment (besides ``package``).
     related_packages: ClassVar[tuple[str, ...]] = ()
+    def variants_for(self, scenario: str) -> tuple[str, ...]:
+        """The variants a cell of ``scenario`` may take: every scenario's, then its own."""
+        return self.variants + tuple(v for v in self.scenario_variants.get(scenario, ()) if v not in self.variants)
+
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
         """Environment variables that point this framework's on-disk kernel caches into
         ``cache_dir`` (an empty directory per cell), so the first call includes compilation.

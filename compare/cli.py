@@ -82,7 +82,8 @@ def cmd_list() -> int:
         avail = probes[name]["available"]
         devs = "; ".join(f"{d}: {'yes' if avail.get(d) is None else avail.get(d)}" for d in backends.DEVICES)
         ref = " (reference)" if b.is_reference else ""
-        print(f"  {name:7s}{ref} gradient={b.gradient_method} variants={','.join(b.variants)}; {devs}")
+        print(f"  {name:7s}{ref} gradient={b.gradient_method} variants={','.join(b.variants)}"
+              + "".join(f" (+{sc}: {','.join(vs)})" for sc, vs in b.scenario_variants.items()) + f"; {devs}")
     problems = backends.PROBLEMS + scenario_problems()
     if problems:
         print("problems:")

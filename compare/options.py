@@ -144,7 +144,8 @@ def selection(args: argparse.Namespace) -> dict[str, list[str]]:
     if getattr(args, "precision", None) is not None:
         out["precisions"] = names(args.precision, PRECISIONS, "precision")
     if hasattr(args, "variants"):
-        offered = sorted({v for n in chosen for v in backends.get(n).variants})
+        offered = sorted({v for n in chosen for v in backends.get(n).variants}
+                         | {v for n in chosen for vs in backends.get(n).scenario_variants.values() for v in vs})
         out["variants"] = names(args.variants, offered, "variants")
     return out
 

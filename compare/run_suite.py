@@ -120,7 +120,7 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
               "params": sets[sc.name], "quick": args.quick, "repeat": args.repeat,
               "min_time": args.min_time, "save_inputs": args.save_arrays}
              for sc in chosen for b in sel["backends"] for d in sel["devices"]
-             for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants]
+             for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants_for(sc.name)]
     if not specs:
         raise UsageError(f"nothing to run: no chosen backend ({', '.join(sel['backends'])}) has "
                          f"variant(s) {', '.join(sel['variants'])}")

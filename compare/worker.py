@@ -116,25 +116,6 @@ def device_memory(be: Any, device: str) -> dict[str, Any]:
         return {"device_memory_error": f"{type(exc).__name__}: {exc}"}
 
 
-def sample_items(params: Any, inputs: dict[str, np.ndarray], outputs: dict[str, np.ndarray],
-                 k: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int] | None:
-    """k evenly spaced items (first and last included) of a per-item scenario, or None.
-
-    Per-item: every input and output array is indexed by item along axis 0 (scalars pass through),
-    so the oracle of the sampled inputs is the sample of the oracle (saxpy, copy, launch, particles
-    without trajectories). Anything else is checked in full.
-    """
-    n = getattr(params, "n", None)
-    if not k or n is None or n <= k:
-        return None
-    arrays = list(inputs.values()) + list(outputs.values())
-    if any(np.ndim(a) and np.shape(a)[0] != n for a in arrays):
-        return None
-    idx = np.unique(np.linspace(0, n - 1, k).round().astype(np.int64))
-    pick = lambda d: {key: (np.asarray(a)[idx] if np.ndim(a) else a) for key, a in d.items()}  # noqa: E731
-    return pick(inputs), pick(outputs), int(idx.size)
-
-
 def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool = False) -> dict[str, Any]:
     """Build, time, download and check one cell. Exceptions propagate (the parent records them)."""
     sc = scenarios.get(spec.scenario)
@@ -195,7 +176,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
-    sampled = sample_items(params, inputs, outputs, spec.check_sample)
+    sampled = sc.sample(params, inputs, outputs, spec.check_sample)
     c_in, c_out = (sampled[0], sampled[1]) if sampled else (inputs, outputs)
     reference = sc.oracle(params, c_in)
     check = sc.check(params, c_in, c_out, reference, precision)
@@ -210,7 +191,8 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
                  "first_call_clock": timing.CLOCK, "cache": cache_note},
         "error": {"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
                   **{k: v for k, v in check.details.items()},
-                  "checked_items": f"{sampled[2]} of {params.n} (evenly spaced)" if sampled else "all"},
+                  "checked_items": f"{sampled[2]} of {sampled[3]}{' ' + sampled[4] if sampled[4] else ''} "
+                                   "(evenly spaced)" if sampled else "all"},
         "work": work,
         # useful work per second in the throughput regime (the latency regime where not measured)
         "throughput": {f"{k}_per_s": v / per_call for k, v in work.items()
@@ -225,13 +207,15 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     if sc.has_gradient:
         record["gradient"] = {
             "method": be.gradient_method,
-            "value": outputs["grad"],
+            "value": check.details.get("gradient_value", outputs["grad"]),
             "reference": check.details.get("gradient_reference"),
-            "reference_value": reference["grad"],
+            "reference_value": check.details.get("gradient_reference_value", reference["grad"]),
             "vs_oracle": check.details.get("gradient_error"),
             "vs_oracle_rel": check.details.get("gradient_rel_error"),
             "vs_fd64_rel": check.details.get("gradient_vs_fd64_rel"),
             "tolerance": check.details.get("gradient_tolerance"),
+            **({"fd_agreement": check.details["gradient_fd_agreement"]}
+               if "gradient_fd_agreement" in check.details else {}),
         }
     if spec.save_outputs:
         np.savez(out_dir / "outputs.npz", **outputs)

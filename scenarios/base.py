@@ -92,7 +92,8 @@ def _coerce(name: str, value: Any, typ: Any) -> Any:
             return str(value)
     except (TypeError, ValueError, OverflowError):
         pass
-    raise ParamError(f"{name} must be a {getattr(typ, '__name__', typ)}, got {value!r}")
+    kind = {int: "an integer", float: "a number", bool: "a boolean", str: "a string"}.get(typ, str(typ))
+    raise ParamError(f"{name} must be {kind}, got {value!r}")
 
 
 class Scenario:
@@ -181,6 +182,27 @@ class Scenario:
         """Bytes of the inputs (what --save-arrays writes beside the outputs). Default: as many as
         the outputs (true of the per-item scenarios); a scenario with more overrides it."""
         return self.output_bytes(params, precision)
+
+    def sample(self, params, inputs: dict[str, np.ndarray], outputs: dict[str, np.ndarray], k: int
+               ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int, int, str] | None:
+        """The part of a large cell the check looks at: (inputs, outputs, items checked, items in
+        all, what an item is), or None to check everything. ``k``: the cell's ``check_sample``
+        (0: the scenario's default). The oracle of the sampled inputs must be the sample of the
+        oracle.
+
+        Default, for per-item scenarios (saxpy, copy, launch, particles without trajectories):
+        every input and output array is indexed by item along axis 0 (scalars pass through); k
+        evenly spaced items, first and last included, when k is set and below ``params.n``.
+        Anything else is checked in full."""
+        n = getattr(params, "n", None)
+        if not k or n is None or n <= k:
+            return None
+        arrays = list(inputs.values()) + list(outputs.values())
+        if any(np.ndim(a) and np.shape(a)[0] != n for a in arrays):
+            return None
+        idx = np.unique(np.linspace(0, n - 1, k).round().astype(np.int64))
+        pick = lambda d: {key: (np.asarray(a)[idx] if np.ndim(a) else a) for key, a in d.items()}  # noqa: E731
+        return pick(inputs), pick(outputs), int(idx.size), n, ""
 
     def size_text(self, params) -> str:
         return ", ".join(f"{k}={getattr(params, k)}" for k in ("n", "width", "height", "steps")

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -41,6 +41,18 @@ CONSTANTS = ("dt", "gravity", "target_x", "target_y", "bounce", "damping", "stif
 SWEEP_T = 4.5
 SWEEP_DT = {False: (0.05, 0.025, 0.0125, 0.00625, 0.003125, 0.0015625), True: (0.05, 0.025, 0.0125)}
 SWEEP_CONTACT = "soft"
+MAX_BATCH = 1 << 24
+# Useful floating-point operations per trajectory-step, forward + reverse: 'none' 3 updates of 2
+# FLOPs forward and 2 of 2 in reverse; 'hard' adds 3 multiplies on a bounce (counted always);
+# 'soft' adds the softplus (2 transcendental + 6 FLOPs) and its derivative (~8) in each direction.
+FLOPS_PER_STEP = {"none": 10.0, "hard": 13.0, "soft": 30.0}
+# Batch (B > 1) draws, uniform on these ranges; row 0 is always the seed case (vx0, vy0, target_x,
+# target_y), so batch row 0 reproduces batch = 1. Apex heights vy0^2/(2|g|) are 0.2-5.1 m and
+# flight times 2 vy0/|g| at most 2.04 s, under the default horizon of 4.5 s: every trajectory
+# reaches the ground, so 'hard' and 'soft' contact happens in all of them (and several times in
+# most), and the targets lie on or just above the ground, within reach of a descent on v0.
+BATCH_DRAW = {"vx0": (0.5, 3.5), "vy0": (2.0, 10.0), "target_x": (1.0, 7.0), "target_y": (0.0, 1.5)}
+BATCH_CHECKED = 64     # trajectories of a batch checked against the oracle unless told otherwise
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,6 +71,8 @@ class ProjectileParams:
     softness: float = 0.01
     iters: int = 60
     lr: float = 0.01
+    batch: int = 1
+    seed: int = 0
 
     def validate(self) -> None:
         require(1 <= self.steps <= 10**7, f"steps must be in [1, 1e7], got {self.steps}")
@@ -77,92 +91,116 @@ class ProjectileParams:
                 f"softness must be in (0, 1e3], got {self.softness}")
         require(0 <= self.iters <= 10**6, f"iters must be in [0, 1e6], got {self.iters}")
         require(math.isfinite(self.lr) and 0.0 <= self.lr <= 1e3, f"lr must be in [0, 1e3], got {self.lr}")
+        require(1 <= self.batch <= MAX_BATCH, f"batch must be an integer in [1, {MAX_BATCH}], got {self.batch}")
+        require(0 <= self.seed < 2**63, f"seed must be an integer in [0, 2^63), got {self.seed}")
 
 
-def _softplus(z: float) -> float:
-    return max(z, 0.0) + math.log(1.0 + math.exp(-abs(z)))
+# The float64 functions below take one trajectory (vx, vy scalars, v of shape (2,)) or a batch
+# (arrays of shape (B,), v of shape (B, 2)); the constants in ``c`` are scalars except the targets,
+# which may be arrays of shape (B,). One code path, vectorised over the batch axis.
+
+def _sigmoid_of(z: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """sigmoid(z) from e = exp(-|z|), without overflow on either side."""
+    return np.where(z >= 0, 1.0 / (1.0 + e), e / (1.0 + e))
 
 
-def _sigmoid(z: float) -> float:
-    return 1.0 / (1.0 + math.exp(-z)) if z >= 0 else math.exp(z) / (1.0 + math.exp(z))
-
-
-def rollout(c: dict[str, float], contact: str, steps: int, vx: float, vy: float):
-    """Float64 forward pass. Returns the final state and, per step, what the analyses need."""
+def rollout(c: dict[str, float], contact: str, steps: int, vx, vy):
+    """Float64 forward pass. Returns the final state and, per step, what the analyses need:
+    (state before, state after, acc, d acc/dy, d^2 acc/dy^2, rounding magnitude of acc, hit);
+    the soft terms are None without soft contact, hit is None without hard contact."""
     dt, g = c["dt"], c["gravity"]
     eps, k = c["softness"], c["stiffness"]
-    x = y = 0.0
+    vx, vy = (np.array(a, np.float64) for a in np.broadcast_arrays(np.asarray(vx, np.float64),
+                                                                   np.asarray(vy, np.float64)))
+    x = np.zeros_like(vx)
+    y = np.zeros_like(vx)
     tape = []
     for _ in range(steps):
         state = (x, y, vx, vy)
-        acc, dacc, d2acc, racc = g, 0.0, 0.0, 0.0
+        acc, dacc, d2acc, racc = g, None, None, None      # None: the term is absent (0)
         if contact == "soft":
             z = -y / eps
-            e = math.exp(-abs(z))
-            lg = math.log(1.0 + e)
-            sp = max(z, 0.0) + lg
+            e = np.exp(-np.abs(z))
+            lg = np.log(1.0 + e)
+            sp = np.maximum(z, 0.0) + lg
             acc = g + k * eps * sp
-            sig = _sigmoid(z)
+            sig = _sigmoid_of(z, e)
             dacc = -k * sig                           # d acc / d y
             d2acc = k * sig * (1.0 - sig) / eps       # d^2 acc / d y^2
             # rounding of acc, operation by operation (z, exp, log1p, sum, eps*, k*, g+)
-            racc = k * eps * (abs(z) + 3.0 * e + 2.0 * lg + sp) + 2.0 * k * eps * sp + abs(acc)
+            racc = k * eps * (np.abs(z) + 3.0 * e + 2.0 * lg + sp) + 2.0 * k * eps * sp + np.abs(acc)
         vy = vy + acc * dt
         x = x + vx * dt
         y = y + vy * dt
-        hit = contact == "hard" and y < 0.0
-        if hit:
-            y = 0.0
-            vy = -c["bounce"] * vy
-            vx = c["damping"] * vx
+        hit = None                                        # None: no contact rule
+        if contact == "hard":
+            hit = y < 0.0
+            y = np.where(hit, 0.0, y)
+            vy = np.where(hit, -c["bounce"] * vy, vy)
+            vx = np.where(hit, c["damping"] * vx, vx)
         tape.append((state, (x, y, vx, vy), acc, dacc, d2acc, racc, hit))
     return (x, y, vx, vy), tape
 
 
-def adjoint(c: dict[str, float], tape, ax: float, ay: float, record: bool = False):
+def adjoint(c: dict[str, float], tape, ax, ay, record: bool = False):
     """Reverse sweep of ``rollout``: given d/d(x_N, y_N), return d/d(vx0, vy0).
 
     With ``record`` it also returns, per step (forward order), the adjoint of vy after the
-    velocity update and the magnitudes the sweep rounds (for the error analysis).
+    velocity update and the magnitudes the sweep rounds, shape (4, ...) (for the error analysis).
     """
     dt = c["dt"]
-    avx = avy = 0.0
+    ax, ay = (np.array(a, np.float64) for a in np.broadcast_arrays(ax, ay))
+    avx = np.zeros_like(ax)
+    avy = np.zeros_like(ax)
     trace = []
     for _, _, _, dacc, _, _, hit in reversed(tape):
-        r = np.zeros(4)
-        if hit:
-            ay = 0.0
-            avy = -c["bounce"] * avy
-            avx = c["damping"] * avx
-            r[2] += abs(avx); r[3] += abs(avy)
+        r = np.zeros((4,) + ax.shape) if record else None
+        if hit is not None:
+            ay = np.where(hit, 0.0, ay)
+            avy = np.where(hit, -c["bounce"] * avy, avy)
+            avx = np.where(hit, c["damping"] * avx, avx)
+            if record:
+                r[2] += np.where(hit, np.abs(avx), 0.0); r[3] += np.where(hit, np.abs(avy), 0.0)
         avy = avy + ay * dt          # y1 = y + vy1*dt
         avx = avx + ax * dt          # x1 = x + vx*dt
-        r[2] += abs(ax * dt) + abs(avx); r[3] += abs(ay * dt) + abs(avy)
-        if dacc != 0.0:
-            ay = ay + avy * dacc * dt    # vy1 = vy + acc(y)*dt
-            r[1] += 2.0 * abs(avy * dacc * dt) + abs(ay)
-        trace.append((avy, r))
+        if record:
+            r[2] += np.abs(ax * dt) + np.abs(avx); r[3] += np.abs(ay * dt) + np.abs(avy)
+        if dacc is not None:
+            live = dacc != 0.0
+            ay = np.where(live, ay + avy * dacc * dt, ay)    # vy1 = vy + acc(y)*dt
+            if record:
+                r[1] += np.where(live, 2.0 * np.abs(avy * dacc * dt) + np.abs(ay), 0.0)
+        if record:
+            trace.append((avy, r))
     if record:
         return (avx, avy), trace[::-1]
     return avx, avy
 
 
-def step_jacobian(c: dict[str, float], dacc: float, hit: bool) -> np.ndarray:
-    """d(x1, y1, vx1, vy1)/d(x, y, vx, vy) of one step."""
+def step_jacobian(c: dict[str, float], dacc, hit) -> np.ndarray:
+    """d(x1, y1, vx1, vy1)/d(x, y, vx, vy) of one step, shape dacc.shape + (4, 4)."""
     dt = c["dt"]
-    a = np.array([[1.0, 0.0, dt, 0.0],
-                  [0.0, 1.0 + dt * dt * dacc, 0.0, dt],
-                  [0.0, 0.0, 1.0, 0.0],
-                  [0.0, dt * dacc, 0.0, 1.0]])
-    if hit:
-        a[1, :] = 0.0
-        a[2, :] *= c["damping"]
-        a[3, :] *= -c["bounce"]
+    dacc = np.asarray(dacc, np.float64)
+    a = np.zeros(dacc.shape + (4, 4))
+    a[..., 0, 0] = 1.0; a[..., 0, 2] = dt
+    a[..., 1, 3] = dt
+    a[..., 1, 1] = 1.0 + dt * dt * dacc
+    a[..., 2, 2] = 1.0
+    a[..., 3, 1] = dt * dacc; a[..., 3, 3] = 1.0
+    hit = np.broadcast_to(hit, dacc.shape)
+    if np.any(hit):
+        a[hit, 1, :] = 0.0
+        a[hit, 2, :] *= c["damping"]
+        a[hit, 3, :] *= -c["bounce"]
     return a
 
 
-def error_bounds(c: dict[str, float], contact: str, tape, loss: float, dx: float, dy: float,
-                 u: float) -> tuple[float, np.ndarray]:
+def _abs_t_dot(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """|m|^T v for a batch of matrices (..., i, j) and vectors (..., i)."""
+    return np.einsum("...ij,...i->...j", np.abs(m), v)
+
+
+def error_bounds(c: dict[str, float], contact: str, tape, loss, dx, dy, u: float):
     """First-order rounding-error bounds on the loss and on each gradient component.
 
     Linear error analysis with exact propagation: every operation of step k rounds with
@@ -174,125 +212,158 @@ def error_bounds(c: dict[str, float], contact: str, tape, loss: float, dx: float
       grad:  (a) the seeds 2(dx, dy) carry 2 E_N through J^T;  (b) the reverse sweep's own
              rounding rr_k reaches the gradient through Phi(k, 0)^T;  (c) for soft contact the
              sweep's coefficient dacc(y_k) is off by |d2acc| E_k,y + 4u|dacc| (y_k's error E_k,y).
+    Shapes: loss, dx, dy of the batch shape S (() for one trajectory); returns (S, S + (2,)).
+    Cost: O(steps) per trajectory, O(steps^2) for soft contact's term (c).
     """
     dt = c["dt"]
     n = len(tape)
-    local = np.zeros((n, 4))
-    mats = np.zeros((n, 4, 4))
-    for i, (_, (x1, y1, vx1, vy1), acc, dacc, _, racc, hit) in enumerate(tape):
-        (x0, y0, vx0, vy0) = tape[i][0]
-        vy_mid = vy0 + acc * dt
-        r_vy = dt * u * racc + u * abs(acc * dt) + u * abs(vy_mid)
-        r = np.array([u * (abs(vx0 * dt) + abs(x1)),
-                      u * (abs(vy_mid * dt) + abs(y0 + vy_mid * dt)) + dt * r_vy,
-                      0.0, r_vy])
-        if hit:
-            r[1] = 0.0
-            r[3] = c["bounce"] * r[3] + u * abs(vy1)
-            r[2] = u * abs(vx1)
-        local[i] = r
-        mats[i] = step_jacobian(c, dacc, hit)
+    shape = np.shape(loss)
+    zero = np.zeros((n,) + shape)
+    def stack(j: int) -> np.ndarray:        # tape field j of every step, (n, S); absent: 0
+        return np.array([np.broadcast_to(t[j], shape) for t in tape]) if tape[0][j] is not None else zero
+    x0, y0, vx0, vy0 = np.moveaxis(np.array([t[0] for t in tape]), 1, 0)
+    x1, y1, vx1, vy1 = np.moveaxis(np.array([t[1] for t in tape]), 1, 0)
+    acc, dacc, racc = stack(2), stack(3), stack(5)
+    hit = stack(6).astype(bool)
+    # local rounding of every step at once, (n, S, 4)
+    vy_mid = vy0 + acc * dt
+    r_vy = dt * u * racc + u * np.abs(acc * dt) + u * np.abs(vy_mid)
+    local = np.stack([u * (np.abs(vx0 * dt) + np.abs(x1)),
+                      u * (np.abs(vy_mid * dt) + np.abs(y0 + vy_mid * dt)) + dt * r_vy,
+                      zero, r_vy], axis=-1)
+    local[..., 1] = np.where(hit, 0.0, local[..., 1])
+    local[..., 3] = np.where(hit, c["bounce"] * local[..., 3] + u * np.abs(vy1), local[..., 3])
+    local[..., 2] = np.where(hit, u * np.abs(vx1), local[..., 2])
+    mats = step_jacobian(c, dacc, hit)
     # Phi(N, k) for every k by a backward product; forward tangents Phi(k, 0) by a forward one.
-    back = np.eye(4)
-    err_final = np.zeros(4)
+    back = np.broadcast_to(np.eye(4), shape + (4, 4))
+    err_final = np.zeros(shape + (4,))
     for i in range(n - 1, -1, -1):
-        err_final += np.abs(back) @ local[i]
+        err_final += np.einsum("...ij,...j->...i", np.abs(back), local[i])
         back = back @ mats[i]
-    jac_v = back[:2, 2:4]                      # d(x_N, y_N)/d(vx0, vy0)
-    ex, ey = err_final[0], err_final[1]
-    tol_loss = 2 * abs(dx) * (ex + u * abs(dx)) + 2 * abs(dy) * (ey + u * abs(dy)) + 3 * u * loss
-    seeds = 2.0 * np.array([ex + u * abs(dx), ey + u * abs(dy)])
-    tol_grad = np.abs(jac_v).T @ seeds
+    jac_v = back[..., :2, 2:4]                  # d(x_N, y_N)/d(vx0, vy0)
+    ex, ey = err_final[..., 0], err_final[..., 1]
+    adx, ady = np.abs(dx), np.abs(dy)
+    tol_loss = 2 * adx * (ex + u * adx) + 2 * ady * (ey + u * ady) + 3 * u * np.asarray(loss)
+    seeds = 2.0 * np.stack([ex + u * adx, ey + u * ady], axis=-1)
+    tol_grad = _abs_t_dot(jac_v, seeds)
     _, trace = adjoint(c, tape, 2.0 * dx, 2.0 * dy, record=True)
-    fwd = np.eye(4)
-    ey_k = 0.0
-    errs = np.zeros((0, 4))        # rounding injected so far, for E_k,y (soft only)
-    mats_so_far = np.zeros((0, 4, 4))
-    for i, (_, _, _, dacc, d2acc, _, _) in enumerate(tape):
+    fwd = np.broadcast_to(np.eye(4), shape + (4, 4))
+    # Phi(i, j) for j < i (soft only), grown in place: phis[:i] = A_{i-1} phis[:i], phis[i-1] = I
+    phis = np.zeros((n,) + shape + (4, 4)) if contact == "soft" else None
+    d2acc = stack(4)
+    for i in range(n):
         avy, rr = trace[i]
         # (b): error injected into the adjoint at step i reaches the gradient via Phi(i, 0)^T
-        tol_grad += np.abs(fwd[:, 2:4]).T @ (u * rr)
-        if contact == "soft":
-            if len(errs):
-                ey_k = float(np.sum(np.abs(mats_so_far[:, 1, :]) * errs))
-            coeff_err = abs(d2acc) * ey_k + 4.0 * u * abs(dacc)
-            tol_grad += abs(avy) * dt * coeff_err * np.abs(fwd[1, 2:4])
-            # Phi(i+1, j) = A_i Phi(i, j): update the stack, then add step i's own rounding
-            mats_so_far = np.concatenate([np.einsum("ab,kbc->kac", mats[i], mats_so_far),
-                                          np.eye(4)[None]], axis=0) if len(errs) else np.eye(4)[None]
-            errs = np.vstack([errs, local[i]])
+        tol_grad = tol_grad + _abs_t_dot(fwd[..., 2:4], u * np.moveaxis(rr, 0, -1))
+        if phis is not None:
+            ey_k = np.einsum("k...j,k...j->...", np.abs(phis[:i, ..., 1, :]), local[:i]) if i else 0.0
+            coeff_err = np.abs(d2acc[i]) * ey_k + 4.0 * u * np.abs(dacc[i])
+            tol_grad = tol_grad + (np.abs(avy) * dt * coeff_err)[..., None] * np.abs(fwd[..., 1, 2:4])
+            if i:
+                phis[:i] = mats[i] @ phis[:i]
+            phis[i] = np.eye(4)
         fwd = mats[i] @ fwd
-    return float(tol_loss), tol_grad
+    return tol_loss, tol_grad
+
+
+def _split(v) -> tuple[np.ndarray, np.ndarray]:
+    v = np.asarray(v, np.float64)
+    return v[..., 0], v[..., 1]
+
+
+def _targets(c: dict[str, float]):
+    return c["target_x"], c["target_y"]
+
+
+def loss_and_gradient(c: dict[str, float], contact: str, steps: int, v):
+    """Loss and adjoint gradient from one float64 rollout (as ``evaluate``, without the bounds):
+    what a host loop needs per evaluation. v: (2,) or (B, 2); returns loss () or (B,), grad v's
+    shape."""
+    (x, y, _, _), tape = rollout(c, contact, steps, *_split(v))
+    tx, ty = _targets(c)
+    dx, dy = x - tx, y - ty
+    return dx * dx + dy * dy, np.stack(adjoint(c, tape, 2.0 * dx, 2.0 * dy), axis=-1)
 
 
 def evaluate(c: dict[str, float], contact: str, steps: int, v, u: float):
     """loss, gradient and their rounding-error bounds for the precision with unit roundoff u."""
-    (x, y, _, _), tape = rollout(c, contact, steps, float(v[0]), float(v[1]))
-    dx, dy = x - c["target_x"], y - c["target_y"]
+    (x, y, _, _), tape = rollout(c, contact, steps, *_split(v))
+    tx, ty = _targets(c)
+    dx, dy = x - tx, y - ty
     loss = dx * dx + dy * dy
-    grad = np.array(adjoint(c, tape, 2.0 * dx, 2.0 * dy))
+    grad = np.stack(adjoint(c, tape, 2.0 * dx, 2.0 * dy), axis=-1)
     tol_loss, tol_grad = error_bounds(c, contact, tape, loss, dx, dy, u)
     return loss, grad, tol_loss, tol_grad
 
 
 def gradient(c: dict[str, float], contact: str, steps: int, v) -> np.ndarray:
-    (x, y, _, _), tape = rollout(c, contact, steps, float(v[0]), float(v[1]))
-    return np.array(adjoint(c, tape, 2.0 * (x - c["target_x"]), 2.0 * (y - c["target_y"])))
+    return loss_and_gradient(c, contact, steps, v)[1]
 
 
-def loss_of(c: dict[str, float], contact: str, steps: int, v) -> float:
-    (x, y, _, _), _ = rollout(c, contact, steps, float(v[0]), float(v[1]))
-    return (x - c["target_x"]) ** 2 + (y - c["target_y"]) ** 2
-
-
-def loss_and_gradient(c: dict[str, float], contact: str, steps: int, v) -> tuple[float, np.ndarray]:
-    """Loss and adjoint gradient from one float64 rollout (as ``evaluate``, without the bounds):
-    what a host loop needs per evaluation."""
-    (x, y, _, _), tape = rollout(c, contact, steps, float(v[0]), float(v[1]))
-    dx, dy = x - c["target_x"], y - c["target_y"]
-    return dx * dx + dy * dy, np.array(adjoint(c, tape, 2.0 * dx, 2.0 * dy))
+def loss_of(c: dict[str, float], contact: str, steps: int, v):
+    (x, y, _, _), _ = rollout(c, contact, steps, *_split(v))
+    tx, ty = _targets(c)
+    return (x - tx) ** 2 + (y - ty) ** 2
 
 
 def finite_difference_gradient(c: dict[str, float], contact: str, steps: int, v,
-                               h: float = 1e-4) -> np.ndarray:
+                               h: float = 1e-4, with_error: bool = False):
     """Float64 central differences with one Richardson step (error O(h^4)), so a stiff soft
-    contact needs no tiny h (whose rounding error, eps/h, would dominate)."""
+    contact needs no tiny h (whose rounding error, eps/h, would dominate). With ``with_error`` also
+    an estimate of its own error: the Richardson correction |rich - central(h/2)| plus the loss
+    rounding amplified by the differencing, 8 u64 |loss| / h."""
     v = np.asarray(v, np.float64)
 
-    def central(step: float) -> np.ndarray:
-        e = np.eye(2) * step
-        return np.array([(loss_of(c, contact, steps, v + e[i]) - loss_of(c, contact, steps, v - e[i]))
-                         / (2 * step) for i in range(2)])
-    return (4.0 * central(h / 2) - central(h)) / 3.0
+    # every displaced point in one batch (leading axis): step (h, h/2) x direction x sign, and v
+    pts = np.stack([v + e * step * sign for step in (h, h / 2) for e in np.eye(2) for sign in (1.0, -1.0)] + [v])
+    f = loss_of(c, contact, steps, pts)
+    full, half = ([(f[j] - f[j + 1]) / (2 * step), (f[j + 2] - f[j + 3]) / (2 * step)]
+                  for j, step in ((0, h), (4, h / 2)))
+    full, half = np.stack(full, axis=-1), np.stack(half, axis=-1)
+    rich = (4.0 * half - full) / 3.0
+    if not with_error:
+        return rich
+    loss = np.abs(f[8])[..., None]
+    return rich, np.abs(rich - half) + 8.0 * UNIT_ROUNDOFF["float64"] * loss / h
 
 
 def hessian(c: dict[str, float], contact: str, steps: int, v, rel_step: float = 1e-6) -> np.ndarray:
-    """Loss Hessian by central differences of the float64 adjoint gradient (symmetrised)."""
-    h = rel_step * max(1.0, float(np.max(np.abs(v))))
-    cols = [(gradient(c, contact, steps, v + h * e) - gradient(c, contact, steps, v - h * e)) / (2 * h)
-            for e in np.eye(2)]
-    m = np.array(cols).T
-    return 0.5 * (m + m.T)
+    """Loss Hessian by central differences of the float64 adjoint gradient (symmetrised);
+    (2, 2) or (B, 2, 2)."""
+    v = np.asarray(v, np.float64)
+    h = (rel_step * np.maximum(1.0, np.max(np.abs(v), axis=-1)))[..., None]
+    # the four displaced points as one batch (leading axis), targets broadcast alongside
+    pts = np.stack([v + h * e * sign for e in np.eye(2) for sign in (1.0, -1.0)])
+    g = gradient(c, contact, steps, pts)
+    m = np.stack([(g[0] - g[1]) / (2 * h), (g[2] - g[3]) / (2 * h)], axis=-1)
+    return 0.5 * (m + np.swapaxes(m, -1, -2))
 
 
-def closed_form(c: dict[str, float], steps: int, v: tuple[float, float]) -> tuple[float, np.ndarray]:
+def closed_form(c: dict[str, float], steps: int, v):
     """Exact loss and gradient of the discrete scheme without contact."""
     t = steps * c["dt"]
-    x = v[0] * t
-    y = v[1] * t + c["gravity"] * c["dt"] ** 2 * steps * (steps + 1) / 2.0
-    dx, dy = x - c["target_x"], y - c["target_y"]
-    return dx * dx + dy * dy, np.array([2.0 * dx * t, 2.0 * dy * t])
+    vx, vy = _split(v)
+    x = vx * t
+    y = vy * t + c["gravity"] * c["dt"] ** 2 * steps * (steps + 1) / 2.0
+    tx, ty = _targets(c)
+    dx, dy = x - tx, y - ty
+    return dx * dx + dy * dy, np.stack([2.0 * dx * t, 2.0 * dy * t], axis=-1)
 
 
-def _ratio(err, bound) -> float:
-    """max(err/bound); an exact zero with a zero bound (e.g. a gradient component killed by a
-    final hard-contact clamp) is 0, a nonzero error against a zero bound is inf."""
-    err = np.atleast_1d(np.asarray(err, np.float64))
-    bound = np.atleast_1d(np.asarray(bound, np.float64))
-    r = np.divide(err, bound, out=np.zeros_like(err), where=bound > 0)
+def spectral_norm_sym(m: np.ndarray) -> np.ndarray:
+    """2-norm of symmetric matrices (..., 2, 2): the largest |eigenvalue|."""
+    return np.max(np.abs(np.linalg.eigvalsh(m)), axis=-1)
+
+
+def _ratios(err, bound) -> np.ndarray:
+    """err/bound elementwise; an exact zero with a zero bound (e.g. a gradient component killed by
+    a final hard-contact clamp) is 0, a nonzero error against a zero bound is inf."""
+    err, bound = np.broadcast_arrays(np.asarray(err, np.float64), np.asarray(bound, np.float64))
+    r = np.divide(err, bound, out=np.zeros(err.shape), where=bound > 0)
     r[(bound <= 0) & (err != 0)] = np.inf
     r[~np.isfinite(err)] = np.inf
-    return float(np.max(r))
+    return r
 
 
 class Projectile(Scenario):
@@ -343,42 +414,82 @@ class Projectile(Scenario):
         return projectile_stress.EXPERIMENTS
 
     def inputs(self, params: ProjectileParams, precision: str) -> dict[str, np.ndarray]:
+        """Shared constants as scalars; ``v0`` and ``target`` per trajectory: shape (2,) for
+        batch = 1 (the seed case), (B, 2) for B > 1 (row 0 the seed case, the rest drawn from
+        ``BATCH_DRAW`` with ``seed``). Kernels read the targets from ``target``."""
         dt = dtype_of(precision)
         out = {k: np.array(getattr(params, k), dtype=dt) for k in CONSTANTS}
-        out["v0"] = np.array([params.vx0, params.vy0], dtype=dt)
+        v0 = np.array([params.vx0, params.vy0], dtype=np.float64)
+        target = np.array([params.target_x, params.target_y], dtype=np.float64)
+        if params.batch > 1:
+            rng = np.random.default_rng(params.seed)
+            draw = {k: rng.uniform(lo, hi, params.batch - 1) for k, (lo, hi) in BATCH_DRAW.items()}
+            v0 = np.concatenate([v0[None], np.stack([draw["vx0"], draw["vy0"]], axis=-1)])
+            target = np.concatenate([target[None], np.stack([draw["target_x"], draw["target_y"]], axis=-1)])
+        out["v0"] = v0.astype(dt)
+        out["target"] = target.astype(dt)
         return out
 
     def output_shapes(self, params: ProjectileParams) -> dict[str, tuple[int, ...]]:
-        return {"loss": (), "grad": (2,), "loss_history": (params.iters + 1,), "v_final": (2,)}
+        b = () if params.batch == 1 else (params.batch,)
+        return {"loss": b, "grad": b + (2,), "loss_history": (params.iters + 1,) + b, "v_final": b + (2,)}
+
+    def size_text(self, params: ProjectileParams) -> str:
+        return f"steps={params.steps}" + (f", batch={params.batch}" if params.batch > 1 else "")
+
+    def sample(self, params: ProjectileParams, inputs: dict[str, np.ndarray],
+               outputs: dict[str, np.ndarray], k: int):
+        """k evenly spaced trajectories of a batch (BATCH_CHECKED when k is 0): the oracle's
+        cost grows with steps (steps^2 for soft contact) per trajectory and evaluation."""
+        k = k or BATCH_CHECKED
+        if params.batch <= k:
+            return None
+        idx = np.unique(np.linspace(0, params.batch - 1, k).round().astype(np.int64))
+        ins = {n: (a[idx] if n in ("v0", "target") else a) for n, a in inputs.items()}
+        outs = {n: (np.asarray(a)[:, idx] if n == "loss_history" else np.asarray(a)[idx])
+                for n, a in outputs.items()}
+        return ins, outs, int(idx.size), params.batch, "trajectories"
+
+    @staticmethod
+    def constants(inputs: dict[str, np.ndarray]) -> dict[str, Any]:
+        """Float64 constants of the (rounded) inputs; the targets per trajectory."""
+        c: dict[str, Any] = {k: float(inputs[k]) for k in CONSTANTS}
+        target = np.asarray(inputs["target"], np.float64)
+        c["target_x"], c["target_y"] = target[..., 0], target[..., 1]
+        return c
 
     def oracle(self, params: ProjectileParams, inputs) -> dict[str, np.ndarray]:
+        """Vectorised over the trajectories of ``inputs`` (one, or a batch)."""
         # the port's rounding (u) plus the float64 oracle's own (u64): the bounds are linear in u
         u = UNIT_ROUNDOFF[precision_of(inputs["v0"])] + UNIT_ROUNDOFF["float64"]
-        c = {k: float(inputs[k]) for k in CONSTANTS}
+        c = self.constants(inputs)
         lr = c["lr"]
         v = inputs["v0"].astype(np.float64)
         hist, grads, tol_l, tol_g, tol_h = [], [], [], [], []
-        dv = 0.0           # bound on |v_k - v_ref_k| (2-norm)
-        for k in range(params.iters + 1):
+        dv = np.zeros(v.shape[:-1])     # bound on |v_k - v_ref_k| (2-norm), per trajectory
+        for k in range(params.iters + 1):   # (an unstable descent's bound overflows to inf: unbounded)
             loss, grad, tl, tg = evaluate(c, params.contact, params.steps, v, u)
             if params.contact == "none":       # the closed form is the oracle; the rollout gives bounds
                 loss, grad = closed_form(c, params.steps, v)
-            hess = hessian(c, params.contact, params.steps, v) if params.iters else np.zeros((2, 2))
+            hess = hessian(c, params.contact, params.steps, v) if params.iters else np.zeros(v.shape + (2,))
+            gnorm = np.linalg.norm(grad, axis=-1)
+            with np.errstate(over="ignore", invalid="ignore"):
+                tol_h.append(tl + gnorm * dv + 0.5 * spectral_norm_sym(hess) * dv * dv)
             hist.append(loss); grads.append(grad); tol_l.append(tl); tol_g.append(tg)
-            tol_h.append(tl + np.linalg.norm(grad) * dv + 0.5 * np.linalg.norm(hess, 2) * dv * dv)
             if k < params.iters:
                 v_new = v - lr * grad
-                gain = np.linalg.norm(np.eye(2) - lr * hess, 2)
-                dv = gain * dv + lr * np.linalg.norm(tg) + u * (np.linalg.norm(v_new) + lr * np.linalg.norm(grad))
+                gain = spectral_norm_sym(np.eye(2) - lr * hess)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    dv = gain * dv + lr * np.linalg.norm(tg, axis=-1) + u * (np.linalg.norm(v_new, axis=-1) + lr * gnorm)
                 v = v_new
-        fd = finite_difference_gradient(c, params.contact, params.steps, inputs["v0"])
-        return {"loss": np.float64(hist[0]), "grad": grads[0], "grad_fd": fd, "loss_history": np.array(hist),
-                "v_final": v, "grad_history": np.array(grads), "tol_loss": np.array(tol_l),
-                "tol_grad": np.array(tol_g), "tol_history": np.array(tol_h), "gradient_reference":
-                np.array("closed-form" if params.contact == "none" else "adjoint64")}
+        fd, fd_err = finite_difference_gradient(c, params.contact, params.steps, inputs["v0"], with_error=True)
+        return {"loss": np.asarray(hist[0], np.float64), "grad": grads[0], "grad_fd": fd, "grad_fd_error": fd_err,
+                "loss_history": np.array(hist), "v_final": v, "grad_history": np.array(grads),
+                "tol_loss": np.array(tol_l), "tol_grad": np.array(tol_g), "tol_history": np.array(tol_h),
+                "gradient_reference": np.array("closed-form" if params.contact == "none" else "adjoint64")}
 
     def check(self, params, inputs, outputs, reference, precision) -> Check:
-        """Loss, gradient and history within their derived bounds.
+        """Loss, gradient and history within their derived bounds, per trajectory.
 
         History: an error dv_k in v_k evolves through the descent map v -> v - lr*grad(v), whose
         Jacobian is I - lr*H_k (H_k the loss Hessian at v_k, from central differences of the
@@ -386,33 +497,57 @@ class Projectile(Scenario):
         and |h_k - h_ref_k| <= tol_loss_k + |grad_k| dv_k + |H_k| dv_k^2 / 2. Where descent is
         unstable (|I - lr H| > 1, e.g. the seed's lr = 0.08) the bound grows with the amplification,
         as the error itself does. The reported error is the worst ratio error/bound over loss,
-        gradient and history (ok when <= 1).
+        gradient and history and over the checked trajectories (ok when <= 1).
+
+        Gradient quality (``gradient_fd_agreement``): the share of checked trajectories whose
+        gradient agrees with float64 central differences, i.e. |g - g_fd| <= tol_grad + the
+        differences' own error estimate in both components. The discrete adjoint is the exact
+        derivative of the program; where the loss is not smooth in v0 (a hard bounce that comes or
+        goes), it is not the slope the differences see.
         """
-        loss = float(np.asarray(outputs["loss"]).reshape(()))
-        grad = np.asarray(outputs["grad"], np.float64).reshape(2)
-        hist = np.asarray(outputs["loss_history"], np.float64).reshape(-1)
-        e_loss = abs(loss - float(reference["loss"]))
-        e_grad_vec = np.abs(grad - reference["grad"])
-        e_grad = float(np.max(e_grad_vec))
-        tol_loss = float(reference["tol_loss"][0]); tol_grad_vec = reference["tol_grad"][0]
+        shape = np.shape(reference["loss"])
+        try:
+            loss = np.asarray(outputs["loss"], np.float64).reshape(shape)
+            grad = np.asarray(outputs["grad"], np.float64).reshape(shape + (2,))
+        except ValueError:
+            return Check(math.inf, 1.0, False, {"reason": "loss/grad shapes do not match the inputs"})
+        hist = np.asarray(outputs["loss_history"], np.float64)
         ref_hist = reference["loss_history"]
-        if hist.shape != ref_hist.shape:
+        if hist.size != ref_hist.size:
             return Check(math.inf, 1.0, False, {"reason": f"loss_history shape {hist.shape} != {ref_hist.shape}"})
-        tol_hist = reference["tol_history"]
+        hist = hist.reshape(ref_hist.shape)
+        e_loss = np.abs(loss - reference["loss"])
+        e_grad_vec = np.abs(grad - reference["grad"])
         e_hist = np.abs(hist - ref_hist)
-        ratios = [_ratio(e_loss, tol_loss), _ratio(e_grad_vec, tol_grad_vec), _ratio(e_hist, tol_hist)]
-        finite = all(math.isfinite(r) for r in ratios) and np.all(np.isfinite(hist))
-        worst = max(ratios) if finite else math.inf
-        rel_grad = e_grad / max(float(np.max(np.abs(reference["grad"]))), 1e-300)
-        return Check(worst, 1.0, bool(finite and worst <= 1.0), {
-            "metric": "max(error/bound) over loss, gradient, history",
-            "loss_rel_error": e_loss / max(abs(float(reference["loss"])), 1e-300),
-            "gradient_error": e_grad, "gradient_rel_error": rel_grad,
-            "gradient_vs_fd64_rel": float(np.max(np.abs(grad - reference["grad_fd"]))
-                                         / max(float(np.max(np.abs(reference["grad_fd"]))), 1e-300)), "gradient_tolerance": [float(t) for t in tol_grad_vec],
+        tol_grad_vec = reference["tol_grad"][0]
+        per = np.maximum.reduce([_ratios(e_loss, reference["tol_loss"][0]),
+                                 np.max(_ratios(e_grad_vec, tol_grad_vec), axis=-1),
+                                 np.max(_ratios(e_hist, reference["tol_history"]), axis=0)])
+        per = np.where(np.all(np.isfinite(hist), axis=0), per, np.inf)
+        worst = float(np.max(per))
+        finite = math.isfinite(worst)
+        at = int(np.argmax(per)) if np.ndim(per) else 0
+        g_ref, fd = reference["grad"], reference["grad_fd"]
+        agree = np.all(np.abs(grad - fd) <= tol_grad_vec + reference["grad_fd_error"], axis=-1)
+        pick = (lambda a: a) if not shape else (lambda a: np.asarray(a)[at])   # noqa: E731
+        details = {
+            "metric": "max(error/bound) over loss, gradient, history" + (" and trajectories" if shape else ""),
+            "loss_rel_error": float(np.max(e_loss / np.maximum(np.abs(reference["loss"]), 1e-300))),
+            "gradient_error": float(np.max(e_grad_vec)),
+            "gradient_rel_error": float(np.max(np.max(e_grad_vec, axis=-1)
+                                               / np.maximum(np.max(np.abs(g_ref), axis=-1), 1e-300))),
+            "gradient_vs_fd64_rel": float(np.max(np.max(np.abs(grad - fd), axis=-1)
+                                                 / np.maximum(np.max(np.abs(fd), axis=-1), 1e-300))),
+            "gradient_tolerance": [float(t) for t in pick(tol_grad_vec)],
+            "gradient_value": [float(g) for g in pick(grad)],
+            "gradient_reference_value": [float(g) for g in pick(g_ref)],
+            "gradient_fd_agreement": float(np.mean(agree)),
             "gradient_reference": str(reference["gradient_reference"]),
             "history_max_abs_error": float(np.max(e_hist)),
-        })
+        }
+        if shape:
+            details["worst_trajectory"] = at
+        return Check(worst, 1.0, bool(finite and worst <= 1.0), details)
 
     def distance(self, params, inputs, outputs, other) -> float:
         """Largest relative difference of loss and gradient at v0.
@@ -436,6 +571,10 @@ class Projectile(Scenario):
         import matplotlib.pyplot as plt
         rec0 = runs[0][0]
         p = self.params(rec0["params"])
+        if p.batch > 1:        # draw row 0 of every batch: the seed case
+            p = dataclasses.replace(p, batch=1)
+            runs = [(r, {k: np.asarray(v)[:, 0] if k == "loss_history" else np.asarray(v)[0]
+                         for k, v in o.items()}) for r, o in runs]
         refs = {prec: self.oracle(p, self.inputs(p, prec)) for prec in {r["precision"] for r, _ in runs}}
         fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
         ref = refs.get("float64", next(iter(refs.values())))["loss_history"]
@@ -465,24 +604,35 @@ class Projectile(Scenario):
         return fig
 
     def work(self, params: ProjectileParams, precision: str) -> dict[str, float]:
-        return {"items": float(params.steps) * (params.iters + 1)}
+        """items: trajectory-steps; gradients: trajectory-gradients (B x evaluations), whose rate is
+        the gradient throughput; flops: FLOPS_PER_STEP per trajectory-step, forward and reverse."""
+        evals = float(params.batch) * (params.iters + 1)
+        return {"items": evals * params.steps, "gradients": evals,
+                "flops": evals * params.steps * FLOPS_PER_STEP[params.contact]}
 
     def footprint(self, params: ProjectileParams, precision: str) -> float:
-        # the per-step states of the port's tape and of the float64 oracle's rollout + adjoint;
-        # measured on CPU (all four backends): at most 173 MiB at 200 000 steps (~900 B/step)
-        # and 22 MiB at 10 000 (JAX's fixed part); bound ~1.6x that (docs/reliability.md)
-        return 32.0 * 2**20 + params.steps * 1400.0 + params.iters * 64.0
+        # per checked trajectory, the per-step states of the float64 oracle's rollout + adjoint +
+        # bounds (soft: also its steps x 4 x 4 transition stack); per trajectory, the port's tape
+        # (at most ~900 B/step measured on CPU for a single trajectory: a bound for the host
+        # copy of any device) and the inputs and outputs; plus a fixed part (JAX's ~22 MiB)
+        checked = min(params.batch, BATCH_CHECKED)
+        oracle = params.steps * (1400.0 + (128.0 * params.steps if params.contact == "soft" else 0.0))
+        per_traj = params.steps * 900.0 + (params.iters + 8) * 8.0 * 3
+        return 32.0 * 2**20 + checked * oracle + params.batch * per_traj + params.iters * 64.0
 
     def floor(self, params: ProjectileParams, precision: str, hardware: dict) -> dict | None:
-        """One trajectory is a serial chain: each step's forward pass needs vy <- vy + acc dt, then
+        """A trajectory is a serial chain: each step's forward pass needs vy <- vy + acc dt, then
         y <- y + vy dt (two dependent FMAs), and the reverse sweep two more, so an evaluation is at
         least 4 x steps dependent operations; at 4 cycles each (the FMA latency of recent NVIDIA
         GPUs) and the GPU's maximum SM clock, iters + 1 evaluations take at least
-        16 x steps x (iters + 1) / clock. GPU only (the clock comes from NVML)."""
+        16 x steps x (iters + 1) / clock, however many trajectories run side by side. A batch
+        also needs its FLOPs (``work``) at the stated peak: the floor is the larger. GPU only."""
         clock = hardware.get("sm_clock_max_hz")
         if not clock:
             return None
         n = 16.0 * params.steps * (params.iters + 1)
-        return {"kind": "serial latency", "seconds": n / clock,
-                "derivation": f"4 dependent FMAs x 4 cycles x {params.steps} steps x {params.iters + 1} "
-                              f"evaluations at {clock / 1e9:.3g} GHz"}
+        serial = {"kind": "serial latency", "seconds": n / clock,
+                  "derivation": f"4 dependent FMAs x 4 cycles x {params.steps} steps x {params.iters + 1} "
+                                f"evaluations at {clock / 1e9:.3g} GHz"}
+        flops = super().floor(params, precision, hardware) if params.batch > 1 else None
+        return max((f for f in (serial, flops) if f), key=lambda f: f["seconds"])

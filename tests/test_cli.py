@@ -31,7 +31,7 @@ def test_list_names_everything():
     (("bogus",), "unknown scenario"),
     (("saxpy", "--set", "n=0"), "n must be"),
     (("saxpy", "--set", "n=-5"), "n must be"),
-    (("saxpy", "--set", "n=1.5"), "n must be a int"),
+    (("saxpy", "--set", "n=1.5"), "n must be an integer"),
     (("particles", "--set", "dt=nan"), "dt must be"),
     (("particles", "--set", "dt=inf"), "dt must be"),
     (("particles", "--set", "dt=-0.01"), "dt must be"),

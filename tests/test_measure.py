@@ -51,19 +51,19 @@ def test_check_sample_checks_evenly_spaced_items():
     assert out is None
 
 
-def test_sample_items_only_for_per_item_scenarios():
+def test_default_sample_only_for_per_item_scenarios():
     import scenarios
     sax = scenarios.get("saxpy")
     p = sax.params({"n": 10})
     inp = sax.inputs(p, "float32")
-    s_in, s_out, k = worker.sample_items(p, inp, {"out": inp["x"]}, 4)
-    assert k == 4 and s_in["x"].tolist() == inp["x"][[0, 3, 6, 9]].tolist()
+    s_in, s_out, k, n, _ = sax.sample(p, inp, {"out": inp["x"]}, 4)
+    assert (k, n) == (4, 10) and s_in["x"].tolist() == inp["x"][[0, 3, 6, 9]].tolist()
     assert np.ndim(s_in["a"]) == 0
-    assert worker.sample_items(p, inp, {"out": inp["x"]}, 10) is None      # n <= k: all
+    assert sax.sample(p, inp, {"out": inp["x"]}, 10) is None      # n <= k: all
     part = scenarios.get("particles")
     p = part.params({"n": 10, "steps": 3, "record_every": 1})
     inp = part.inputs(p, "float32")
-    assert worker.sample_items(p, inp, {"traj_x": np.zeros((4, 10))}, 4) is None
+    assert part.sample(p, inp, {"traj_x": np.zeros((4, 10))}, 4) is None
 
 
 # ---- timing --------------------------------------------------------------------------------

@@ -13,7 +13,7 @@ pytestmark = pytest.mark.cli
 def _consts(precision="float64", **over):
     sc = scenarios.get("projectile")
     p = sc.params(over)
-    return p, {k: float(v) for k, v in sc.inputs(p, precision).items() if k != "v0"}
+    return p, {k: float(v) for k, v in sc.inputs(p, precision).items() if k in pj.CONSTANTS}
 
 
 def _loss(c, contact, steps, v):

@@ -28,7 +28,14 @@ CASES = [
     ("projectile", {"contact": "hard"}),
     ("projectile", {"contact": "soft"}),
     ("projectile", {"steps": 7, "iters": 0}),
+    # batched: B trajectories, each descending on its own loss; an awkward B, all three contacts
+    ("projectile", {"contact": "none", "batch": 37}),
+    ("projectile", {"contact": "hard", "batch": 37}),
+    ("projectile", {"contact": "soft", "batch": 37}),
 ]
+# (batched case, single case): row 0 of a batch is the seed case, computed by the same arithmetic
+BATCH_ROW0 = {c: (("projectile", {"contact": c, "batch": 37}), ("projectile", {"contact": c}))
+              for c in ("none", "hard", "soft")}
 # float64 agreement with Warp (relative to each scenario's metric): both ports are the same
 # algorithm, so they may differ only by float64 rounding, e.g. FMA contraction.
 TIGHT_VS_WARP = {"saxpy": 1e-15, "sdf": 1e-13, "particles": 1e-12, "projectile": 1e-12}
@@ -76,3 +83,18 @@ def test_parity(backend, device, precision, scenario, overrides):
         p = sc.params(overrides, quick=True)
         d = sc.distance(p, sc.inputs(p, "float64"), outputs, ref_out)
         assert d <= TIGHT_VS_WARP[scenario], f"float64 {backend} vs {backends.reference()} differ by {d:.3g}"
+
+
+@pytest.mark.parametrize("backend,device,precision,scenario,overrides",
+                         [p for p in _params([b for b, _ in BATCH_ROW0.values()]) if p.values[1] == "cpu"])
+def test_batch_row0_is_the_single_trajectory(backend, device, precision, scenario, overrides):
+    """On the CPU, row 0 of a batched run equals the unbatched run bit for bit: the batch only
+    adds trajectories, it does not change any trajectory's arithmetic."""
+    require_device(backend, device)
+    single = BATCH_ROW0[overrides["contact"]][1]
+    (rec_b, out_b), (rec_1, out_1) = (run_case(backend, device, precision, s, o)
+                                      for s, o in ((scenario, overrides), single))
+    assert rec_b["status"] == "ok" and rec_1["status"] == "ok", (rec_b.get("reason"), rec_1.get("reason"))
+    for name, a in out_1.items():
+        row0 = out_b[name][:, 0] if name == "loss_history" else out_b[name][0]
+        assert row0.tobytes() == a.tobytes(), f"{name}: batch row 0 {row0} != single {a}"
