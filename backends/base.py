@@ -142,11 +142,13 @@ class Backend:
             return False
 
 
-def not_installed(module: str, package: str) -> str | None:
-    """None if ``module`` imports, else a one-line reason."""
+def not_installed(module: str, package: str, extra: str = "") -> str | None:
+    """None if ``module`` imports, else a one-line reason, with the install command when the
+    package comes with one of the project's extras (``pip install -e '.[extra]'``)."""
     try:
         importlib.import_module(module)
     except Exception as exc:  # ImportError, or a framework failing at import (driver/ABI issues)
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        return f"{package} not importable: {first}"
+        how = f" (install: pip install -e '.[{extra}]')" if extra else ""
+        return f"{package} not importable: {first}{how}"
     return None
