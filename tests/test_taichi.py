@@ -6,7 +6,9 @@
    output to a couple of ulps (a float64 literal or a reordered expression would show);
 3. autodiff: the projectile gradient against float64 central differences of the oracle; the fused
    rollout (one launch, serial loop differentiated through adstacks) against one launch per step,
-   and the guard that picks between them from the configured adstack depth;
+   single and batched, and the guard that picks between them from the configured adstack depth;
+   batched: every trajectory equals its own single-trajectory run (independent losses, per-thread
+   adstacks and exp stores), and set_input replaces a batch's v0 in place;
 4. no recompilation and repeatable outputs across run() calls; particle trajectory frames.
 Anything that initialises Taichi runs in a subprocess or a worker (ti.init is process-global).
 """
@@ -145,23 +147,25 @@ for precision in ("float64", "float32"):
     b = backends.get("taichi"); b.setup(DEVICE, precision, "default")
     sc = scenarios.get("projectile")
     for contact in ("none", "hard", "soft"):
-        p = sc.params({"contact": contact, "steps": 60, "iters": 3})
-        i = sc.inputs(p, precision)
-        res = {}
-        for fused in (True, False):
-            Kernel.fused = fused
-            k = Kernel(p, i, DEVICE, precision, "default")
-            b.synchronize(DEVICE, k.run())
-            o = k.outputs()
-            res[fused] = (o, bool(sc.check(p, i, o, sc.oracle(p, i), precision).ok), k.info())
-        Kernel.fused = None
-        (o, ok, info), (o_step, ok_step, info_step) = res[True], res[False]
-        out[f"{precision}-{contact}"] = {
-            "ok": [ok, ok_step], "fused_flags": [info["fused_rollout"], info_step["fused_rollout"]],
-            "identical": all(np.array_equal(o[n], o_step[n]) for n in o),
-            "rel": max(float(np.max(np.abs(o[n] - o_step[n])
-                                    / np.maximum(np.abs(o_step[n]), 1e-300)))
-                       for n in ("loss", "grad"))}
+        for batch in (1, 37):         # 37: more trajectories than CPU threads, not a warp multiple
+            p = sc.params({"contact": contact, "steps": 60, "iters": 3, "batch": batch})
+            i = sc.inputs(p, precision)
+            res = {}
+            for fused in (True, False):
+                Kernel.fused = fused
+                k = Kernel(p, i, DEVICE, precision, "default")
+                b.synchronize(DEVICE, k.run())
+                o = k.outputs()
+                res[fused] = (o, bool(sc.check(p, i, o, sc.oracle(p, i), precision).ok), k.info())
+            Kernel.fused = None
+            (o, ok, info), (o_step, ok_step, info_step) = res[True], res[False]
+            out[f"{precision}-{contact}-{batch}"] = {
+                "ok": [ok, ok_step], "fused_flags": [info["fused_rollout"], info_step["fused_rollout"]],
+                "shapes": {n: [list(o[n].shape), list(o_step[n].shape)] for n in o},
+                "identical": all(np.array_equal(o[n], o_step[n]) for n in o),
+                "rel": max(float(np.max(np.abs(o[n] - o_step[n])
+                                        / np.maximum(np.abs(o_step[n]), 1e-300)))
+                           for n in ("loss", "grad"))}
 print("RESULT" + json.dumps(out))
 """
 
@@ -169,16 +173,79 @@ print("RESULT" + json.dumps(out))
 @pytest.mark.parametrize("device", backends.DEVICES)
 def test_fused_rollout_equals_one_launch_per_step(device):
     """The fused backward pass (adstacks; exp linearised around the primal's stored value) gives
-    the gradients, losses and iterates of the plain per-step differentiation: bitwise on the CPU;
-    on CUDA, where the compiler contracts products and sums into FMAs kernel by kernel, to a few
-    roundings (both also within the oracle's bounds)."""
-    for case, r in _script(PATHS, device).items():
-        assert r["ok"] == [True, True], case
-        assert r["fused_flags"] == [True, False], case
+    the gradients, losses and iterates of the plain per-step differentiation, for one trajectory
+    and for a batch (one thread per trajectory in both paths): bitwise on the CPU; on CUDA, where
+    the compiler contracts products and sums into FMAs kernel by kernel, to a few roundings (both
+    also within the oracle's bounds)."""
+    r = _script(PATHS, device)
+    assert len(r) == 12
+    for case, v in r.items():
+        batch = int(case.rsplit("-", 1)[1])
+        assert v["ok"] == [True, True], case
+        assert v["fused_flags"] == [True, False], case
+        b = [] if batch == 1 else [batch]
+        assert v["shapes"] == {"loss": [b, b], "grad": [b + [2]] * 2,
+                               "loss_history": [[4] + b] * 2, "v_final": [b + [2]] * 2}, case
         if device == "cpu":
-            assert r["identical"], case
+            assert v["identical"], case
         else:
-            assert r["rel"] <= (1e-12 if case.startswith("float64") else 1e-4), case
+            assert v["rel"] <= (1e-12 if case.startswith("float64") else 1e-4), case
+
+
+ROWS = """
+import numpy as np
+from backends.taichi.projectile import Kernel
+b = backends.get("taichi"); b.setup(DEVICE, "float64", "default")
+sc = scenarios.get("projectile")
+out = {}
+for contact in ("hard", "soft"):
+    p = sc.params({"contact": contact, "steps": 60, "iters": 3, "batch": 37})
+    i = sc.inputs(p, "float64")
+    k = Kernel(p, i, DEVICE, "float64", "default")
+    b.synchronize(DEVICE, k.run())
+    o = k.outputs()
+    # each row against a single-trajectory kernel at that row's v0 and target
+    p1 = sc.params({"contact": contact, "steps": 60, "iters": 3})
+    rows = {}
+    for row in (0, 17, 36):
+        i1 = dict(sc.inputs(p1, "float64"), v0=i["v0"][row].copy(), target=i["target"][row].copy())
+        k1 = Kernel(p1, i1, DEVICE, "float64", "default")
+        b.synchronize(DEVICE, k1.run())
+        o1 = k1.outputs()
+        rows[row] = all(np.array_equal(o1[n], o[n][:, row] if n == "loss_history" else o[n][row])
+                        for n in o1)
+    # set_input: new v0 for the whole batch, in place; equals a fresh kernel built at it
+    v0 = (i["v0"] * 0.9)[::-1].copy()
+    k.set_input("v0", v0)
+    b.synchronize(DEVICE, k.run())
+    o_set = k.outputs()
+    k2 = Kernel(p, dict(i, v0=v0), DEVICE, "float64", "default")
+    b.synchronize(DEVICE, k2.run())
+    o2 = k2.outputs()
+    try:
+        k.set_input("v0", v0[0])
+        refused = False
+    except ValueError:
+        refused = True
+    out[contact] = {"rows": rows, "distinct": len({float(x) for x in o["loss"]}),
+                    "set_input": all(np.array_equal(o_set[n], o2[n]) for n in o2),
+                    "set_input_changed": not np.array_equal(o_set["grad"], o["grad"]),
+                    "wrong_shape_refused": refused}
+print("RESULT" + json.dumps(out))
+"""
+
+
+def test_each_batch_row_is_its_own_single_trajectory():
+    """Trajectories do not interact: each row of a batch (not only row 0, whose inputs are the
+    seed case) equals a single-trajectory run at that row's v0 and target bit for bit. A shared
+    loss seed, a gradient summed over rows, an adstack or exp store shared between threads, or a
+    row/column mix-up in the (steps + 1, B) layout would break it."""
+    r = _script(ROWS)
+    for contact, v in r.items():
+        assert v["rows"] == {"0": True, "17": True, "36": True}, contact
+        assert v["distinct"] == 37, contact          # the rows really are different problems
+        assert v["set_input"] and v["set_input_changed"], contact
+        assert v["wrong_shape_refused"], contact
 
 
 GUARD = """
@@ -194,8 +261,10 @@ for steps in (fused_steps_limit(), fused_steps_limit() + 1):
     for contact, vy0 in (("hard", 6.5), ("hard", 0.0), ("soft", 6.5)):
         # t_N = 2 s: with vy0 = 6.5 one bounce, airborne at the end
         p = sc.params({"contact": contact, "steps": steps, "dt": 2.0 / steps, "iters": 2,
-                       "vy0": vy0})
+                       "vy0": vy0, "batch": 3})
         i = sc.inputs(p, "float64")
+        if vy0 == 0.0:
+            i["v0"][:, 1] = 0.0        # every trajectory (thread) at the deepest case
         res = []
         for fused in (None, False):    # as the guard chooses, and forced per step
             Kernel.fused = fused
@@ -214,7 +283,8 @@ print("RESULT" + json.dumps(out))
 def test_fused_rollout_only_where_the_adstacks_hold_it():
     """Past the configured depth Taichi overflows its adstacks silently (wrong gradients, a crash
     or a hang), so longer rollouts must take the per-step path. At the limit, even with a contact
-    on every step, the fused path equals the per-step one bitwise."""
+    on every step in every trajectory of a batch, the fused path equals the per-step one
+    bitwise."""
     r = _script(GUARD)
     limit = r.pop("limit")
     assert limit == 40 - 2
