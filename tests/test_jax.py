@@ -1,6 +1,7 @@
 """JAX-specific checks beyond the generic parity suite: precision really follows the cell (the
 x64 flag is per process), AD gradients agree with finite differences of the float64 oracle,
-trajectories, donation, and the rematerialisation option of the projectile."""
+trajectories, donation, the rematerialisation option of the projectile (and its "checkpoint"
+variant), and the batched projectile's compiled program being reused across set_input."""
 from __future__ import annotations
 
 import json
@@ -21,10 +22,10 @@ SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 5,
          "particles": {"n": 33, "steps": 57}, "projectile": {"contact": "soft", "iters": 2}}
 
 
-def _run(scenario: str, precision: str, params: dict, device: str = "cpu"):
+def _run(scenario: str, precision: str, params: dict, device: str = "cpu", variant: str = "default"):
     require_device("jax", device)
     spec = {"scenario": scenario, "backend": "jax", "device": device, "precision": precision,
-            "params": params, "quick": True, "repeat": 1, "min_time": 0.0}
+            "variant": variant, "params": params, "quick": True, "repeat": 1, "min_time": 0.0}
     record, outputs = cells.run(spec, timeout=600)
     assert record["status"] == "ok", \
         f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
@@ -119,3 +120,96 @@ def test_remat_and_unroll_options_keep_the_results():
         assert res[key]["temp"] < full["temp"] / 4
         np.testing.assert_allclose(res[key]["grad"], full["grad"], rtol=1e-12)
         np.testing.assert_allclose(res[key]["hist"], full["hist"], rtol=1e-12)
+
+
+BATCH = """
+import json, sys
+import numpy as np
+import backends, scenarios
+from backends.jax.projectile import Kernel, checkpoint_segment
+b = backends.get("jax"); b.setup("cpu", "float64", "default")
+sc = scenarios.get("projectile")
+p = sc.params({"contact": "soft", "batch": 37}, quick=True)
+i = sc.inputs(p, "float64")
+ref = sc.oracle(p, i)
+res = {"segment": checkpoint_segment(p.steps)}
+kernels = {}
+for variant in ("default", "checkpoint"):
+    k = kernels[variant] = Kernel(p, i, "cpu", "float64", variant)
+    b.synchronize("cpu", k.run())
+    o = k.outputs()
+    res[variant] = {"out": {n: a.tolist() for n, a in o.items()}, "ok": sc.check(p, i, o, ref, "float64").ok,
+                    "temp": k.info()["temp_bytes"], "remat": k.info()["remat_segment"]}
+# set_input on the batch: new v0 rows, same compiled program, the same results as a fresh kernel
+k = kernels["default"]
+compiled = k.program.compiled
+before = k.outputs()
+v1 = np.ascontiguousarray(i["v0"][::-1])
+k.set_input("v0", v1)
+b.synchronize("cpu", k.run())
+after = k.outputs()
+fresh = Kernel(p, {**i, "v0": v1}, "cpu", "float64", "default")
+b.synchronize("cpu", fresh.run())
+res["reused"] = k.program.compiled is compiled
+res["same_as_fresh"] = all(after[n].tobytes() == a.tobytes() for n, a in fresh.outputs().items())
+res["moved"] = bool(np.any(after["grad"] != before["grad"]))
+try:
+    k.set_input("v0", v1[:5]); res["shape_refused"] = False
+except ValueError:
+    res["shape_refused"] = True
+try:
+    Kernel(p, i, "cpu", "float64", "fastmath"); res["variant_refused"] = False
+except ValueError:
+    res["variant_refused"] = True
+print("BATCH" + json.dumps(res))
+"""
+
+
+@pytest.fixture(scope="module")
+def batch_results():
+    require_device("jax", "cpu")
+    proc = subprocess.run([sys.executable, "-c", BATCH], cwd=ROOT, env=cells.worker_env(),
+                          capture_output=True, text=True, timeout=600)
+    line = next((r for r in proc.stdout.splitlines() if r.startswith("BATCH")), None)
+    assert line, proc.stderr[-2000:]
+    return json.loads(line[5:])
+
+
+def test_batched_checkpoint_matches_the_plain_path(batch_results):
+    """The "checkpoint" variant (segments of round(sqrt(steps)) steps) on a batch: both pass the
+    oracle check and agree to float64 rounding (the recomputed forward segments may round
+    differently, so not bit for bit), with several times less temporary memory."""
+    plain, ckpt = batch_results["default"], batch_results["checkpoint"]
+    assert batch_results["segment"] == 13 and ckpt["remat"] == 13 and plain["remat"] == 0
+    assert plain["ok"] and ckpt["ok"]
+    assert ckpt["temp"] < plain["temp"] / 4
+    for name, a in plain["out"].items():
+        a, c = np.asarray(a), np.asarray(ckpt["out"][name])
+        assert c.shape == a.shape
+        # the history descends to ~1e-8 where the loss cancels: its scale is the starting loss
+        scale = np.abs(plain["out"]["loss"]) if name == "loss_history" else np.abs(a)
+        assert np.all(np.abs(c - a) <= 1e-12 * scale), (name, np.max(np.abs(c - a) / scale))
+
+
+def test_batched_set_input_reuses_the_compiled_program(batch_results):
+    assert batch_results["reused"]          # no recompilation: the same executable ran
+    assert batch_results["moved"]           # the new v0 was used ...
+    assert batch_results["same_as_fresh"]   # ... exactly as a kernel built with it would
+    assert batch_results["shape_refused"]   # a different batch size would need a new program
+
+
+def test_projectile_checkpoint_variant_is_offered(batch_results):
+    """The variant exists for the projectile only, and a kernel refuses variants it lacks."""
+    import backends
+    assert batch_results["variant_refused"]
+    be = backends.get("jax")
+    assert be.variants_for("projectile") == ("default", "checkpoint")
+    assert be.variants_for("saxpy") == ("default",)
+
+
+def test_checkpoint_variant_through_the_worker():
+    record, outputs = _run("projectile", "float32", {"contact": "soft", "batch": 37},
+                           variant="checkpoint")
+    assert record["info"]["remat_segment"] == 13
+    assert record["error"]["vs_oracle"] <= record["error"]["tolerance"]
+    assert outputs["loss_history"].shape == (21, 37) and outputs["grad"].dtype == np.float32
