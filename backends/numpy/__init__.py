@@ -35,9 +35,10 @@ class NumpyBackend(Backend):
     name = "numpy"
     package = "numpy"
     gradient_method = "adjoint"          # hand-written discrete adjoint: NumPy has no autodiff
-    # after warp 0, taichi 1, jax 2, numba 3; grey: the baseline, told apart from the
-    # tab10 hues by lightness alone (readable for colour-blind readers)
-    display_order, color = 4, "C7"
+    # The baseline comes last in tables (after warp 0 ... numba 3 and the newer ports at 4 and up),
+    # in grey (tab10 C7): no other backend's hue, told apart by lightness alone, so it stays
+    # readable for colour-blind readers among eight backends.
+    display_order, color = 9, "C7"
 
     def available(self) -> dict[str, str | None]:
         reason = not_installed("numpy", self.package)
