@@ -1,0 +1,200 @@
+"""PyTorch: eager ATen ops written in place into preallocated tensors; gradients by autograd.
+
+Variants: "default" is eager PyTorch; "compile" runs each scenario's step/iteration function
+through ``torch.compile(mode="default", fullgraph=True, dynamic=False)`` (Inductor: C++/OpenMP on
+the CPU, Triton on CUDA). Not "reduce-overhead": the torch.compile docs say its CUDA graphs apply
+only to graphs that do not mutate their inputs, and every kernel here writes into preallocated
+outputs; the CUDA-graph fast path is the ``capture`` hook instead (torch.cuda.graph around one
+``run()``), for both variants.
+
+Precision: every tensor is made with an explicit dtype (never the global default dtype) and every
+constant is a 0-d tensor of the cell's dtype on the cell's device, so float32 stays float32 and a
+compiled graph sees the constants as inputs (not literals it may fold). TF32 is switched off in
+``setup`` and read back into every kernel's ``info()``. Under "compile" Inductor's Triton division
+is made IEEE (``eager_numerics.division_rounding``); its default there is an approximate division.
+
+PyTorch is imported lazily (inside functions and the kernel modules): the driver imports every
+backend package without loading frameworks. The package is ``backends.torch``; ``import torch``
+inside it is absolute and gets PyTorch itself.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..base import Backend, not_installed
+
+VARIANTS = ("default", "compile")
+COMPILE_MODE = "default"
+
+
+def torch_device(device: str) -> Any:
+    import torch
+    return torch.device("cuda", 0) if device == "cuda" else torch.device("cpu")
+
+
+def torch_dtype(precision: str) -> Any:
+    import torch
+    return {"float32": torch.float32, "float64": torch.float64}[precision]
+
+
+def put(array: Any, precision: str, device: str) -> Any:
+    """Upload a host array (or scalar: a 0-d tensor) with the cell's dtype, set explicitly."""
+    import torch
+    host = np.array(array, dtype=np.dtype(precision), order="C")   # keeps 0-d as 0-d
+    return torch.tensor(host, dtype=torch_dtype(precision), device=torch_device(device))
+
+
+def empty(shape: tuple[int, ...], precision: str, device: str) -> Any:
+    import torch
+    return torch.empty(shape, dtype=torch_dtype(precision), device=torch_device(device))
+
+
+def download(t: Any) -> np.ndarray:
+    return t.detach().cpu().numpy().copy()
+
+
+def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """The "compile" variant's wrapper of a step/iteration function (one mode for all scenarios)."""
+    import torch
+    return torch.compile(fn, mode=COMPILE_MODE, fullgraph=True, dynamic=False)
+
+
+def check_variant(variant: str) -> None:
+    if variant not in VARIANTS:
+        raise ValueError(f"PyTorch has no variant {variant!r} (offered: {VARIANTS})")
+
+
+def numerics() -> dict[str, Any]:
+    """The process's precision switches as PyTorch reports them (recorded in every info())."""
+    import torch
+    out = {"tf32_matmul": bool(torch.backends.cuda.matmul.allow_tf32),
+           "tf32_cudnn": bool(torch.backends.cudnn.allow_tf32),
+           "float32_matmul_precision": torch.get_float32_matmul_precision()}
+    try:
+        from torch._inductor import config
+        out["inductor_division_rounding"] = bool(config.eager_numerics.division_rounding)
+    except Exception:  # an Inductor without the switch: the record says so
+        out["inductor_division_rounding"] = None
+    return out
+
+
+def kernel_info(variant: str, **facts: Any) -> dict[str, Any]:
+    how = (f"torch.compile(mode={COMPILE_MODE!r}, fullgraph=True, dynamic=False)"
+           if variant == "compile" else "eager")
+    return {"execution": how, **facts, **numerics()}
+
+
+class TorchBackend(Backend):
+    name = "torch"
+    package = "torch"
+    gradient_method = "ad"
+    variants = VARIANTS
+    display_order, color = 5, "C5"
+    related_packages = ("triton",)
+
+    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
+        # torch.compile's FX-graph/Inductor cache and Triton's kernel cache, and the CUDA driver's
+        # PTX cache: empty per cell, so a compile variant's first call includes compilation.
+        return {"TORCHINDUCTOR_CACHE_DIR": str(cache_dir / "inductor"),
+                "TRITON_CACHE_DIR": str(cache_dir / "triton"),
+                "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
+
+    def ensure_context(self, device: str) -> None:
+        if device == "cuda":
+            import torch
+            torch.cuda.init()
+            torch.cuda.synchronize(torch_device(device))   # creates the primary context now
+
+    def capture(self, device: str, run: Any) -> Any:
+        """``torch.cuda.graph`` of one ``run()`` (after a warm-up call on a side stream, as the
+        PyTorch CUDA-graph docs require), replayed with ``CUDAGraph.replay``; CUDA only."""
+        if device != "cuda":
+            return None
+        import torch
+        side = torch.cuda.Stream()
+        side.wait_stream(torch.cuda.current_stream())
+        with torch.cuda.stream(side):
+            run()
+        torch.cuda.current_stream().wait_stream(side)
+        graph = torch.cuda.CUDAGraph()
+        with torch.cuda.graph(graph):
+            run()
+        return graph.replay
+
+    def event_timer(self, device: str) -> "TorchEvents | None":
+        return TorchEvents() if device == "cuda" else None
+
+    def available(self) -> dict[str, str | None]:
+        reason = not_installed("torch", self.package, extra="torch")
+        if reason:
+            return {"cpu": reason, "cuda": reason}
+        import torch
+        if torch.cuda.is_available():
+            cuda = None
+        elif torch.version.cuda is None:
+            cuda = f"this PyTorch build has no CUDA support (torch {torch.__version__})"
+        else:
+            cuda = f"no CUDA device visible to PyTorch (torch {torch.__version__}, CUDA {torch.version.cuda})"
+        return {"cpu": None, "cuda": cuda}
+
+    def versions(self) -> dict[str, str]:
+        import torch
+        out = {"torch": torch.__version__, "torch_cuda": str(torch.version.cuda)}
+        if torch.cuda.is_available():
+            out["cudnn"] = str(torch.backends.cudnn.version())
+        return out
+
+    def setup(self, device: str, precision: str, variant: str) -> None:
+        import torch
+        check_variant(variant)
+        # No TF32 anywhere (no scenario multiplies matrices today; a future one must not get
+        # 10-bit mantissas silently): full float32 matmul and convolution precision.
+        torch.backends.cuda.matmul.allow_tf32 = False
+        torch.backends.cudnn.allow_tf32 = False
+        torch.set_float32_matmul_precision("highest")
+        if variant == "compile":
+            from torch._inductor import config
+            config.eager_numerics.division_rounding = True   # IEEE x/y in Triton, as eager
+        if device == "cuda":
+            torch.cuda.set_device(torch_device(device))
+
+    def synchronize(self, device: str, result: Any) -> None:
+        if device == "cuda":
+            import torch
+            torch.cuda.synchronize(torch_device(device))
+
+    def memory(self, device: str) -> dict[str, Any]:
+        """Peak bytes of PyTorch's CUDA caching allocator (tensors, not its cached free blocks)."""
+        if device != "cuda":
+            return {}
+        import torch
+        dev = torch_device(device)
+        return {"device_peak_bytes": int(torch.cuda.max_memory_allocated(dev)),
+                "device_reserved_peak_bytes": int(torch.cuda.max_memory_reserved(dev)),
+                "device_memory_source": "torch.cuda.max_memory_allocated (caching allocator)"}
+
+
+class TorchEvents:
+    description = "CUDA events (torch.cuda.Event on the current stream) around run()"
+
+    def __init__(self) -> None:
+        import torch
+        self.torch = torch
+        self.a = torch.cuda.Event(enable_timing=True)
+        self.b = torch.cuda.Event(enable_timing=True)
+
+    def start(self) -> None:
+        self.a.record(self.torch.cuda.current_stream())
+
+    def stop(self) -> None:
+        self.b.record(self.torch.cuda.current_stream())
+
+    def elapsed_s(self) -> float:
+        self.b.synchronize()
+        return self.a.elapsed_time(self.b) * 1e-3          # milliseconds
+
+
+BACKEND = TorchBackend()

@@ -1,0 +1,44 @@
+"""Device copy in PyTorch: ``out.copy_(x)`` into a preallocated tensor (the bandwidth roofline).
+
+ATen's copy_ between two same-dtype contiguous tensors on one device is a device memcpy on CUDA
+(cudaMemcpyAsync, device to device) and a parallel memcpy on the CPU: the framework's own fastest
+copy. "compile" lets Inductor emit the copy as a generated kernel instead.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from . import check_variant, compiled, download, empty, kernel_info, put
+from ..base import ScenarioKernel
+
+
+def _copy(x, out):
+    out.copy_(x)
+
+
+class Kernel(ScenarioKernel):
+    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+                 variant: str) -> None:
+        check_variant(variant)
+        self.variant = variant
+        self.x = put(inputs["x"], precision, device)
+        self.out = empty((params.n,), precision, device)
+        self.fn = compiled(_copy) if variant == "compile" else None
+
+    def run(self) -> Any:
+        import torch
+        with torch.inference_mode():
+            if self.fn is not None:
+                self.fn(self.x, self.out)
+            else:
+                self.out.copy_(self.x)
+        return self.out
+
+    def outputs(self) -> dict[str, np.ndarray]:
+        return {"out": download(self.out)}
+
+    def info(self) -> dict[str, Any]:
+        return kernel_info(self.variant, copy="Tensor.copy_" if self.fn is None else "compiled copy_",
+                           distinct_output_buffer=self.out.data_ptr() != self.x.data_ptr())
