@@ -2,8 +2,10 @@
 
 1. float32 discipline: the float32 specialisations compile to code without any double arithmetic
    (Python float literals would promote to float64), and agree with Warp's float32 output;
-2. the hand-written projectile adjoint against float64 central finite differences;
-3. the CUDA kernels, run for correctness (never timed) under the CUDA simulator in a subprocess.
+2. the hand-written projectile adjoint against float64 central finite differences, and the
+   batched projectile: every row is the single-trajectory run bit for bit, in every variant;
+3. the CUDA kernels, run for correctness (never timed) under the CUDA simulator in a subprocess,
+   and the batched projectile kernel lowered by the real CUDA target (no GPU needed).
 """
 from __future__ import annotations
 
@@ -30,9 +32,9 @@ TINY = {"saxpy": {"n": 37}, "sdf": {"width": 11, "height": 7},
 
 
 def build(scenario: str, overrides: dict, precision: str, variant: str = "default",
-          inputs: dict | None = None):
+          inputs: dict | None = None, quick: bool = False):
     sc = scenarios.get(scenario)
-    p = sc.params(overrides)
+    p = sc.params(overrides, quick=quick)
     inputs = sc.inputs(p, precision) if inputs is None else inputs
     k = BACKEND.kernel(scenario)(p, inputs, "cpu", precision, variant)
     k.run()
@@ -118,6 +120,58 @@ def test_adjoint_matches_central_differences(contact: str, v0: tuple[float, floa
     np.testing.assert_allclose(grad, sc.oracle(p, inputs)["grad"], rtol=1e-12, atol=1e-12)
 
 
+BATCH = {"batch": 6, "steps": 80, "iters": 3}
+
+
+@pytest.mark.parametrize("variant", BACKEND.variants)
+@pytest.mark.parametrize("precision", ("float64", "float32"))
+@pytest.mark.parametrize("contact", ("hard", "soft"))
+def test_batch_rows_are_single_trajectories(contact: str, precision: str, variant: str) -> None:
+    """Every row b of a batch equals the single-trajectory kernel run at (v0[b], target[b]) bit for
+    bit: the prange indexes each trajectory's inputs, tape and outputs correctly, and its
+    arithmetic does not depend on B (the parity suite checks row 0 in the default variant)."""
+    overrides = {"contact": contact, **BATCH}
+    sc, p, inputs, k = build("projectile", overrides, precision, variant)
+    out = k.outputs()
+    assert {n: (a.shape, a.dtype) for n, a in out.items()} == \
+        {n: (shape, np.dtype(precision)) for n, shape in sc.output_shapes(p).items()}
+    assert len({tuple(r) for r in out["grad"]}) == p.batch      # distinct trajectories
+    for b in range(p.batch):
+        one = build("projectile", {**overrides, "batch": 1}, precision, variant,
+                    inputs={**inputs, "v0": inputs["v0"][b], "target": inputs["target"][b]})[3]
+        for name, a in one.outputs().items():
+            row = out[name][:, b] if name == "loss_history" else out[name][b]
+            assert row.tobytes() == a.tobytes(), (b, name, row, a)
+        if contact == "hard":
+            assert one.arrays["hit"].any(), "the contact must fire for the test to mean anything"
+
+
+def test_batch_set_input_moves_every_trajectory() -> None:
+    """set_input('v0', (B, 2)) reruns the compiled kernel at the new points: same outputs as a
+    kernel built there; and the single case keeps its (2,) shape."""
+    overrides = {"contact": "soft", **BATCH}
+    sc, p, inputs, k = build("projectile", overrides, "float64")
+    moved = inputs["v0"] * np.array([1.1, 0.9]) + 0.05
+    k.set_input("v0", moved)
+    k.run()
+    fresh = build("projectile", overrides, "float64", inputs={**inputs, "v0": moved})[3]
+    for name, a in fresh.outputs().items():
+        assert k.outputs()[name].tobytes() == a.tobytes(), name
+    single = build("projectile", {**overrides, "batch": 1}, "float64",
+                   inputs={**inputs, "v0": inputs["v0"][3], "target": inputs["target"][3]})[3]
+    single.set_input("v0", moved[3])
+    single.run()
+    assert single.outputs()["grad"].tobytes() == k.outputs()["grad"][3].tobytes()
+
+
+def test_cpu_projectile_is_a_parallel_loop() -> None:
+    """The CPU path is a prange over trajectories: Numba turned it into a parfor gufunc."""
+    k = build("projectile", {"contact": "soft", **BATCH}, "float32")[3]
+    assert "__numba_parfor_gufunc" in llvm_ir(k, "float32")[1]
+    info = k.info()
+    assert info["parallel"] and info["threads"] >= 1 and info["tape_layout"] == "(batch, steps)"
+
+
 # ---- 3. CUDA kernels under the simulator -----------------------------------------------------------
 SIMULATED = textwrap.dedent("""
     import json
@@ -134,7 +188,17 @@ SIMULATED = textwrap.dedent("""
             b.synchronize("cuda", k.run())          # repeatable
             o = k.outputs()
             c = sc.check(p, inputs, o, sc.oracle(p, inputs), precision)
+            batch = getattr(p, "batch", 1)
+            rows = []    # a batch: does each row equal the single-trajectory kernel bit for bit?
+            for r in range(batch if batch > 1 else 0):
+                p1 = sc.params({**overrides, "batch": 1})
+                k1 = b.kernel(name)(p1, {**inputs, "v0": inputs["v0"][r], "target": inputs["target"][r]},
+                                    "cuda", precision, "default")
+                b.synchronize("cuda", k1.run())
+                rows.append(all((o[n][:, r] if n == "loss_history" else o[n][r]).tobytes() == a.tobytes()
+                                for n, a in k1.outputs().items()))
             out["cases"].append({"case": f"{name}-{overrides}-{precision}", "ok": bool(c.ok),
+                                 "batch": batch, "rows_equal_single": rows,
                                  "error": float(c.error), "tolerance": float(c.tolerance),
                                  "dtypes": sorted({str(v.dtype) for v in o.values()}),
                                  "info": k.info()})
@@ -145,7 +209,12 @@ SIM_CASES = [("saxpy", {"n": 37}), ("saxpy", {"n": 37, "inputs": "random"}),
              ("particles", {"n": 37, "steps": 20, "record_every": 6}),
              ("projectile", {"contact": "none", "steps": 15, "iters": 3}),
              ("projectile", {"contact": "hard", "steps": 80, "iters": 3}),
-             ("projectile", {"contact": "soft", "steps": 80, "iters": 3})]
+             ("projectile", {"contact": "soft", "steps": 80, "iters": 3}),
+             # batched: one thread per trajectory; B = 130 > THREADS_PER_BLOCK needs two blocks
+             ("projectile", {"contact": "none", "batch": 5, "steps": 7, "iters": 3}),
+             ("projectile", {"contact": "hard", "batch": 5, "steps": 80, "iters": 3}),
+             ("projectile", {"contact": "soft", "batch": 5, "steps": 80, "iters": 3}),
+             ("projectile", {"contact": "none", "batch": 130, "steps": 7, "iters": 1})]
 
 
 def test_cuda_kernels_under_simulator() -> None:
@@ -161,6 +230,66 @@ def test_cuda_kernels_under_simulator() -> None:
     for case in result["cases"]:
         assert case["ok"], case
         assert case["dtypes"] == [case["case"].rsplit("-", 1)[1]], case
+        batch, info = case["batch"], case["info"]
+        assert case["rows_equal_single"] == [True] * (batch if batch > 1 else 0), case
+        if batch > 1:     # one thread per trajectory, the fewest blocks that cover the batch
+            assert info["tape_layout"] == "(steps, batch)", info
+            tpb = info["threads_per_block"]
+            assert info["blocks"] * tpb >= batch > (info["blocks"] - 1) * tpb, info
+
+
+LOWER = textwrap.dedent("""
+    # Lower the batched CUDA projectile kernel through numba-cuda's real CUDA target (typing and
+    # LLVM IR; turning IR into PTX needs NVVM, absent here). The device function asks the current
+    # device for its compute capability: there is none, so it is told sm_90.
+    import json, types as pytypes
+    import numpy as np
+    from numba import types
+    import numba.cuda.dispatcher as dispatcher
+    from numba.cuda.compiler import compile_cuda
+    dispatcher.get_current_device = lambda: pytypes.SimpleNamespace(compute_capability=(9, 0))
+    from backends.numba import projectile
+    out = {}
+    for precision, S in (("float32", types.float32), ("float64", types.float64)):
+        for fastmath in (False, True):
+            kernel = projectile.cuda_kernel(np.dtype(precision).type, fastmath)
+            a2 = types.Array(S, 2, "C")
+            sig = (types.int64,) * 3 + (S,) * 7 + (a2,) * 4 + (types.Array(types.boolean, 2, "C"), a2, a2)
+            ir = compile_cuda(kernel.py_func, types.void, sig, fastmath=fastmath, cc=(9, 0)).library.get_llvm_str()
+            body = [line for line in ir.splitlines() if not line.startswith(("declare", "!", "attributes"))]
+            out[f"{precision}-{fastmath}"] = {
+                "double_ops": [line for line in body if " double " in line and "fptrunc double" not in line],
+                "calls": sorted({line.split("@", 1)[1].split("(", 1)[0].strip('"') for line in body
+                                 if " call " in line}),
+            }
+    print("RESULT" + json.dumps(out))
+""")
+
+
+def test_cuda_projectile_lowers_for_the_real_target() -> None:
+    """The simulator runs Python, not the CUDA target: lower the batched kernel for real (typing,
+    tuple-returning device function, column views of the (steps, B) tape, libdevice maths). The
+    float32 kernel has no double arithmetic (the only doubles are S(...) constants folded to
+    float) and calls float32 libdevice functions (the fast ones with fastmath); float64 calls the
+    double ones."""
+    pytest.importorskip("numba.cuda")
+    env = {k: v for k, v in cells.worker_env().items() if k != "NUMBA_ENABLE_CUDASIM"}
+    proc = subprocess.run([sys.executable, "-c", LOWER], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=600, stdin=subprocess.DEVNULL)
+    line = next((r for r in proc.stdout.splitlines() if r.startswith("RESULT")), None)
+    assert line, proc.stderr[-3000:]
+    result = json.loads(line[len("RESULT"):])
+    assert len(result) == 4
+    # libdevice maths per (precision, fastmath): fastmath's float32 takes the fast intrinsics
+    maths = {"float32-False": {"__nv_expf", "__nv_logf"},
+             "float32-True": {"__nv_fast_expf", "__nv_fast_logf"},
+             "float64-False": {"__nv_exp", "__nv_log"}, "float64-True": {"__nv_exp", "__nv_log"}}
+    for case, r in result.items():
+        assert maths[case] <= set(r["calls"]), (case, r["calls"])
+        if case.startswith("float32"):
+            assert r["double_ops"] == [], (case, r["double_ops"][:5])
+        else:
+            assert r["double_ops"], case
 
 
 def test_package_import_does_not_import_numba() -> None:
