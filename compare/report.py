@@ -209,10 +209,12 @@ CSV_COLUMNS = {
     "floor_s": ("throughput", "floor_s"), "floor_kind": ("throughput", "floor_kind"),
     "hw_fraction": ("throughput", "hw_fraction"),
     "device_bytes": ("memory", "device_bytes"), "framework_device_peak_bytes": ("memory", "device_peak_bytes"),
-    "peak_host_rss_bytes": ("memory", "peak_host_rss_bytes"),
+    "peak_host_rss_bytes": ("memory", "peak_host_rss_bytes"), "host_bytes": ("memory", "host_bytes"),
+    "gradients_per_s": ("throughput", "gradients_per_s"),
     "err_vs_oracle": ("error", "vs_oracle"), "tolerance": ("error", "tolerance"),
     "err_vs_reference": ("error", "vs_reference"), "reference": ("error", "reference"),
     "gradient_method": ("gradient", "method"), "gradient_rel_error": ("gradient", "vs_oracle_rel"),
+    "gradient_fd_agreement": ("gradient", "fd_agreement"),
     "setup_s": ("time", "setup_s"), "download_s": ("time", "download_s"), "machine": ("machine",),
 }
 

@@ -32,6 +32,17 @@ from compare.store import jsonable
 from scenarios.base import dtype_of
 
 
+def current_rss_bytes() -> int:
+    """This worker's resident set size now (VmRSS), or 0 where /proc is missing."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
 def peak_rss_bytes() -> int:
     """Peak resident set size of this worker (the cell alone: each cell has its own process).
 
@@ -131,6 +142,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     if nvml:
         nvml.mark_baseline()                  # the metric leaves the framework's context out
     sync = lambda r: be.synchronize(device, r)  # noqa: E731
+    rss_before = current_rss_bytes()          # the host-memory baseline, framework started
     t0 = time.perf_counter()
     kernel = be.kernel(sc.name)(params, inputs, device, precision, variant)
     sync(None)
@@ -150,6 +162,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=spec.max_time)
         if nvml:
             nvml.sample()
+    run_peak = peak_rss_bytes()               # before the download and the oracle add theirs
     t0 = time.perf_counter()
     got = kernel.outputs()
     download_s = time.perf_counter() - t0
@@ -197,7 +210,9 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         # useful work per second in the throughput regime (the latency regime where not measured)
         "throughput": {f"{k}_per_s": v / per_call for k, v in work.items()
                        if (per_call := (regimes.get("throughput") or t)["median_s"]) > 0},
-        "memory": {"peak_host_rss_bytes": peak_rss_bytes(), **device_memory(be, device),
+        "memory": {"peak_host_rss_bytes": peak_rss_bytes(),
+                   "host_bytes": max(0, run_peak - rss_before) if rss_before and run_peak else None,
+                   **device_memory(be, device),
                    **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})},
         "info": kernel.info(),
         "host": platform.node(),
@@ -214,8 +229,8 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
             "vs_oracle_rel": check.details.get("gradient_rel_error"),
             "vs_fd64_rel": check.details.get("gradient_vs_fd64_rel"),
             "tolerance": check.details.get("gradient_tolerance"),
-            **({"fd_agreement": check.details["gradient_fd_agreement"]}
-               if "gradient_fd_agreement" in check.details else {}),
+            **{k: check.details[f"gradient_{k}"] for k in ("fd_agreement", "fd_resolved")
+               if f"gradient_{k}" in check.details},
         }
     if spec.save_outputs:
         np.savez(out_dir / "outputs.npz", **outputs)

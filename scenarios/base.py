@@ -256,6 +256,11 @@ class Scenario:
         default)."""
         return None
 
+    def state_bytes_per_step(self, precision: str) -> float | None:
+        """Bytes of state one item carries per step: the least a tape storing every step keeps
+        (the horizon sweep draws it beside each framework's measured memory). Default: none."""
+        return None
+
     # ---- report -----------------------------------------------------------------------------
     def figure(self, runs: list[tuple[dict[str, Any], dict[str, np.ndarray]]]) -> Any:
         """A matplotlib Figure of this scenario's results for the report, or None.

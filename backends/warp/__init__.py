@@ -22,6 +22,8 @@ class WarpBackend(Backend):
     gradient_method = "tape"
     is_reference = True
     display_order, color = 0, "C0"
+    # a taped segment loop: segment boundaries kept, each segment re-taped in the backward pass
+    scenario_variants = {"projectile": ("checkpoint",)}
     control_variants = {"particles": {
         "racy-one-launch": "the seed's single launch over (step, particle): step s reads what "
                            "step s-1 of the same launch has not yet written"}}

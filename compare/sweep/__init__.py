@@ -3,8 +3,10 @@
     sweep bandwidth   launch overhead, copy roofline, achieved bandwidth against size
     sweep error       time against error: precision, fast-math variants and each scenario's own
                       knobs (resolution, dt, ...) against a converged float64 reference
-    sweep scaling     throughput and memory against problem size
-    sweep all         the three above
+    sweep scaling     throughput and memory against problem size (the projectile: against batch)
+    sweep horizon     memory and gradient quality against the horizon (the projectile's steps),
+                      with each backend's memory-saving variants (e.g. checkpointing)
+    sweep all         the four above
     sweep report F... rebuild the page and plots from saved sweep.json files (no rerun)
 
 What is swept is the scenarios' business (``Scenario.sweep_points``, ``measures``,
@@ -36,8 +38,9 @@ from compare.sweep import page as pages
 from compare.sweep import plots
 from scenarios.base import PRECISIONS, ParamError
 
-KINDS = ("bandwidth", "error", "scaling")
-PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32"}
+KINDS = ("bandwidth", "error", "scaling", "horizon")
+PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32",
+             "horizon": "float32,float64"}
 ROLE_ORDER = ("launch", "copy", "bandwidth")    # the bandwidth sweep measures its yardsticks first
 SPEC_OPTIONS = ("check_sample", "save_outputs")  # what a sweep point may set in its cell's spec
 RECORD_BYTES = 64 * 2**10      # disk preflight: one record in sweep.json, generously
@@ -45,7 +48,7 @@ PAGE_BYTES = 32 * 2**20        # ... and the page and plots
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("kind", help="bandwidth | error | scaling | all | report")
+    p.add_argument("kind", help="bandwidth | error | scaling | horizon | all | report")
     p.add_argument("files", nargs="*", help="report: sweep.json files to merge")
     options.add_selection(p, precision=None, variants=False)   # error: every variant a backend has
     p.add_argument("--scenarios", default=None, help="error: which scenarios to sweep (default: "
@@ -123,9 +126,11 @@ def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] 
                     for prec in precisions[kind]:
                         options.check_precision(sc, sc.params(pt["params"]), prec)
             for be in sel["backends"]:
-                for variant in (backends.get(be).variants if kind == "error" else ("default",)):
+                for variant in variants(kind, be, chosen[kind]):
                     for prec in precisions[kind]:
                         for sc in chosen[kind]:
+                            if variant not in sweep_variants(kind, be, sc.name):
+                                continue
                             role = sc.measures if kind == "bandwidth" and sc.measures else sc.name
                             for pt in pts[sc.name]:
                                 spec = {"scenario": sc.name, "backend": be, "device": dev,
@@ -136,6 +141,22 @@ def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] 
                                         **pt["options"]}
                                 out.append((spec, pt["reference"]))
     return out
+
+
+def sweep_variants(kind: str, backend: str, scenario: str) -> tuple[str, ...]:
+    """The variants sweep ``kind`` runs: the backend's general variants in the error sweep (e.g.
+    fast math: precision against speed), the scenario's own variants (e.g. checkpointing: memory
+    against time) in the horizon sweep, else the default."""
+    be = backends.get(backend)
+    if kind == "error":
+        return be.variants
+    if kind == "horizon":
+        return ("default",) + be.scenario_variants.get(scenario, ())
+    return ("default",)
+
+
+def variants(kind: str, backend: str, swept_scenarios: list[scenarios.Scenario]) -> list[str]:
+    return list(dict.fromkeys(v for sc in swept_scenarios for v in sweep_variants(kind, backend, sc.name)))
 
 
 # ---- records and the results file ----------------------------------------------------------
@@ -202,7 +223,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     if args.kind == "report":
         return report(args)
     if args.kind not in (*KINDS, "all"):
-        raise UsageError(f"unknown sweep {args.kind!r} (bandwidth, error, scaling, all, report)")
+        raise UsageError(f"unknown sweep {args.kind!r} ({', '.join(KINDS)}, all, report)")
     if args.files:
         raise UsageError(f"unexpected argument {args.files[0]!r}")
     given = options.given(args, add_arguments, args.kind)

@@ -292,6 +292,7 @@ def scaling_table(records, device, scenario) -> str:
     """Throughput and memory against the swept size; the per-run count and the work item are
     the scenario's words ('per_run', 'item_rate')."""
     per_run, items = label(scenario, "per_run"), label(scenario, "item_rate", "items")
+    work = label(scenario, "rate_work", "items")       # the work() key the rate counts
     rows = []
     mine = sorted(ok(records, sweep="scaling", device=device, scenario=scenario),
                   key=lambda r: (r["backend"], r["precision"], knob(r).get("value") or 0))
@@ -301,7 +302,7 @@ def scaling_table(records, device, scenario) -> str:
         rates = [fmt_rate(r["params"][per_run] / t, f"{per_run}/s")] if per_run else []
         thr = throughput_s(r)
         rows.append([r["backend"], r["precision"], knob(r).get("value"), fmt_time(t),
-                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(r["work"]["items"] / (thr or t), "/s"),
+                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(r["work"][work] / (thr or t), "/s"),
                      fmt_bytes(r["memory"]["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
                      r["error"].get("checked_items", "all")])
@@ -376,7 +377,9 @@ def _error_section(records, d, s) -> str:
 def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title: str | None,
          sources: list[str], rebuild: str = "", notes: str = "") -> str:
     """The Markdown page: commands, environment, optional notes, then one set of sections per
-    device (launch, copy roofline, size sweep, time against error, scaling) and the problems."""
+    device (launch, copy roofline, size sweep, time against error, scaling, horizon) and the
+    problems."""
+    from compare.sweep import horizon      # it reads this module's helpers
     records, runs = data["records"], data["runs"]
     devices = [d for d in backends.DEVICES if any(r["device"] == d and r["status"] != "skipped"
                                                   for r in records)]
@@ -423,6 +426,12 @@ def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title:
             out.append(f"## {d}: {name} scaling\n")
             out.append(_img(written, plot_key("scaling", d, s, scaled), page_path, f"{name} scaling, {d}"))
             out.append(scaling_table(records, d, s) or "No data.\n")
+        long = swept(records, "horizon", d)
+        for s in long:
+            name = label(s, "name")
+            out.append(f"## {d}: {name} against the horizon\n")
+            out.append(_img(written, plot_key("horizon", d, s, long), page_path, f"{name} horizon, {d}"))
+            out.append(horizon.table(records, d, s) or "No data.\n")
     out.append("## Skipped and failed cells\n")
     out.append(problems(records))
     return "\n".join(out)

@@ -191,7 +191,7 @@ def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenari
                 continue
             tag = "" if prec == "float32" else " f64"
             n = [knob(r)["value"] for r in mine]
-            a1.plot(n, [r["work"]["items"] / wall_s(r) for r in mine], "-o",
+            a1.plot(n, [r["work"][label(scenario, "rate_work", "items")] / wall_s(r) for r in mine], "-o",
                     color=c, ms=4, label=f"{backend}{tag}")
             a2.plot(n, [r["memory"]["peak_host_rss_bytes"] / 2**20 for r in mine], "-o", color=c,
                     ms=4, label=f"{backend}{tag}: peak host RSS")
@@ -218,6 +218,11 @@ def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenari
     return True
 
 
+def plot_horizon(records: list[dict[str, Any]], device: str, path: Path, scenario: str) -> bool:
+    from compare.sweep import horizon
+    return horizon.plot(records, device, path, scenario, colors(records), _plt())
+
+
 def write_plots(records: list[dict[str, Any]], out: Path) -> dict[str, Path]:
     """Every plot the records allow, per device: {'bandwidth-cpu': path, ...} (file names as the
     keys, '-' -> '_': bandwidth_cpu.png; with several scenarios of a kind, one file each)."""
@@ -229,6 +234,8 @@ def write_plots(records: list[dict[str, Any]], out: Path) -> dict[str, Path]:
         jobs = [(plot_key("bandwidth", device, s, sized), plot_bandwidth, (s,)) for s in sized]
         jobs += [(f"time_vs_error-{device}", plot_time_vs_error, ())]
         jobs += [(plot_key("scaling", device, s, scaled), plot_scaling, (s,)) for s in scaled]
+        long = swept(records, "horizon", device)
+        jobs += [(plot_key("horizon", device, s, long), plot_horizon, (s,)) for s in long]
         for key, fn, extra in jobs:
             path = out / f"{key.replace('-', '_')}.png"
             if fn(records, device, path, *extra):

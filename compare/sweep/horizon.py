@@ -1,0 +1,158 @@
+"""The horizon sweep's table and plot: memory, time and gradient quality against the horizon.
+
+A scenario takes part through ``sweep_points('horizon', ...)`` (the knob is the horizon, e.g. the
+projectile's steps) and its ``sweep_labels``: 'horizon_items' (the parameter that counts
+independent items per run, e.g. batch), 'horizon_memory' (the parameter values whose points the
+memory and time panels draw, e.g. {'contact': 'hard'}), and ``state_bytes_per_step`` (the floor a
+tape needs). Definitions (docs/measurement.md):
+  * memory = ``memory.device_bytes`` on CUDA (NVML above the context), ``memory.host_bytes`` on the
+    CPU (resident set above the baseline taken before the kernel was built);
+  * bytes per item-step = the memory's growth from the previous horizon of the same group over the
+    items x extra steps (the slope: fixed costs cancel);
+  * FD agreement = ``gradient.fd_agreement``, the share of checked items whose gradient agrees with
+    float64 central differences (scenarios/projectile.py ``check``).
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import scenarios
+from compare.report import fmt_bytes, fmt_time
+from compare.store import save_figure
+from compare.sweep.page import knob, label, ok, throughput_s, wall_s
+
+
+def memory(rec: dict[str, Any]) -> tuple[float | None, str]:
+    """The cell's own memory and what it is: device bytes on CUDA, host bytes on the CPU."""
+    m = rec.get("memory") or {}
+    key, what = ("host_bytes", "host") if rec["device"] == "cpu" else ("device_bytes", "device")
+    v = m.get(key)
+    return (float(v), what) if isinstance(v, (int, float)) else (None, what)
+
+
+def items(rec: dict[str, Any]) -> int:
+    return int(rec["params"].get(label(rec["scenario"], "horizon_items"), 1) or 1)
+
+
+def group_key(rec: dict[str, Any]) -> tuple:
+    """Cells that differ only in the horizon: same backend, variant, precision, other params."""
+    name = knob(rec).get("name")
+    other = {k: v for k, v in rec["params"].items() if k != name}
+    return rec["backend"], rec["variant"], rec["precision"], json.dumps(other, sort_keys=True)
+
+
+def series(records: list[dict[str, Any]], device: str, scenario: str) -> dict[tuple, list[dict[str, Any]]]:
+    out: dict[tuple, list[dict[str, Any]]] = {}
+    for r in ok(records, sweep="horizon", device=device, scenario=scenario):
+        out.setdefault(group_key(r), []).append(r)
+    return {k: sorted(v, key=lambda r: knob(r)["value"]) for k, v in sorted(out.items())}
+
+
+def slopes(rows: list[dict[str, Any]]) -> list[float | None]:
+    """Bytes per item-step between consecutive horizons of one group (None for the first)."""
+    out: list[float | None] = [None]
+    for a, b in zip(rows, rows[1:]):
+        (ma, _), (mb, _) = memory(a), memory(b)
+        dn = knob(b)["value"] - knob(a)["value"]
+        out.append((mb - ma) / (items(b) * dn) if ma is not None and mb is not None and dn else None)
+    return out
+
+
+def varying(rows: list[dict[str, Any]], knob_name: str) -> list[str]:
+    """Parameters other than the knob that differ between the sweep's cells (e.g. contact)."""
+    keys = {k for r in rows for k in r["params"] if k != knob_name}
+    return sorted(k for k in keys if len({json.dumps(r["params"].get(k)) for r in rows}) > 1)
+
+
+def table(records: list[dict[str, Any]], device: str, scenario: str) -> str:
+    from tabulate import tabulate
+    groups = series(records, device, scenario)
+    if not groups:
+        return ""
+    every = [r for rows in groups.values() for r in rows]
+    kname = knob(every[0]).get("name", "size")
+    extra = varying(every, kname)
+    out = []
+    for rows in groups.values():
+        for r, slope in zip(rows, slopes(rows)):
+            mem, what = memory(r)
+            g = r.get("gradient") or {}
+            share = g.get("fd_agreement")
+            out.append([r["backend"], r["variant"], r["precision"], *(r["params"].get(k) for k in extra),
+                        knob(r)["value"], fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
+                        f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
+                        f"{slope:.3g}" if slope is not None else "-",
+                        f"{100 * share:.0f} %" if isinstance(share, (int, float)) else "-",
+                        r["error"].get("checked_items", "all")])
+    unit = label(scenario, "horizon_items", "item")
+    return tabulate(out, headers=["backend", "variant", "precision", *extra, kname, "latency median",
+                                  "throughput: per call", "memory", f"bytes per {unit}-step (slope)",
+                                  "FD agreement", "checked vs oracle"], tablefmt="github") + "\n"
+
+
+def plot(records: list[dict[str, Any]], device: str, path: Path, scenario: str, colors: dict[str, str],
+         plt: Any) -> bool:
+    """Memory and time against the horizon (the scenario's 'horizon_memory' points), per backend
+    and variant, with the tape floor; FD agreement against the horizon per contact and precision."""
+    groups = series(records, device, scenario)
+    if not groups:
+        return False
+    sc = scenarios.get(scenario)
+    want = dict(json.loads(label(scenario, "horizon_memory", "{}")))
+    fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(16, 4.8))
+    floor_done = set()
+    every = [r for rows in groups.values() for r in rows]
+    kname = knob(every[0]).get("name", "size")
+    for (backend, variant, prec, _), rows in groups.items():
+        if any(rows[0]["params"].get(k) != v for k, v in want.items()):
+            continue
+        style = "-" if variant == "default" else ":"
+        mark = "^" if prec == "float32" else "o"
+        lab = f"{backend}{'' if variant == 'default' else '/' + variant}{'' if prec == 'float32' else ' f64'}"
+        n = [knob(r)["value"] for r in rows]
+        mem = [memory(r)[0] for r in rows]
+        a1.plot(n, [m / 2**20 if m else math.nan for m in mem], style + mark, color=colors.get(backend),
+                ms=4, label=lab)
+        a2.plot(n, [(throughput_s(r) or wall_s(r)) for r in rows], style + mark, color=colors.get(backend),
+                ms=4, label=lab)
+        floor = sc.state_bytes_per_step(prec)
+        if floor and prec not in floor_done:
+            floor_done.add(prec)
+            a1.plot(n, [floor * items(r) * knob(r)["value"] / 2**20 for r in rows], "k" + ("--" if prec == "float32" else "-."),
+                    lw=1, label=f"state per step x {label(scenario, 'horizon_items', 'items')} x {kname} ({prec})")
+    shares: dict[tuple[str, str], dict[int, list[float]]] = {}
+    extra = [k for k in varying(every, kname) if k not in ("batch",)]
+    for rows in groups.values():
+        for r in rows:
+            s = (r.get("gradient") or {}).get("fd_agreement")
+            if isinstance(s, (int, float)):
+                key = (", ".join(f"{k}={r['params'].get(k)}" for k in extra), r["precision"])
+                shares.setdefault(key, {}).setdefault(knob(r)["value"], []).append(s)
+    for (what, prec), pts in sorted(shares.items()):
+        n = sorted(pts)
+        lo = [100 * min(pts[k]) for k in n]
+        hi = [100 * max(pts[k]) for k in n]
+        mid = [100 * sum(pts[k]) / len(pts[k]) for k in n]
+        line, = a3.plot(n, mid, "-" if prec == "float32" else "--", marker="o", ms=4, label=f"{what} {prec}")
+        a3.fill_between(n, lo, hi, color=line.get_color(), alpha=0.15)
+    where = ", ".join(f"{k}={v}" for k, v in want.items())
+    for ax in (a1, a2, a3):
+        ax.set_xscale("log")
+        ax.set_xlabel(f"{kname} (log)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+    a1.set_yscale("log"); a2.set_yscale("log")
+    a1.set_ylabel(f"{'host' if device == 'cpu' else 'device'} memory above baseline [MiB] (log)")
+    a1.set_title(f"memory against the horizon ({where}, {device})", fontsize=9)
+    a2.set_ylabel("time per call, throughput regime [s] (log)")
+    a2.set_title(f"time against the horizon ({where}, {device})", fontsize=9)
+    a3.set_ylabel("gradients agreeing with float64 FD [%]")
+    a3.set_ylim(-5, 105)
+    a3.set_title("gradient quality: mean over backends, band = min..max", fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return True
