@@ -33,6 +33,8 @@ class Kernel(ScenarioKernel):
         self.row = [np.empty(h, S) for _ in range(4)]     # per-row terms
         self.image = np.empty((h, w), S)
         self.scratch = np.empty((h, w), S)
+        # (a ufunc over the broadcast row x column operands allocates only NumPy's fixed iterator
+        # buffer, np.getbufsize() elements per operand, whatever the image size)
 
     def run(self) -> None:
         c = self.c
