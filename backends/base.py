@@ -152,3 +152,28 @@ def not_installed(module: str, package: str, extra: str = "") -> str | None:
         how = f" (install: pip install -e '.[{extra}]')" if extra else ""
         return f"{package} not importable: {first}{how}"
     return None
+
+
+def visible_gpus() -> int:
+    """NVIDIA GPUs the driver (NVML) sees on this host, whatever any framework thinks; 0 without
+    a driver or library."""
+    try:
+        import pynvml
+        pynvml.nvmlInit()
+        try:
+            return int(pynvml.nvmlDeviceGetCount())
+        finally:
+            pynvml.nvmlShutdown()
+    except Exception:  # no driver, no library: no GPU
+        return 0
+
+
+def cuda_build_hint(reason: str) -> str:
+    """A framework's reason for not seeing a GPU, plus the install command when the driver does
+    see one (then the framework is a CPU-only build or lacks its CUDA libraries)."""
+    n = visible_gpus()
+    if not n:
+        return reason
+    return (f"{reason}; the driver sees {n} NVIDIA GPU(s): a CPU-only build or missing CUDA "
+            f"libraries? install: pip install -e '.[cuda]' (CUDA 13: '.[cuda13]')")
+

@@ -78,11 +78,12 @@ def cmd_list() -> int:
         tag = "" if sc.in_all else " [measurement-only, not in 'all']"
         print(f"  {sc.name:11s} {sc.title}{tag}; defaults: {sc.describe_params()}")
     print("backends (device: available, or why not):")
+    width = max(map(len, backends.BACKENDS), default=7)
     for name, b in backends.BACKENDS.items():
         avail = probes[name]["available"]
         devs = "; ".join(f"{d}: {'yes' if avail.get(d) is None else avail.get(d)}" for d in backends.DEVICES)
         ref = " (reference)" if b.is_reference else ""
-        print(f"  {name:7s}{ref} gradient={b.gradient_method} variants={','.join(b.variants)}"
+        print(f"  {name:{width}s}{ref} gradient={b.gradient_method} variants={','.join(b.variants)}"
               + "".join(f" (+{sc}: {','.join(vs)})" for sc, vs in b.scenario_variants.items()) + f"; {devs}")
     problems = backends.PROBLEMS + scenario_problems()
     if problems:

@@ -85,6 +85,17 @@ def add_selection(p: argparse.ArgumentParser, precision: str | None = ",".join(P
                        help="comma-separated variants (e.g. default,fastmath) or all")
 
 
+def add_scheduler(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run cells as tasks on a Dask cluster ('local': one worker per GPU of this "
+                        "host, each pinned to its GPU and a core set; compare/scaleout.py)")
+
+
+def check_scheduler(args: argparse.Namespace) -> None:
+    if args.scheduler is not None and not args.scheduler.strip():
+        raise UsageError("--scheduler is empty (give ADDRESS, or 'local')")
+
+
 def add_timing(p: argparse.ArgumentParser, repeat: int | None = 10, min_time: float | None = 0.2,
                timeout: float = 900.0) -> None:
     p.add_argument("--repeat", type=positive_int, default=repeat, help="minimum timed calls per cell")

@@ -9,15 +9,14 @@ the console table.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options, report
+from compare import engine, environment, hardware, options, report, scaleout
 from compare.store import UPGRADES, Store, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
@@ -48,8 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--save-arrays", action="store_true", help="write inputs/outputs per cell (npz)")
     p.add_argument("--resume", action="store_true",
                    help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run cells as tasks on a Dask distributed scheduler ('local': a LocalCluster)")
+    options.add_scheduler(p)
     p.add_argument("--wide", action="store_true", help="print every column (default: a view that fits 120)")
 
 
@@ -110,8 +108,7 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
     """Every cell of the run, validated: bad input never reaches a worker or the output directory."""
     sel = options.selection(args)
     sets = options.scenario_sets(options.parse_sets(args.set), chosen)
-    if args.scheduler is not None and not args.scheduler.strip():
-        raise UsageError("--scheduler is empty (give ADDRESS, or 'local')")
+    options.check_scheduler(args)
     for sc in chosen:
         params = sc.params(sets[sc.name], quick=args.quick)
         for prec in sel["precisions"]:
@@ -127,35 +124,6 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
     if args.scheduler in (None, "local"):      # the worker runs here
         check_memory(specs, driver=False)
     return specs
-
-
-def dask_client(scheduler: str) -> Any:
-    """A Dask distributed client (``local``: a one-worker LocalCluster); a bad or unreachable
-    address is a one-line ParamError, before anything is written."""
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError:
-        raise ParamError("--scheduler needs the 'distributed' package (pip install distributed)") from None
-    if scheduler == "local":
-        return Client(LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                   dashboard_address=None))
-    try:
-        return Client(scheduler, timeout="30s")
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:
-        first = (str(exc).splitlines() or [""])[0]
-        raise ParamError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {first})") from None
-
-
-def dask_runner(client: Any, timeout: float, specs: list[dict[str, Any]],
-                probes: dict[str, dict[str, Any]]) -> Callable[[dict[str, Any]], engine.Result]:
-    """Cells as tasks on a Dask distributed scheduler, all submitted at once and collected in
-    order. Each task still starts its own worker process, so isolation and timeouts are the
-    same; give Dask workers one thread each so cells sharing a host do not time each other."""
-    from compare import cells
-    prepared = [s for s in map(engine.prepare, specs) if not engine.not_runnable(s, probes)]
-    futures = {json.dumps(s, sort_keys=True): client.submit(cells.run, s, timeout, pure=False)
-               for s in prepared}
-    return lambda spec: futures[json.dumps(spec, sort_keys=True)].result()
 
 
 def fill_vs_reference(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]]) -> None:
@@ -207,7 +175,7 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     runnable = [s for s in specs if not engine.not_runnable(engine.prepare(s), probes)]
     check_memory(runnable, worker=args.scheduler in (None, "local"))
     need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
-    client = dask_client(args.scheduler) if args.scheduler else None
+    client = scaleout.client(args.scheduler) if args.scheduler else None
     out, lock = options.claim_output(args.out, need, "the results" + (" and arrays" if args.save_arrays else ""))
     with lock:
         return run_claimed(args, argv, specs, out, probes, client)
@@ -223,7 +191,9 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s in specs)
                        if any(p["available"].get(d) is None for p in probes.values())}
     store.runs = [*store.runs, env] if args.resume else [env]
-    runner = dask_runner(client, args.timeout, specs, probes) if client is not None else None
+    runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
+    if client is not None:
+        env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
     results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=engine.progress(len(specs)))
     # the records of this plan, in plan order; with --resume also the kept records of other plans

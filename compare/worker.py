@@ -25,7 +25,7 @@ import numpy as np
 import backends
 import scenarios
 from backends.base import Backend
-from compare import timing
+from compare import scaleout, timing
 from compare.nvml import open_nvml
 from compare.spec import CellSpec
 from compare.store import jsonable
@@ -217,6 +217,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         "info": kernel.info(),
         "host": platform.node(),
         "host_load_1m": os.getloadavg()[0],   # other processes on the host perturb CPU timings
+        "host_cores": len(os.sched_getaffinity(0)),   # fewer than the host's under a Dask core set
         "versions": be.versions(),
     }
     if sc.has_gradient:
@@ -275,6 +276,7 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
 
 def main(argv: list[str]) -> int:
     """argv: SPECS.json (a list of cell specs) and OUT_DIR; cell i writes OUT_DIR/cell-i/."""
+    scaleout.apply_cpu_set()          # a Dask worker's core set, before any framework starts
     specs = json.loads(Path(argv[0]).read_text())
     for i, raw in enumerate(specs if isinstance(specs, list) else [specs]):
         run_one(raw, Path(argv[1]) / f"cell-{i}")

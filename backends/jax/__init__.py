@@ -10,7 +10,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from ..base import Backend, not_installed
+from ..base import Backend, cuda_build_hint, not_installed
 
 # Platform names JAX may register a CUDA GPU under (newer jaxlib: "cuda"; older: "gpu").
 _GPU_PLATFORMS = ("cuda", "gpu")
@@ -90,6 +90,8 @@ class JaxBackend(Backend):
     gradient_method = "ad"
     display_order, color = 2, "C2"
     related_packages = ("jaxlib", "jax-cuda12-plugin", "jax-cuda13-plugin")
+    # jax.checkpoint around segments of ~sqrt(steps) steps (backends/jax/projectile.py)
+    scenario_variants = {"projectile": ("checkpoint",)}
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
         # JAX's persistent compilation cache is off unless configured: keep it off
@@ -111,7 +113,7 @@ class JaxBackend(Backend):
             jax_device("cuda")
             cuda = None
         except RuntimeError as exc:
-            cuda = str(exc).strip().splitlines()[0]
+            cuda = cuda_build_hint(str(exc).strip().splitlines()[0])
         return {"cpu": None, "cuda": cuda}
 
     def versions(self) -> dict[str, str]:

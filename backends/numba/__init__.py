@@ -21,7 +21,7 @@ import numpy as np
 
 from scenarios.base import dtype_of
 
-from ..base import Backend, not_installed
+from ..base import Backend, cuda_build_hint, not_installed
 
 THREADS_PER_BLOCK = 256
 SIMULATOR = "CUDA simulator (correctness only)"
@@ -95,9 +95,9 @@ class NumbaBackend(Backend):
             return reason
         from numba import cuda
         try:
-            return None if cuda.is_available() else "no CUDA device visible to numba.cuda"
+            return None if cuda.is_available() else cuda_build_hint("no CUDA device visible to numba.cuda")
         except Exception as exc:  # driver / toolkit problems surface here
-            return f"numba.cuda unusable: {type(exc).__name__}: {exc}"
+            return cuda_build_hint(f"numba.cuda unusable: {type(exc).__name__}: {exc}")
 
     def versions(self) -> dict[str, str]:
         out = {}

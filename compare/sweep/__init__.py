@@ -31,7 +31,7 @@ from typing import Any
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options
+from compare import engine, environment, hardware, options, scaleout
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
@@ -64,6 +64,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="framework kernel caches for the first call (docs/measurement.md)")
     options.add_output(p, "results/sweep")
     options.add_page(p)
+    options.add_scheduler(p)
     p.add_argument("--resume", action="store_true",
                    help="keep OUT/sweep.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
     p.add_argument("--fresh", action="store_true", help="drop OUT/sweep.json's records first")
@@ -182,9 +183,10 @@ def contents(store: Store) -> dict[str, Any]:
 
 # ---- running --------------------------------------------------------------------------------
 def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None], probes, args,
-             store: Store, yardstick: dict[str, dict[str, Any]]) -> None:
-    """Run the cells (one at a time: they would share cores and the GPU) into the store (saved
-    after every record), each error-sweep record with its converged error attached first."""
+             store: Store, yardstick: dict[str, dict[str, Any]], runner=None) -> None:
+    """Run the cells into the store (saved after every record), each error-sweep record with
+    its converged error attached first: one at a time here (they would share cores and the
+    GPU), or on a Dask cluster's workers, one per GPU and core set (``runner``)."""
     cache: dict[Any, Any] = {}
     count = iter(range(1, len(specs) + 1))
 
@@ -200,7 +202,7 @@ def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None
               f"{rec['device']}/{rec['precision']}/{rec['variant']} {tags.get('knob') or ''}: "
               f"{rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr, flush=True)
     engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
-                     resume=args.resume)
+                     resume=args.resume, runner=runner)
 
 
 def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
@@ -233,6 +235,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"--record-every does not apply to the {args.kind} sweep (only to scaling)")
     if args.resume and args.fresh:
         raise UsageError("--resume keeps OUT/sweep.json's records and --fresh drops them: give one")
+    options.check_scheduler(args)
     planned = plan(args)
     notes = options.read_notes(args.notes)
     options.check_output(args.out)
@@ -241,8 +244,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     runnable = [s for s, _ in planned if not engine.not_runnable(engine.prepare(s), probes)]
     out, lock = options.claim_output(args.out, 2 * (RECORD_BYTES * len(runnable) + existing_bytes(args.out))
                                      + PAGE_BYTES)
+    client = scaleout.client(args.scheduler) if args.scheduler else None
     with lock:
-        return run_claimed(args, argv, planned, notes, out, probes)
+        return run_claimed(args, argv, planned, notes, out, probes, client)
 
 
 def existing_bytes(out: str) -> int:
@@ -251,7 +255,7 @@ def existing_bytes(out: str) -> int:
 
 
 def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, out: Path,
-                probes: dict[str, dict[str, Any]]) -> int:
+                probes: dict[str, dict[str, Any]], client: Any = None) -> int:
     """The sweep, once its output directory is checked, has room and is locked by this driver."""
     store = Store.open(out, "sweep", keep=not args.fresh)
     env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
@@ -259,9 +263,13 @@ def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, 
     env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s, _ in planned)
                        if any(p["available"].get(d) is None for p in probes.values())}
+    if client is not None:
+        env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
     store.runs.append(env)
     store.save()
-    run_plan([s for s, _ in planned], [r for _, r in planned], probes, args, store, env["hardware"])
+    specs = [s for s, _ in planned]
+    runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
+    run_plan(specs, [r for _, r in planned], probes, args, store, env["hardware"], runner)
     page = rebuild(contents(store), args, [str(store.path)], notes)
     print(pages.summary(store.records))
     print(f"wrote {store.path} and {page}")
