@@ -255,7 +255,8 @@ LOWER = textwrap.dedent("""
             kernel = projectile.cuda_kernel(np.dtype(precision).type, fastmath)
             a2 = types.Array(S, 2, "C")
             sig = (types.int64,) * 3 + (S,) * 7 + (a2,) * 4 + (types.Array(types.boolean, 2, "C"), a2, a2)
-            ir = compile_cuda(kernel.py_func, types.void, sig, fastmath=fastmath, cc=(9, 0)).library.get_llvm_str()
+            cres = compile_cuda(kernel.py_func, types.void, sig, fastmath=fastmath, cc=(9, 0))
+            ir = cres.library.get_llvm_str()
             body = [line for line in ir.splitlines() if not line.startswith(("declare", "!", "attributes"))]
             out[f"{precision}-{fastmath}"] = {
                 "double_ops": [line for line in body if " double " in line and "fptrunc double" not in line],
