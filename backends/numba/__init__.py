@@ -109,7 +109,7 @@ class NumbaBackend(Backend):
         return out
 
     def setup(self, device: str, precision: str, variant: str) -> None:
-        if device == "cuda":   # the projectile is one thread by design: no low-occupancy warnings
+        if device == "cuda":   # a small projectile batch (B = 1 is one thread) launches fewer blocks than SMs: no low-occupancy warnings
             from numba import config
             config.CUDA_LOW_OCCUPANCY_WARNINGS = False
 
