@@ -51,7 +51,7 @@ BATCH_SWEEP_PARAMS = {"contact": "hard", "iters": 20}
 # step and the share of gradients that agree with finite differences, per contact model. Soft
 # contact stops at 2000 steps: its oracle bound costs O(steps^2) per checked trajectory.
 HORIZON_BATCH = {("cuda", False): 4096, ("cpu", False): 256, ("cuda", True): 256, ("cpu", True): 64}
-HORIZON_STEPS = {False: {"none": (180, 600, 2000, 6000, 10000), "hard": (180, 600, 2000, 6000, 10000),
+HORIZON_STEPS = {False: {"none": (180, 1000, 3000, 10000), "hard": (180, 1000, 3000, 10000),
                          "soft": (180, 600, 2000)},
                  True: {"none": (180, 1000), "hard": (180, 1000), "soft": (180, 600)}}
 # Useful floating-point operations per trajectory-step, forward + reverse: 'none' 3 updates of 2

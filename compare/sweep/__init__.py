@@ -51,8 +51,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("kind", help="bandwidth | error | scaling | horizon | all | report")
     p.add_argument("files", nargs="*", help="report: sweep.json files to merge")
     options.add_selection(p, precision=None, variants=False)   # error: every variant a backend has
-    p.add_argument("--scenarios", default=None, help="error: which scenarios to sweep (default: "
-                   f"every one with error-sweep points: {','.join(error_scenarios())})")
+    p.add_argument("--scenarios", default=None, help="error, scaling, horizon: which scenarios to sweep "
+                   f"(default: every one with points of that kind; error: {','.join(error_scenarios())})")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="a scenario parameter for every swept scenario that has it (repeatable), "
                         "e.g. contact=hard; a parameter the sweep varies cannot be set")
@@ -85,6 +85,9 @@ def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scena
                               error_scenarios(), "scenarios")]
     found = [sc for sc in scenarios.SCENARIOS.values()
              if any(sc.sweep_points(kind, d, args.quick) for d in devices)]
+    if args.scenarios is not None and kind != "bandwidth":
+        wanted = options.names(args.scenarios, list(scenarios.SCENARIOS), "scenarios")
+        found = [sc for sc in found if sc.name in wanted]
     rank = {role: i for i, role in enumerate(ROLE_ORDER)}
     return sorted(found, key=lambda sc: rank.get(sc.measures, len(rank)))
 
@@ -229,8 +232,8 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     if args.files:
         raise UsageError(f"unexpected argument {args.files[0]!r}")
     given = options.given(args, add_arguments, args.kind)
-    if "--scenarios" in given and args.kind not in ("error", "all"):
-        raise UsageError(f"--scenarios does not apply to the {args.kind} sweep (only to error)")
+    if "--scenarios" in given and args.kind == "bandwidth":
+        raise UsageError("--scenarios does not apply to the bandwidth sweep (its scenarios are its yardsticks)")
     if "--record-every" in given and args.kind not in ("scaling", "all"):
         raise UsageError(f"--record-every does not apply to the {args.kind} sweep (only to scaling)")
     if args.resume and args.fresh:
