@@ -204,6 +204,12 @@ for contact in ("hard", "soft"):
     k = Kernel(p, i, DEVICE, "float64", "default")
     b.synchronize(DEVICE, k.run())
     o = k.outputs()
+    # the other memory order of the [s, b] fields (CUDA's on the CPU, and vice versa)
+    Kernel.layout = {"step-major": "trajectory-major", "trajectory-major": "step-major"}[k.layout]
+    k_other = Kernel(p, i, DEVICE, "float64", "default")
+    Kernel.layout = None
+    b.synchronize(DEVICE, k_other.run())
+    o_other = k_other.outputs()
     # each row against a single-trajectory kernel at that row's v0 and target
     p1 = sc.params({"contact": contact, "steps": 60, "iters": 3})
     rows = {}
@@ -228,6 +234,8 @@ for contact in ("hard", "soft"):
     except ValueError:
         refused = True
     out[contact] = {"rows": rows, "distinct": len({float(x) for x in o["loss"]}),
+                    "layouts": [k.layout, k_other.layout],
+                    "layout_identical": all(np.array_equal(o[n], o_other[n]) for n in o),
                     "set_input": all(np.array_equal(o_set[n], o2[n]) for n in o2),
                     "set_input_changed": not np.array_equal(o_set["grad"], o["grad"]),
                     "wrong_shape_refused": refused}
@@ -246,6 +254,71 @@ def test_each_batch_row_is_its_own_single_trajectory():
         assert v["distinct"] == 37, contact          # the rows really are different problems
         assert v["set_input"] and v["set_input_changed"], contact
         assert v["wrong_shape_refused"], contact
+        assert sorted(v["layouts"]) == ["step-major", "trajectory-major"], contact
+        assert v["layout_identical"], contact
+
+
+CHECKPOINT = """
+import numpy as np
+import backends.taichi as bt
+from backends.taichi.projectile import Kernel, fused_steps_limit
+bt.AD_STACK_SIZE[DEVICE] = 40          # small stacks: a rollout longer than them is cheap
+b = backends.get("taichi")
+sc = scenarios.get("projectile")
+out = {}
+for precision in ("float64", "float32"):
+    b.setup(DEVICE, precision, "default")   # the variant's arithmetic is IEEE, as 'default'
+    out["limit"] = fused_steps_limit()
+    # (steps, forced segment length): ceil(sqrt(60)) = 8 (uneven last segment), 7, 1 step per
+    # segment, and 100 steps > the adstack limit: segments of 10, against the per-step path
+    for contact in ("none", "hard", "soft"):
+        for steps, seg in ((60, None), (60, 7), (23, 1), (100, None)):
+            p = sc.params({"contact": contact, "steps": steps, "dt": 1.5 / steps, "iters": 3,
+                           "batch": 37})
+            i = sc.inputs(p, precision)
+            Kernel.segment = seg
+            kc = Kernel(p, i, DEVICE, precision, "checkpoint")
+            Kernel.segment = None
+            b.synchronize(DEVICE, kc.run())
+            oc = kc.outputs()
+            k = Kernel(p, i, DEVICE, precision, "default")
+            b.synchronize(DEVICE, k.run())
+            o = k.outputs()
+            info = kc.info()
+            out[f"{precision}-{contact}-{steps}-{seg}"] = {
+                "ok": bool(sc.check(p, i, oc, sc.oracle(p, i), precision).ok),
+                "reference_fused": k.info()["fused_rollout"],
+                "segment": [info["checkpoint_segment"], info["checkpoint_segments"]],
+                "scratch_rows": kc.state[0].shape[0], "checkpoint_rows": kc.ck[0].shape[0],
+                "identical": all(np.array_equal(o[n], oc[n]) for n in o),
+                "rel": max(float(np.max(np.abs(o[n] - oc[n]) / np.maximum(np.abs(o[n]), 1e-300)))
+                           for n in ("loss", "grad"))}
+print("RESULT" + json.dumps(out))
+"""
+
+
+@pytest.mark.parametrize("device", backends.DEVICES)
+def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device):
+    """The 'checkpoint' variant (segments recomputed in the backward pass) gives the outputs of
+    the fused rollout, and past the adstack depth those of the per-step path, while storing only
+    the segment starts and one segment of scratch: bitwise on the CPU, to a few roundings on CUDA
+    (different kernels, different FMA contraction); within the oracle's bounds."""
+    r = _script(CHECKPOINT, device)
+    limit = r.pop("limit")
+    assert limit == 38 and len(r) == 24
+    for case, v in r.items():
+        _, _, steps, seg = case.split("-")
+        steps = int(steps)
+        k = {"None": math.isqrt(steps - 1) + 1, "7": 7, "1": 1}[seg]
+        m = -(-steps // k)
+        assert v["segment"] == [k, m], case
+        assert v["scratch_rows"] == k + 1 and v["checkpoint_rows"] == m + 1, case
+        assert v["reference_fused"] == (steps <= limit), case
+        assert v["ok"], case
+        if device == "cpu":
+            assert v["identical"], case
+        else:
+            assert v["rel"] <= (1e-12 if case.startswith("float64") else 1e-4), case
 
 
 GUARD = """

@@ -1,23 +1,24 @@
 """Differentiable projectile in Taichi, gradients by Taichi's reverse-mode autodiff (kernel.grad).
 
 Batched: B trajectories (B = 1 for the seed case), each with its own v0, target, loss and
-gradient descent. One code path for every B, so batch row 0 is the B = 1 result bit for bit.
+gradient descent, one thread per trajectory. One code path for every B, so batch row 0 is the
+B = 1 result bit for bit.
 
 Taichi's global data access rule (a global value is never overwritten once read; gradients
 accumulate) shapes the storage, as in the Warp port: the state lives in fields indexed by time
 step and trajectory (xs[s, b] -> xs[s+1, b]) and every .grad is zeroed before each backward pass.
-Layout (steps + 1, B), row-major: for one step, consecutive trajectories are adjacent, so the
-threads of a CUDA warp (consecutive b, all at the same step s of the serial loop) read and write
-one contiguous segment: coalesced. The (B, steps + 1) layout would put them steps + 1 elements
-apart. (On the CPU a thread walks one trajectory with stride B; the CPU is not the target.)
+Memory order (same index [s, b], same values): on CUDA step-major, b fastest, so the threads of a
+warp (consecutive b, all at the same step s of the serial loop) touch one contiguous segment:
+coalesced; b-major order would put them steps + 1 elements apart. On the CPU, where one thread
+walks whole trajectories, trajectory-major (s fastest): measured ~3x faster at B = 256-4096.
 
 Fused rollout: one primal and one backward launch per evaluation. The parallel loop runs over the
 trajectories and the step loop is a serial range-for nested in it, because Taichi's AD reverses
 only nested loops (a top-level loop, even under ti.loop_config(serialize=True), is differentiated
 in forward order: silently wrong gradients) and rejects statements beside a loop in a
 differentiated kernel. The B losses are independent: loss is a field of B, loss.grad seeded to 1
-everywhere. Taichi 1.7's AD of such a loop has traps, all found by checking against the oracle,
-and the guards hold per thread (adstacks are per-thread locals, es/ws per trajectory):
+everywhere. Taichi 1.7's AD of such a loop has traps, all found by checking against the oracle;
+the guards hold per thread (adstacks are the thread's locals, es/ws are per trajectory):
   * its backward kernel keeps per-step intermediates on autodiff stacks (adstacks) of depth
     steps + 1, which Taichi cannot size for a runtime trip count: it falls back to 32 entries and
     overflows without an error (zero gradients at 33 steps, then segfaults or hangs). The backend
@@ -28,23 +29,33 @@ and the guards hold per thread (adstacks are per-thread locals, es/ws per trajec
     backup rather than on an adstack, so the reversed loop sees the *last* step's exp(w)
     (softplus gradients 16% off). The backward kernel therefore reads exp(w) stored per step and
     trajectory by the primal launch and writes it as es[s, b] + (w - ws[s, b]) * es[s, b]:
-    exactly es[s, b] in value (w - ws[s, b] == 0), d/dw = es[s, b] = exp(w) through an ordinary
-    product, i.e. the same adjoint arithmetic; loss and states come from the unmodified primal.
+    exactly es[s, b] in value, d/dw = es[s, b] = exp(w) through an ordinary product, i.e. the
+    same adjoint arithmetic; loss and states come from the unmodified primal.
 Rollouts longer than the adstacks fall back to one launch per step over the B trajectories
-(Warp's scheme), where none of this arises. Both paths give the same outputs: bitwise on the CPU,
-to a few roundings on CUDA, whose compiler contracts FMAs kernel by kernel (tests/test_taichi.py).
+(Warp's scheme), where none of this arises.
 
-Per gradient-descent iteration the host makes 3 launches (fused) or 2*steps + 5 (per step),
-whatever B; the update kernel also zeroes the gradients and re-seeds loss.grad for the next
-evaluation. Measured per run() (B = 1, 180 steps, 21 evaluations), fused vs per step: 2-core CPU
-VM 3-12 ms vs 235-270 ms; H200 4-14 ms vs 350-540 ms.
+Variant 'checkpoint' (projectile only): recomputation in segments of K = ceil(sqrt(steps)) steps
+(at most the adstack limit). The forward pass keeps only the states at segment starts; the
+backward pass, last segment first, recomputes a segment from its checkpoint into a scratch of
+K + 1 steps and runs that segment's fused backward pass. State memory (steps + 1) B -> about
+2 sqrt(steps) B per field, at 4 ceil(steps/K) + 4 launches per iteration and one more forward
+pass; rollouts longer than the adstacks stay fused (segment by segment). Taichi 1.7 has no
+built-in checkpointing: ti.ad.grad_replaced/grad_for only substitute a Python function's
+gradient under ti.ad.Tape, so the segments are driven from the host as the per-step path is.
+
+All paths give the same outputs: bitwise on the CPU, to a few roundings on CUDA, whose compiler
+contracts FMAs kernel by kernel (tests/test_taichi.py). Per iteration the host makes 3 launches
+(fused) or 2*steps + 5 (per step), whatever B; the update kernel also zeroes the gradients and
+re-seeds loss.grad. Measured per run() (B = 1, 180 steps, 21 evaluations), fused vs per step:
+2-core CPU VM 3-12 ms vs 235-270 ms; H200 4-14 ms vs 350-540 ms (before batching).
 Storage: fields (Taichi 1.7's autodiff is built around fields), allocated once in the
 constructor: 4 state fields of (steps + 1) x B with gradients, plus es/ws of steps x B for soft
-contact only: about 64 (steps + 1) B bytes in float64 (12 GiB at 180 steps, B = 2^20), +16 steps B
-for soft.
+contact only: 64 (steps + 1) B bytes in float64 (12 GiB at 180 steps, B = 2^20), + 16 steps B
+for soft; halve for float32.
 """
 # (no "from __future__ import annotations": Taichi reads kernel annotations as objects)
 
+import math
 from typing import Any
 
 import numpy as np
@@ -161,6 +172,37 @@ def _loss_k(steps: ti.i32, target: ti.template(), xs: ti.template(), ys: ti.temp
         _loss(b, steps, target, xs, ys, loss)
 
 
+@ti.kernel
+def _segment(j: ti.i32, n: ti.i32, contact: ti.template(), linearised: ti.template(), dt: float,
+             gravity: float, bounce: float, damping: float, stiffness: float, softness: float,
+             cx: ti.template(), cy: ti.template(), cvx: ti.template(), cvy: ti.template(),
+             xs: ti.template(), ys: ti.template(), vxs: ti.template(), vys: ti.template(),
+             es: ti.template(), ws: ti.template()):
+    # Checkpointed rollout: n steps from checkpoint j into checkpoint j + 1 through the scratch
+    # fields (n + 1 entries used), the same per-step arithmetic as the fused rollout.
+    for b in range(xs.shape[1]):
+        xs[0, b] = cx[j, b]
+        ys[0, b] = cy[j, b]
+        vxs[0, b] = cvx[j, b]
+        vys[0, b] = cvy[j, b]
+        for s in range(n):
+            _step(s, b, contact, linearised, dt, gravity, bounce, damping, stiffness, softness,
+                  xs, ys, vxs, vys, es, ws)
+        cx[j + 1, b] = xs[n, b]
+        cy[j + 1, b] = ys[n, b]
+        cvx[j + 1, b] = vxs[n, b]
+        cvy[j + 1, b] = vys[n, b]
+
+
+@ti.kernel
+def _zero_scratch(xs: ti.template(), ys: ti.template(), vxs: ti.template(), vys: ti.template()):
+    for s, b in xs:
+        xs.grad[s, b] = 0.0
+        ys.grad[s, b] = 0.0
+        vxs.grad[s, b] = 0.0
+        vys.grad[s, b] = 0.0
+
+
 @ti.func
 def _zero_grads(v: ti.template(), loss: ti.template(), xs: ti.template(), ys: ti.template(),
                 vxs: ti.template(), vys: ti.template()):
@@ -201,6 +243,20 @@ def _update(k: ti.i32, iters: ti.i32, lr: float, loss: ti.template(), v: ti.temp
     _zero_grads(v, loss, xs, ys, vxs, vys)
 
 
+def _fields(count: int, n: int, nb: int, trajectory_major: bool, needs_grad: bool = True) -> list:
+    """``count`` fields indexed [s, b] of shape (n, nb). Memory order: b fastest (step-major, the
+    coalesced one on CUDA) or, with ``trajectory_major``, s fastest (one thread's trajectory
+    contiguous, the cache-friendly one on the CPU). Same values either way."""
+    if not trajectory_major:
+        return [ti.field(float, (n, nb), needs_grad=needs_grad) for _ in range(count)]
+    fs = [ti.field(float, needs_grad=needs_grad) for _ in range(count)]
+    fb = ti.FieldsBuilder()
+    for f in fs:
+        fb.dense(ti.j, nb).dense(ti.i, n).place(*((f, f.grad) if needs_grad else (f,)))
+    fb.finalize()
+    return fs
+
+
 def fused_steps_limit() -> int:
     """Longest rollout whose backward pass fits the adstacks configured at ti.init."""
     return impl.current_cfg().ad_stack_size - ADSTACK_MARGIN
@@ -208,6 +264,8 @@ def fused_steps_limit() -> int:
 
 class Kernel(ScenarioKernel):
     fused: bool | None = None          # None: fused when the rollout fits (tests force either)
+    segment: int | None = None         # checkpoint variant's segment length (None: ~sqrt(steps))
+    layout: str | None = None          # memory order of the [s, b] fields (None: by device)
 
     def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
                  variant: str) -> None:
@@ -217,11 +275,21 @@ class Kernel(ScenarioKernel):
         self.consts = [float(inputs[k]) for k in ("dt", "gravity", "bounce", "damping",
                                                   "stiffness", "softness")]
         self.lr = float(inputs["lr"])
-        n = params.steps + 1
-        self.state = [ti.field(float, (n, nb), needs_grad=True) for _ in range(4)]  # xs ys vxs vys
+        self.checkpoint = variant == "checkpoint"
+        self.layout = self.layout or ("step-major" if device == "cuda" else "trajectory-major")
+        tmajor = self.layout == "trajectory-major"
+        if self.checkpoint:            # segments of K steps, recomputed in the backward pass
+            k = self.segment or math.isqrt(params.steps - 1) + 1      # ceil(sqrt(steps))
+            self.seg_len = max(1, min(k, params.steps, fused_steps_limit()))
+            self.n_seg = -(-params.steps // self.seg_len)
+            self.ck = _fields(4, self.n_seg + 1, nb, tmajor)
+            n, self.fused = self.seg_len + 1, True
+        else:
+            n = params.steps + 1
+        self.state = _fields(4, n, nb, tmajor)                   # xs, ys, vxs, vys
         # exp(w) and w per step and trajectory, read only with soft contact (a token field else)
-        ew = (params.steps, nb) if self.contact == SOFT else (1, 1)
-        self.exp_w = [ti.field(float, ew) for _ in range(2)]                        # es, ws
+        ew = (n - 1, nb) if self.contact == SOFT else (1, 1)
+        self.exp_w = _fields(2, *ew, tmajor, needs_grad=False)  # es, ws
         self.v = ti.field(float, (nb, 2), needs_grad=True)
         self.loss = ti.field(float, nb, needs_grad=True)
         self.v0 = ti.field(float, (nb, 2))
@@ -232,10 +300,15 @@ class Kernel(ScenarioKernel):
         self.grad0 = ti.field(float, (nb, 2))
         if self.fused is None:
             self.fused = params.steps <= fused_steps_limit()
+        # the fields whose gradients the update kernel clears (the scratch is cleared per segment)
+        self.cleared = self.ck if self.checkpoint else self.state
 
     def _evaluate(self) -> None:
         """Losses at the current v into loss, their gradients into v.grad (grads zeroed before)."""
         p, c, st = self.p, self.consts, self.state
+        if self.checkpoint:
+            self._evaluate_checkpointed()
+            return
         if self.fused:
             args = (*c, self.target, self.v, *st, *self.exp_w, self.loss)
             _rollout(p.steps, self.contact, False, *args)
@@ -250,12 +323,31 @@ class Kernel(ScenarioKernel):
             _step_k.grad(s, self.contact, *c, *st, *self.exp_w)
         _init_k.grad(self.v, *st)
 
+    def _evaluate_checkpointed(self) -> None:
+        """Forward: segment by segment, keeping only the states at segment starts. Backward, last
+        segment first: recompute the segment from its checkpoint (the last one is still in the
+        scratch), then its fused backward pass carries the adjoint from checkpoint j + 1 to j."""
+        p, c, st, ck, m, k = self.p, self.consts, self.state, self.ck, self.n_seg, self.seg_len
+        args = (*c, *ck, *st, *self.exp_w)
+        n = [min(k, p.steps - j * k) for j in range(m)]
+        _init_k(self.v, *ck)
+        for j in range(m):
+            _segment(j, n[j], self.contact, False, *args)
+        _loss_k(m, self.target, ck[0], ck[1], self.loss)
+        _loss_k.grad(m, self.target, ck[0], ck[1], self.loss)
+        for j in reversed(range(m)):
+            if j < m - 1:
+                _segment(j, n[j], self.contact, False, *args)
+            _zero_scratch(*st)
+            _segment.grad(j, n[j], self.contact, True, *args)
+        _init_k.grad(self.v, *ck)
+
     def run(self) -> None:
-        _reset(self.v0, self.v, self.loss, *self.state)
+        _reset(self.v0, self.v, self.loss, *self.cleared)
         for k in range(self.p.iters + 1):
             self._evaluate()
             _update(k, self.p.iters, self.lr, self.loss, self.v, self.history, self.grad0,
-                    *self.state)
+                    *self.cleared)
 
     def set_input(self, name: str, value: np.ndarray) -> None:
         if name != "v0":
@@ -273,7 +365,13 @@ class Kernel(ScenarioKernel):
         return {"loss": hist[0], "grad": grad, "loss_history": hist, "v_final": v}
 
     def info(self) -> dict[str, Any]:
-        return {"storage": "field", **config_info(), "fused_rollout": self.fused,
-                "launches_per_iteration": 3 if self.fused else 2 * self.p.steps + 5,
-                "batch": self.batch, "state_layout": "(steps+1, batch)",
-                "ad_stack_size": impl.current_cfg().ad_stack_size}
+        out = {"storage": "field", **config_info(), "fused_rollout": self.fused,
+               "launches_per_iteration": 3 if self.fused else 2 * self.p.steps + 5,
+               "batch": self.batch, "state_layout": f"(steps+1, batch), {self.layout}",
+               "ad_stack_size": impl.current_cfg().ad_stack_size}
+        if self.checkpoint:
+            out.update(checkpoint_segment=self.seg_len, checkpoint_segments=self.n_seg,
+                       launches_per_iteration=4 * self.n_seg + 4,
+                       state_layout=f"checkpoints (segments+1, batch), scratch (segment+1, batch), "
+                                    f"{self.layout}")
+        return out
