@@ -50,10 +50,10 @@ BATCH_SWEEP_PARAMS = {"contact": "hard", "iters": 20}
 # Horizon sweep (one loss + gradient per trajectory at a fixed batch): AD memory per trajectory-
 # step and the share of gradients that agree with finite differences, per contact model. Soft
 # contact stops at 2000 steps: its oracle bound costs O(steps^2) per checked trajectory.
-HORIZON_BATCH = {("cuda", False): 4096, ("cpu", False): 256, ("cuda", True): 256, ("cpu", True): 64}
+HORIZON_BATCH = {("cuda", False): 4096, ("cpu", False): 256, ("cuda", True): 256, ("cpu", True): 16}
 HORIZON_STEPS = {False: {"none": (180, 1000, 3000, 10000), "hard": (180, 1000, 3000, 10000),
                          "soft": (180, 600, 2000)},
-                 True: {"none": (180, 1000), "hard": (180, 1000), "soft": (180, 600)}}
+                 True: {"none": (180, 600), "hard": (180, 600), "soft": (180, 300)}}
 # Useful floating-point operations per trajectory-step, forward + reverse: 'none' 3 updates of 2
 # FLOPs forward and 2 of 2 in reverse; 'hard' adds 3 multiplies on a bounce (counted always);
 # 'soft' adds the softplus (2 transcendental + 6 FLOPs) and its derivative (~8) in each direction.

@@ -192,14 +192,17 @@ def test_sweep_quick_runs_everything_ok(quick_sweep):
     assert {("bandwidth", "launch", "launch"), ("bandwidth", "copy", "copy"),
             ("bandwidth", "bandwidth", "saxpy"), ("error", "sdf", "sdf"),
             ("error", "particles", "particles"), ("error", "projectile", "projectile"),
-            ("scaling", "particles", "particles")} <= roles
+            ("scaling", "particles", "particles"), ("scaling", "projectile", "projectile"),
+            ("horizon", "projectile", "projectile")} <= roles
+    assert {r["variant"] for r in recs if r["tags"]["sweep"] == "horizon"} == {"default", "checkpoint"}
     for r in recs:
         if r["tags"]["sweep"] == "error":
             c = r["converged"]
             assert c["metric"] and math.isfinite(c["error"]) and c["error"] >= 0
             if r["scenario"] in ("particles", "projectile"):    # the reference is far finer
                 assert c["reference"]["self_difference"] < c["error"]
-    for name in ("bandwidth_cpu.png", "time_vs_error_cpu.png", "scaling_cpu.png", "measurement.md"):
+    for name in ("bandwidth_cpu.png", "time_vs_error_cpu.png", "scaling_particles_cpu.png",
+                 "scaling_projectile_cpu.png", "horizon_cpu.png", "measurement.md"):
         assert (out / name).stat().st_size > 0
     md = (out / "measurement.md").read_text()
     assert "Roofline for this device" in md and "python -m compare sweep all --quick" in md

@@ -68,10 +68,8 @@ def in_registry_order(names: Iterable[str]) -> list[str]:
 
 
 def swept(records: list[dict[str, Any]], kind: str, device: str) -> list[str]:
-    """Scenarios of sweep ``kind`` on ``device``: those with points there, and any with records."""
-    planned = [sc.name for sc in scenarios.SCENARIOS.values() if sc.sweep_points(kind, device, False)]
-    return in_registry_order([*planned, *(r["scenario"] for r in records
-                                          if tag(r, "sweep") == kind and r["device"] == device)])
+    """Scenarios with records of sweep ``kind`` on ``device`` (a sweep not run has no section)."""
+    return in_registry_order(r["scenario"] for r in records if tag(r, "sweep") == kind and r["device"] == device)
 
 
 def error_scenarios(records: list[dict[str, Any]], device: str) -> list[str]:
