@@ -156,8 +156,14 @@ class TorchBackend(Backend):
         torch.backends.cudnn.allow_tf32 = False
         torch.set_float32_matmul_precision("highest")
         if variant == "compile":
+            import torch._dynamo.config as dynamo
             from torch._inductor import config
             config.eager_numerics.division_rounding = True   # IEEE x/y in Triton, as eager
+            # Never fall back to eager silently: the cell would be labelled "compile" and run
+            # eager. Several cells in one process (the test suites) compile one function for
+            # several shapes/dtypes, more than the default limit of 8 entries.
+            dynamo.recompile_limit = 64
+            dynamo.fail_on_recompile_limit_hit = True
         if device == "cuda":
             torch.cuda.set_device(torch_device(device))
 
