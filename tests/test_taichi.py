@@ -233,7 +233,22 @@ for contact in ("hard", "soft"):
         refused = False
     except ValueError:
         refused = True
+    # 201 x 2^24 elements per state field: refused before any field is allocated (allocation is
+    # disabled here, so a missing guard fails the test instead of reserving ~200 GB)
+    import backends.taichi.projectile as tp
+    fields, tp._fields = tp._fields, None
+    try:
+        Kernel(sc.params({"contact": contact, "steps": 200, "iters": 0, "batch": 1 << 24}),
+               i, DEVICE, "float64", "default")
+        too_big_refused = False
+    except ValueError as exc:
+        too_big_refused = "32-bit" in str(exc)
+    except TypeError:                  # reached the allocation
+        too_big_refused = False
+    finally:
+        tp._fields = fields
     out[contact] = {"rows": rows, "distinct": len({float(x) for x in o["loss"]}),
+                    "too_big_refused": too_big_refused,
                     "layouts": [k.layout, k_other.layout],
                     "layout_identical": all(np.array_equal(o[n], o_other[n]) for n in o),
                     "set_input": all(np.array_equal(o_set[n], o2[n]) for n in o2),
@@ -254,6 +269,7 @@ def test_each_batch_row_is_its_own_single_trajectory():
         assert v["distinct"] == 37, contact          # the rows really are different problems
         assert v["set_input"] and v["set_input_changed"], contact
         assert v["wrong_shape_refused"], contact
+        assert v["too_big_refused"], contact
         assert sorted(v["layouts"]) == ["step-major", "trajectory-major"], contact
         assert v["layout_identical"], contact
 

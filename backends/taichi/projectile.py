@@ -282,10 +282,15 @@ class Kernel(ScenarioKernel):
             k = self.segment or math.isqrt(params.steps - 1) + 1      # ceil(sqrt(steps))
             self.seg_len = max(1, min(k, params.steps, fused_steps_limit()))
             self.n_seg = -(-params.steps // self.seg_len)
-            self.ck = _fields(4, self.n_seg + 1, nb, tmajor)
             n, self.fused = self.seg_len + 1, True
         else:
             n = params.steps + 1
+        rows = max(n, params.iters + 1, self.n_seg + 1 if self.checkpoint else 0)
+        if rows * nb >= 2**31:         # Taichi indexes a field's elements with 32-bit integers
+            raise ValueError(f"taichi projectile: a field of {rows} x {nb} elements exceeds "
+                             f"Taichi's 32-bit element index (2^31)")
+        if self.checkpoint:
+            self.ck = _fields(4, self.n_seg + 1, nb, tmajor)
         self.state = _fields(4, n, nb, tmajor)                   # xs, ys, vxs, vys
         # exp(w) and w per step and trajectory, read only with soft contact (a token field else)
         ew = (n - 1, nb) if self.contact == SOFT else (1, 1)
