@@ -51,7 +51,7 @@ re-seeds loss.grad. Measured per run() (B = 1, 180 steps, 21 evaluations), fused
 Storage: fields (Taichi 1.7's autodiff is built around fields), allocated once in the
 constructor: 4 state fields of (steps + 1) x B with gradients, plus es/ws of steps x B for soft
 contact only: 64 (steps + 1) B bytes in float64 (12 GiB at 180 steps, B = 2^20), + 16 steps B
-for soft; halve for float32.
+for soft; halve for float32. A field holds < 2^31 elements (Taichi's 32-bit index; refused).
 """
 # (no "from __future__ import annotations": Taichi reads kernel annotations as objects)
 
