@@ -44,6 +44,7 @@ class TaichiBackend(Backend):
     package = "taichi"
     gradient_method = "ad"
     variants = ("default", "fastmath")
+    scenario_variants = {"projectile": ("checkpoint",)}   # segments recomputed (projectile.py)
     display_order, color = 1, "C1"
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
@@ -73,9 +74,9 @@ class TaichiBackend(Backend):
         return {"taichi": ".".join(map(str, ti.__version__))}
 
     def setup(self, device: str, precision: str, variant: str) -> None:
-        if variant not in self.variants:
-            raise ValueError(f"taichi variant must be one of {', '.join(self.variants)}, "
-                             f"got {variant!r}")
+        known = self.variants + tuple(v for vs in self.scenario_variants.values() for v in vs)
+        if variant not in known:
+            raise ValueError(f"taichi variant must be one of {', '.join(known)}, got {variant!r}")
         _quiet()
         import taichi as ti
         ti.init(arch=ti_arch(device), enable_fallback=False,
