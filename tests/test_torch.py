@@ -92,6 +92,7 @@ def test_compile_variant_equals_eager():
     for scenario, (record, outputs) in comp.items():
         assert record["status"] == "ok", (scenario, record.get("reason"), record.get("traceback", ""))
         assert record["info"]["execution"].startswith("torch.compile(mode='default'")
+        assert record["info"]["inductor_division_rounding"] is True     # IEEE division in Triton
         sc = scenarios.get(scenario)
         p = sc.params(SMALL[scenario], quick=True)
         ref = eager[scenario][1]
