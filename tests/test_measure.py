@@ -274,7 +274,12 @@ def test_plan_comes_from_the_scenarios_hooks():
     assert {s["params"]["contact"] for s, _ in hard if s["scenario"] == "projectile"} == {"hard"}
     assert [s["scenario"] for s, _ in hard][:4] == ["projectile"] * 3 + ["saxpy"]   # the given order
     scal = plan_of("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--record-every", "50")
-    assert {s["params"]["record_every"] for s, _ in scal} == {50}
+    assert {s["params"]["record_every"] for s, _ in scal if s["scenario"] == "particles"} == {50}
+    assert [s["params"]["batch"] for s, _ in scal if s["scenario"] == "projectile"] == [1, 16, 256]
+    hz = plan_of("horizon", "--quick", "--backends", "warp,numba", "--devices", "cpu")
+    assert {(s["backend"], s["variant"]) for s, _ in hz} == {("warp", "default"), ("warp", "checkpoint"),
+                                                             ("numba", "default")}
+    assert {s["params"]["iters"] for s, _ in hz} == {0} and {s["precision"] for s, _ in hz} == {"float32", "float64"}
 
 
 def test_old_records_are_upgraded_to_tags():
