@@ -93,6 +93,7 @@ def test_compile_variant_equals_eager():
         assert record["status"] == "ok", (scenario, record.get("reason"), record.get("traceback", ""))
         assert record["info"]["execution"].startswith("torch.compile(mode='default'")
         assert record["info"]["inductor_division_rounding"] is True     # IEEE division in Triton
+        assert record["info"]["dynamo_fail_on_recompile_limit_hit"] is True   # no silent eager
         sc = scenarios.get(scenario)
         p = sc.params(SMALL[scenario], quick=True)
         ref = eager[scenario][1]

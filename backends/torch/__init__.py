@@ -78,6 +78,11 @@ def numerics() -> dict[str, Any]:
         out["inductor_division_rounding"] = bool(config.eager_numerics.division_rounding)
     except Exception:  # an Inductor without the switch: the record says so
         out["inductor_division_rounding"] = None
+    try:
+        import torch._dynamo.config as dynamo
+        out["dynamo_fail_on_recompile_limit_hit"] = bool(dynamo.fail_on_recompile_limit_hit)
+    except Exception:
+        out["dynamo_fail_on_recompile_limit_hit"] = None
     return out
 
 
@@ -164,8 +169,11 @@ class TorchBackend(Backend):
             # Never fall back to eager silently: the cell would be labelled "compile" and run
             # eager. Several cells in one process (the test suites) compile one function for
             # several shapes/dtypes, more than the default limit of 8 entries.
-            dynamo.recompile_limit = 64
-            dynamo.fail_on_recompile_limit_hit = True
+            # (names of torch 2.13; older releases call the limit cache_size_limit)
+            limit = "recompile_limit" if hasattr(dynamo, "recompile_limit") else "cache_size_limit"
+            setattr(dynamo, limit, 64)
+            if hasattr(dynamo, "fail_on_recompile_limit_hit"):
+                dynamo.fail_on_recompile_limit_hit = True
         if device == "cuda":
             torch.cuda.set_device(torch_device(device))
 

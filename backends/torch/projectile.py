@@ -56,7 +56,9 @@ def make_losses(contact: str, steps: int, segment: int = 0):
     the rollout as calls of a compiled ``advance`` of ``segment`` steps (and one of the rest)."""
     import torch
     run = advance if not segment else compiled(advance)
-    chunks = [steps] if not segment else [segment] * (steps // segment) + ([steps % segment] if steps % segment else [])
+    chunks = [steps]
+    if segment:
+        chunks = [segment] * (steps // segment) + ([steps % segment] if steps % segment else [])
 
     def losses(v, target, c):
         vx = v[..., 0]
