@@ -44,7 +44,7 @@ SWEEP_CONTACT = "soft"
 MAX_BATCH = 1 << 24
 # Gradient-throughput sweep: B = 1 ... 2^20 on CUDA (to 2^16 on a CPU), hard contact (the seeds'
 # bounce), 21 evaluations per run; 64 trajectories of each batch checked against the oracle.
-BATCH_SWEEP = {("cuda", False): tuple(4**k for k in range(11)), ("cpu", False): tuple(4**k for k in range(9)),
+BATCH_SWEEP = {("cuda", False): tuple(4**k for k in range(11)), ("cpu", False): tuple(16**k for k in range(5)),
                ("cuda", True): (1, 64, 4096), ("cpu", True): (1, 16, 256)}
 BATCH_SWEEP_PARAMS = {"contact": "hard", "iters": 20}
 # Horizon sweep (one loss + gradient per trajectory at a fixed batch): AD memory per trajectory-
