@@ -3,8 +3,10 @@
 Quadrants (``pip install quadrants``, module ``quadrants``, conventionally ``qd``) is the
 maintained fork of Taichi that Genesis uses; Taichi itself has had no release since 1.7.4. The
 language is Taichi's with ``ti`` renamed ``qd`` (``qd.kernel``, ``qd.func``, ``qd.field``,
-``qd.template()``, ``qd.static``, ``qd.select``, ``kernel.grad``), so the scenario modules are the
-Taichi ones adapted; each says what differs and why. The differences that matter here:
+``qd.template()``, ``qd.static``, ``qd.select``, ``kernel.grad``). So saxpy, sdf, particles, copy
+and launch are the Taichi kernels themselves, built with ``quadrants`` by the factory ``build`` of
+backends/taichi/<scenario>.py; projectile.py is a port of its own (it drops the Taichi 1.7 autodiff
+guards) and says what differs and why. The differences that matter here:
 
 * ``qd.init`` keeps Taichi's defaults where it matters: ``fast_math=True`` (we turn it off for the
   default variant, as for Taichi) and an on-disk cache (``offline_cache``), plus a second,
@@ -29,6 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from ..base import Backend, not_installed
+# Taichi's helpers, for either module name (the package's __init__ does not import Taichi)
+from ..taichi import cuda_unavailable, framework_arch, framework_config_info
 
 
 def _quiet() -> None:
@@ -38,14 +42,11 @@ def _quiet() -> None:
 
 def config_info() -> dict[str, Any]:
     """How this process's Quadrants was initialised, for the kernels' info()."""
-    from quadrants.lang import impl
-    cfg = impl.current_cfg()
-    return {"fast_math": bool(cfg.fast_math), "arch": str(cfg.arch).rsplit(".", 1)[-1]}
+    return framework_config_info("quadrants")
 
 
 def qd_arch(device: str):
-    import quadrants as qd
-    return qd.cuda if device == "cuda" else qd.cpu
+    return framework_arch("quadrants", device)
 
 
 def init_options(device: str, precision: str, variant: str) -> dict[str, Any]:
@@ -80,17 +81,8 @@ class QuadrantsBackend(Backend):
         reason = not_installed("quadrants", self.package, extra="quadrants")
         if reason:
             return {"cpu": reason, "cuda": reason}
-        import quadrants as qd
-        cuda: str | None = None
-        try:
-            # enable_fallback=False: qd.init would otherwise quietly start on the CPU instead.
-            qd.init(arch=qd.cuda, enable_fallback=False, offline_cache=False, src_ll_cache=False)
-        except Exception as exc:  # no driver / no device / unsupported arch
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            cuda = f"Quadrants CUDA arch did not initialise: {first}"
-        finally:
-            qd.reset()
-        return {"cpu": None, "cuda": cuda}
+        return {"cpu": None, "cuda": cuda_unavailable("quadrants", "Quadrants", offline_cache=False,
+                                                      src_ll_cache=False)}
 
     def versions(self) -> dict[str, str]:
         import quadrants as qd

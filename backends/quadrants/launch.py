@@ -1,34 +1,11 @@
-"""Trivial launch in Quadrants: a parallel-for over n (default 1) elements, out[i] = x[i] + 1.
+"""Trivial launch in Quadrants: the Taichi kernel (backends/taichi/launch.py) built with
+``quadrants``.
 
-The Taichi port's kernel with ``ti`` renamed ``qd``."""
-# (no "from __future__ import annotations": Quadrants (like Taichi) reads kernel annotations as objects)
-
-from typing import Any
-
-import numpy as np
+Quadrants is Taichi's maintained fork with the same API under another module name (``qd`` for
+``ti``), so one definition serves both: nothing differs but the module.
+"""
 import quadrants as qd
 
-from . import config_info
-from ..base import ScenarioKernel
+from ..taichi.launch import build
 
-
-@qd.kernel
-def _plus_one(x: qd.template(), out: qd.template()):
-    for i in out:
-        out[i] = x[i] + 1.0
-
-
-class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
-                 variant: str) -> None:
-        self.x, self.out = (qd.field(float, shape=params.n) for _ in range(2))
-        self.x.from_numpy(inputs["x"])
-
-    def run(self) -> None:
-        _plus_one(self.x, self.out)
-
-    def outputs(self) -> dict[str, np.ndarray]:
-        return {"out": self.out.to_numpy()}
-
-    def info(self) -> dict[str, Any]:
-        return {"storage": "field", **config_info()}
+_plus_one, Kernel = build(qd)

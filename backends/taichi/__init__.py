@@ -1,14 +1,21 @@
 """Taichi backend (a port of the Warp reference).
 
 Taichi is imported lazily: the driver imports this module without the framework to list backends.
-Kernels in the scenario modules are defined once at module level and use Taichi's default float
-type (``float`` annotations and literals), which ``setup`` sets to the cell's precision; each worker
-process runs exactly one precision, so no kernel is ever compiled for two.
+Kernels use Taichi's default float type (``float`` annotations and literals), which ``setup`` sets
+to the cell's precision; each worker process runs exactly one precision, so no kernel is ever
+compiled for two. Except projectile.py, each scenario module defines its kernels and ``Kernel``
+class once, in ``build(ti)``, a factory over the framework module: Quadrants (backends/quadrants),
+Taichi's maintained fork, has the same API under the name ``quadrants`` and calls the same factory.
+Here ``build(taichi)`` runs on the first use of the module's ``Kernel`` (``built_on_first_use``),
+not at import, so that the Quadrants backend can import the factory without Taichi.
 """
 from __future__ import annotations
 
+import importlib
 import os
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 from ..base import Backend, not_installed
@@ -27,16 +34,58 @@ def _quiet() -> None:
     os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
 
 
-def config_info() -> dict[str, Any]:
-    """How this process's Taichi was initialised, for the kernels' info()."""
-    from taichi.lang import impl
-    cfg = impl.current_cfg()
+# The helpers below take the framework's module name, "taichi" or "quadrants" (Taichi's fork,
+# same API): backends/quadrants uses them too. Each imports the framework only when called.
+
+def framework_config_info(framework: str) -> dict[str, Any]:
+    """How this process's Taichi (or Quadrants) was initialised, for the kernels' info()."""
+    cfg = importlib.import_module(f"{framework}.lang.impl").current_cfg()
     return {"fast_math": bool(cfg.fast_math), "arch": str(cfg.arch).rsplit(".", 1)[-1]}
 
 
+def framework_arch(framework: str, device: str):
+    fw = importlib.import_module(framework)
+    return fw.cuda if device == "cuda" else fw.cpu
+
+
+def cuda_unavailable(framework: str, title: str, **init_options: Any) -> str | None:
+    """None if the framework starts on CUDA (``init`` with ``init_options``), else why not, in
+    one line; the framework is reset either way."""
+    fw = importlib.import_module(framework)
+    try:
+        # enable_fallback=False: init would otherwise quietly start on the CPU instead.
+        fw.init(arch=fw.cuda, enable_fallback=False, **init_options)
+    except Exception as exc:  # no driver / no device / unsupported arch
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        return f"{title} CUDA arch did not initialise: {first}"
+    finally:
+        fw.reset()
+    return None
+
+
+def built_on_first_use(module_globals: dict[str, Any], build: Callable[[ModuleType], Sequence[Any]],
+                       names: Sequence[str]) -> Callable[[str], Any]:
+    """A scenario module's ``__getattr__``: on the first access to one of ``names`` (the module's
+    kernels and its ``Kernel``), ``build(taichi)`` and store what it returns, in that order, as
+    module globals (so later accesses, and tests that list a module's kernels, see them). Not at
+    import: backends/quadrants imports these modules for ``build`` alone and must not import
+    Taichi (a second runtime in its worker, and none at all in a Quadrants-only install)."""
+    def __getattr__(name: str) -> Any:
+        if name not in names:
+            raise AttributeError(f"module {module_globals['__name__']!r} has no attribute {name!r}")
+        import taichi
+        module_globals.update(zip(names, build(taichi), strict=True))
+        return module_globals[name]
+    return __getattr__
+
+
+def config_info() -> dict[str, Any]:
+    """How this process's Taichi was initialised, for the kernels' info()."""
+    return framework_config_info("taichi")
+
+
 def ti_arch(device: str):
-    import taichi as ti
-    return ti.cuda if device == "cuda" else ti.cpu
+    return framework_arch("taichi", device)
 
 
 class TaichiBackend(Backend):
@@ -57,17 +106,8 @@ class TaichiBackend(Backend):
         reason = not_installed("taichi", self.package)
         if reason:
             return {"cpu": reason, "cuda": reason}
-        import taichi as ti
-        cuda: str | None = None
-        try:
-            # enable_fallback=False: ti.init would otherwise quietly start on the CPU instead.
-            ti.init(arch=ti.cuda, enable_fallback=False, offline_cache=False, log_level="error")
-        except Exception as exc:  # no driver / no device / unsupported arch
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            cuda = f"Taichi CUDA arch did not initialise: {first}"
-        finally:
-            ti.reset()
-        return {"cpu": None, "cuda": cuda}
+        return {"cpu": None,
+                "cuda": cuda_unavailable("taichi", "Taichi", offline_cache=False, log_level="error")}
 
     def versions(self) -> dict[str, str]:
         import taichi as ti
