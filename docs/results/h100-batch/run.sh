@@ -3,7 +3,9 @@
 # for the batched projectile and the new ports, `compare all` on CUDA with eight backends, the
 # gradient-throughput sweep (batch 1 ... 2^20) and the horizon sweep. Run in the project root on
 # the lent H100 after ../shared/gpu/stage-wheels' parts (Warp, Taichi and quadrants travel as
-# wheels; JAX, numba-cuda, PyTorch and CuPy are the image's), one part per device call:
+# wheels; JAX, numba-cuda, PyTorch and CuPy are the image's), one part per device call. Staged with
+#   ../shared/gpu/stage-wheels + quadrants==1.3.3 pydantic pydantic-core annotated-types \
+#       typing-inspection typing-extensions cffi pycparser colorama rich markdown-it-py mdurl Pygments
 #   bash docs/results/h100-batch/run.sh parity|all|scaling|horizon WORK
 # WORK (e.g. /tmp/gpuwork) persists while the machine stays warm; each part ends by packing it
 # into $OUT/<part>.tgz (what a device call brings back).
