@@ -41,3 +41,35 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     tr.write_line(f"records lost: {figures['records_lost']}")
     if figures.get("memory"):
         tr.write_line(f"memory estimate against measured peaks: {figures['memory']}")
+
+
+def run_cell(backend: str, scenario: str, precision: str, params: dict, device: str = "cpu",
+             variant: str = "default") -> tuple[dict, dict]:
+    """One cell through the real worker path (its own process), at quick sizes; ok or mismatch."""
+    from compare import cells
+    require_device(backend, device)
+    spec = {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
+            "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant}
+    record, outputs = cells.run(spec, timeout=600)
+    assert record["status"] in ("ok", "mismatch"), \
+        f"{record.get('reason')}\n{record.get('traceback', '')}"
+    return record, outputs
+
+
+def run_script(backend: str, body: str, device: str = "cpu") -> dict:
+    """Run ``body`` in a fresh interpreter (its own framework init, which is process-global);
+    ``DEVICE`` is defined for it, and it prints RESULT<json>."""
+    import json
+    import subprocess
+    import sys
+    import textwrap
+
+    from compare import cells
+    require_device(backend, device)
+    code = "import json\nimport backends, scenarios\nDEVICE = %r\n" % device + textwrap.dedent(body)
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=cells.worker_env(),
+                          capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL)
+    line = next((r for r in proc.stdout.splitlines() if r.startswith("RESULT")), None)
+    assert line, proc.stderr[-3000:]
+    return json.loads(line[len("RESULT"):])
+

@@ -22,15 +22,13 @@ import math
 import re
 import subprocess
 import sys
-import textwrap
 
 import numpy as np
 import pytest
 
 import backends
-import scenarios
 from compare import cells
-from conftest import ROOT, require_device
+from conftest import ROOT, require_device, run_cell, run_script
 
 pytestmark = pytest.mark.quadrants
 
@@ -41,24 +39,12 @@ SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 11
 
 def _run(scenario: str, precision: str, params: dict, device: str = "cpu",
          variant: str = "default", backend: str = "quadrants") -> tuple[dict, dict]:
-    require_device(backend, device)
-    spec = {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
-            "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant}
-    record, outputs = cells.run(spec, timeout=600)
-    assert record["status"] in ("ok", "mismatch"), \
-        f"{record.get('reason')}\n{record.get('traceback', '')}"
-    return record, outputs
+    return run_cell(backend, scenario, precision, params, device, variant)
 
 
 def _script(body: str, device: str = "cpu") -> dict:
     """Run ``body`` in a fresh interpreter (its own qd.init); it prints RESULT<json>."""
-    require_device("quadrants", device)
-    code = "import json\nimport backends, scenarios\nDEVICE = %r\n" % device + textwrap.dedent(body)
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=cells.worker_env(),
-                          capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL)
-    line = next((r for r in proc.stdout.splitlines() if r.startswith("RESULT")), None)
-    assert line, proc.stderr[-3000:]
-    return json.loads(line[len("RESULT"):])
+    return run_script("quadrants", body, device)
 
 
 # ---- 1. variants --------------------------------------------------------------------------------
