@@ -97,6 +97,16 @@ class Backend:
         ``setdefault``, so the user's own settings win), e.g. not to preallocate GPU memory."""
         return {}
 
+    def variant_environment(self, variant: str) -> dict[str, str]:
+        """Environment variables a variant's worker needs on top of ``worker_environment``: a
+        process-wide compile option (e.g. XLA flags), so no kernel file needs to know the variant."""
+        return {}
+
+    def variant_unavailable(self, variant: str, device: str) -> str | None:
+        """Why ``variant`` cannot run on ``device`` (a capability the framework lacks there: the
+        cell is skipped with this reason), or None. Decided without importing the framework."""
+        return None
+
     def ensure_context(self, device: str) -> None:
         """Create the framework's device context now (not lazily inside the first kernel), so the
         device-memory baseline taken after it leaves the context out. Default: ``setup`` did."""

@@ -19,10 +19,10 @@ ROOT = Path(__file__).resolve().parent.parent
 Result = tuple[dict[str, Any], "dict[str, np.ndarray] | None"]
 
 
-def worker_env(backend: str | None = None) -> dict[str, str]:
+def worker_env(backend: str | None = None, variant: str = "default") -> dict[str, str]:
     """The environment of a worker process: ours, the repository on PYTHONPATH, and what the
-    backend asks for (``Backend.worker_environment``; every backend's when none is named). The
-    user's own settings win."""
+    backend asks for (``Backend.worker_environment``; every backend's when none is named) and
+    its variant (``Backend.variant_environment``). The user's own settings win."""
     import backends
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
@@ -31,6 +31,9 @@ def worker_env(backend: str | None = None) -> dict[str, str]:
     for b in chosen:
         for k, v in b.worker_environment().items():
             env.setdefault(k, v)
+        if backend is not None:
+            for k, v in b.variant_environment(variant).items():
+                env.setdefault(k, v)
     return env
 
 
@@ -82,7 +85,7 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
         (tmp_path / "specs.json").write_text(json.dumps(specs))
         cmd = lifeline.command("compare.worker", str(tmp_path / "specs.json"), str(tmp_path))
         with tempfile.TemporaryFile("w+") as err:
-            env = lifeline.child_environment(worker_env(specs[0]["backend"]), tmp_path)
+            env = lifeline.child_environment(worker_env(specs[0]["backend"], specs[0].get("variant", "default")), tmp_path)
             proc = subprocess.Popen(cmd, cwd=ROOT, env=env,
                                     stdout=subprocess.DEVNULL, stderr=err, text=True, stdin=subprocess.DEVNULL)
             started, done = time.monotonic(), 0

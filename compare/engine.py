@@ -85,6 +85,9 @@ def not_runnable(spec: dict[str, Any], probes: dict[str, dict[str, Any]]) -> tup
     if why:
         return "skipped", why
     be = backends.get(spec["backend"])
+    why = be.variant_unavailable(spec.get("variant", "default"), spec["device"])
+    if why:
+        return "skipped", why
     if not be.has_kernel(spec["scenario"]):
         where = f"{type(be).__module__.replace('.', '/')}/{spec['scenario']}.py"
         if scenarios.get(spec["scenario"]).in_all:

@@ -14,7 +14,7 @@ from tabulate import tabulate
 from compare.store import atomic_write, save_figure
 
 COLUMNS = ("backend", "device", "precision", "variant", "status", "first call", "latency", "IQR",
-           "min", "events median", "throughput", "graph", "hw fraction", "device mem", "err vs oracle",
+           "min", "events median", "throughput", "host issue", "graph", "hw fraction", "device mem", "err vs oracle",
            "tolerance", "err vs reference", "gradient", "note")
 # the terminal's default view (fits 120 columns); --wide and the Markdown/CSV files have all
 COMPACT = ("backend", "device", "precision", "variant", "status", "latency", "throughput",
@@ -89,7 +89,7 @@ def row(rec: dict[str, Any], width: int = 120) -> list[str]:
             rec["status"], fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")),
             fmt_time(lat.get("iqr_s")), fmt_time(lat.get("min_s")),
             fmt_time(t.get("median_s")) if t.get("timer") == "events" else "-",
-            fmt_time(thr.get("median_s")), fmt_time(graph.get("median_s")),
+            fmt_time(thr.get("median_s")), fmt_time(thr.get("host_s")), fmt_time(graph.get("median_s")),
             f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",
             fmt_bytes((rec.get("memory") or {}).get("device_bytes")),
             fmt_num(e.get("vs_oracle")), fmt_num(e.get("tolerance")), fmt_num(e.get("vs_reference")),
@@ -205,7 +205,8 @@ CSV_COLUMNS = {
     "events_median_s": None,                           # CUDA events, where the backend has them
     "throughput_median_s": ("time", "throughput", "median_s"),
     "throughput_iqr_s": ("time", "throughput", "iqr_s"), "throughput_min_s": ("time", "throughput", "min_s"),
-    "throughput_k": ("time", "throughput", "k"), "graph_median_s": ("time", "graph", "median_s"),
+    "throughput_k": ("time", "throughput", "k"), "throughput_host_s": ("time", "throughput", "host_s"),
+    "graph_median_s": ("time", "graph", "median_s"), "graph_host_s": ("time", "graph", "host_s"),
     "floor_s": ("throughput", "floor_s"), "floor_kind": ("throughput", "floor_kind"),
     "hw_fraction": ("throughput", "hw_fraction"),
     "device_bytes": ("memory", "device_bytes"), "framework_device_peak_bytes": ("memory", "device_peak_bytes"),

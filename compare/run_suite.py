@@ -45,6 +45,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     options.add_timing(p)
     options.add_output(p, "results")
     p.add_argument("--save-arrays", action="store_true", help="write inputs/outputs per cell (npz)")
+    p.add_argument("--check-sample", type=options.nonnegative_int, default=0, metavar="K",
+                   help="check K evenly spaced items of per-item scenarios against the oracle "
+                        "(large n: the float64 oracle of every item can take minutes; 0: all)")
+    p.add_argument("--host-profile", type=options.nonnegative_int, default=0, metavar="TOP",
+                   help="also profile the host side of the throughput regime (cProfile) and keep "
+                        "the TOP functions by own time in each record (time.host_profile)")
     p.add_argument("--resume", action="store_true",
                    help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
     options.add_scheduler(p)
@@ -115,7 +121,8 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
             options.check_precision(sc, params, prec)
     specs = [{"scenario": sc.name, "backend": b, "device": d, "precision": p, "variant": v,
               "params": sets[sc.name], "quick": args.quick, "repeat": args.repeat,
-              "min_time": args.min_time, "save_inputs": args.save_arrays}
+              "min_time": args.min_time, "save_inputs": args.save_arrays,
+              "check_sample": args.check_sample, "host_profile": args.host_profile}
              for sc in chosen for b in sel["backends"] for d in sel["devices"]
              for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants_for(sc.name)]
     if not specs:

@@ -49,6 +49,7 @@ class CellSpec:
     cache: str = "cold"                 # 'cold': empty kernel caches for the first call; 'warm'
     throughput: bool = True             # also time the throughput (and graph) regimes
     check_sample: int = 0               # check k evenly spaced items of large per-item cells
+    host_profile: int = 0               # >0: cProfile the throughput regime, keep this many functions
     save_outputs: bool = True           # hand the outputs back (cross-backend comparison)
     save_inputs: bool = False           # also the inputs (--save-arrays)
 
@@ -64,6 +65,10 @@ class CellSpec:
             v = getattr(self, f)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise SpecError(f"cell spec: {f} must be finite and >= 0, got {v!r}")
+        for f in ("check_sample", "host_profile"):
+            v = getattr(self, f)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+                raise SpecError(f"cell spec: {f} must be an integer >= 0, got {v!r}")
         if self.timer not in ("auto", "wall") or self.cache not in ("cold", "warm"):
             raise SpecError(f"cell spec: timer must be auto|wall and cache cold|warm, got {self.timer!r}, {self.cache!r}")
 

@@ -122,16 +122,59 @@ def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: floa
             break
         k = min(max_k, k * 2 if dt <= 0 else max(k * 2, int(k * batch_s / dt * 1.2)))
     per_call: list[float] = []
+    host: list[float] = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         for _ in range(k):
             r = run()
+        t1 = time.perf_counter()
         sync(r)
         per_call.append((time.perf_counter() - t0) / k)
+        host.append((t1 - t0) / k)
         spent += per_call[-1] * k
         if spent >= max_time and len(per_call) >= 3:
             break
-    return {**summarise(per_call), "k": k}
+    return {**summarise(per_call), "k": k, "host_s": float(np.median(host))}
+
+
+def host_profile(run: Callable[[], Any], sync: Callable[[Any], None], calls: int,
+                 top: int) -> dict[str, Any]:
+    """Where the host's time per call goes in the throughput regime: ``calls`` back-to-back
+    ``run()`` under cProfile (which slows Python code, so these are shares, not timings to
+    compare with the regimes), then one synchronise. Returns the ``top`` functions by own time,
+    each with its own and cumulative time per call and its calls per call; ``where`` is the file
+    relative to its installed package (``warp/context.py:1234``) or ``~`` for C functions."""
+    import cProfile
+    import pstats
+    prof = cProfile.Profile()
+    r = None
+    t0 = time.perf_counter()
+    prof.enable()
+    for _ in range(calls):
+        r = run()
+    prof.disable()
+    issued = time.perf_counter() - t0
+    sync(r)
+    stats = pstats.Stats(prof).stats  # (file, line, name) -> (primitive calls, calls, own, cumulative, callers)
+    rows = sorted(stats.items(), key=lambda kv: kv[1][2], reverse=True)[:top]
+    total_own = sum(v[2] for v in stats.values())
+    return {"calls": calls, "host_s": issued / calls, "profiled_s": total_own / calls,
+            "top": [{"function": name, "where": _where(file, line),
+                     "own_s": own / calls, "cumulative_s": cum / calls, "calls": n / calls}
+                    for (file, line, name), (_, n, own, cum, _) in rows]}
+
+
+def _where(file: str, line: int) -> str:
+    if file == "~":
+        return "~"
+    parts = file.replace("\\", "/").split("/")
+    for marker in ("site-packages", "dist-packages"):
+        if marker in parts:
+            parts = parts[parts.index(marker) + 1:]
+            break
+    else:
+        parts = parts[-3:]
+    return f"{'/'.join(parts)}:{line}"
 
 
 def summarise(times: list[float]) -> dict[str, Any]:

@@ -84,8 +84,12 @@ def test_results_json_contract(quick_run):
         assert set(r["time"]) >= {"first_call_s", "median_s", "iqr_s", "min_s", "repeats"}
         # both regimes, documented keys (README); no graph capture on a CPU, with the reason
         assert set(r["time"]["latency"]) == {"median_s", "iqr_s", "min_s", "repeats"}
-        assert set(r["time"]["throughput"]) == {"median_s", "iqr_s", "min_s", "repeats", "k"}
-        assert r["time"]["throughput"]["k"] >= 1 and r["time"]["throughput"]["median_s"] > 0
+        thr = r["time"]["throughput"]
+        assert set(thr) == {"median_s", "iqr_s", "min_s", "repeats", "k", "host_s"}
+        assert thr["k"] >= 1 and thr["median_s"] > 0
+        # the host's issuing time is part of each batch's time (before its one synchronise), so
+        # its median cannot exceed the batches' median
+        assert 0 < thr["host_s"] <= thr["median_s"]
         assert "unavailable" in r["time"]["graph"] or "median_s" in r["time"]["graph"]
         assert set(r["error"]) >= {"vs_oracle", "vs_reference", "tolerance"}
         assert r["error"]["vs_oracle"] <= r["error"]["tolerance"]
@@ -107,6 +111,7 @@ def test_results_json_contract(quick_run):
         assert (row["scenario"], row["backend"], row["precision"]) == (r["scenario"], r["backend"], r["precision"])
         assert float(row["latency_median_s"]) == r["time"]["latency"]["median_s"]
         assert int(row["throughput_k"]) == r["time"]["throughput"]["k"]
+        assert float(row["throughput_host_s"]) == r["time"]["throughput"]["host_s"]
         assert float(row["err_vs_oracle"]) == r["error"]["vs_oracle"]
         assert json.loads(row["params"]) == r["params"]
     md = (out / "results.md").read_text()

@@ -84,14 +84,34 @@ class Program:
         return out
 
 
+# XLA:GPU records a program's kernels into command buffers (CUDA graphs) and launches each as one
+# graph. By default only runs of >= 5 fusions, library calls and custom calls are recorded, so a
+# one-kernel program and the body of a loop (lax.scan/fori_loop lower to a while) launch kernel by
+# kernel. The `graph` variant records every run (min size 1) and while/conditional loops as well
+# (CUDA conditional nodes): JAX's graph fast path, set per process (the XLA flags documentation:
+# https://openxla.org/xla/flags_guidance).
+GRAPH_FLAGS = ("--xla_gpu_enable_command_buffer=FUSION,CUBLAS,CUBLASLT,CUSTOM_CALL,CUDNN,WHILE,CONDITIONAL"
+               " --xla_gpu_graph_min_graph_size=1")
+
+
 class JaxBackend(Backend):
     name = "jax"
     package = "jax"
     gradient_method = "ad"
     display_order, color = 2, "C2"
     related_packages = ("jaxlib", "jax-cuda12-plugin", "jax-cuda13-plugin")
+    # graph: XLA command buffers (CUDA graphs) for every program, loops included (GRAPH_FLAGS)
+    variants = ("default", "graph")
     # jax.checkpoint around segments of ~sqrt(steps) steps (backends/jax/projectile.py)
     scenario_variants = {"projectile": ("checkpoint",)}
+
+    def variant_environment(self, variant: str) -> dict[str, str]:
+        return {"XLA_FLAGS": GRAPH_FLAGS} if variant == "graph" else {}
+
+    def variant_unavailable(self, variant: str, device: str) -> str | None:
+        if variant == "graph" and device != "cuda":
+            return "XLA command buffers (CUDA graphs) exist on CUDA only"
+        return None
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
         # JAX's persistent compilation cache is off unless configured: keep it off
@@ -122,6 +142,12 @@ class JaxBackend(Backend):
         return {"jax": jax.__version__, "jaxlib": jaxlib.__version__}
 
     def setup(self, device: str, precision: str, variant: str) -> None:
+        import os
+        if variant == "graph" and GRAPH_FLAGS not in os.environ.get("XLA_FLAGS", ""):
+            # the user's own XLA_FLAGS win over variant_environment: never time a non-graph run
+            # as the graph variant
+            raise RuntimeError(f"the graph variant needs XLA_FLAGS to contain {GRAPH_FLAGS!r}; "
+                               f"it is {os.environ.get('XLA_FLAGS', '')!r}")
         import jax
         # Per process (each cell is its own worker) and before any array is created: arrays made
         # under the other setting would keep their dtype.
