@@ -7,7 +7,8 @@ Shared conventions of the kernel files:
     numba/numba#4676);
   * the factories only create dispatchers; Numba compiles lazily at the first call, i.e. in the
     first ``run()``, which the driver reports as the first-call (compile) time;
-  * CUDA kernels take device arrays made in the constructor; ``run`` only launches.
+  * CUDA kernels take device arrays made in the constructor and launch on ``launch_stream()``;
+    ``run`` only launches.
 Importing this package does not import numba.
 """
 from __future__ import annotations
@@ -38,6 +39,29 @@ def use_fastmath(variant: str) -> bool:
 def blocks(n: int, per_block: int = THREADS_PER_BLOCK) -> int:
     """Blocks of ``per_block`` threads covering ``n`` items (at least one)."""
     return max(1, -(-n // per_block))
+
+
+_STREAM: list[Any] = []
+
+
+def launch_stream() -> Any:
+    """The stream every CUDA kernel here launches on: one per process, created on first use.
+    Not the legacy default stream, because CUDA cannot capture that one into a graph
+    (``NumbaBackend.capture``); it is a blocking stream, so it orders with the default stream that
+    the events and downloads use, exactly as launches on the default stream would."""
+    if not _STREAM:
+        from numba import cuda
+        _STREAM.append(cuda.stream())
+    return _STREAM[0]
+
+
+def _driver_check(result: tuple[Any, ...]) -> Any:
+    """The value of a cuda.bindings driver call, or its error raised."""
+    from cuda.bindings import driver
+    err, *rest = result
+    if err != driver.CUresult.CUDA_SUCCESS:
+        raise RuntimeError(f"CUDA driver: {driver.cuGetErrorName(err)[1].decode()}")
+    return rest[0] if len(rest) == 1 else tuple(rest)
 
 
 def kernel_info(device: str, fastmath: bool, **extra: Any) -> dict[str, Any]:
@@ -76,6 +100,25 @@ class NumbaBackend(Backend):
         if device == "cuda":
             from numba import cuda
             cuda.current_context()
+
+    def capture(self, device: str, run: Any) -> Any:
+        """One ``run()`` captured into a CUDA graph through the driver (cuda.bindings, which
+        numba-cuda uses), on the stream every kernel here launches on, and replayed with
+        ``cuGraphLaunch`` there. numba-cuda has no graph API of its own; stream capture records
+        launches from any library, so this is the graph a Numba user builds. CUDA only."""
+        if device != "cuda" or _simulator():
+            return None
+        from cuda.bindings import driver
+        handle = launch_stream().handle
+        stream = driver.CUstream(int(handle.value if hasattr(handle, "value") else handle))
+        _driver_check(driver.cuStreamBeginCapture(
+            stream, driver.CUstreamCaptureMode.CU_STREAM_CAPTURE_MODE_THREAD_LOCAL))
+        try:
+            run()
+        finally:
+            graph = _driver_check(driver.cuStreamEndCapture(stream))
+        exe = _driver_check(driver.cuGraphInstantiate(graph, 0))
+        return lambda: _driver_check(driver.cuGraphLaunch(exe, stream))
 
     def event_timer(self, device: str) -> "NumbaEvents | None":
         return NumbaEvents() if device == "cuda" else None

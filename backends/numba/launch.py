@@ -15,7 +15,7 @@ try:
 except ImportError:          # CPU-only install
     cuda = None
 
-from . import THREADS_PER_BLOCK, blocks, kernel_info, scalar_type, use_fastmath
+from . import THREADS_PER_BLOCK, blocks, kernel_info, launch_stream, scalar_type, use_fastmath
 from ..base import ScenarioKernel
 
 
@@ -47,7 +47,7 @@ class Kernel(ScenarioKernel):
         if device == "cuda":
             self.x = cuda.to_device(inputs["x"])
             self.out = cuda.device_array(params.n, dtype=S)
-            self.fn = cuda_kernel(self.fastmath)[blocks(params.n), THREADS_PER_BLOCK]
+            self.fn = cuda_kernel(self.fastmath)[blocks(params.n), THREADS_PER_BLOCK, launch_stream()]
         else:
             self.x = np.ascontiguousarray(inputs["x"])
             self.out = np.empty(params.n, dtype=S)

@@ -17,7 +17,7 @@ try:
 except ImportError:          # CPU-only install
     cuda = None
 
-from . import THREADS_PER_BLOCK, blocks, kernel_info, scalar_type, use_fastmath
+from . import THREADS_PER_BLOCK, blocks, kernel_info, launch_stream, scalar_type, use_fastmath
 from ..base import ScenarioKernel
 
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
@@ -104,7 +104,7 @@ class Kernel(ScenarioKernel):
             state0 = [cuda.to_device(a) for a in state0]
             self.state = [cuda.device_array(params.n, dtype=S) for _ in STATE]
             self.traj = [cuda.device_array(traj_shape, dtype=S) for _ in range(2)]
-            fn = cuda_kernel(S, self.fastmath)[blocks(params.n), THREADS_PER_BLOCK]
+            fn = cuda_kernel(S, self.fastmath)[blocks(params.n), THREADS_PER_BLOCK, launch_stream()]
         else:
             self.state = [np.empty(params.n, dtype=S) for _ in STATE]
             self.traj = [np.empty(traj_shape, dtype=S) for _ in range(2)]

@@ -37,7 +37,7 @@ try:
 except ImportError:          # CPU-only install
     cuda = None
 
-from . import scalar_type, use_fastmath
+from . import launch_stream, scalar_type, use_fastmath
 from ..base import ScenarioKernel
 
 CONTACT = {"none": 0, "hard": 1, "soft": 2}
@@ -175,7 +175,7 @@ class Kernel(ScenarioKernel):
         if device == "cuda":
             arrays = {k: cuda.to_device(a) for k, a in arrays.items()}
             self.launch = (-(-B // min(B, THREADS_PER_BLOCK)), min(B, THREADS_PER_BLOCK))
-            self.fn = cuda_kernel(S, self.fastmath)[self.launch]
+            self.fn = cuda_kernel(S, self.fastmath)[(*self.launch, launch_stream())]
         else:
             self.fn = cpu_kernel(S, self.fastmath)
         self.arrays = arrays

@@ -15,7 +15,7 @@ try:
 except ImportError:          # CPU-only install
     cuda = None
 
-from . import THREADS_PER_BLOCK, blocks, kernel_info, scalar_type, use_fastmath
+from . import THREADS_PER_BLOCK, blocks, kernel_info, launch_stream, scalar_type, use_fastmath
 from ..base import ScenarioKernel
 
 
@@ -47,7 +47,7 @@ class Kernel(ScenarioKernel):
         if device == "cuda":
             self.x, self.y = cuda.to_device(inputs["x"]), cuda.to_device(inputs["y"])
             self.out = cuda.device_array(params.n, dtype=S)
-            self.fn = cuda_kernel(self.fastmath)[blocks(params.n), THREADS_PER_BLOCK]
+            self.fn = cuda_kernel(self.fastmath)[blocks(params.n), THREADS_PER_BLOCK, launch_stream()]
         else:
             self.x, self.y = np.ascontiguousarray(inputs["x"]), np.ascontiguousarray(inputs["y"])
             self.out = np.empty(params.n, dtype=S)

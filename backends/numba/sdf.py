@@ -17,7 +17,7 @@ try:
 except ImportError:          # CPU-only install
     cuda = None
 
-from . import kernel_info, scalar_type, use_fastmath
+from . import kernel_info, launch_stream, scalar_type, use_fastmath
 from ..base import ScenarioKernel
 
 BLOCK = (32, 8)          # 256 threads: a warp along a row, 8 rows
@@ -77,7 +77,7 @@ class Kernel(ScenarioKernel):
         if device == "cuda":
             self.image = cuda.device_array(shape, dtype=S)
             grid = (-(-params.width // BLOCK[0]), -(-params.height // BLOCK[1]))
-            self.fn = cuda_kernel(S, self.fastmath)[grid, BLOCK]
+            self.fn = cuda_kernel(S, self.fastmath)[grid, BLOCK, launch_stream()]
         else:
             self.image = np.empty(shape, dtype=S)
             self.fn = cpu_kernel(S, self.fastmath)
