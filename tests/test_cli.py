@@ -43,6 +43,8 @@ def test_list_names_everything():
     (("all", "--devices", "tpu"), "unknown device"),
     (("all", "--precision", "float16"), "unknown precision"),
     (("all", "--repeat", "0"), "--repeat"),
+    (("all", "--check-sample", "-1"), "--check-sample"),
+    (("all", "--host-profile", "two"), "--host-profile"),
     (("all", "--frobnicate"), "unrecognized"),
 ])
 def test_bad_usage_exits_2_with_one_line(args, needle):
@@ -190,6 +192,31 @@ def test_resume_runs_only_missing_cells(tmp_path):
     recs = json.loads((tmp_path / "results.json").read_text())["records"]
     assert recs[0] == first[0]
     assert {r["scenario"] for r in recs} == {"saxpy", "sdf", "particles", "projectile"}
+
+
+def test_host_profile_sample_check_and_variant_skips(tmp_path):
+    """--host-profile keeps where the host's time per call goes; --check-sample checks that many
+    items; a variant the device lacks (JAX's graph variant on a CPU) is a skip with the reason."""
+    p = compare("run", "particles", "--backends", "warp,jax", "--devices", "cpu", "--precision",
+                "float32", "--variants", "default,graph", "--set", "n=600", "--set", "steps=20",
+                "--check-sample", "50", "--host-profile", "5", "--repeat", "2",
+                "--out", str(tmp_path), "--no-plots")
+    assert p.returncode == 0, p.stdout + p.stderr
+    recs = json.loads((tmp_path / "results.json").read_text())["records"]
+    by = {(r["backend"], r["variant"]): r for r in recs}
+    assert set(by) == {("warp", "default"), ("jax", "default"), ("jax", "graph")}
+    skip = by["jax", "graph"]
+    assert skip["status"] == "skipped" and "CUDA only" in skip["reason"]
+    for key in (("warp", "default"), ("jax", "default")):
+        r = by[key]
+        assert r["status"] == "ok", r["reason"]
+        assert r["error"]["checked_items"].startswith("50 of 600"), r["error"]
+        prof = r["time"]["host_profile"]
+        assert prof["calls"] >= 20 and 0 < len(prof["top"]) <= 5
+        own = [row["own_s"] for row in prof["top"]]
+        assert own == sorted(own, reverse=True) and all(row["calls"] > 0 for row in prof["top"])
+        # the top functions are part of all profiled time, which is part of the issuing time
+        assert sum(own) <= prof["profiled_s"] * (1 + 1e-9) <= prof["host_s"] * 1.05
 
 
 @pytest.mark.slow
