@@ -37,7 +37,7 @@ CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr"
 # elementwise work fuse into a few kernels (measured on an H100/H200: 10-16x faster than 1; 64 made
 # compiles take 10-20 s). On CPU unrolling gained little or lost, so it stays 1 there.
 UNROLL = {"cpu": 1, "cuda": 16}
-VARIANTS = ("default", "checkpoint")
+VARIANTS = ("default", "graph", "checkpoint")   # graph: XLA command buffers, set per process (__init__.GRAPH_FLAGS)
 
 
 def checkpoint_segment(steps: int) -> int:
