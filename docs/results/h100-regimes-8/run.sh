@@ -41,7 +41,11 @@ case $part in
     large lease2
     timeout 300 python -m compare all --devices cuda --precision float32 --out "$out/lease2-all" \
       --no-plots > "$out/lease2-all.txt" 2>&1
-    echo "lease2 all rc=$?" ;;
+    echo "lease2 all rc=$?"
+    # the one-kernel PyTorch SAXPY (this run's commit) against the oracle and Warp on CUDA
+    timeout 200 python -m pytest -q -p no:cacheprovider tests/test_parity.py -k "cuda and saxpy" \
+      > "$out/lease2-parity.txt" 2>&1
+    echo "lease2 parity: $(tail -1 "$out/lease2-parity.txt")" ;;
   ncu)      # Nsight Compute's kernel time for one small and one large SAXPY per new CUDA backend
             # (docs/results/h100-regimes/run.sh did Warp, Taichi, JAX and Numba the same way)
     for b in cupy torch quadrants; do
