@@ -203,8 +203,33 @@ def test_projectile_checkpoint_variant_is_offered(batch_results):
     import backends
     assert batch_results["variant_refused"]
     be = backends.get("jax")
-    assert be.variants_for("projectile") == ("default", "checkpoint")
-    assert be.variants_for("saxpy") == ("default",)
+    assert be.variants_for("projectile") == ("default", "graph", "checkpoint")
+    assert be.variants_for("saxpy") == ("default", "graph")
+
+
+def test_graph_variant_is_xla_command_buffers_on_cuda_only():
+    """The graph variant sets XLA's command-buffer flags for its worker, is a skip with the
+    reason on a CPU, and refuses to run when the environment's own XLA_FLAGS overrode them."""
+    import os
+    import backends
+    from backends.jax import GRAPH_FLAGS
+    from compare import cells
+    be = backends.get("jax")
+    assert "WHILE" in GRAPH_FLAGS and "--xla_gpu_graph_min_graph_size=1" in GRAPH_FLAGS
+    assert be.variant_environment("graph") == {"XLA_FLAGS": GRAPH_FLAGS}
+    assert be.variant_environment("default") == {}
+    assert "CUDA only" in be.variant_unavailable("graph", "cpu")
+    assert be.variant_unavailable("graph", "cuda") is None and be.variant_unavailable("default", "cpu") is None
+    if "XLA_FLAGS" not in os.environ:
+        assert cells.worker_env("jax", "graph")["XLA_FLAGS"] == GRAPH_FLAGS
+        assert "XLA_FLAGS" not in cells.worker_env("jax", "default")
+    saved = os.environ.pop("XLA_FLAGS", None)
+    try:
+        with pytest.raises(RuntimeError, match="graph variant needs XLA_FLAGS"):
+            be.setup("cuda", "float32", "graph")
+    finally:
+        if saved is not None:
+            os.environ["XLA_FLAGS"] = saved
 
 
 def test_checkpoint_variant_through_the_worker():
