@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import textwrap
@@ -298,3 +299,17 @@ def test_package_import_does_not_import_numba() -> None:
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=cells.worker_env(),
                           capture_output=True, text=True, timeout=120)
     assert proc.stdout.strip().splitlines()[-1] == "False", proc.stderr[-2000:]
+
+
+def test_graph_capture_is_cuda_only_and_kernels_share_one_stream() -> None:
+    """Numba's graph regime is driver stream capture on the stream every CUDA kernel launches on
+    (CUDA cannot capture the legacy default stream): none on the CPU, and every CUDA kernel file
+    configures its launch with launch_stream()."""
+    import backends
+    be = backends.get("numba")
+    assert be.capture("cpu", lambda: None) is None
+    for f in sorted((ROOT / "backends" / "numba").glob("*.py")):
+        text = f.read_text()
+        if "cuda.jit" in text:
+            assert re.search(r"\[[^\[\]]*launch_stream\(\)\)?\]", text), \
+                f"{f.name} launches CUDA kernels off launch_stream()"
