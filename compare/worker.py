@@ -162,9 +162,6 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=spec.max_time)
         if nvml:
             nvml.sample()
-        if spec.host_profile:
-            calls = max(20, min(regimes["throughput"]["k"], 2000))
-            regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, spec.host_profile)
     run_peak = peak_rss_bytes()               # before the download and the oracle add theirs
     t0 = time.perf_counter()
     got = kernel.outputs()
@@ -189,6 +186,9 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
 
     if spec.throughput:     # after the download: a failed capture cannot touch the outputs
         regimes["graph"] = graph_regime(be, device, kernel, sync, spec.max_time)
+    if spec.host_profile and "throughput" in regimes:   # after the peaks and the download too
+        calls = max(20, min(regimes["throughput"]["k"], 2000))
+        regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, spec.host_profile)
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)

@@ -61,7 +61,7 @@ def _driver_check(result: tuple[Any, ...]) -> Any:
     err, *rest = result
     if err != driver.CUresult.CUDA_SUCCESS:
         raise RuntimeError(f"CUDA driver: {driver.cuGetErrorName(err)[1].decode()}")
-    return rest[0] if len(rest) == 1 else tuple(rest)
+    return rest[0] if rest else None
 
 
 def kernel_info(device: str, fastmath: bool, **extra: Any) -> dict[str, Any]:
