@@ -121,6 +121,20 @@ def test_cuda_sources_compile_with_nvrtc(scenario: str, precision: str) -> None:
 
 
 @pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_saxpy_vector_source_moves_16_bytes_per_access(precision: str) -> None:
+    """The ``vector`` variant's loads and stores are 16-byte vector instructions (what it exists
+    for), its arithmetic is one FMA per lane, and the float32 kernel has no double arithmetic."""
+    from backends.cupy.saxpy import vector_source, vector_width
+    ptx = ptx_of(nvrtc_module(), vector_source(precision), "saxpy_vector")
+    lanes, t = vector_width(precision), "f32" if precision == "float32" else "f64"
+    assert re.search(rf"ld\.global(\.nc)?\.v{lanes}\.{t}", ptx), "no vector load"
+    assert re.search(rf"st\.global\.v{lanes}\.{t}", ptx), "no vector store"
+    assert ptx.count(f"fma.rn.{t}") >= lanes + 1        # every lane, and the tail
+    if precision == "float32":
+        assert ".f64" not in ptx.replace(".reg .f64", "")
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
 def test_elementwise_kernels_are_typed(precision: str) -> None:
     """CuPy parses the ElementwiseKernels' parameter lists without a GPU: every parameter has the
     cell's dtype (no weakly typed scalar that could promote float32)."""
@@ -136,12 +150,14 @@ SHIM = r"""
 #define __global__
 struct emu_dim3 { unsigned int x, y, z; };
 static emu_dim3 blockIdx, blockDim, threadIdx;
+struct float4 { float x, y, z, w; };
+struct double2 { double x, y; };
 extern "C" void emu_thread(unsigned bx, unsigned by, unsigned dx, unsigned dy, unsigned tx, unsigned ty) {
     blockIdx.x = bx; blockIdx.y = by; blockDim.x = dx; blockDim.y = dy; threadIdx.x = tx; threadIdx.y = ty;
 }
 """
 _CTYPES = {np.dtype(np.int32): ctypes.c_int, np.dtype(np.float32): ctypes.c_float,
-           np.dtype(np.float64): ctypes.c_double}
+           np.dtype(np.float64): ctypes.c_double, np.dtype(np.int64): ctypes.c_longlong}
 
 
 class HostArray(np.ndarray):
@@ -152,6 +168,10 @@ class HostArray(np.ndarray):
 
     def set(self, value: np.ndarray) -> None:
         self[...] = value
+
+    @property
+    def data(self) -> types.SimpleNamespace:      # cupy's MemoryPointer: the address
+        return types.SimpleNamespace(ptr=self.ctypes.data)
 
 
 class HostRawKernel:
@@ -188,12 +208,13 @@ def host_cupy(tmp_path, monkeypatch):
     fake.empty = lambda shape, dtype: np.zeros(shape, dtype).view(HostArray)
     fake.RawKernel = lambda source, name: HostRawKernel(tmp_path, source, name)
     monkeypatch.setitem(sys.modules, "cupy", fake)
-    mods = [importlib.import_module(f"backends.cupy.{s}") for s in RAW]
-    for m in mods:
-        m.compiled.cache_clear()
+    caches = [importlib.import_module(f"backends.cupy.{s}").compiled for s in RAW]
+    caches.append(importlib.import_module("backends.cupy.saxpy").compiled_vector)
+    for c in caches:
+        c.cache_clear()
     yield
-    for m in mods:
-        m.compiled.cache_clear()
+    for c in caches:
+        c.cache_clear()
 
 
 HOST_CASES = [("sdf", {}), ("sdf", {"width": 2, "height": 3}), ("particles", {"n": 200}),
@@ -204,11 +225,12 @@ HOST_CASES = [("sdf", {}), ("sdf", {"width": 2, "height": 3}), ("particles", {"n
               ("projectile", {"contact": "soft", "batch": 37, "iters": 5})]
 
 
-def host_run(scenario: str, overrides: dict, precision: str, inputs: dict | None = None):
+def host_run(scenario: str, overrides: dict, precision: str, inputs: dict | None = None,
+             variant: str = "default"):
     sc = scenarios.get(scenario)
     p = sc.params(overrides, quick=True)
     inputs = sc.inputs(p, precision) if inputs is None else inputs
-    k = BACKEND.kernel(scenario)(p, inputs, "cuda", precision, "default")
+    k = BACKEND.kernel(scenario)(p, inputs, "cuda", precision, variant)
     k.run()
     return sc, p, inputs, k
 
@@ -222,6 +244,19 @@ def test_cuda_sources_on_the_host_match_the_oracle(host_cupy, scenario, override
     assert {n: (a.shape, a.dtype) for n, a in out.items()} == {n: (tuple(s), np.dtype(precision)) for n, s in shapes.items()}
     check = sc.check(p, inputs, out, sc.oracle(p, inputs), precision)
     assert check.ok, (check.error, check.tolerance, check.details)
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 257, 100_003])
+def test_host_saxpy_vector_covers_every_element(host_cupy, n, precision) -> None:
+    """Vectors and the n % W tail together write every element once, each a * x + y in the
+    cell's precision (the host does not contract, so NumPy's two roundings are exact here)."""
+    sc, p, inputs, k = host_run("saxpy", {"n": n, "inputs": "random", "seed": 5}, precision,
+                                variant="vector")
+    S = np.dtype(precision).type
+    want = S(inputs["a"]) * inputs["x"].astype(S) + inputs["y"].astype(S)
+    np.testing.assert_array_equal(np.asarray(k.outputs()["out"]), want)
+    assert BACKEND.variants_for("saxpy") == ("default", "vector")
 
 
 def test_host_batch_row0_is_the_single_trajectory(host_cupy) -> None:

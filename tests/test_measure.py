@@ -262,6 +262,9 @@ def test_plan_comes_from_the_scenarios_hooks():
     assert {s["scenario"] for s in specs if s["tags"]["role"] == "bandwidth"} == {
         sc.name for sc in scenarios.SCENARIOS.values() if sc.measures == "bandwidth"}
     assert all(s["check_sample"] for s in specs if s["tags"]["role"] != "launch")
+    # a scenario's own variants join the size sweep of that scenario only (Warp's tiled SAXPY)
+    assert {(s["scenario"], s["variant"]) for s in specs if s["variant"] != "default"} == {("saxpy", "tile")}
+    assert {s["variant"] for s in specs if s["scenario"] == "saxpy"} == {"default", "tile"}
     err = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--precision", "float32")
     assert {s["scenario"] for s, _ in err} == set(sweep.error_scenarios()) == {
         "saxpy", "sdf", "particles", "projectile"}

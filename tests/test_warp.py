@@ -95,3 +95,23 @@ def test_set_input_v0(batch):
     fresh = build(p, "float64", inputs={**ins, "v0": new_v0})
     assert same_bits(k.outputs(), fresh.outputs()) == []
     assert np.asarray(k.outputs()["grad"]).shape == SC.output_shapes(p)["grad"]
+
+
+@pytest.mark.parametrize("device", ["cpu", "cuda"])
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+def test_saxpy_tile_variant_is_the_default_bit_for_bit(device, precision):
+    """SAXPY's ``tile`` variant writes every element (full tiles, a partial last tile, fewer
+    elements than one tile) with the default kernel's arithmetic."""
+    require_device("warp", device)
+    sc = scenarios.get("saxpy")
+    assert BACKEND.variants_for("saxpy") == ("default", "tile")
+    from backends.warp.saxpy import TILE
+    for n in (1, 5, TILE - 1, TILE, TILE + 1, 3 * TILE + 7):
+        p = sc.params({"n": n, "inputs": "random", "seed": 11})
+        inputs = sc.inputs(p, precision)
+        out = {}
+        for variant in ("default", "tile"):
+            k = BACKEND.kernel("saxpy")(p, inputs, device, precision, variant)
+            k.run()
+            out[variant] = k.outputs()
+        assert same_bits(out["default"], out["tile"]) == [], n

@@ -4,7 +4,8 @@ Why these choices:
   * saxpy, copy and launch are ``cupy.ElementwiseKernel``s (CuPy's one-line kernel idiom, with its
     per-call argument handling: that overhead is part of what the comparison measures); sdf,
     particles and the projectile are ``cupy.RawKernel``s (CUDA C, one thread per pixel, particle
-    or trajectory, in Warp's operation order);
+    or trajectory, in Warp's operation order), and so is SAXPY's ``vector`` variant (16-byte
+    loads and stores, the CUDA C idiom for bandwidth-bound kernels);
   * every kernel is typed: the CUDA C sources are made per precision from ``prelude`` (``real``
     and the math functions of that precision; constants written ``R(0.35)``, a double literal
     rounded to ``real`` at compile time exactly as Warp's ``scalar(0.35)`` and Numba's
@@ -86,6 +87,7 @@ class CupyBackend(Backend):
     package = PACKAGE
     gradient_method = "adjoint"          # hand-written discrete adjoint (as Numba's): no autodiff
     display_order, color = 4, "C4"       # after warp, taichi, jax, numba (C0-C3)
+    scenario_variants = {"saxpy": ("vector",)}   # 16-byte loads and stores (saxpy.py)
     related_packages = ("cupy-cuda13x", "cuda-pathfinder", "nvidia-cuda-nvrtc-cu12")
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:

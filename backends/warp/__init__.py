@@ -23,7 +23,8 @@ class WarpBackend(Backend):
     is_reference = True
     display_order, color = 0, "C0"
     # a taped segment loop: segment boundaries kept, each segment re-taped in the backward pass
-    scenario_variants = {"projectile": ("checkpoint",)}
+    scenario_variants = {"projectile": ("checkpoint",),
+                         "saxpy": ("tile",)}     # block-cooperative tile loads (saxpy.py)
     control_variants = {"particles": {
         "racy-one-launch": "the seed's single launch over (step, particle): step s reads what "
                            "step s-1 of the same launch has not yet written"}}

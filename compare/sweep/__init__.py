@@ -149,12 +149,13 @@ def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] 
 
 def sweep_variants(kind: str, backend: str, scenario: str) -> tuple[str, ...]:
     """The variants sweep ``kind`` runs: the backend's general variants in the error sweep (e.g.
-    fast math: precision against speed), the scenario's own variants (e.g. checkpointing: memory
-    against time) in the horizon sweep, else the default."""
+    fast math: precision against speed), the scenario's own variants in the horizon sweep (e.g.
+    checkpointing: memory against time) and the bandwidth sweep (e.g. vector loads: bandwidth
+    against size), else the default."""
     be = backends.get(backend)
     if kind == "error":
         return be.variants
-    if kind == "horizon":
+    if kind in ("horizon", "bandwidth"):
         return ("default",) + be.scenario_variants.get(scenario, ())
     return ("default",)
 

@@ -243,16 +243,18 @@ def size_table(records, device, scenario) -> str:
     """The size sweep (role 'bandwidth') of one scenario: GB/s, roofline and launch shares."""
     rows = []
     mine = sorted(ok(records, sweep="bandwidth", role="bandwidth", device=device, scenario=scenario),
-                  key=lambda r: (r["backend"], r["precision"], knob(r).get("value") or 0))
+                  key=lambda r: (r["backend"], r.get("variant", "default") != "default",
+                                 r.get("variant", ""), r["precision"], knob(r).get("value") or 0))
     for r in mine:
         b = bandwidth_row(r, records)
         thr = throughput_s(r)
-        rows.append([r["backend"], r["precision"], f"2^{int(math.log2(knob(r)['value']))}",
+        rows.append([r["backend"], r.get("variant", "default"), r["precision"],
+                     f"2^{int(math.log2(knob(r)['value']))}",
                      fmt_bytes(r["work"]["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
                      f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"],
                      fmt_time(thr), f"{gbps(r['work']['bytes'], thr):.3g}" if thr else "-",
                      pct((r.get("throughput") or {}).get("hw_fraction"))])
-    return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "bytes/call",
+    return _table(rows, ["backend", "variant", "precision", knob(mine[0]).get("name", "size"), "bytes/call",
                          "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
                          "launch share", "regime", "throughput: per call", "throughput: GB/s",
                          "hw fraction"]) if rows else ""

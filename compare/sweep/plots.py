@@ -78,6 +78,15 @@ def plot_bandwidth(records: list[dict[str, Any]], device: str, path: Path, scena
             if not mine:
                 continue
             tag = "" if prec == "float32" else " f64"
+            # a scenario's own variants (e.g. vector loads): their wall-clock curve, dashed
+            for v in dict.fromkeys(r.get("variant", "default") for r in mine):
+                if v != "default":
+                    vs = [r for r in mine if r.get("variant") == v]
+                    ax.plot([r["work"]["bytes"] for r in vs], [gbps(r["work"]["bytes"], wall_s(r)) for r in vs],
+                            "--s", color=c, ms=4, label=f"{backend}{tag} {v} (wall clock)")
+            mine = [r for r in mine if r.get("variant", "default") == "default"]
+            if not mine:
+                continue
             x = [r["work"]["bytes"] for r in mine]
             ax.plot(x, [gbps(r["work"]["bytes"], wall_s(r)) for r in mine], "-o", color=c, ms=4,
                     label=f"{backend}{tag} (wall clock)")
