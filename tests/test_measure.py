@@ -308,14 +308,18 @@ def test_old_files_upgrade_without_importing_the_suite():
     assert p.returncode == 0, p.stderr
 
 
-def test_published_sweep_file_still_renders(tmp_path):
-    store = Store.read(ROOT / "docs" / "results" / "cpu" / "sweep.json", "sweep")
-    assert store.upgraded_from == 1
+@pytest.mark.parametrize("published,device,old_format", [
+    ("cpu/sweep.json", "cpu", None),                 # today's format
+    ("gpu-measurement/sweep.json", "cuda", 1)])      # a format-1 file, upgraded on reading
+def test_published_sweep_file_still_renders(tmp_path, published, device, old_format):
+    store = Store.read(ROOT / "docs" / "results" / published, "sweep")
+    assert store.upgraded_from == old_format
     data = sweep.contents(store)
     assert all("tags" in r for r in data["records"])
     text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
-    for heading in ("## cpu: launch overhead", "## cpu: copy bandwidth (roofline)",
-                    "## cpu: SAXPY bandwidth against size", "### projectile", "## cpu: particles scaling"):
+    for heading in (f"## {device}: launch overhead", f"## {device}: copy bandwidth (roofline)",
+                    f"## {device}: SAXPY bandwidth against size", "### projectile",
+                    f"## {device}: particles scaling"):
         assert heading in text
     assert "| 2^24 " in text and "| particle-steps/s " in text and "No data." not in text
     assert "Roofline for this device" in text
