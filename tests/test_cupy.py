@@ -10,7 +10,8 @@ CuPy runs on CUDA only, so on a machine without a GPU this file checks what can 
    for the few cupy calls they make, agree with the float64 oracle within each scenario's derived
    bound: the kernels' logic and their argument order, without a GPU (no FMA contraction there);
 4. on a GPU (skipped here): every scenario through the real worker path with graph capture,
-   events and the memory figure, batch row 0 against batch = 1, and set_input in place.
+   events and the memory figure, batch row 0 against batch = 1, set_input in place, and SAXPY's
+   ``vector`` variant against the ElementwiseKernel bit for bit.
 """
 from __future__ import annotations
 
@@ -307,6 +308,39 @@ def test_gpu_cell_with_events_graph_and_memory(scenario, overrides, precision) -
     graph = record["time"].get("graph", {})
     assert "failed" not in graph and "unavailable" not in graph, graph
     assert record["memory"].get("device_peak_bytes", 0) > 0, record["memory"]
+
+
+VECTOR_SCRIPT = r"""
+import json, sys
+import numpy as np
+import backends, scenarios
+b = backends.get("cupy"); b.setup("cuda", "float32", "default"); b.ensure_context("cuda")
+sc = scenarios.get("saxpy")
+differ = []
+for precision in ("float32", "float64"):
+    for n in (1, 3, 4, 5, 257, 100_003, 2**20 + 3):
+        p = sc.params({"n": n, "inputs": "random", "seed": 5}); inputs = sc.inputs(p, precision)
+        out = {}
+        for variant in ("default", "vector"):
+            k = b.kernel("saxpy")(p, inputs, "cuda", precision, variant)
+            k.out.fill(np.nan); k.run(); b.synchronize("cuda", None)
+            out[variant] = k.outputs()["out"]
+        if out["default"].tobytes() != out["vector"].tobytes() or not np.isfinite(out["vector"]).all():
+            differ.append([precision, n])
+print("RESULT" + json.dumps(differ))
+"""
+
+
+def test_gpu_saxpy_vector_is_the_elementwise_kernel_bit_for_bit() -> None:
+    """On the GPU (where NVRTC contracts both kernels' ``a * x + y`` to one FMA) the ``vector``
+    variant writes the ElementwiseKernel's output bit for bit, for lengths that leave a tail of
+    0 to 3 elements; outputs start as NaN, so an element neither kernel writes fails."""
+    require_gpu()
+    proc = subprocess.run([sys.executable, "-c", VECTOR_SCRIPT], cwd=ROOT, capture_output=True,
+                          text=True, timeout=600)
+    line = next((x for x in proc.stdout.splitlines() if x.startswith("RESULT")), None)
+    assert line, proc.stderr[-3000:]
+    assert __import__("json").loads(line[6:]) == []
 
 
 GPU_SCRIPT = r"""

@@ -104,7 +104,7 @@ def test_saxpy_tile_variant_is_the_default_bit_for_bit(device, precision):
     elements than one tile) with the default kernel's arithmetic."""
     require_device("warp", device)
     sc = scenarios.get("saxpy")
-    assert BACKEND.variants_for("saxpy") == ("default", "tile")
+    assert BACKEND.variants_for("saxpy") == ("default", "tile", "record_cmd")
     from backends.warp.saxpy import TILE
     for n in (1, 5, TILE - 1, TILE, TILE + 1, 3 * TILE + 7):
         p = sc.params({"n": n, "inputs": "random", "seed": 11})
@@ -115,3 +115,39 @@ def test_saxpy_tile_variant_is_the_default_bit_for_bit(device, precision):
             k.run()
             out[variant] = k.outputs()
         assert same_bits(out["default"], out["tile"]) == [], n
+
+
+# each recorded scenario's small size and the Warp arrays its kernel writes (attribute names)
+RECORDED = {"saxpy": ({"n": 1000, "inputs": "random", "seed": 3}, ("out",)),
+            "sdf": ({"width": 33, "height": 17}, ("image",)),
+            "particles": ({"n": 40, "steps": 30, "record_every": 7}, ("state", "traj")),
+            "launch": ({"n": 5}, ("out",)), "copy": ({"n": 1001}, ("out",))}
+
+
+@pytest.mark.parametrize("device", ["cpu", "cuda"])
+@pytest.mark.parametrize("scenario", list(RECORDED))
+def test_record_cmd_variant_replays_the_default_launch(device, scenario):
+    """``record_cmd`` (a ``wp.Launch`` recorded once and replayed by every run) writes the default
+    launch's outputs bit for bit, and writes them again at each call: the arrays it writes are
+    set to NaN before each call, so a replay that launched nothing, or only once, fails."""
+    require_device("warp", device)
+    from backends.warp import RECORDABLE
+    assert set(RECORDED) == set(RECORDABLE)
+    assert "record_cmd" in BACKEND.variants_for(scenario)
+    sc = scenarios.get(scenario)
+    overrides, written = RECORDED[scenario]
+    p = sc.params(overrides)
+    inputs = sc.inputs(p, "float32")
+    out = {}
+    for variant in ("default", "record_cmd"):
+        k = BACKEND.kernel(scenario)(p, inputs, device, "float32", variant)
+        held = [getattr(k, name) for name in written]
+        arrays = [a for h in held for a in (h if isinstance(h, list) else [h]) if a.size]
+        for _ in range(2):
+            for a in arrays:
+                a.fill_(float("nan"))
+            k.run()
+            BACKEND.synchronize(device, None)
+            out[variant] = k.outputs()
+            assert all(np.isfinite(v).all() for v in out[variant].values()), variant
+    assert same_bits(out["default"], out["record_cmd"]) == []

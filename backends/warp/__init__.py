@@ -1,8 +1,9 @@
 """NVIDIA Warp, the reference backend."""
 from __future__ import annotations
 
+import functools
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from ..base import Backend, not_installed
 
@@ -16,6 +17,24 @@ def wp_scalar(precision: str):
     return wp.float32 if precision == "float32" else wp.float64
 
 
+# Scenarios whose run() is one fixed launch, so Warp's recorded launch command can replay it.
+RECORDABLE = ("saxpy", "sdf", "particles", "launch", "copy")
+
+
+def launcher(variant: str, kernel: Any, dim: Any, inputs: list, outputs: list,
+             device: str) -> Callable[[], Any]:
+    """What ``run()`` calls to launch ``kernel``. Variant ``record_cmd``: ``wp.launch(...,
+    record_cmd=True)`` once, then its ``wp.Launch`` replayed (Warp's documented lighter launch
+    path: the arguments are packed once, not at every call; the same kernel, the same stream).
+    Otherwise ``wp.launch`` with the same arguments at every call."""
+    import warp as wp
+    if variant == "record_cmd":
+        return wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=device,
+                         record_cmd=True).launch
+    return functools.partial(wp.launch, kernel, dim=dim, inputs=inputs, outputs=outputs,
+                             device=device)
+
+
 class WarpBackend(Backend):
     name = "warp"
     package = "warp-lang"
@@ -23,8 +42,10 @@ class WarpBackend(Backend):
     is_reference = True
     display_order, color = 0, "C0"
     # a taped segment loop: segment boundaries kept, each segment re-taped in the backward pass
+    # "tile": SAXPY's block-cooperative tile loads (saxpy.py); "record_cmd": see ``launcher``
     scenario_variants = {"projectile": ("checkpoint",),
-                         "saxpy": ("tile",)}     # block-cooperative tile loads (saxpy.py)
+                         **{sc: ("record_cmd",) for sc in RECORDABLE},
+                         "saxpy": ("tile", "record_cmd")}
     control_variants = {"particles": {
         "racy-one-launch": "the seed's single launch over (step, particle): step s reads what "
                            "step s-1 of the same launch has not yet written"}}

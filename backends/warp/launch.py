@@ -6,7 +6,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from . import wp_device, wp_scalar
+from . import launcher, wp_device, wp_scalar
 from ..base import ScenarioKernel
 
 
@@ -26,10 +26,10 @@ class Kernel(ScenarioKernel):
         self.kernel = _plus_one(scalar)
         self.x = wp.array(inputs["x"], dtype=scalar, device=self.dev)
         self.out = wp.empty(params.n, dtype=scalar, device=self.dev)
+        self.launch = launcher(variant, self.kernel, params.n, [self.x], [self.out], self.dev)
 
     def run(self):
-        wp.launch(self.kernel, dim=self.out.shape[0], inputs=[self.x], outputs=[self.out],
-                  device=self.dev)
+        self.launch()
 
     def outputs(self) -> dict[str, np.ndarray]:
         return {"out": self.out.numpy()}

@@ -18,7 +18,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from . import wp_device, wp_scalar
+from . import launcher, wp_device, wp_scalar
 from ..base import ScenarioKernel
 
 
@@ -87,12 +87,12 @@ class Kernel(ScenarioKernel):
         shape = (frames, params.n) if frames else (0, 0)
         self.traj = [wp.empty(shape, dtype=scalar, device=self.dev) for _ in range(2)]
         self.consts = [scalar(float(inputs[k])) for k in ("dt", "gravity", "damping", "bounce", "radius")]
+        self.launch = launcher(variant, self.kernel, params.n,
+                               [params.steps, params.record_every, *self.consts, *self.state0],
+                               [*self.state, *self.traj], self.dev)
 
     def run(self):
-        p = self.params
-        wp.launch(self.kernel, dim=p.n,
-                  inputs=[p.steps, p.record_every, *self.consts, *self.state0],
-                  outputs=[*self.state, *self.traj], device=self.dev)
+        self.launch()
 
     def outputs(self) -> dict[str, np.ndarray]:
         out = dict(zip(("x", "y", "vx", "vy"), (a.numpy() for a in self.state)))

@@ -1,6 +1,7 @@
 """SAXPY in Warp.
 
 * ``default``: one thread per element (``wp.launch``).
+* ``record_cmd``: the default kernel, its launch recorded once and replayed (``launcher``).
 * ``tile``: Warp's tile programming model (``wp.launch_tiled``), the documented way to give a
   block of threads a cooperative load: each block of ``BLOCK_DIM`` threads loads ``TILE``
   consecutive elements of x and y into registers (``TILE / BLOCK_DIM`` independent, coalesced
@@ -16,7 +17,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from . import wp_device, wp_scalar
+from . import launcher, wp_device, wp_scalar
 from ..base import ScenarioKernel
 
 BLOCK_DIM = 256
@@ -55,15 +56,17 @@ class Kernel(ScenarioKernel):
         self.x = wp.array(inputs["x"], dtype=scalar, device=self.dev)
         self.y = wp.array(inputs["y"], dtype=scalar, device=self.dev)
         self.out = wp.empty(params.n, dtype=scalar, device=self.dev)
-        self.tiles = [-(-params.n // TILE)]
+        if self.tiled:
+            self.launch = functools.partial(
+                wp.launch_tiled, self.kernel, dim=[-(-params.n // TILE)],
+                inputs=[self.a, self.x, self.y], outputs=[self.out], device=self.dev,
+                block_dim=BLOCK_DIM)
+        else:
+            self.launch = launcher(variant, self.kernel, params.n, [self.a, self.x, self.y],
+                                   [self.out], self.dev)
 
     def run(self):
-        if self.tiled:
-            wp.launch_tiled(self.kernel, dim=self.tiles, inputs=[self.a, self.x, self.y],
-                            outputs=[self.out], device=self.dev, block_dim=BLOCK_DIM)
-        else:
-            wp.launch(self.kernel, dim=self.out.shape[0], inputs=[self.a, self.x, self.y],
-                      outputs=[self.out], device=self.dev)
+        self.launch()
 
     def outputs(self) -> dict[str, np.ndarray]:
         return {"out": self.out.numpy()}

@@ -6,7 +6,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from . import wp_device, wp_scalar
+from . import launcher, wp_device, wp_scalar
 from ..base import ScenarioKernel
 
 
@@ -36,10 +36,11 @@ class Kernel(ScenarioKernel):
         self.kernel = _sdf(wp_scalar(precision))
         self.w, self.h = params.width, params.height
         self.image = wp.empty((self.h, self.w), dtype=wp_scalar(precision), device=self.dev)
+        self.launch = launcher(variant, self.kernel, (self.h, self.w), [self.w, self.h],
+                               [self.image], self.dev)
 
     def run(self):
-        wp.launch(self.kernel, dim=(self.h, self.w), inputs=[self.w, self.h],
-                  outputs=[self.image], device=self.dev)
+        self.launch()
 
     def outputs(self) -> dict[str, np.ndarray]:
         return {"image": self.image.numpy()}
