@@ -56,12 +56,13 @@ case $part in
                  # (a backend's GPU cells run one at a time within a process, and PyTorch's eager
                  # projectile takes 1-2 s a call: one process per experiment runs its lanes side by
                  # side); ulps and races also on the CPU, for the races' cpu-vs-cuda rows. Merged
-                 # afterwards with `compare stress --merge`.
+                 # afterwards with `compare stress --merge`. A cell or host loop may take 900 s
+                 # (the host loops stop at their own 300 s budget; PyTorch needs all of it).
     for g in 'cuda projectile-lr' 'cuda projectile-gradient' 'cuda projectile-horizon' 'cpu,cuda ulps,races'; do
       set -- $g; name=${2%%,*}
       setsid nohup bash -c "
         echo \"\$(date +%T) start $2\" >> '$out/stress-progress.txt'
-        python -m compare stress --devices $1 --only $2 --timeout 300 --jobs 8 \
+        python -m compare stress --devices $1 --only $2 --timeout 900 --jobs 8 \
           --out '$out/stress-$name' > '$out/stress-$name.txt' 2>&1
         echo \"\$(date +%T) end $2 rc=\$?\" >> '$out/stress-progress.txt'
         touch '$out/stress-$name-done'" > /dev/null 2>&1 < /dev/null &
