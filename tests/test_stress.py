@@ -253,3 +253,69 @@ def test_pool_map_runs_one_gpu_item_per_backend_at_a_time():
     assert ctx.map(fn, items) == [it["i"] for it in items]    # order kept
     assert peak[("a", "cuda")] == peak[("b", "cuda")] == 1
     assert peak[("a", "cpu")] > 1                                          # CPU items overlap
+
+
+def stress_part(path, command, rows, series):
+    """A saved stress.json as one run of the suite writes it (rows, plot series, provenance)."""
+    from compare.store import Store
+    store = Store(path / "stress.json", "stress", runs=[{"command": command, "created": "t", "git_commit": "c",
+                                                        "packages": {command: "1"}}])
+    store.analysis = {"provenance": {e: {"command": command, "created": "t", "git_commit": "c"}
+                                     for e in {r["experiment"] for r in rows}},
+                      "rows": rows, "series": series}
+    path.mkdir(parents=True, exist_ok=True)
+    store.save()
+    return str(path / "stress.json")
+
+
+def stress_row(exp, backend, device, figure, value):
+    return {"experiment": exp, "backend": backend, "device": device, "precision": "float32", "setting": "s",
+            "figure": figure, "value": value, "verdict": "ok", "detail": ""}
+
+
+def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_path):
+    """New backends run later join an earlier run's experiment: the later part wins only for the
+    backends and devices it ran; rows, plot series and provenance of the others are kept."""
+    old = stress_part(tmp_path / "old", "old run", [
+        stress_row("particles-inf", "warp", "cuda", "overflow step", 1),
+        stress_row("particles-inf", "taichi", "cuda", "overflow step", 2),
+        stress_row("particles-inf", "warp", "cuda", "flips vs warp", 0),
+        stress_row("particles-inf", "taichi", "cuda", "flips vs warp", 5),
+        stress_row("races", "taichi", "cuda", "differing values", 0),
+    ], {"particles-inf": {"lines": {"warp/cuda": [1], "taichi/cuda": [2]}, "shared": [0]}})
+    new = stress_part(tmp_path / "new", "new run", [
+        stress_row("particles-inf", "warp", "cuda", "overflow step", 10),
+        stress_row("particles-inf", "torch", "cuda", "overflow step", 30),
+        stress_row("particles-inf", "torch", "cuda", "flips vs warp", 7),
+        stress_row("particles-inf", "warp", "cpu", "overflow step", 11),
+    ], {"particles-inf": {"lines": {"warp/cuda": [10], "torch/cuda": [30]}, "shared": [9]}})
+    p = run_stress("--merge", old, new, "--out", str(tmp_path / "merged"), "--no-plots")
+    assert p.returncode == 0, p.stderr
+    got = json.loads((tmp_path / "merged" / "stress.json").read_text())
+    a = got["analysis"]
+    table = [(r["experiment"], r["backend"], r["device"], r["figure"], r["value"]) for r in a["rows"]]
+    assert table == [   # each kind of figure together, backends in registry order
+        ("particles-inf", "warp", "cuda", "overflow step", 10),      # replaced by the later part
+        ("particles-inf", "warp", "cpu", "overflow step", 11),       # new device
+        ("particles-inf", "taichi", "cuda", "overflow step", 2),     # kept
+        ("particles-inf", "torch", "cuda", "overflow step", 30),     # new backend
+        ("particles-inf", "taichi", "cuda", "flips vs warp", 5),     # kept, though warp's was replaced
+        ("particles-inf", "torch", "cuda", "flips vs warp", 7),
+        ("races", "taichi", "cuda", "differing values", 0),          # an experiment the later part skipped
+    ]
+    assert a["series"]["particles-inf"] == {"lines": {"warp/cuda": [10], "taichi/cuda": [2], "torch/cuda": [30]},
+                                            "shared": [9]}
+    runs = a["provenance"]["particles-inf"]
+    assert [(r["command"], r["backends"]) for r in runs] == [("old run", ["taichi"]), ("new run", ["torch", "warp"])]
+    assert a["provenance"]["races"]["command"] == "old run"
+    assert got["runs"][-1]["packages"] == {"old run": "1", "new run": "1"}
+    md = (tmp_path / "merged" / "stress.md").read_text()
+    lines = {ln.split("`")[1]: ln.split(": ", 1)[1] for ln in md.splitlines() if ln.startswith("  - `")}
+    assert sorted(lines["old run"].split(", ")) == ["particles-inf (taichi)", "races"]
+    assert lines["new run"] == "particles-inf (torch, warp)"
+    # merging the merged file again with the later part changes nothing
+    p = run_stress("--merge", str(tmp_path / "merged" / "stress.json"), new, "--out", str(tmp_path / "again"),
+                   "--no-plots")
+    assert p.returncode == 0, p.stderr
+    again = json.loads((tmp_path / "again" / "stress.json").read_text())["analysis"]
+    assert again["rows"] == a["rows"] and again["provenance"] == a["provenance"]

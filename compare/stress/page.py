@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import backends
 from compare.report import fmt_num
 from compare.store import Store, atomic_write, jsonable
 from compare.stress import plots
@@ -30,8 +31,9 @@ def fmt_value(v: Any) -> str:
     return fmt_num(v) if not isinstance(v, bool) else str(v)
 
 
-def provenance(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """experiment -> the run that produced its rows (command, time, commit)."""
+def provenance(data: dict[str, Any]) -> dict[str, Any]:
+    """experiment -> the run that produced its rows (command, time, commit), or, for a file merged
+    from parts that ran different backends, the list of those runs, each naming its ``backends``."""
     if "provenance" in data:
         return data["provenance"]
     env = data.get("environment", {})
@@ -41,11 +43,20 @@ def provenance(data: dict[str, Any]) -> dict[str, dict[str, Any]]:
     return {r["experiment"]: run for r in data.get("rows", [])}
 
 
+def runs_of(entry: dict[str, Any] | list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One experiment's provenance as a list of runs (a single run gave all of its rows)."""
+    return entry if isinstance(entry, list) else [entry]
+
+
 def produced_by(data: dict[str, Any]) -> list[str]:
-    """One line per run that produced rows: its command, when, and which experiments."""
+    """One line per run that produced rows: its command, when, and which experiments (with the
+    backends it gave, where a merge took the experiment's other backends from another run)."""
     runs: dict[tuple, list[str]] = {}
-    for e, r in provenance(data).items():
-        runs.setdefault((r.get("command") or "?", r.get("created") or "?", r.get("git_commit") or "?"), []).append(e)
+    for e, entry in provenance(data).items():
+        for r in runs_of(entry):
+            label = e if "backends" not in r or len(runs_of(entry)) == 1 else f"{e} ({', '.join(r['backends'])})"
+            runs.setdefault((r.get("command") or "?", r.get("created") or "?", r.get("git_commit") or "?"),
+                            []).append(label)
     lines = ["- produced by:" if len(runs) > 1 else "- produced by"]
     for (cmd, when, commit), exps in runs.items():
         lines.append(f"  - `{cmd}` ({when}, commit {commit or '?'}): {', '.join(exps)}")
@@ -116,26 +127,60 @@ def write_outputs(store: Store, env: dict[str, Any], rows: list[dict[str, Any]],
     return data
 
 
+def row_key(r: dict[str, Any]) -> tuple[str, str, str]:
+    """What a later part replaces in a merge: one experiment's rows of one backend on one device."""
+    return r["experiment"], r["backend"], r["device"]
+
+
+def deep_merge(a: Any, b: Any) -> Any:
+    """Plot series of two parts: nested dicts are joined (the series are keyed by backend/device
+    labels), anything else is taken from ``b``."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return {**a, **{k: deep_merge(a[k], v) if k in a else v for k, v in b.items()}}
+    return b
+
+
+def in_table_order(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Merged rows as one run would list them: per experiment, each kind of figure together, and
+    within it the backends in registry order (host-side rows such as the oracle's last)."""
+    rank = {b: i for i, b in enumerate(backends.BACKENDS)}
+    first: dict[tuple[str, str], int] = {}
+    for r in rows:
+        first.setdefault((r["experiment"], r["figure"]), len(first))
+    return sorted(rows, key=lambda r: (first[(r["experiment"], r["figure"])], rank.get(r["backend"], len(rank))))
+
+
 def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = True) -> int:
-    """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each);
-    later files win per experiment (and per cell record)."""
+    """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each,
+    or new backends run later); later files win per experiment, backend and device (and per cell
+    record), so a part that ran some backends keeps the other backends' rows of earlier parts."""
     target = Store.open(out, "stress")
     rows: list[dict[str, Any]] = []
     series: dict[str, Any] = {}
     envs = []
-    prov: dict[str, dict[str, Any]] = {}
+    prov: dict[str, list[dict[str, Any]]] = {}
     for f in files:
         part = Store.read(f, "stress")
         part_rows = part.analysis.get("rows", [])
-        ran = {r["experiment"] for r in part_rows}
-        rows = [r for r in rows if r["experiment"] not in ran] + part_rows
-        prov.update({e: v for e, v in old_provenance(part).items() if e in ran})
-        series = {**{k: v for k, v in series.items() if k not in ran}, **part.analysis.get("series", {})}
+        replaced = {row_key(r) for r in part_rows}
+        rows = [r for r in rows if row_key(r) not in replaced]
+        for e, entry in old_provenance(part).items():
+            gave = sorted({r["backend"] for r in part_rows if r["experiment"] == e})
+            if not gave:
+                continue
+            kept = {r["backend"] for r in rows if r["experiment"] == e}
+            earlier = [{**run, "backends": [b for b in run["backends"] if b in kept]} for run in prov.get(e, [])]
+            own = [run if "backends" in run else {**run, "backends": gave} for run in runs_of(entry)]
+            prov[e] = [run for run in earlier if run["backends"]] + own
+        rows += part_rows
+        series = deep_merge(series, part.analysis.get("series", {}))
         envs.append(part.runs[-1] if part.runs else {})
         for r in part.records:
             target.put(r)
-    env = {**envs[-1], "merged_from": files}
-    write_outputs(target, env, rows, series, sorted({r["experiment"] for r in rows}), experiments,
-                  plots_=plots_, prov=prov)
+    # the page lists the packages of every part (a later part's version wins where both have one)
+    env = {**envs[-1], "packages": {k: v for e in envs for k, v in e.get("packages", {}).items()},
+           "merged_from": files}
+    write_outputs(target, env, in_table_order(rows), series, sorted({r["experiment"] for r in rows}), experiments,
+                  plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})
     print(f"merged {len(files)} files into {target.path} ({len(rows)} rows)", file=sys.stderr)
     return 0
