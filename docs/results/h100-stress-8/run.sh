@@ -1,80 +1,72 @@
 #!/usr/bin/env bash
-# The GPU runs behind docs/results/h100-stress-8.md (issue 14, what the last leases left): the
-# SAXPY bandwidth variants' second lease, Warp's recorded launches (variant record_cmd), the
-# scaling sweep's missing cells, and the stress suite with eight backends. Run in the project root
-# on the lent H100 after ../shared/gpu/stage-wheels' parts (staged as for
-# docs/results/h100-regimes-8/run.sh), as
-#   COMPARE_GIT_COMMIT=<commit> bash docs/results/h100-stress-8/run.sh PART WORK
+# The GPU runs behind docs/results/h100-stress-8.md (issue 14, what the earlier leases left), all in
+# one lease of the H100: the SAXPY bandwidth variants' second lease, Warp's recorded launches
+# (variant record_cmd), quadrants' missing scaling cells, and the stress suite for the backends the
+# published GPU stress page lacks (PyTorch, CuPy, quadrants; Warp again, the reference that the
+# cross-backend rows compare with), merged afterwards into docs/results/stress-gpu with
+# `compare stress --merge` (per experiment, backend and device). Wheels staged with
+#   ../shared/gpu/stage-wheels warp-lang==1.19.0 'numpy==2.4.*' quadrants==1.3.3 dill==0.4.1 pydantic \
+#       pydantic-core annotated-types typing-inspection typing-extensions cffi pycparser colorama \
+#       rich markdown-it-py mdurl Pygments
+# (no Taichi: no cell here needs it), one part per device call. Run in the project root as
+#   COMPARE_GIT_COMMIT=<commit> SWEEP_JSON=<h100-sweep-8's sweep.json> bash run.sh PART WORK
 # WORK (e.g. /tmp/gpuwork) persists while the machine stays warm. Parts:
-#   lease    timing: GPU tests of the variants; SAXPY 2^26 and 2^28 with every variant; Warp's
-#            record_cmd against its plain launch and graph at the default sizes (host profile)
-#   scaling  timing: `sweep scaling --resume` over the committed h100-sweep-8 sweep.json
-#   stress   starts the stress suite's particle experiments in the background (lease 1)
-#   stress-rest  starts the other experiments, one background process each (lease 2)
-#   wait S   waits up to S seconds for the started stress processes, then packs what they have
+#   lease    timing, alone on the GPU: the variants' GPU tests; SAXPY 2^26 and 2^28 with every
+#            variant (Warp, CuPy); Warp's record_cmd against its plain launch and graph at the
+#            default sizes (host profile); then `sweep scaling --resume` for quadrants
+#   stress   starts the stress suite in the background, one process per experiment group
+#   wait S   waits up to S seconds for the stress processes, stops what still runs, packs
 # Each part packs WORK into $OUT/<part>.tgz (what a device call brings back).
 set -u
 part=$1; out=$2
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
 mkdir -p "$out"
+step() {   # $1: seconds, $2: name; the rest: the command (its output goes to WORK/<name>.txt)
+  local limit=$1 name=$2; shift 2
+  timeout "$limit" "$@" > "$out/$name.txt" 2>&1
+  echo "$(date +%T) $name rc=$?"
+}
 case $part in
   lease)
     nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$out/gpu.txt"
-    timeout 240 python -m pytest -q -p no:cacheprovider tests/test_cupy.py tests/test_warp.py \
-      -k "vector or tile or record_cmd" > "$out/variants-tests.txt" 2>&1
-    echo "variant tests: $(tail -1 "$out/variants-tests.txt")"
-    timeout 200 python -m compare run saxpy --devices cuda --precision float32 \
-      --variants default,vector,tile,record_cmd --set n=67108864 --out "$out/saxpy-2p26" --no-plots \
-      > "$out/saxpy-2p26.txt" 2>&1
-    echo "saxpy 2^26 rc=$?"
-    # 2^28: the variants and their defaults (the other frameworks have two leases at this size)
-    timeout 200 python -m compare run saxpy --backends warp,cupy --devices cuda --precision float32 \
+    step 100 variants-tests python -m pytest -q -p no:cacheprovider tests/test_cupy.py tests/test_warp.py \
+      -k "vector or tile or record_cmd"
+    tail -1 "$out/variants-tests.txt"
+    step 90 saxpy-2p26 python -m compare run saxpy --backends warp,cupy --devices cuda --precision float32 \
+      --variants default,vector,tile,record_cmd --set n=67108864 --out "$out/saxpy-2p26" --no-plots
+    step 90 saxpy-2p28 python -m compare run saxpy --backends warp,cupy --devices cuda --precision float32 \
       --variants default,vector,tile,record_cmd --set n=268435456 --check-sample 1000000 \
-      --out "$out/saxpy-2p28" --no-plots > "$out/saxpy-2p28.txt" 2>&1
-    echo "saxpy 2^28 rc=$?"
-    timeout 200 python -m compare run saxpy sdf particles launch --backends warp --devices cuda \
-      --precision float32 --variants default,record_cmd --host-profile 12 --out "$out/record-cmd" \
-      --no-plots > "$out/record-cmd.txt" 2>&1
-    echo "record_cmd rc=$?"; grep -E "^warp" "$out/record-cmd.txt" ;;
-  scaling)
-    mkdir -p "$out/sweep"
-    cp docs/results/h100-sweep-8/sweep/sweep.json "$out/sweep/sweep.json"
-    timeout 560 python -m compare sweep scaling --devices cuda --resume --out "$out/sweep" \
-      --page "$out/sweep/measurement.md" --title 'Measurement sweeps: CUDA (H100), eight backends' \
-      > "$out/sweep-scaling.txt" 2>&1
-    echo "sweep scaling rc=$?"; tail -3 "$out/sweep-scaling.txt" ;;
-  stress)   # lease 1: the particle experiments (this group finished; the projectile group that
-            # followed it was cut when the machine went back after 30 minutes)
-    setsid nohup bash -c "
-      echo \"\$(date +%T) start particles\" >> '$out/stress-progress.txt'
-      python -m compare stress --devices cuda --timeout 300 --jobs 8 --out '$out/stress' \
-        --only particles-dt,particles-long,particles-inf,particles-divergence >> '$out/stress.txt' 2>&1
-      echo \"\$(date +%T) end particles rc=\$?\" >> '$out/stress-progress.txt'
-      touch '$out/stress-done'" > /dev/null 2>&1 < /dev/null &
-    sleep 2; echo "stress started" ;;
-  stress-rest)   # lease 2: the other experiments, each its own process and folder, all at once
-                 # (a backend's GPU cells run one at a time within a process, and PyTorch's eager
-                 # projectile takes 1-2 s a call: one process per experiment runs its lanes side by
-                 # side); ulps and races also on the CPU, for the races' cpu-vs-cuda rows. Merged
-                 # afterwards with `compare stress --merge`. A cell or host loop may take 900 s
-                 # (the host loops stop at their own 300 s budget; PyTorch needs all of it).
-    for g in 'cuda projectile-lr' 'cuda projectile-gradient' 'cuda projectile-horizon' 'cpu,cuda ulps,races'; do
-      set -- $g; name=${2%%,*}
+      --out "$out/saxpy-2p28" --no-plots
+    step 100 record-cmd python -m compare run saxpy sdf particles launch --backends warp --devices cuda \
+      --precision float32 --variants default,record_cmd --host-profile 12 --out "$out/record-cmd" --no-plots
+    grep -E "^(warp|backend) " "$out/record-cmd.txt" | head -16
+    mkdir -p "$out/sweep"; cp "$SWEEP_JSON" "$out/sweep/sweep.json"
+    step 170 sweep-scaling python -m compare sweep scaling --backends quadrants --devices cuda --resume \
+      --out "$out/sweep" --no-plots
+    tail -2 "$out/sweep-scaling.txt" ;;
+  stress)   # one process per group, side by side (a backend's GPU cells run one at a time within a
+            # process); ulps and races also on the CPU, for their cpu-vs-cuda rows
+    for g in 'cuda warp,torch,cupy,quadrants particles-dt,particles-long,particles-inf,particles-divergence' \
+             'cuda warp,torch,cupy,quadrants projectile-lr' \
+             'cuda warp,torch,cupy,quadrants projectile-gradient,projectile-horizon' \
+             'cpu,cuda warp,numpy,torch,cupy,quadrants ulps,races'; do
+      set -- $g; name=${3%%,*}
       setsid nohup bash -c "
-        echo \"\$(date +%T) start $2\" >> '$out/stress-progress.txt'
-        python -m compare stress --devices $1 --only $2 --timeout 900 --jobs 8 \
+        echo \"\$(date +%T) start $3\" >> '$out/stress-progress.txt'
+        python -m compare stress --devices $1 --backends $2 --only $3 --timeout 300 \
           --out '$out/stress-$name' > '$out/stress-$name.txt' 2>&1
-        echo \"\$(date +%T) end $2 rc=\$?\" >> '$out/stress-progress.txt'
-        touch '$out/stress-$name-done'" > /dev/null 2>&1 < /dev/null &
+        echo \"\$(date +%T) end $3 rc=\$?\" >> '$out/stress-progress.txt'" > /dev/null 2>&1 < /dev/null &
     done
-    sleep 2; echo "stress-rest started" ;;
-  wait)   # until every started group has its done file, or S seconds
-    limit=${3:-540}; t=0
+    sleep 2; echo "stress started" ;;
+  wait)   # until every started group has ended, or S seconds; then stop the rest (each group's
+          # stress.json holds the experiments it finished)
+    limit=${3:-300}; t=0
     while [ "$t" -lt "$limit" ]; do
-      started=$(grep -c ' start ' "$out/stress-progress.txt"); ended=$(grep -c ' end ' "$out/stress-progress.txt")
-      [ "$ended" -ge "$started" ] && break
-      sleep 10; t=$((t + 10))
+      [ "$(grep -c ' end ' "$out/stress-progress.txt")" -ge "$(grep -c ' start ' "$out/stress-progress.txt")" ] && break
+      sleep 5; t=$((t + 5))
     done
-    cat "$out/stress-progress.txt"; tail -qn 2 "$out"/stress*.txt | grep -v '^$' ;;
+    pkill -f "compare stress" && echo "$(date +%T) stopped the groups still running after $limit s" \
+      >> "$out/stress-progress.txt"
+    cat "$out/stress-progress.txt"; grep -h "done in" "$out"/stress-*.txt ;;
 esac
 [ -n "${OUT:-}" ] && tar czf "$OUT/$part.tgz" -C "$out" .
