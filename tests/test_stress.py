@@ -288,6 +288,7 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
         stress_row("particles-inf", "torch", "cuda", "overflow step", 30),
         stress_row("particles-inf", "torch", "cuda", "flips vs warp", 7),
         stress_row("particles-inf", "warp", "cpu", "overflow step", 11),
+        {**stress_row("particles-inf", "taichi", "cuda", "-", None), "verdict": "skipped"},   # not installed there
     ], {"particles-inf": {"lines": {"warp/cuda": [10], "torch/cuda": [30]}, "shared": [9]}})
     p = run_stress("--merge", old, new, "--out", str(tmp_path / "merged"), "--no-plots")
     assert p.returncode == 0, p.stderr
@@ -297,7 +298,7 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     assert table == [   # each kind of figure together, backends in registry order
         ("particles-inf", "warp", "cuda", "overflow step", 10),      # replaced by the later part
         ("particles-inf", "warp", "cpu", "overflow step", 11),       # new device
-        ("particles-inf", "taichi", "cuda", "overflow step", 2),     # kept
+        ("particles-inf", "taichi", "cuda", "overflow step", 2),     # kept: the later part skipped it
         ("particles-inf", "torch", "cuda", "overflow step", 30),     # new backend
         ("particles-inf", "taichi", "cuda", "flips vs warp", 5),     # kept, though warp's was replaced
         ("particles-inf", "torch", "cuda", "flips vs warp", 7),

@@ -153,7 +153,8 @@ def in_table_order(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = True) -> int:
     """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each,
     or new backends run later); later files win per experiment, backend and device (and per cell
-    record), so a part that ran some backends keeps the other backends' rows of earlier parts."""
+    record), so a part that ran some backends keeps the other backends' rows of earlier parts, and
+    a part's ``skipped`` row replaces only another skipped row."""
     target = Store.open(out, "stress")
     rows: list[dict[str, Any]] = []
     series: dict[str, Any] = {}
@@ -161,7 +162,9 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     prov: dict[str, list[dict[str, Any]]] = {}
     for f in files:
         part = Store.read(f, "stress")
-        part_rows = part.analysis.get("rows", [])
+        found = {row_key(r) for r in rows if r["verdict"] != "skipped"}
+        # a part that skipped a backend (not installed where it ran) erases no earlier finding
+        part_rows = [r for r in part.analysis.get("rows", []) if r["verdict"] != "skipped" or row_key(r) not in found]
         replaced = {row_key(r) for r in part_rows}
         rows = [r for r in rows if row_key(r) not in replaced]
         for e, entry in old_provenance(part).items():

@@ -24,7 +24,16 @@ mkdir -p "$out"
 step() {   # $1: seconds, $2: name; the rest: the command (its output goes to WORK/<name>.txt)
   local limit=$1 name=$2; shift 2
   timeout "$limit" "$@" > "$out/$name.txt" 2>&1
-  echo "$(date +%T) $name rc=$?"
+  local rc=$?     # (read before $(date) runs: the lease's log printed date's 0 for two timeouts)
+  echo "$(date +%T) $name rc=$rc"
+}
+start_group() {   # $1 devices, $2 backends, $3 experiments: one background `compare stress`
+  local name="${3%%,*}-${2//,/-}"
+  setsid nohup bash -c "
+    echo \"\$(date +%T) start $3 ($2)\" >> '$out/stress-progress.txt'
+    python -m compare stress --devices $1 --backends $2 --only $3 --timeout 300 \
+      --out '$out/stress-$name' > '$out/stress-$name.txt' 2>&1
+    echo \"\$(date +%T) end $3 ($2) rc=\$?\" >> '$out/stress-progress.txt'" > /dev/null 2>&1 < /dev/null &
 }
 case $part in
   lease)
@@ -50,14 +59,16 @@ case $part in
              'cuda warp,torch,cupy,quadrants projectile-lr' \
              'cuda warp,torch,cupy,quadrants projectile-gradient,projectile-horizon' \
              'cpu,cuda warp,numpy,torch,cupy,quadrants ulps,races'; do
-      set -- $g; name=${3%%,*}
-      setsid nohup bash -c "
-        echo \"\$(date +%T) start $3\" >> '$out/stress-progress.txt'
-        python -m compare stress --devices $1 --backends $2 --only $3 --timeout 300 \
-          --out '$out/stress-$name' > '$out/stress-$name.txt' 2>&1
-        echo \"\$(date +%T) end $3 rc=\$?\" >> '$out/stress-progress.txt'" > /dev/null 2>&1 < /dev/null &
+      start_group $g
     done
     sleep 2; echo "stress started" ;;
+  stress-rest)   # the same lease, after `wait 560` stopped the particle group in particles-inf and
+                 # projectile-lr unfinished (PyTorch's eager descents): those, one backend a process
+    for g in 'cuda warp,torch,cupy,quadrants particles-inf,particles-divergence' 'cuda torch projectile-lr' \
+             'cuda quadrants projectile-lr' 'cuda cupy projectile-lr'; do
+      start_group $g
+    done
+    sleep 2; echo "stress-rest started" ;;
   wait)   # until every started group has ended, or S seconds; then stop the rest (each group's
           # stress.json holds the experiments it finished)
     limit=${3:-300}; t=0
