@@ -192,7 +192,7 @@ def exp_particles_inf(ctx: StressContext) -> Result:
             return item, None, calls, str(exc)
 
     items = [(b, d, v, prec) for b, d, v in ctx.targets(variants=True) for prec in ("float32", "float64")]
-    rows = ctx.skip_rows(name)
+    rows = ctx.skip_rows(name, variants=True)
     for (b, d, var, prec), first, calls, err in ctx.map(search, items):
         setting = f"bounce=1.05, n={n}" + ("" if var == "default" else f", variant={var}")
         pred = predicted[prec]

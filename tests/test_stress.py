@@ -320,3 +320,21 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     assert p.returncode == 0, p.stderr
     again = json.loads((tmp_path / "again" / "stress.json").read_text())["analysis"]
     assert again["rows"] == a["rows"] and again["provenance"] == a["provenance"]
+
+
+def test_targets_leave_out_variants_the_framework_lacks_on_a_device_and_say_why():
+    """A variant a backend declares unavailable on a device (a capability, e.g. graphs on CUDA
+    only) is no target there: its stress rows are 'skipped' with the reason, never CRASHED."""
+    import backends
+    limited = [(b, v, d) for b, be in backends.BACKENDS.items() for v in be.variants for d in ("cpu", "cuda")
+               if be.variant_unavailable(v, d)]
+    if not limited:
+        pytest.skip("no backend declares a variant unavailable on a device")
+    b, v, d = limited[0]
+    probes = {b: {"available": {"cpu": None, "cuda": None}}}
+    ctx = context.Ctx([b], [d], True, 1, 1.0, probes)
+    assert (b, d, v) not in ctx.targets(variants=True) and (b, d, "default") in ctx.targets(variants=True)
+    skips = ctx.skip_rows("ulps", variants=True)
+    assert [(r["backend"], r["device"], r["setting"], r["verdict"]) for r in skips] == [(b, d, f"variant={v}", "skipped")]
+    assert skips[0]["detail"] == backends.get(b).variant_unavailable(v, d)
+    assert ctx.skip_rows("ulps") == []

@@ -44,19 +44,29 @@ class Ctx:
         return self.probes[backend]["available"].get(device)
 
     def targets(self, variants: bool = False) -> list[tuple[str, str, str]]:
-        """(backend, device, variant) that can run, reference first."""
+        """(backend, device, variant) that can run, reference first; with ``variants`` every
+        variant the backend offers on that device."""
         out = []
         for d in self.devices:
             for b in self.backends:
                 if self.why_not(b, d):
                     continue
-                for v in (backends.get(b).variants if variants else ("default",)):
-                    out.append((b, d, v))
+                be = backends.get(b)
+                out += [(b, d, v) for v in (be.variants if variants else ("default",))
+                        if not be.variant_unavailable(v, d)]
         return out
 
-    def skip_rows(self, experiment: str) -> list[dict[str, Any]]:
-        return [self.row(experiment, b, d, "-", "-", "-", None, "skipped", self.why_not(b, d))
+    def skip_rows(self, experiment: str, variants: bool = False) -> list[dict[str, Any]]:
+        """A ``skipped`` row, with its reason, per backend and device that cannot run (and, with
+        ``variants``, per variant that the framework lacks on that device)."""
+        rows = [self.row(experiment, b, d, "-", "-", "-", None, "skipped", self.why_not(b, d))
                 for d in self.devices for b in self.backends if self.why_not(b, d)]
+        if variants:
+            rows += [self.row(experiment, b, d, "-", f"variant={v}", "-", None, "skipped",
+                              backends.get(b).variant_unavailable(v, d))
+                     for d in self.devices for b in self.backends if not self.why_not(b, d)
+                     for v in backends.get(b).variants if backends.get(b).variant_unavailable(v, d)]
+        return rows
 
     @staticmethod
     def spec(scenario: str, backend: str, device: str, precision: str, params: dict[str, Any],

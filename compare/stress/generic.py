@@ -41,7 +41,7 @@ def exp_ulps(ctx: Ctx) -> Result:
         p = sc.params(prm)
         refs[(scn, json.dumps(prm))] = sc.oracle(p, sc.inputs(p, "float32"))[key]
     results = ctx.run_cells([s for _, s in planned])
-    rows, series = ctx.skip_rows(name), {}
+    rows, series = ctx.skip_rows(name, variants=True), {}
     defaults = {}
     for (_, s), (rec, out) in zip(planned, results):
         if s["variant"] == "default" and out is not None:
