@@ -258,8 +258,9 @@ def test_pool_map_runs_one_gpu_item_per_backend_at_a_time():
 def stress_part(path, command, rows, series):
     """A saved stress.json as one run of the suite writes it (rows, plot series, provenance)."""
     from compare.store import Store
+    numpy = "2.4" if command == "old run" else "2.5"
     store = Store(path / "stress.json", "stress", runs=[{"command": command, "created": "t", "git_commit": "c",
-                                                        "packages": {command: "1"}}])
+                                                        "packages": {command: "1", "numpy": numpy}}])
     store.analysis = {"provenance": {e: {"command": command, "created": "t", "git_commit": "c"}
                                      for e in {r["experiment"] for r in rows}},
                       "rows": rows, "series": series}
@@ -309,7 +310,7 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     runs = a["provenance"]["particles-inf"]
     assert [(r["command"], r["backends"]) for r in runs] == [("old run", ["taichi"]), ("new run", ["torch", "warp"])]
     assert a["provenance"]["races"]["command"] == "old run"
-    assert got["runs"][-1]["packages"] == {"old run": "1", "new run": "1"}
+    assert got["runs"][-1]["packages"] == {"old run": "1", "new run": "1", "numpy": "2.4 / 2.5"}
     md = (tmp_path / "merged" / "stress.md").read_text()
     lines = {ln.split("`")[1]: ln.split(": ", 1)[1] for ln in md.splitlines() if ln.startswith("  - `")}
     assert sorted(lines["old run"].split(", ")) == ["particles-inf (taichi)", "races"]

@@ -180,9 +180,13 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
         envs.append(part.runs[-1] if part.runs else {})
         for r in part.records:
             target.put(r)
-    # the page lists the packages of every part (a later part's version wins where both have one)
-    env = {**envs[-1], "packages": {k: v for e in envs for k, v in e.get("packages", {}).items()},
-           "merged_from": files}
+    # the page lists the packages of every part, each version that any part ran with
+    versions: dict[str, list[str]] = {}
+    for e in envs:
+        for k, v in e.get("packages", {}).items():
+            if v not in versions.setdefault(k, []):
+                versions[k].append(v)
+    env = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files}
     write_outputs(target, env, in_table_order(rows), series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})
     print(f"merged {len(files)} files into {target.path} ({len(rows)} rows)", file=sys.stderr)
