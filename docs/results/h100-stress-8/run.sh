@@ -15,7 +15,11 @@
 #            variant (Warp, CuPy); Warp's record_cmd against its plain launch and graph at the
 #            default sizes (host profile); then `sweep scaling --resume` for quadrants
 #   stress   starts the stress suite in the background, one process per experiment group
-#   wait S   waits up to S seconds for the stress processes, stops what still runs, packs
+#   stress-rest  what `wait 560` had stopped, one backend a process (run on a fresh machine: see
+#            docs/results/h100-stress-8.md)
+#   stress-next  what is still missing, for the next lease
+#   wait S [keep]  waits up to S seconds for the stress processes, stops what still runs (unless
+#            keep: it runs on into the next call), packs
 # Each part packs WORK into $OUT/<part>.tgz (what a device call brings back).
 set -u
 part=$1; out=$2
@@ -28,8 +32,12 @@ step() {   # $1: seconds, $2: name; the rest: the command (its output goes to WO
   echo "$(date +%T) $name rc=$rc"
 }
 start_group() {   # $1 devices, $2 backends, $3 experiments: one background `compare stress`
-  local name="${3%%,*}-${2//,/-}"
-  setsid nohup bash -c "
+  # It runs from its own copy of the tree: each device call copies the working tree anew, and in
+  # this lease that copy, made under the groups still running from the last call, made six
+  # workers that started during it fail to import (their rows say `error ... ModuleNotFoundError`).
+  local name="${3%%,*}-${2//,/-}" snap=/tmp/gpusnap
+  [ -d "$snap" ] || { mkdir -p "$snap" && tar --exclude=./.gpu -cf - . | tar -xf - -C "$snap"; }
+  setsid nohup bash -c "cd '$snap' && export PYTHONPATH=/tmp/site:'$snap'
     echo \"\$(date +%T) start $3 ($2)\" >> '$out/stress-progress.txt'
     python -m compare stress --devices $1 --backends $2 --only $3 --timeout 300 \
       --out '$out/stress-$name' > '$out/stress-$name.txt' 2>&1
@@ -69,6 +77,15 @@ case $part in
       start_group $g
     done
     sleep 2; echo "stress-rest started" ;;
+  stress-next)   # for the next lease (not run yet): what this one left. PyTorch's projectile-lr
+                 # needs more than one 10-minute call: its group runs on from its snapshot while
+                 # later calls `wait`; the vs-Warp rows need Warp in the same run.
+    for g in 'cuda warp,torch,cupy,quadrants particles-inf,particles-divergence' 'cuda torch projectile-lr' \
+             'cuda quadrants projectile-lr' 'cuda warp,torch,cupy,quadrants projectile-gradient' \
+             'cpu,cuda numpy,quadrants ulps'; do
+      start_group $g
+    done
+    sleep 2; echo "stress-next started" ;;
   wait)   # until every started group has ended, or S seconds; then stop the rest (each group's
           # stress.json holds the experiments it finished)
     limit=${3:-300}; t=0
@@ -76,8 +93,9 @@ case $part in
       [ "$(grep -c ' end ' "$out/stress-progress.txt")" -ge "$(grep -c ' start ' "$out/stress-progress.txt")" ] && break
       sleep 5; t=$((t + 5))
     done
-    pkill -f "compare stress" && echo "$(date +%T) stopped the groups still running after $limit s" \
-      >> "$out/stress-progress.txt"
+    if [ "${4:-stop}" != keep ] && pkill -f "compare stress"; then
+      echo "$(date +%T) stopped the groups still running after $limit s" >> "$out/stress-progress.txt"
+    fi
     cat "$out/stress-progress.txt"; grep -h "done in" "$out"/stress-*.txt ;;
 esac
 [ -n "${OUT:-}" ] && tar czf "$OUT/$part.tgz" -C "$out" .
