@@ -69,6 +69,7 @@ def test_float64_ir_probe_sees_doubles(scenario: str) -> None:
 
 F32_VS_WARP = [("saxpy", {}), ("saxpy", {"n": 257, "inputs": "random", "seed": 3}), ("sdf", {}),
                ("particles", {}), ("particles", {"n": 33, "steps": 57, "record_every": 7}),
+               ("particles", {"n": 1000, "steps": 300, "record_every": 7}),   # CPU chunks and a tail
                ("projectile", {"contact": "none"}), ("projectile", {"contact": "hard"}),
                ("projectile", {"contact": "soft"})]
 MAX_ULP = 2
@@ -95,6 +96,42 @@ def test_float32_agrees_with_warp(scenario: str, overrides: dict) -> None:
     for key in keys:
         assert ours[key].dtype == np.float32, key
         np.testing.assert_array_max_ulp(ours[key], ref[key], maxulp=MAX_ULP, dtype=np.float32)
+
+
+@pytest.mark.parametrize("precision", ("float32", "float64"))
+@pytest.mark.parametrize("n", (1, 3, 300, 1000))
+def test_particles_cpu_chunks_are_the_per_particle_rollout_bit_for_bit(n: int, precision: str) -> None:
+    """The CPU kernel runs steps outside and a chunk of particles inside (for SIMD); it must write
+    what one serial rollout per particle writes, trajectory frames included, for every chunk and
+    tail (chunks of up to CHUNK particles, fewer when n is small)."""
+    from numba import njit
+    from backends.numba import particles as port
+    sc, p, inputs, k = build("particles", {"n": n, "steps": 203, "record_every": 5}, precision)
+    assert k.args[2] == port.cpu_chunk(n) and (n < 300 or -(-n // k.args[2]) > 1)
+    S = np.dtype(precision).type
+    step = njit(port.step_function(S))
+
+    @njit
+    def serial(steps, every, dt, g, damping, bounce, radius, x0, y0, vx0, vy0, tx, ty):
+        out = np.empty((4, x0.shape[0]), x0.dtype)
+        lo, hi = S(-1.0) + radius, S(1.0) - radius
+        for q in range(x0.shape[0]):
+            x, y, u, v = x0[q], y0[q], vx0[q], vy0[q]
+            tx[0, q], ty[0, q] = x, y
+            for s in range(steps):
+                x, y, u, v = step(x, y, u, v, g * dt, dt, damping, bounce, radius, lo, hi)
+                if (s + 1) % every == 0:
+                    tx[(s + 1) // every, q], ty[(s + 1) // every, q] = x, y
+            out[0, q], out[1, q], out[2, q], out[3, q] = x, y, u, v
+        return out
+
+    frames = np.empty((2, p.steps // p.record_every + 1, n), S)
+    want = serial(p.steps, p.record_every, *(S(inputs[c]) for c in port.CONSTANTS),
+                  *(inputs[c] for c in ("x0", "y0", "vx0", "vy0")), frames[0], frames[1])
+    got = k.outputs()
+    for i, name in enumerate(port.STATE):
+        assert got[name].tobytes() == want[i].tobytes(), name
+    assert got["traj_x"].tobytes() == frames[0].tobytes() and got["traj_y"].tobytes() == frames[1].tobytes()
 
 
 # ---- 2. the hand-written adjoint -----------------------------------------------------------------
