@@ -278,6 +278,7 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     """New backends run later join an earlier run's experiment: the later part wins only for the
     backends and devices it ran; rows, plot series and provenance of the others are kept."""
     old = stress_part(tmp_path / "old", "old run", [
+        stress_row("particles-inf", "physics", "host", "predicted step", 6),
         stress_row("particles-inf", "warp", "cuda", "overflow step", 1),
         stress_row("particles-inf", "taichi", "cuda", "overflow step", 2),
         stress_row("particles-inf", "warp", "cuda", "flips vs warp", 0),
@@ -290,13 +291,15 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
         stress_row("particles-inf", "torch", "cuda", "flips vs warp", 7),
         stress_row("particles-inf", "warp", "cpu", "overflow step", 11),
         {**stress_row("particles-inf", "taichi", "cuda", "-", None), "verdict": "skipped"},   # not installed there
+        stress_row("particles-inf", "physics", "host", "predicted step", 60),
     ], {"particles-inf": {"lines": {"warp/cuda": [10], "torch/cuda": [30]}, "shared": [9]}})
     p = run_stress("--merge", old, new, "--out", str(tmp_path / "merged"), "--no-plots")
     assert p.returncode == 0, p.stderr
     got = json.loads((tmp_path / "merged" / "stress.json").read_text())
     a = got["analysis"]
     table = [(r["experiment"], r["backend"], r["device"], r["figure"], r["value"]) for r in a["rows"]]
-    assert table == [   # each kind of figure together, backends in registry order
+    assert table == [   # each kind of figure together, where the parts first showed it; backends in registry order
+        ("particles-inf", "physics", "host", "predicted step", 60),  # replaced, in its old place
         ("particles-inf", "warp", "cuda", "overflow step", 10),      # replaced by the later part
         ("particles-inf", "warp", "cpu", "overflow step", 11),       # new device
         ("particles-inf", "taichi", "cuda", "overflow step", 2),     # kept: the later part skipped it
@@ -308,13 +311,14 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     assert a["series"]["particles-inf"] == {"lines": {"warp/cuda": [10], "taichi/cuda": [2], "torch/cuda": [30]},
                                             "shared": [9]}
     runs = a["provenance"]["particles-inf"]
-    assert [(r["command"], r["backends"]) for r in runs] == [("old run", ["taichi"]), ("new run", ["torch", "warp"])]
+    assert [(r["command"], r["backends"]) for r in runs] == [("old run", ["taichi"]),
+                                                             ("new run", ["physics", "torch", "warp"])]
     assert a["provenance"]["races"]["command"] == "old run"
     assert got["runs"][-1]["packages"] == {"old run": "1", "new run": "1", "numpy": "2.4 / 2.5"}
     md = (tmp_path / "merged" / "stress.md").read_text()
     lines = {ln.split("`")[1]: ln.split(": ", 1)[1] for ln in md.splitlines() if ln.startswith("  - `")}
     assert sorted(lines["old run"].split(", ")) == ["particles-inf (taichi)", "races"]
-    assert lines["new run"] == "particles-inf (torch, warp)"
+    assert lines["new run"] == "particles-inf (physics, torch, warp)"
     # merging the merged file again with the later part changes nothing
     p = run_stress("--merge", str(tmp_path / "merged" / "stress.json"), new, "--out", str(tmp_path / "again"),
                    "--no-plots")

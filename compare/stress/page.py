@@ -140,12 +140,13 @@ def deep_merge(a: Any, b: Any) -> Any:
     return b
 
 
-def in_table_order(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Merged rows as one run would list them: per experiment, each kind of figure together, and
-    within it the backends in registry order (host-side rows such as the oracle's last)."""
+def in_table_order(rows: list[dict[str, Any]], seen: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Merged rows as one run would list them: per experiment, each kind of figure together, in the
+    order the parts (``seen``: all their rows, in file order) first showed it, and within it the
+    backends in registry order (host-side rows such as the oracle's last)."""
     rank = {b: i for i, b in enumerate(backends.BACKENDS)}
     first: dict[tuple[str, str], int] = {}
-    for r in rows:
+    for r in seen + rows:
         first.setdefault((r["experiment"], r["figure"]), len(first))
     return sorted(rows, key=lambda r: (first[(r["experiment"], r["figure"])], rank.get(r["backend"], len(rank))))
 
@@ -160,8 +161,10 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     series: dict[str, Any] = {}
     envs = []
     prov: dict[str, list[dict[str, Any]]] = {}
+    seen: list[dict[str, Any]] = []
     for f in files:
         part = Store.read(f, "stress")
+        seen += part.analysis.get("rows", [])
         found = {row_key(r) for r in rows if r["verdict"] != "skipped"}
         # a part that skipped a backend (not installed where it ran) erases no earlier finding
         part_rows = [r for r in part.analysis.get("rows", []) if r["verdict"] != "skipped" or row_key(r) not in found]
@@ -187,7 +190,7 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
             if v not in versions.setdefault(k, []):
                 versions[k].append(v)
     env = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files}
-    write_outputs(target, env, in_table_order(rows), series, sorted({r["experiment"] for r in rows}), experiments,
+    write_outputs(target, env, in_table_order(rows, seen), series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})
     print(f"merged {len(files)} files into {target.path} ({len(rows)} rows)", file=sys.stderr)
     return 0
