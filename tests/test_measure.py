@@ -343,3 +343,21 @@ def test_sweep_suite_names_no_framework_and_no_scenario():
         for i, line in enumerate(f.read_text().splitlines(), 1):
             code = line.split("#", 1)[0]
             assert not pat.search(code), f"{f.name}:{i}: {line.strip()}"
+
+
+
+def test_cpu_yardstick_is_the_faster_of_one_thread_and_one_per_core():
+    """The CPU copy yardstick must not fall below one thread's copy nor below what the
+    multi-threaded ports' copies reach; it says which it took, and the sliced copy copies all."""
+    from concurrent.futures import ThreadPoolExecutor
+    from compare import hardware
+    hw = hardware.measure_cpu()
+    assert hw["copy_bytes_per_s"] >= hw["copy_one_thread_bytes_per_s"] > 0
+    assert f"in {hw['copy_threads']} thread" in hw["copy_how"]
+    assert hw["copy_bytes_per_s"] == pytest.approx(2 * hw["copy_bytes"] / hw["copy_median_s"])
+    src = np.arange(1001, dtype=np.float32)
+    for parts in (1, 2, 3, 7):
+        dst = np.zeros_like(src)
+        with ThreadPoolExecutor(parts) as pool:
+            hardware.copy_in_slices(dst, src, pool, parts)
+        assert np.array_equal(dst, src), parts
