@@ -6,9 +6,9 @@ scenario's step order, each contact a select) and compiled for both targets:
 * CUDA: one thread owns one particle and loops over all steps in registers (one launch per run).
 * CPU: each ``prange`` iteration owns a chunk of particles and runs the steps outside, the
   particles of its chunk inside, so LLVM vectorises the inner loop across particles (SIMD). The
-  one-particle-per-iteration form runs every step as one serial chain of dependent operations and
-  was 25-50x slower on the 2-core CPU (0.2-0.3 G particle-steps/s at n = 2^20, against 9-12 G/s),
-  with bit-identical results (tests/test_numba.py).
+  one-particle-per-iteration form runs every step as one serial chain of dependent operations:
+  0.34 G particle-steps/s at n = 2^20 on the 2-core CPU, against 15.8 G/s now
+  (docs/results/cpu.md), with bit-identical results (tests/test_numba.py).
 
 Trajectory frames are written only when ``record_every`` asks for them (otherwise the traj arrays
 are empty).

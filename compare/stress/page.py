@@ -176,8 +176,9 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
                 continue
             kept = {r["backend"] for r in rows if r["experiment"] == e}
             earlier = [{**run, "backends": [b for b in run["backends"] if b in kept]} for run in prov.get(e, [])]
-            own = [run if "backends" in run else {**run, "backends": gave} for run in runs_of(entry)]
-            prov[e] = [run for run in earlier if run["backends"]] + own
+            own = [{**run, "backends": [b for b in run.get("backends", gave) if b in gave]}
+                   for run in runs_of(entry)]
+            prov[e] = [run for run in earlier + own if run["backends"]]
         rows += part_rows
         series = deep_merge(series, part.analysis.get("series", {}))
         envs.append(part.runs[-1] if part.runs else {})
