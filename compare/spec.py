@@ -42,7 +42,8 @@ class CellSpec:
     params: dict[str, Any] = dataclasses.field(default_factory=dict)   # overrides or resolved
     quick: bool = False                 # apply the scenario's quick overrides first
     tags: dict[str, Any] = dataclasses.field(default_factory=dict)
-    repeat: int = 10                    # timing.steady_state: at least this many timed calls
+    warmup: int = 2                     # timing.steady_state: untimed calls after the first
+    repeat: int = 10                    # ... then at least this many timed calls
     min_time: float = 0.2               # ... and at least this many timed seconds
     max_time: float = 10.0              # stop early past this with at least 3 calls
     timer: str = "auto"                 # 'auto': device events where the backend has them; 'wall'
@@ -65,7 +66,7 @@ class CellSpec:
             v = getattr(self, f)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise SpecError(f"cell spec: {f} must be finite and >= 0, got {v!r}")
-        for f in ("check_sample", "host_profile"):
+        for f in ("warmup", "check_sample", "host_profile"):
             v = getattr(self, f)
             if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
                 raise SpecError(f"cell spec: {f} must be an integer >= 0, got {v!r}")

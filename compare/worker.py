@@ -153,7 +153,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     if nvml:
         nvml.sample()
     timer, clock = timing.event_timer(be, device, spec.timer)
-    t = timing.steady_state(kernel.run, sync, repeat=spec.repeat, min_time=spec.min_time,
+    t = timing.steady_state(kernel.run, sync, warmup=spec.warmup, repeat=spec.repeat, min_time=spec.min_time,
                             max_time=spec.max_time, timer=timer)
     if nvml:
         nvml.sample()

@@ -182,6 +182,8 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
     data = json.loads((tmp_path / "stress.json").read_text())
     assert data["format_version"] == 2 and data["suite"] == "stress"
     assert {r["scenario"] for r in data["records"]} >= {"particles"}    # the cells it ran
+    for rec in data["records"]:   # stress figures are not timings: the first call and one more
+        assert rec["time"]["warmup"] == 0 and rec["time"]["repeats"] == 1, rec["time"]
     rows = data["analysis"]["rows"]
     assert {r["experiment"] for r in rows} == {"particles-inf", "races"}
     for r in rows:

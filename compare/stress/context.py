@@ -71,10 +71,11 @@ class Ctx:
     @staticmethod
     def spec(scenario: str, backend: str, device: str, precision: str, params: dict[str, Any],
              variant: str = "default") -> dict[str, Any]:
-        # Timing is not measured here: one timed call (the worker adds its first call and warm-ups),
-        # and the frameworks' kernel caches stay warm so cells do not recompile the same kernels.
+        # Timing is not measured here: the first call and one timed call, no warm-ups (an eager
+        # PyTorch descent costs seconds a call on CUDA), and the frameworks' kernel caches stay
+        # warm so cells do not recompile the same kernels.
         return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
-                "variant": variant, "params": params, "quick": False, "repeat": 1, "min_time": 0.0,
+                "variant": variant, "params": params, "quick": False, "warmup": 0, "repeat": 1, "min_time": 0.0,
                 "cache": "warm", "timer": "wall", "throughput": False}
 
     @staticmethod
