@@ -1,18 +1,23 @@
 #!/usr/bin/env bash
 # The GPU runs behind docs/results/h100-lease-9.md (issue 14: what docs/results/h100-stress-8.md
-# left). Wheels staged as in h100-stress-8/run.sh (Warp 1.19.0, quadrants 1.3.3, NumPy 2.4; no
-# Taichi), the tree sent without docs/results (too large beside a 60 MiB part); this script and
-# the sweep's sweep.json travel in a carried folder. Run in the project root as
+# left). Wheels staged with
+#   GPU_PART_MIB=60 ../shared/gpu/stage-wheels warp-lang==1.19.0 'numpy==2.4.*' quadrants==1.3.3 \
+#       dill==0.4.1 pydantic pydantic-core annotated-types typing-inspection typing-extensions cffi \
+#       pycparser colorama rich markdown-it-py mdurl Pygments
+# (no Taichi: no cell here needs it), one part per device call, the tree sent without docs/results
+# (too large beside a 60 MiB part: taken out of the index and excluded for the lease); this script
+# and the sweep's sweep.json travel in a carried folder. Run in the project root as
 #   COMPARE_GIT_COMMIT=<commit> bash run.sh PART WORK [ARGS]
 # WORK (e.g. /tmp/gpuwork) persists while the machine stays warm. Parts:
-#   stress   starts the stress experiments the published GPU page still lacks in the background
-#            (one process per group, each from its own copy of the tree: the device tool copies the
-#            working tree anew at every call), then runs Numba's GPU tests (its CUDA particle
-#            kernel's source changed; correctness only, so the GPU may be shared), then waits
+#   lease SWEEP_JSON BUDGET_S  first, alone on the GPU, timing: `sweep scaling --resume` over the
+#            published sweep for quadrants' and PyTorch's missing projectile cells and Numba's
+#            particles (the cells of its changed kernel, taken out of the sweep.json sent, so
+#            --resume runs them again); then starts the stress experiments the published GPU page
+#            still lacks in the background (one process per group, each from its own copy of the
+#            tree: the device tool copies the working tree anew at every call), runs Numba's GPU
+#            tests (its CUDA particle kernel's source changed; correctness only, so the GPU may be
+#            shared) and waits for the groups until BUDGET_S seconds from the part's start
 #   wait S [keep]  waits up to S seconds for the stress groups; stops the rest unless keep
-#   sweep SWEEP_JSON  timing, alone on the GPU: `sweep scaling --resume` over the published sweep
-#            for quadrants' and PyTorch's missing projectile cells and Numba's particles (the cells
-#            of the changed kernel, taken out of the sweep.json sent, so --resume runs them again)
 # Each part packs WORK into $OUT/<part>.tgz (what a device call brings back).
 set -u
 part=$1; out=$2
@@ -45,8 +50,12 @@ wait_groups() {   # $1 seconds, $2 keep|stop
   cat "$out/stress-progress.txt"; grep -h "done in" "$out"/stress-*.txt
 }
 case $part in
-  stress)
+  lease)
     nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$out/gpu.txt"
+    mkdir -p "$out/sweep"; cp "$3" "$out/sweep/sweep.json"
+    step 330 sweep-scaling python -m compare sweep scaling --backends quadrants,torch,numba \
+      --scenarios projectile,particles --devices cuda --resume --out "$out/sweep" --no-plots
+    tail -14 "$out/sweep-scaling.txt"
     # the longest first: PyTorch's eager descents (more than 9 minutes in the last lease)
     for g in 'cuda torch projectile-lr' 'cuda quadrants projectile-lr' \
              'cuda warp,torch,cupy,quadrants particles-inf,particles-divergence' \
@@ -54,15 +63,10 @@ case $part in
       start_group $g
     done
     sleep 2; echo "stress started"
-    step 300 numba-tests python -m pytest -q -p no:cacheprovider -m numba tests/test_numba.py tests/test_parity.py
+    step 240 numba-tests python -m pytest -q -p no:cacheprovider -m numba tests/test_numba.py tests/test_parity.py
     tail -3 "$out/numba-tests.txt"
-    wait_groups "${3:-200}" keep ;;
+    left=$(( ${4:-540} - SECONDS )); [ "$left" -gt 0 ] || left=0
+    wait_groups "$left" keep ;;
   wait) wait_groups "${3:-300}" "${4:-stop}" ;;
-  sweep)
-    nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$out/gpu.txt"
-    mkdir -p "$out/sweep"; cp "$3" "$out/sweep/sweep.json"
-    step 560 sweep-scaling python -m compare sweep scaling --backends quadrants,torch,numba \
-      --scenarios projectile,particles --devices cuda --resume --out "$out/sweep" --no-plots
-    tail -14 "$out/sweep-scaling.txt" ;;
 esac
 [ -n "${OUT:-}" ] && tar czf "$OUT/$part.tgz" -C "$out" .
