@@ -5,8 +5,13 @@
 #       dill==0.4.1 pydantic pydantic-core annotated-types typing-inspection typing-extensions cffi \
 #       pycparser colorama rich markdown-it-py mdurl Pygments
 # (no Taichi: no cell here needs it), one part per device call, the tree sent without docs/results
-# (too large beside a 60 MiB part: taken out of the index and excluded for the lease); this script
-# and the sweep's sweep.json travel in a carried folder. Run in the project root as
+# (too large beside a 60 MiB part): for the lease `git rm -r -q --cached docs/results` and
+# `/docs/results/` in .git/info/exclude, afterwards `git reset -q -- docs/results` and the line
+# removed (commit nothing in between). This script and the sweep's sweep.json travel in the carried
+# folder .lease (also in .git/info/exclude); that sweep.json is h100-sweep-8/sweep/sweep.json less
+# Numba's CUDA particle scaling records. The machine-2 A/B (ab_numba_particles.py) ran with the
+# whole tree and NumPy 2.4 alone staged (`../shared/gpu/stage-wheels 'numpy==2.4.*'`). Run in the
+# project root as
 #   COMPARE_GIT_COMMIT=<commit> bash run.sh PART WORK [ARGS]
 # WORK (e.g. /tmp/gpuwork) persists while the machine stays warm. Parts:
 #   lease SWEEP_JSON BUDGET_S  first, alone on the GPU, timing: `sweep scaling --resume` over the
