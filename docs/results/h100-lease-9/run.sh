@@ -9,9 +9,12 @@
 # `/docs/results/` in .git/info/exclude, afterwards `git reset -q -- docs/results` and the line
 # removed (commit nothing in between). This script and the sweep's sweep.json travel in the carried
 # folder .lease (also in .git/info/exclude); that sweep.json is h100-sweep-8/sweep/sweep.json less
-# Numba's CUDA particle scaling records. The machine-2 A/B (ab_numba_particles.py) ran with the
-# whole tree and NumPy 2.4 alone staged (`../shared/gpu/stage-wheels 'numpy==2.4.*'`). Run in the
-# project root as
+# Numba's CUDA particle scaling records. Machine 2 ran with the whole tree and NumPy 2.4 alone
+# staged (`../shared/gpu/stage-wheels 'numpy==2.4.*'`), .lease holding
+# `git show 02b6385~1:backends/numba/particles.py` as numba_particles_old.py:
+#   python docs/results/h100-lease-9/ab_numba_particles.py .lease/numba_particles_old.py OUT/ab-numba-particles.json
+#   python -m compare particles --backends numba --devices cuda --precision float32,float64 --out DIR --no-plots
+# Machine 1's parts run in the project root as
 #   COMPARE_GIT_COMMIT=<commit> bash run.sh PART WORK [ARGS]
 # WORK (e.g. /tmp/gpuwork) persists while the machine stays warm. Parts:
 #   lease SWEEP_JSON BUDGET_S  first, alone on the GPU, timing: `sweep scaling --resume` over the
