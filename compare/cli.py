@@ -5,6 +5,8 @@
     report FILES              tables, plots or a published page from saved results.json files
     sweep KIND                measurement sweeps (docs/measurement.md)
     stress                    numerical stability stress suite (docs/stress.md)
+    site RESULTS... --out DIR the static report site (recommendation matrix, one page per question)
+    publish --out DIR         run what a machine's report needs (resumable, in parts), then its site
 
 Every subcommand shares the options of compare/options.py and one error path: bad usage or a bad
 parameter is one line on stderr and exit 2, before any cell runs or any file is written.
@@ -26,7 +28,7 @@ from scenarios.base import ParamError
 
 def suite_modules() -> dict[str, Any]:
     import importlib
-    return {name: importlib.import_module(f"compare.{name}") for name in ("sweep", "stress")}
+    return {name: importlib.import_module(f"compare.{name}") for name in ("sweep", "stress", "site", "publish")}
 
 
 def build_parser() -> argparse.ArgumentParser:
