@@ -2,7 +2,7 @@
 function for CPU and CUDA), in one process on one GPU, interleaved: does the new source change
 the kernel's time or only the host's launch path? Run in the project root as
 
-    python docs/results/h100-lease-9/ab_numba_particles.py OLD_PARTICLES_PY OUT_JSON
+    python docs/results/h100/evidence/numba-particles-ab/ab_numba_particles.py OLD_PARTICLES_PY OUT_JSON
 
 OLD_PARTICLES_PY is `git show 02b6385~1:backends/numba/particles.py`. Per size and kernel: the
 outputs against each other (bitwise), then ROUNDS alternating rounds of the latency regime
