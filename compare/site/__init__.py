@@ -34,8 +34,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def build(inputs: list[Path], out: Path, title: str | None = None,
           against: list[Path] | None = None) -> list[Path]:
     """Write the site for the stores ``inputs`` into ``out``; the files written."""
-    from compare.site import pages
-    return pages.write_site([Path(p) for p in inputs], Path(out), title,
+    from compare.site import assemble
+    return assemble.write_site([Path(p) for p in inputs], Path(out), title,
                             [Path(p) for p in against or []])
 
 

@@ -1,0 +1,113 @@
+"""Assembling the site: the machine-and-method page, the navigation, and writing every page twice
+(HTML and Markdown) plus matrix.md. Figures are drawn into DIR/figures by the page builders."""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+from compare.site import data, fmt, pages, questions
+from compare.site import questions_pages as qp
+from compare.site.data import Machine
+from compare.site.render import H, Items, P, Table, page_html, page_md
+from compare.store import atomic_write
+
+
+def _packages(m: Machine) -> list[tuple[str, str]]:
+    """Every package version any run recorded (several versions of one package: all listed)."""
+    seen: dict[str, list[str]] = {}
+    for env in m.runs:
+        for k, v in (env.get("packages") or {}).items():
+            if str(v) not in seen.setdefault(k, []):
+                seen[k].append(str(v))
+    return [(k, ", ".join(vs)) for k, vs in sorted(seen.items())]
+
+
+def machine(c: qp.Ctx) -> list[Any]:
+    m = c.m
+    envs = list(m.runs)
+    gpus = sorted({f"{g.get('name')} (driver {g.get('driver')}, {g.get('memory')})"
+                   for e in envs for g in e.get("gpus") or [] if isinstance(g, dict)})
+    first = next((e for e in envs if e.get("cpu")), {})
+    blocks: list[Any] = [H("Hardware and software"), Items(tuple(x for x in (
+        f"GPU: {'; '.join(gpus)}" if gpus else "GPU: none",
+        f"CPU: {m.cpu_name()}, {first.get('memory_gib', '?')} GiB memory",
+        f"OS: {first.get('os', '?')}; Python {', '.join(sorted({str(e.get('python')) for e in envs if e.get('python')}))}",
+        "CUDA toolkit: " + ", ".join(sorted({str(e['cuda_toolkit']) for e in envs if e.get("cuda_toolkit")}) or ["-"]),
+        f"Commits: {', '.join(sorted({str(e.get('git_commit')) for e in envs if e.get('git_commit')}))}",
+    )))]
+    blocks += [H("Package versions"), Table(("package", "version(s)"), tuple(_packages(m)))]
+    yard = []
+    for e in envs:
+        for dev, hw in (e.get("hardware") or {}).items():
+            if isinstance(hw, dict) and hw.get("copy_bytes_per_s"):
+                yard.append((str(e.get("created", "?"))[:16], dev, fmt.rate(hw["copy_bytes_per_s"], "B/s"),
+                             fmt.seconds(data.num(hw.get("launch_latency_s"))),
+                             fmt.seconds(data.num(hw.get("launch_pipelined_s"))), str(hw.get("copy_how", ""))))
+    if yard:
+        blocks += [H("The same-run yardstick"),
+                   P("Measured by each run with no framework involved: the device copy that floors "
+                     "bandwidth-bound cells and the driver's empty-kernel launch that floors per-call cost."),
+                   Table(("run", "device", "copy bandwidth", "launch + sync", "launch pipelined", "how"), tuple(yard))]
+    pub = (m.publish or {}).get("parts") if isinstance(m.publish, dict) else None
+    if pub:
+        total = sum(p.get("seconds") or 0 for p in pub if isinstance(p, dict))
+        blocks += [H("Publish run time"),
+                   P(f"`python -m compare publish` on this machine: {fmt.seconds(total)} in {len(pub)} parts."),
+                   Table(("part", "seconds", "exit", "started"), tuple(
+                       (str(p.get("name")), f"{p.get('seconds', 0):.0f}", str(p.get("exit_code")), str(p.get("started")))
+                       for p in pub if isinstance(p, dict)))]
+    else:
+        blocks += [H("Publish run time"),
+                   P("These records were assembled from earlier runs (listed below), not by one "
+                     "`python -m compare publish`; its run time is stated where a publish log exists.")]
+    blocks += [H("Runs that produced these records"),
+               Table(("created", "commit", "command"), tuple(
+                   (str(e.get("created", "?"))[:19], str(e.get("git_commit", "?")), str(e.get("command", "?")))
+                   for e in envs))]
+    blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
+                             + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "
+                             + pages.doc_link(c.out, "findings.md") + ".")]
+    return blocks
+
+
+BUILDERS = {"bandwidth": qp.bandwidth, "per-call": qp.per_call, "particles": qp.particles,
+            "gradients": qp.gradients, "accuracy": pages.accuracy, "compile": pages.compile_cost,
+            "cpu": pages.cpu, "stability": pages.stability, "machine": machine}
+
+
+def _store_arg(inputs: list[Path], out: Path) -> str:
+    try:
+        return " ".join(os.path.relpath(p) for p in inputs)
+    except ValueError:
+        return " ".join(str(p) for p in inputs)
+
+
+def write_site(inputs: list[Path], out: Path, title: str | None, against: list[Path]) -> list[Path]:
+    m = data.load(inputs)
+    out = Path(out)
+    figures = out / "figures"
+    if figures.is_dir() and not figures.is_symlink():
+        shutil.rmtree(figures)         # pictures of an earlier build never stay beside new pages
+    rows, empty = pages.evaluate(m)
+    c = qp.Ctx(m, rows, out, "STORE")
+    title = title or f"Framework comparison: {m.name()}"
+    nav = [("Overview", "index.html")] + [(t, f"{k}.html") for k, t in questions.PAGES.items()]
+    written: list[Path] = []
+    site = {"index": (title, pages.index(c, title, empty))}
+    for key, label in questions.PAGES.items():
+        site[key] = (f"{label} — {m.name()}", BUILDERS[key](c))
+    if against:
+        from compare.site import against as vs
+        nav.append(("Against reference", "against.html"))
+        site["against"] = (f"This machine against the reference — {m.name()}", vs.page(c, data.load(against)))
+    for stem, (t, blocks) in site.items():
+        for suffix, render in ((".html", page_html), (".md", page_md)):
+            path = out / f"{stem}{suffix}"
+            atomic_write(path, render(t, nav, blocks))
+            written.append(path)
+    atomic_write(out / "matrix.md", pages.matrix_md(rows, m.frameworks, link_prefix="") + "\n\n" + pages.LEGEND + "\n")
+    written.append(out / "matrix.md")
+    written += sorted(figures.glob("*")) if figures.is_dir() else []
+    return written

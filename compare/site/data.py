@@ -1,0 +1,207 @@
+"""One machine's stored results, as the site reads them, and the figures it takes from a record.
+
+A machine's store is a folder of suite files (results.json, sweep.json, stress.json; any may be
+missing) in the common format of compare/store.py; files may also be named one by one. Records of
+the run and sweep suites are pooled for the questions that both can answer (a SAXPY at the
+largest n may come from either); the stress suite's analysis feeds the stability page.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Any, Iterable
+
+import scenarios
+from compare.store import SUITES, Store, StoreError
+
+PUBLISH_LOG = "publish.json"
+NOISY_SPREAD = 0.10          # IQR / median above this: the figure is marked noisy
+MIN_REPEATS = 3              # fewer timed repeats than this: marked noisy
+
+
+@dataclasses.dataclass(frozen=True)
+class Machine:
+    """The records of one machine, by suite, with the runs (environments) that made them."""
+    sources: tuple[Path, ...]
+    run: tuple[dict[str, Any], ...]
+    sweep: tuple[dict[str, Any], ...]
+    stress: Store | None
+    runs: tuple[dict[str, Any], ...]
+    publish: dict[str, Any] | None
+
+    @property
+    def records(self) -> list[dict[str, Any]]:
+        return [*self.run, *self.sweep]
+
+    @property
+    def frameworks(self) -> list[str]:
+        """Every backend named by a record, in the backend registry's order."""
+        import backends
+        seen = {r["backend"] for r in self.records}
+        if self.stress is not None:
+            seen |= {r["backend"] for r in self.stress.records}
+        order = list(backends.BACKENDS)
+        return [b for b in order if b in seen] + sorted(seen - set(order))
+
+    def devices(self) -> list[str]:
+        """Devices with at least one ok timed record, CUDA first."""
+        have = {r["device"] for r in self.records if r.get("status") == "ok" and r.get("time")}
+        return [d for d in ("cuda", "cpu") if d in have] + sorted(have - {"cuda", "cpu"})
+
+    @property
+    def primary_device(self) -> str:
+        devs = self.devices()
+        return devs[0] if devs else "cpu"
+
+    def gpu_name(self) -> str | None:
+        for env in self.runs:
+            for g in env.get("gpus") or []:
+                if isinstance(g, dict) and g.get("name"):
+                    return str(g["name"])
+        return None
+
+    def cpu_name(self) -> str:
+        env = next((e for e in self.runs if e.get("cpu")), {})
+        return f"{env.get('cpu', 'CPU')} ({env.get('cores', '?')} cores)"
+
+    def name(self) -> str:
+        """The machine in words: its GPU where CUDA cells ran, else its CPU."""
+        gpu = self.gpu_name()
+        return gpu if gpu and self.primary_device == "cuda" else self.cpu_name()
+
+
+def _suite_files(path: Path) -> list[Path]:
+    if path.is_dir():
+        found = [path / f for f in SUITES.values() if (path / f).is_file()]
+        if not found:
+            raise StoreError(f"{path}: no results.json, sweep.json or stress.json in this folder")
+        return found
+    return [path]
+
+
+def load(paths: Iterable[Path]) -> Machine:
+    """The stores at ``paths`` merged by suite (a later record of the same cell wins)."""
+    merged: dict[str, Store] = {}
+    sources: list[Path] = []
+    publish = None
+    for p in paths:
+        p = Path(p)
+        for f in _suite_files(p):
+            s = Store.read(f)
+            sources.append(f)
+            if s.suite in merged:
+                merged[s.suite].merge(s)
+            else:
+                merged[s.suite] = s
+        log = (p if p.is_dir() else p.parent) / PUBLISH_LOG
+        if log.is_file():
+            try:
+                publish = json.loads(log.read_text())
+            except (OSError, ValueError) as exc:
+                raise StoreError(f"cannot read {log}: {exc}") from None
+    runs = [env for s in merged.values() for env in s.runs]
+    return Machine(tuple(sources), tuple(merged["run"].records) if "run" in merged else (),
+                   tuple(merged["sweep"].records) if "sweep" in merged else (),
+                   merged.get("stress"), tuple(runs), publish)
+
+
+# ---- figures of one record --------------------------------------------------------------------
+def tag(rec: dict[str, Any], name: str) -> Any:
+    return (rec.get("tags") or {}).get(name)
+
+
+def num(x: Any) -> float | None:
+    """A finite float, or None (the store writes non-finite numbers as strings)."""
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+@dataclasses.dataclass(frozen=True)
+class Timing:
+    """One regime's per-call time of one record: median, quartile bounds, repeats, noise."""
+    median: float
+    lo: float
+    hi: float
+    repeats: int | None
+    noisy: str = ""              # why the figure is not to be trusted as it stands ('' if fine)
+
+
+REGIMES = ("latency", "throughput", "graph")
+
+
+def timing(rec: dict[str, Any], regime: str) -> Timing | None:
+    """``regime``: 'latency' (one synchronised call), 'throughput' (k calls, one synchronise,
+    per call), 'graph' (a captured call replayed), or 'first' (the first call, cold caches)."""
+    t = rec.get("time") or {}
+    if regime == "first":
+        v = num(t.get("first_call_s"))
+        return Timing(v, v, v, 1) if v is not None else None
+    part = t.get(regime) if regime != "latency" else (t.get("latency") or t)
+    if not isinstance(part, dict):
+        return None
+    med, iqr = num(part.get("median_s")), num(part.get("iqr_s"))
+    if med is None or med <= 0:
+        return None
+    iqr = iqr or 0.0
+    reps = part.get("repeats") if isinstance(part.get("repeats"), int) else None
+    why = []
+    if iqr / med > NOISY_SPREAD:
+        why.append(f"spread {100 * iqr / med:.0f} % of the median")
+    if reps is not None and reps < MIN_REPEATS:
+        why.append(f"{reps} repeats")
+    return Timing(med, max(med - iqr / 2, 0.0), med + iqr / 2, reps, "; ".join(why))
+
+
+def per_call(rec: dict[str, Any], regime: str) -> Timing | None:
+    """Per-call time in ``regime``; a framework's own graph variant counts as its graph regime."""
+    if regime == "graph" and rec.get("variant") == "graph":
+        return timing(rec, "throughput")
+    if regime != "graph" and rec.get("variant") == "graph":
+        return None
+    return timing(rec, regime)
+
+
+def defaults(scenario: str) -> dict[str, Any]:
+    sc = scenarios.SCENARIOS.get(scenario)
+    return dataclasses.asdict(sc.params()) if sc is not None else {}
+
+
+def at_defaults(rec: dict[str, Any]) -> bool:
+    """The record ran the scenario at its default parameters (the README's default sizes)."""
+    d = defaults(rec["scenario"])
+    p = rec.get("params") or {}
+    return all(p.get(k, v) == v for k, v in d.items())
+
+
+def size(rec: dict[str, Any]) -> float:
+    """The record's problem size: n, batch or pixels, whichever the scenario has."""
+    p = rec.get("params") or {}
+    for k in ("n", "batch"):
+        if isinstance(p.get(k), (int, float)):
+            return float(p[k])
+    if isinstance(p.get("width"), int) and isinstance(p.get("height"), int):
+        return float(p["width"] * p["height"])
+    return 0.0
+
+
+def device_bytes(rec: dict[str, Any]) -> float | None:
+    """Device memory above the framework's context (NVML), the one metric every backend shares."""
+    return num((rec.get("memory") or {}).get("device_bytes"))
+
+
+def item_rate(rec: dict[str, Any], regime: str = "throughput") -> float | None:
+    """Work items per second in ``regime`` (particle-steps, trajectory-gradients, elements)."""
+    sc = scenarios.SCENARIOS.get(rec["scenario"])
+    words = sc.sweep_labels if sc is not None else {}
+    work = (rec.get("work") or {}).get(words.get("rate_work", "items"))
+    t = per_call(rec, regime) or timing(rec, "latency")
+    w = num(work)
+    return w / t.median if w is not None and t is not None else None
+
+
+def hw_fraction(rec: dict[str, Any]) -> float | None:
+    return num((rec.get("throughput") or {}).get("hw_fraction"))

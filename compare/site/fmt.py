@@ -1,0 +1,81 @@
+"""Numbers in words for the site: times, rates, bytes, ratios, and the matrix's cell text."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from compare.site.matrix import Cell
+
+BAND_EMOJI = {"best": "🟩", "near": "🟨", "far": "🟧", "poor": "🟥", "none": "⬜"}
+NOISY_MARK = "~"
+
+
+def seconds(v: float | None) -> str:
+    if v is None or not math.isfinite(v):
+        return "-"
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9)):
+        if abs(v) >= scale or unit == "ns":
+            return f"{v / scale:.3g} {unit}"
+    return f"{v:.3g} s"
+
+
+def rate(v: float | None, unit: str = "/s") -> str:
+    if v is None or not math.isfinite(v):
+        return "-"
+    for suffix, scale in (("T", 1e12), ("G", 1e9), ("M", 1e6), ("k", 1e3)):
+        if abs(v) >= scale:
+            return f"{v / scale:.3g} {suffix}{unit}"
+    return f"{v:.3g} {unit}"
+
+
+def nbytes(v: float | None) -> str:
+    if v is None or not math.isfinite(v):
+        return "-"
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if abs(v) >= scale:
+            return f"{v / scale:.3g} {unit}"
+    return f"{v:.0f} B"
+
+
+def value(v: float | None, unit: str) -> str:
+    """A row's figure in its unit: 's' time, 'B' bytes, '1/s' a rate, 'x' a plain ratio."""
+    if v is None:
+        return "-"
+    return {"s": seconds, "B": nbytes, "1/s": rate}.get(unit, lambda x: f"{x:.3g}")(v)
+
+
+def pct(v: float | None) -> str:
+    return "-" if v is None or not math.isfinite(v) else f"{100 * v:.0f} %"
+
+
+def ratio(r: float) -> str:
+    return f"{r:.2f}×" if r < 10 else f"{r:.3g}×" if r < 1000 else f"{r:.0f}×"
+
+
+def cell_text(c: Cell) -> str:
+    """What the matrix shows: the ratio to the row's best, or why there is none."""
+    if c.ratio is not None:
+        return ratio(c.ratio) + (NOISY_MARK if c.noisy else "")
+    if c.status in ("error", "mismatch"):
+        return "✗ " + c.status
+    return "skipped" if c.status == "skipped" else "—"
+
+
+def cell_title(c: Cell, unit: str) -> str:
+    """The cell's tooltip: the figure itself, its variant and spread, or the reason."""
+    if c.value is None:
+        return c.reason or c.status
+    parts = [value(c.value, unit)]
+    if c.variant and c.variant != "default":
+        parts.append(f"variant {c.variant}")
+    if c.lo is not None and c.hi is not None and c.hi > c.lo:
+        parts.append(f"quartiles {value(c.lo, unit)} – {value(c.hi, unit)}")
+    if c.noisy:
+        parts.append(f"noisy: {c.noisy}")
+    return "; ".join(parts)
+
+
+def params_text(p: dict[str, Any], defaults: dict[str, Any]) -> str:
+    """The parameters that differ from the scenario's defaults, as ``k=v`` (or 'defaults')."""
+    diff = [f"{k}={v}" for k, v in (p or {}).items() if defaults.get(k, v) != v]
+    return ", ".join(diff) if diff else "defaults"

@@ -1,0 +1,234 @@
+"""One page per question: the matrix rows it answers, bar charts per framework and variant with
+spread, the scaling curves, the numbers as a sortable table, and under each figure the command
+that reproduces its data."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+from compare import charts
+from compare.site import data, fmt, matrix
+from compare.site.data import Machine
+from compare.site.matrix import Row
+from compare.site.render import Block, Figure, H, P, Table
+
+Page = list[Block]
+
+
+class Ctx:
+    """What every page builder needs: the machine, its rows, where figures go."""
+
+    def __init__(self, m: Machine, rows: list[Row], out: Path, store_arg: str) -> None:
+        self.m, self.rows, self.out, self.store_arg = m, rows, out, store_arg
+        self.device = m.primary_device
+        (out / "figures").mkdir(parents=True, exist_ok=True)
+
+    def rows_of(self, page: str) -> list[Row]:
+        return [r for r in self.rows if r.rule.page == page]
+
+    def fig(self, name: str) -> tuple[Path, str, str]:
+        """The PNG's path, and the PNG's and CSV's paths relative to the pages."""
+        return self.out / "figures" / f"{name}.png", f"figures/{name}.png", f"figures/{name}.csv"
+
+    def cmd(self, *words: str) -> str:
+        return "python -m compare " + " ".join(words) + f"\npython -m compare site {self.store_arg} --out REPORT"
+
+
+def verdicts(rows: list[Row]) -> list[Block]:
+    out: list[Block] = []
+    for r in rows:
+        out += [H(r.rule.question, r.rule.key), P(f"**{r.verdict}**"),
+                P(f"Rule: {r.rule.text} Read here: {r.scope or 'no records'}, device {r.device}.")]
+    return out
+
+
+def _bar(r: dict[str, Any], fig: Callable[[dict[str, Any]], Any], note: str = "") -> charts.Bar:
+    v = fig(r) if r["status"] == "ok" else None
+    if isinstance(v, data.Timing):
+        return charts.Bar(r["backend"], r.get("variant", "default"), v.median, v.lo, v.hi,
+                          "~ noisy" if v.noisy else note)
+    return charts.Bar(r["backend"], r.get("variant", "default"), v,
+                      mark=note if v is not None else (r["status"] if r["status"] != "ok" else "not measured"))
+
+
+def timing_table(recs: list[dict[str, Any]], regimes: tuple[str, ...] = data.REGIMES,
+                 extra: Callable[[dict[str, Any]], list[str]] | None = None,
+                 extra_headers: tuple[str, ...] = ()) -> Table:
+    rows = []
+    for r in sorted(recs, key=lambda r: (r["scenario"], data.size(r), r["backend"], r.get("variant", ""))):
+        cells = [r["backend"], r.get("variant", "default"), r["scenario"],
+                 fmt.params_text(r.get("params") or {}, data.defaults(r["scenario"])), r["precision"]]
+        for g in regimes:
+            t = data.per_call(r, g) if r["status"] == "ok" else None
+            cells.append("-" if t is None else fmt.seconds(t.median) + (fmt.NOISY_MARK if t.noisy else ""))
+            if g != "graph":
+                cells.append("-" if t is None else fmt.seconds(t.hi - t.lo))
+        cells += extra(r) if extra else []
+        cells.append(r["status"] if r["status"] == "ok" else f"{r['status']}: {r.get('reason', '')[:160]}")
+        rows.append(tuple(cells))
+    heads = ["framework", "variant", "scenario", "parameters", "precision"]
+    for g in regimes:
+        heads += [g] if g == "graph" else [g, f"{g} IQR"]
+    return Table(tuple(heads + list(extra_headers) + ["status"]), tuple(rows))
+
+
+def _variants(recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in recs if r.get("variant") != "graph"]
+
+
+# ---- pages ------------------------------------------------------------------------------------
+def bandwidth(c: Ctx) -> Page:
+    rows = c.rows_of("bandwidth")
+    blocks: Page = [P("Bandwidth-bound array work: SAXPY reads two arrays and writes one. At large n "
+                      "each framework's kernel meets the memory system; the hardware fraction is "
+                      "the scenario's floor (its bytes at the same-run copy yardstick, no framework "
+                      "involved) divided by the time.")] + verdicts(rows)
+    big = matrix.largest_of("saxpy", (None, "bandwidth"))(c.m, c.device)
+    allvar = [r for r in c.m.records if r["device"] == c.device and r["scenario"] == "saxpy"
+              and r["precision"] == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
+              and data.tag(r, "sweep") in (None, "bandwidth")]
+    allvar = matrix.latest(_variants(allvar))
+    if allvar:
+        png, rel, csv = c.fig("bandwidth-largest")
+        charts.bars(png, f"SAXPY at the largest n ({matrix.scope(allvar)}), {c.device}, float32: per call, "
+                    "throughput regime", "seconds per call (whiskers: quartiles)",
+                    [_bar(r, matrix.regime("throughput")) for r in allvar], fmt=fmt.seconds)
+        n = int(data.size(allvar[0]))
+        blocks += [Figure(rel, "Every framework and variant at the largest n; bars sorted fastest first.",
+                          c.cmd(f"run saxpy --devices {c.device} --precision float32 --variants all --set n={n}"), csv),
+                   timing_table(allvar, ("latency", "throughput"), lambda r: [fmt.pct(data.hw_fraction(r))],
+                                ("hw fraction",))]
+    sweep = [r for r in c.m.sweep if data.tag(r, "sweep") == "bandwidth" and r["scenario"] == "saxpy"
+             and r["device"] == c.device and r["status"] == "ok"]
+    if sweep:
+        series = []
+        for (fw, var), rs in sorted(_group(sweep).items()):
+            pts = sorted((data.size(r), (r.get("work") or {}).get("bytes", 0) / t.median / 1e9, t)
+                         for r in rs if (t := data.per_call(r, "throughput") or data.timing(r, "latency")))
+            if pts:
+                series.append(charts.Series(f"{fw} {var}" if var != "default" else fw, fw,
+                                            [p[0] for p in pts], [p[1] for p in pts]))
+        png, rel, csv = c.fig("bandwidth-vs-n")
+        charts.curves(png, f"SAXPY achieved bandwidth against n ({c.device}, float32, throughput regime "
+                      "where measured)", "n (elements)", "GB/s (3·n·4 bytes / time)", series)
+        blocks += [H("Bandwidth against size"),
+                   Figure(rel, "Achieved bandwidth against n: small n is launch-bound, large n meets memory.",
+                          c.cmd(f"sweep bandwidth --devices {c.device}"), csv)]
+    return blocks
+
+
+def _group(recs: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
+    out: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in recs:
+        out.setdefault((r["backend"], r.get("variant", "default")), []).append(r)
+    return out
+
+
+def per_call(c: Ctx) -> Page:
+    blocks: Page = [P("What one call costs when the kernel is small: the framework's launch path, "
+                      "not the arithmetic. Latency is one call and a synchronise (a step of an "
+                      "interactive loop); pipelined is k calls and one synchronise (a simulation "
+                      "loop); graph replay is a captured call replayed.")] + verdicts(c.rows_of("per-call"))
+    recs = [r for sc in ("saxpy", "sdf", "particles") for r in matrix.defaults_of(sc)(c.m, c.device)]
+    sax = [r for r in recs if r["scenario"] == "saxpy"]
+    panels = [charts.Panel(g, [_bar(r, matrix.regime(g)) for r in sax
+                               if r["status"] != "ok" or data.per_call(r, g) is not None])
+              for g in data.REGIMES]
+    png, rel, csv = c.fig("per-call-saxpy")
+    charts.bar_panels(png, f"SAXPY n = 10^6 ({c.device}, float32): per-call cost by regime",
+                      "seconds per call (whiskers: quartiles; log scale)", panels, log=True, fmt=fmt.seconds)
+    yard = _launch_yardstick(c.m, c.device)
+    blocks += [Figure(rel, "Per-call cost of the default-size SAXPY in the three regimes, every variant."
+                      + (f" For scale, the driver's own empty-kernel launch: {yard}." if yard else ""),
+                      c.cmd(f"run saxpy sdf particles --devices {c.device} --precision float32 --variants all"), csv),
+               H("Every small cell"), timing_table(recs, extra=_host_share, extra_headers=("host share",))]
+    return blocks
+
+
+def _host_share(r: dict[str, Any]) -> list[str]:
+    thr = (r.get("time") or {}).get("throughput") or {}
+    h, t = data.num(thr.get("host_s")), data.num(thr.get("median_s"))
+    return [fmt.pct(h / t) if h is not None and t else "-"]
+
+
+def _launch_yardstick(m: Machine, device: str) -> str:
+    for env in reversed(m.runs):
+        hw = ((env.get("hardware") or {}).get(device) or {})
+        lat, pipe = data.num(hw.get("launch_latency_s")), data.num(hw.get("launch_pipelined_s"))
+        if lat and pipe:
+            return f"{fmt.seconds(lat)} with a synchronise, {fmt.seconds(pipe)} pipelined"
+    return ""
+
+
+def particles(c: Ctx) -> Page:
+    blocks: Page = [P("A particle simulation loop: 300 steps of gravity, damping and wall contact. "
+                      "At small n the loop's per-step launches dominate; at large n the kernels do.")]
+    blocks += verdicts(c.rows_of("particles"))
+    small = _variants(matrix.defaults_of("particles")(c.m, c.device))
+    if small:
+        png, rel, csv = c.fig("particles-small")
+        charts.bars(png, f"Particles at the defaults (256 × 300 steps, {c.device}, float32): per rollout, "
+                    "throughput regime", "seconds per rollout (whiskers: quartiles; log scale)",
+                    [_bar(r, matrix.regime("throughput")) for r in small], log=True, fmt=fmt.seconds)
+        blocks += [Figure(rel, "Every framework and variant at the default size.",
+                          c.cmd(f"run particles --devices {c.device} --precision float32 --variants all"), csv)]
+    blocks += _scaling(c, "particles", "particle-steps per second", "n (particles)")
+    return blocks
+
+
+def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False) -> Page:
+    recs = [r for r in c.m.sweep if data.tag(r, "sweep") == "scaling" and r["scenario"] == scenario
+            and r["device"] == c.device and r["precision"] == "float32"]
+    ok = [r for r in recs if r["status"] == "ok"]
+    if not ok:
+        return []
+    blocks: Page = [H(f"{scenario.capitalize()}: scaling")]
+    for what, fig, unit, lab in (("rate", data.item_rate, "1/s", ylabel),
+                                 ("memory", data.device_bytes, "B", "device memory above the context (bytes)")):
+        if what == "memory" and not memory:
+            continue
+        series = []
+        for (fw, var), rs in sorted(_group(ok).items()):
+            pts = sorted((data.size(r), v) for r in rs if (v := fig(r)) is not None)
+            if pts:
+                series.append(charts.Series(fw if var == "default" else f"{fw} {var}", fw,
+                                            [p[0] for p in pts], [p[1] for p in pts]))
+        if not series:
+            continue
+        png, rel, csv = c.fig(f"{scenario}-{what}-vs-size")
+        charts.curves(png, f"{scenario}: {lab} against size ({c.device}, float32, throughput regime)",
+                      xlabel, lab, series)
+        blocks.append(Figure(rel, f"{lab.capitalize()} against size, one line per framework.",
+                             c.cmd(f"sweep scaling --scenarios {scenario} --devices {c.device}"), csv))
+    rows = []
+    for r in sorted(recs, key=lambda r: (r["backend"], data.size(r))):
+        rows.append((r["backend"], r.get("variant", "default"), f"{data.size(r):.0f}",
+                     fmt.rate(data.item_rate(r)) if r["status"] == "ok" else "-",
+                     fmt.nbytes(data.device_bytes(r)) if r["status"] == "ok" else "-",
+                     r["status"] if r["status"] == "ok" else f"{r['status']}: {r.get('reason', '')[:120]}"))
+    blocks.append(Table(("framework", "variant", "size", ylabel, "device memory", "status"), tuple(rows)))
+    return blocks
+
+
+def gradients(c: Ctx) -> Page:
+    blocks: Page = [P("Gradients through a simulation: a batch of projectiles, each descending on its "
+                      "own loss through 180 steps with contact. The rate counts trajectory-gradients "
+                      "per second; memory is what the gradient keeps on the device (a tape, adstacks, "
+                      "or the one value and flag per step of a hand adjoint).")]
+    blocks += verdicts(c.rows_of("gradients"))
+    blocks += _scaling(c, "projectile", "trajectory-gradients per second", "batch (trajectories)", memory=True)
+    hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r["device"] == c.device]
+    if hz:
+        from compare.sweep import plots as sweep_plots
+        png, rel, _ = c.fig("gradients-horizon")
+        if sweep_plots.plot_horizon(list(hz), c.device, png, "projectile"):
+            charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "steps", "device bytes",
+                                                       "gradient fd agreement"),
+                             [(r["backend"], r.get("variant", "default"), r["precision"],
+                               (r.get("params") or {}).get("steps"), data.device_bytes(r),
+                               (r.get("error") or {}).get("gradient_fd_agreement")) for r in hz if r["status"] == "ok"])
+            blocks += [H("Memory and gradient quality against the horizon"),
+                       Figure(rel, "Device memory and gradient agreement with float64 finite differences "
+                              "against the number of steps, with each framework's memory-saving variants.",
+                              c.cmd(f"sweep horizon --devices {c.device}"), rel[:-4] + ".csv")]
+    return blocks
