@@ -37,10 +37,10 @@ DEFAULT_SIZE = {"saxpy": {"n": 1000000}, "sdf": {"width": 512, "height": 512},
 LARGEST = {"saxpy": {"n": 268435456}, "particles": {"n": 16777216}}
 IN_ALL = ("saxpy", "sdf", "particles", "projectile")
 SCALING_BATCHES = (1, 1024, 1048576)
-ERROR_DTS = (0.02, 0.005)                     # particles, float32: two points per backend
-HORIZON_STEPS = (3000,)                       # contact 'none', default variant
+ERROR_DTS = (0.005,)                          # particles, float32: one point per backend
+HORIZON_STEPS = (1000, 10000)                 # contact 'hard' (the memory figure's), default variant
 STRESS_EXPERIMENTS = ("particles-dt",)
-STRESS_RECORD_DTS = (0.02,)                   # the particles-dt setting whose records are kept
+STRESS_RECORD_DTS = (0.02,)                   # the particles-dt setting whose float32 records are kept
 
 
 def _size(r: Record, size: dict[str, Any]) -> bool:
@@ -68,13 +68,13 @@ def keep_sweep(r: Record) -> bool:
         return (r["scenario"] == "particles" and r["precision"] == "float32"
                 and r["variant"] == "default" and value in ERROR_DTS)
     if kind == "horizon":
-        return r["variant"] == "default" and p.get("contact") == "none" and value in HORIZON_STEPS
+        return r["variant"] == "default" and p.get("contact") == "hard" and value in HORIZON_STEPS
     return False
 
 
 def keep_stress(r: Record) -> bool:
     p = r["params"]
-    return (r["scenario"] == "particles" and p.get("n") == 256 and p.get("bounce") == 0.82
+    return (r["scenario"] == "particles" and r["precision"] == "float32" and p.get("n") == 256 and p.get("bounce") == 0.82
             and p.get("record_every") == 0 and p.get("dt") in STRESS_RECORD_DTS
             and abs(p["steps"] * p["dt"] - 3.0) < 1e-9)      # particles-dt: T = 3 s
 
