@@ -69,6 +69,7 @@ class PageCheck:
     broken_images: list[str] = dataclasses.field(default_factory=list)
     broken_links: list[str] = dataclasses.field(default_factory=list)
     external_links: list[str] = dataclasses.field(default_factory=list)      # <a href="https://...">: allowed
+    values: dict[str, Any] = dataclasses.field(default_factory=dict)         # check(evaluate=...)'s answers
     timed_out: bool = False
 
     def problems(self) -> list[str]:
@@ -140,7 +141,7 @@ class Browser:
         self._queue: queue.Queue[dict[str, Any] | None] = queue.Queue()
         self._pending: list[dict[str, Any]] = []     # events read while waiting for an answer
         threading.Thread(target=self._reader, args=(self._read, self._queue), daemon=True).start()
-        self.call("Browser.getVersion")              # answers once the browser is up
+        self.call("Browser.getVersion", timeout=max(self.timeout, 60))   # answers once the browser is up
 
     @staticmethod
     def _reader(fd: int, q: "queue.Queue[dict[str, Any] | None]") -> None:
@@ -247,8 +248,10 @@ class Browser:
                       timeout=max(0.1, deadline - time.monotonic()))
         return r.get("result", {}).get("value")
 
-    def check(self, page: str | Path, timeout: float | None = None, settle: float = 0.1) -> PageCheck:
-        """Load ``page`` (a path or URL) and report what went wrong; see PageCheck."""
+    def check(self, page: str | Path, timeout: float | None = None, settle: float = 0.1,
+              evaluate: dict[str, str] | None = None) -> PageCheck:
+        """Load ``page`` (a path or URL) and report what went wrong; see PageCheck. ``evaluate``
+        names JavaScript expressions whose JSON values land in ``values`` under the same names."""
         url = file_url(page)
         result = PageCheck(url)
         deadline = time.monotonic() + (timeout or self.timeout)
@@ -260,6 +263,8 @@ class Browser:
             result.broken_images = self._evaluate(BROKEN_IMAGES_JS, session, deadline) or []
             links = self._evaluate(LINKS_JS, session, deadline) or []
             result.title = self._evaluate("document.title", session, deadline) or ""
+            for name, expression in (evaluate or {}).items():
+                result.values[name] = self._evaluate(expression, session, deadline)
             self._drain()
             self.call("Target.closeTarget", {"targetId": target})
         except TimeoutError:
