@@ -9,8 +9,10 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
     Panel(title, bars)                    one axes of a multi-panel bar figure
     bars(path, title, xlabel, bars, *, log=False, better="lower", note="", fmt=None,
          reference=None, ratios=False, data=True)
-        horizontal bars, best first, value labels at the bar ends, a dashed line at the best
-        value (or at ``reference=(value, label)``, e.g. the baseline of a speed-up)
+        horizontal bars, best first, value labels at the bar ends (``fmt``; ``ratios``: and the
+        ratio to the best), a dashed line at the best value, or at ``reference=(value, label)``
+        from which the bars then grow (the baseline of a speed-up); log=None: a log axis per
+        panel where its values span more than a factor 20
     bar_panels(path, title, xlabel, panels, *, ...same keywords)    one panel per group
     Series(label, framework, xs, ys, lo=None, hi=None, dashed=False)
     curves(path, title, xlabel, ylabel, series, *, logx=True, logy=True, note="", data=True)
@@ -19,7 +21,8 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
            data=True)
         points = (framework, label, x, y), both axes lower-is-better; the front is the step line
     write_csv(path, headers, rows)        floats as format(x, ".6g"), None as ""
-    colors(frameworks) -> {framework: colour}; hatch(variant) -> hatch pattern; tidy_log(ax)
+    colors(frameworks) -> {framework: colour}; hatch(variant) -> hatch pattern; tidy_log(ax);
+    pyplot() (Agg); save(fig, path) (atomic, deterministic, closes the figure); RC (rcParams)
 
 Colours: a registered backend keeps ``compare.report.backend_color`` in every figure; any other
 framework gets a spare colour chosen from its name (so the same in every figure) and moved on
@@ -44,7 +47,7 @@ BAR_IN = 0.24                                # height per bar: 8-point labels ne
 LEGEND_INSIDE = 6                            # more entries than this: legend below the axes
 # known variants first, so their hatches are the same in every figure whatever else ran
 VARIANTS = ("default", "fastmath", "graph", "compile", "vector", "tile", "record_cmd", "checkpoint")
-HATCHES = ("", "//", "..", "xx", "\\\\", "++", "--", "oo", "**", "||")
+HATCHES = ("", "//", "..", "xx", "\\\\", "++", "--", "||", "**", "oo")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 # colours no registered backend uses (matplotlib's C0..C9 are tab10), for unknown frameworks
 SPARE = ("#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#dbdb8d",
@@ -80,7 +83,8 @@ class Series:
     dashed: bool = False
 
 
-def _plt() -> Any:
+def pyplot() -> Any:
+    """matplotlib.pyplot on the Agg backend (no display, the same pixels everywhere)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -122,11 +126,7 @@ def _fmt(v: float) -> str:
 
 
 def _cell(v: Any) -> str:
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return format(v, ".6g") if math.isfinite(v) else str(v)
-    return str(v)
+    return "" if v is None else format(v, ".6g") if isinstance(v, float) else str(v)
 
 
 def write_csv(path: Path, headers: Sequence[str], rows: Iterable[Sequence[Any]]) -> None:
@@ -138,38 +138,38 @@ def write_csv(path: Path, headers: Sequence[str], rows: Iterable[Sequence[Any]])
     atomic_write(Path(path), buf.getvalue())
 
 
-def tidy_log(ax: Any) -> None:
+def tidy_log(ax: Any, fmt: Callable[[float], str] | None = None) -> None:
     """Readable base-10 log axes: over two or more decades label the powers of ten only, over
-    less label the 2 and 5 between them too (matplotlib's default overprints minor labels)."""
+    less the 1-2-5 ticks, and every tick where fewer than two of those are in range
+    (matplotlib's default overprints minor labels); labels in ``fmt``, else all plain or all
+    powers of ten on one axis."""
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
-    def fmt(plain: bool) -> Callable[[float], str]:
-        def short(v: float) -> str:          # one style per axis: all plain or all powers of ten
-            if v <= 0:
-                return ""
-            e = math.floor(math.log10(v) + 1e-9)
-            m = round(v / 10**e, 6)
-            return f"{v:g}" if plain else (f"${m:g}\\times10^{{{e}}}$" if m != 1 else f"$10^{{{e}}}$")
-        return short
+    def power(v: float) -> str:
+        e = math.floor(math.log10(v) + 1e-9)
+        m = round(v / 10**e, 6)
+        return f"${m:g}\\times10^{{{e}}}$" if m != 1 else f"$10^{{{e}}}$"
 
-    def two_five(short: Callable[[float], str]) -> Callable[[float, int], str]:
-        def label(v: float, _pos: int) -> str:
-            m = round(v / 10**math.floor(math.log10(v) + 1e-9), 6) if v > 0 else 0
-            return short(v) if m in (2.0, 5.0) else ""
-        return label
+    def mantissa(v: float) -> float:
+        return round(v / 10**math.floor(math.log10(v) + 1e-9), 6) if v > 0 else 0.0
     for axis, (lo, hi) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+        lo, hi = min(lo, hi), max(lo, hi)
         if axis.get_scale() != "log" or lo <= 0:
             continue
-        lo, hi = min(lo, hi), max(lo, hi)
-        short = fmt(1e-3 <= lo and hi <= 1e4)
+        short = fmt or ((lambda v: f"{v:g}") if 1e-3 <= lo and hi <= 1e4 else power)
         powers = math.floor(math.log10(hi)) - math.ceil(math.log10(lo)) + 1
-        axis.set_major_formatter(FuncFormatter(lambda v, _pos, short=short: short(v)))
-        axis.set_minor_formatter(NullFormatter() if powers >= 2 else FuncFormatter(two_five(short)))
+        e0 = math.floor(math.log10(lo))
+        in_range = [m * 10.0**e for e in (e0, e0 + 1) for m in (1, 2, 5) if lo <= m * 10.0**e <= hi]
+        keep = (1.0, 2.0, 5.0) if len(in_range) >= 2 else tuple(float(m) for m in range(1, 10))
+        axis.set_major_formatter(FuncFormatter(lambda v, _p, f=short: f(v) if v > 0 else ""))
+        axis.set_minor_formatter(NullFormatter() if powers >= 2 else FuncFormatter(
+            lambda v, _p, f=short, k=keep: f(v) if mantissa(v) in k else ""))
 
 
-def _save(fig: Any, path: Path) -> None:
+def save(fig: Any, path: Path) -> None:
+    """Atomically, at the fixed dpi, without the metadata that would make bytes differ; closed."""
     save_figure(fig, path, dpi=DPI, metadata={"Software": None})
-    _plt().close(fig)
+    pyplot().close(fig)
 
 
 def _legend(fig: Any, ax: Any, handles: list[Any]) -> None:
@@ -183,13 +183,12 @@ def _legend(fig: Any, ax: Any, handles: list[Any]) -> None:
                    frameon=False)
 
 
-def _fw_handles(frameworks: Iterable[str], cmap: dict[str, str], kind: str) -> list[Any]:
+def _fw_handles(cmap: dict[str, str], patch: bool) -> list[Any]:
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
-    names = [f for f in cmap if f in set(frameworks)]
-    if kind == "patch":
-        return [Patch(facecolor=cmap[f], edgecolor="k", lw=0.5, label=f) for f in names]
-    return [Line2D([], [], color=cmap[f], marker="o", ls="-", label=f) for f in names]
+    if patch:
+        return [Patch(facecolor=c, edgecolor="k", lw=0.5, label=f) for f, c in cmap.items()]
+    return [Line2D([], [], color=c, marker="o", ls="", label=f) for f, c in cmap.items()]
 
 
 def _sorted_bars(bars: list[Bar], better: str) -> list[Bar]:
@@ -201,37 +200,47 @@ def _sorted_bars(bars: list[Bar], better: str) -> list[Bar]:
     return ok + rest
 
 
-def _draw_bars(ax: Any, panel: Panel, cmap: dict[str, str], log: bool, better: str,
+def _ratio(r: float) -> str:
+    return f"{r:.2f}" if r < 10 else (f"{r:.3g}" if r < 1000 else f"{r:.0f}")
+
+
+def _draw_bars(ax: Any, panel: Panel, cmap: dict[str, str], log: bool | None, better: str,
                fmt: Callable[[float], str], reference: tuple[float, str] | None, ratios: bool) -> list[Bar]:
     bs = _sorted_bars(panel.bars, better)
     ok = [b for b in bs if b.value is not None and math.isfinite(b.value)]
     ends = [v for b in ok for v in (b.value, b.lo, b.hi) if v is not None and math.isfinite(v)]
     ends += [reference[0]] if reference else []
     pos = [v for v in ends if v > 0]
-    if log and pos:
-        left, right = min(pos) / 2.5, max(pos) * 8        # right: room for the value labels
+    if log is None:                     # per panel: a log axis only where values span decades
+        log = bool(pos) and max(pos) / min(pos) > 20
+    if log and pos:                     # right of the largest end: about a third for the labels
+        left = min(pos) / 2
+        right = max(pos) * max(2.0, (max(pos) / left) ** 0.45)
     else:
-        left, right = min(0.0, *ends) if ends else 0.0, (max(ends) * 1.45 if ends else 1.0)
+        left = min(0.0, *ends) if ends else 0.0
+        right = max(ends) + 0.45 * (max(ends) - left) if ends else 1.0
     right = right if right > left else left + 1.0
+    start = reference[0] if reference else left      # bars grow from the reference line
     best = ok[0].value if ok else None
     ys = list(range(len(bs)))
     for y, b in zip(ys, bs):
         if b.value is None or not math.isfinite(b.value):
-            ax.text(left if not log else left * 1.15, y, f" {b.mark or 'not measured'}", va="center",
+            ax.text(left * 1.1 if log else left, y, f" {b.mark or 'not measured'}", va="center",
                     ha="left", fontsize=8, style="italic", color="0.35")
             continue
-        ax.barh(y, b.value - left, left=left, height=0.72, color=cmap[b.framework],
+        ax.barh(y, b.value - start, left=start, height=0.72, color=cmap[b.framework],
                 hatch=hatch(b.variant), edgecolor="0.15", linewidth=0.5)
         if b.lo is not None or b.hi is not None:
             lo, hi = b.lo if b.lo is not None else b.value, b.hi if b.hi is not None else b.value
             ax.errorbar(b.value, y, xerr=[[max(b.value - lo, 0)], [max(hi - b.value, 0)]], fmt="none",
                         ecolor="k", elinewidth=0.9, capsize=2.5)
-        end = max(v for v in (b.value, b.hi) if v is not None)
+        end = max(v for v in (b.value, b.hi, reference[0] if reference else None) if v is not None)
         text = fmt(b.value)
-        if ratios and best and b.value != best and len(ok) > 1:
-            text += f"  ({b.value / best:.2g}× best)" if better == "lower" else f"  ({best / b.value:.2g}× less)"
+        if ratios and best and b.value != best:
+            text += (f"  ({_ratio(b.value / best)}× best)" if better == "lower"
+                     else f"  (best {_ratio(best / b.value)}×)")
         text += f"  [{b.mark}]" if b.mark else ""
-        ax.text(end * 1.12 if log else end + (right - left) * 0.01, y, text, va="center", fontsize=7.5)
+        ax.text(end * 1.08 if log else end + (right - left) * 0.01, y, text, va="center", fontsize=7.5)
     ax.set_yticks(ys, [b.framework + ("" if b.variant in ("", "default") else f" {b.variant}") for b in bs])
     ax.set_ylim(len(bs) - 0.4, -0.6)                       # best at the top
     if log:
@@ -244,11 +253,14 @@ def _draw_bars(ax: Any, panel: Panel, cmap: dict[str, str], log: bool, better: s
     ax.set_axisbelow(True)
     if panel.title:
         ax.set_title(panel.title, loc="left")
-    tidy_log(ax)
+    tidy_log(ax, fmt if fmt is not _fmt else None)
+    if not log and fmt is not _fmt:
+        from matplotlib.ticker import FuncFormatter
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _p: fmt(v) if v else "0"))
     return bs
 
 
-def bars(path: Path, title: str, xlabel: str, bars: list[Bar], *, log: bool = False,
+def bars(path: Path, title: str, xlabel: str, bars: list[Bar], *, log: bool | None = False,
          better: str = "lower", note: str = "", fmt: Callable[[float], str] | None = None,
          reference: tuple[float, str] | None = None, ratios: bool = False, data: bool = True) -> None:
     """One horizontal bar chart (see the module docstring)."""
@@ -256,13 +268,13 @@ def bars(path: Path, title: str, xlabel: str, bars: list[Bar], *, log: bool = Fa
                fmt=fmt, reference=reference, ratios=ratios, data=data)
 
 
-def bar_panels(path: Path, title: str, xlabel: str, panels: list[Panel], *, log: bool = False,
+def bar_panels(path: Path, title: str, xlabel: str, panels: list[Panel], *, log: bool | None = False,
                better: str = "lower", note: str = "", fmt: Callable[[float], str] | None = None,
                reference: tuple[float, str] | None = None, ratios: bool = False,
                data: bool = True) -> None:
     """Bar charts stacked one panel per group (each sorted best first, its own x range), one
     shared legend of frameworks and variants."""
-    plt = _plt()
+    plt = pyplot()
     panels = [p for p in panels if p.bars] or [Panel("nothing measured", [])]
     allb = [b for p in panels for b in p.bars]
     cmap = colors(b.framework for b in allb)
@@ -279,7 +291,7 @@ def bar_panels(path: Path, title: str, xlabel: str, panels: list[Panel], *, log:
         fig.suptitle(title + f"  ({better} is better)", fontsize=10)
         from matplotlib.lines import Line2D
         from matplotlib.patches import Patch
-        handles = _fw_handles(cmap, cmap, "patch")
+        handles = _fw_handles(cmap, True)
         handles += [Patch(facecolor="white", edgecolor="k", hatch=hatch(v), lw=0.5, label=f"variant {v}")
                     for v in sorted({b.variant for b in allb} - {"", "default"}, key=_variant_key)]
         handles.append(Line2D([], [], color="0.25", ls="--", lw=1,
@@ -288,7 +300,7 @@ def bar_panels(path: Path, title: str, xlabel: str, panels: list[Panel], *, log:
             _legend(fig, axes[-1], handles)
         else:
             fig.legend(handles=handles, loc="outside right upper", frameon=False)
-        _save(fig, Path(path))
+        save(fig, Path(path))
     if data:
         write_csv(Path(path).with_suffix(".csv"), ("panel", "framework", "variant", "value", "lo", "hi", "mark"),
                   [(p.title, b.framework, b.variant, b.value, b.lo, b.hi, b.mark)
@@ -299,39 +311,43 @@ def _variant_key(v: str) -> tuple[int, str]:
     return (VARIANTS.index(v) if v in VARIANTS else len(VARIANTS), v)
 
 
+def _one_axes(n_legend: int, height: float) -> tuple[Any, Any]:
+    """A figure of one axes, taller by the rows of a legend that goes below it."""
+    rows = -(-n_legend // 5) if n_legend > LEGEND_INSIDE else 0
+    return pyplot().subplots(figsize=(WIDTH, height + 0.25 * rows), layout="constrained")
+
+
+def _finish(fig: Any, ax: Any, path: Path, title: str, xlabel: str, ylabel: str, note: str,
+            logx: bool, logy: bool, handles: list[Any]) -> None:
+    ax.set_xscale("log" if logx else "linear")
+    ax.set_yscale("log" if logy else "linear")
+    ax.set_xlabel(xlabel + (f"\n{note}" if note else ""))
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="major", alpha=0.3)
+    tidy_log(ax)
+    _legend(fig, ax, handles)
+    save(fig, Path(path))
+
+
 def curves(path: Path, title: str, xlabel: str, ylabel: str, series: list[Series], *,
            logx: bool = True, logy: bool = True, note: str = "", data: bool = True) -> None:
     """Lines against x, one colour per framework, a marker per series of the same framework,
     the spread (lo/hi) as a shaded band."""
-    plt = _plt()
     import matplotlib
     cmap = colors(s.framework for s in series)
-    n_legend = len(series)
-    size = (WIDTH, 5.2 + 0.25 * (-(-n_legend // 5) if n_legend > LEGEND_INSIDE else 0))
     with matplotlib.rc_context(RC):
-        fig, ax = plt.subplots(figsize=size, layout="constrained")
+        fig, ax = _one_axes(len(series), 5.2)
         seen: dict[str, int] = {}
         handles = []
         for s in sorted(series, key=lambda s: (_order(s.framework), s.label)):
             m = MARKERS[seen.setdefault(s.framework, 0) % len(MARKERS)]
             seen[s.framework] += 1
-            c = cmap[s.framework]
-            (line,) = ax.plot(s.xs, s.ys, ls="--" if s.dashed else "-", marker=m, ms=4, color=c, lw=1.3,
-                              label=s.label)
-            handles.append(line)
+            handles += ax.plot(s.xs, s.ys, ls="--" if s.dashed else "-", marker=m, ms=4,
+                               color=cmap[s.framework], lw=1.3, label=s.label)
             if s.lo is not None and s.hi is not None:
-                ax.fill_between(s.xs, s.lo, s.hi, color=c, alpha=0.18, lw=0)
-        if logx:
-            ax.set_xscale("log")
-        if logy:
-            ax.set_yscale("log")
-        ax.set_xlabel(xlabel + (f"\n{note}" if note else ""))
-        ax.set_ylabel(ylabel)
-        ax.set_title(title, fontsize=10)
-        ax.grid(True, which="major", alpha=0.3)
-        tidy_log(ax)
-        _legend(fig, ax, handles)
-        _save(fig, Path(path))
+                ax.fill_between(s.xs, s.lo, s.hi, color=cmap[s.framework], alpha=0.18, lw=0)
+        _finish(fig, ax, path, title, xlabel, ylabel, note, logx, logy, handles)
     if data:
         write_csv(Path(path).with_suffix(".csv"), ("series", "framework", "x", "y", "lo", "hi"),
                   [(s.label, s.framework, x, y, s.lo[i] if s.lo else None, s.hi[i] if s.hi else None)
@@ -353,7 +369,6 @@ def pareto(path: Path, title: str, xlabel: str, ylabel: str, points: list[tuple[
            data: bool = True) -> None:
     """Scatter of (framework, label, x, y): colour per framework, marker per label, the front
     as a grey step line with its points named."""
-    plt = _plt()
     import matplotlib
     from matplotlib.lines import Line2D
     pts = [p for p in points if math.isfinite(p[2]) and math.isfinite(p[3])]
@@ -361,10 +376,8 @@ def pareto(path: Path, title: str, xlabel: str, ylabel: str, points: list[tuple[
     labels = sorted({p[1] for p in pts})
     marker = {lab: MARKERS[i % len(MARKERS)] for i, lab in enumerate(labels)}
     best = front_of(pts) if front else []
-    n_legend = len(cmap) + len(labels) + bool(best)
-    size = (WIDTH, 5.6 + 0.25 * (-(-n_legend // 5) if n_legend > LEGEND_INSIDE else 0))
     with matplotlib.rc_context(RC):
-        fig, ax = plt.subplots(figsize=size, layout="constrained")
+        fig, ax = _one_axes(len(cmap) + len(labels) + bool(best), 5.6)
         for fw, lab, x, y in sorted(pts, key=lambda p: (_order(p[0]), p[1], p[2], p[3])):
             ax.scatter(x, y, color=cmap[fw], marker=marker[lab], s=36, edgecolors="k", linewidths=0.4,
                        zorder=3)
@@ -374,23 +387,11 @@ def pareto(path: Path, title: str, xlabel: str, ylabel: str, points: list[tuple[
             for fw, lab, x, y in best:
                 ax.annotate(f"{fw} {lab}", (x, y), fontsize=7, color="0.2", xytext=(4, 4),
                             textcoords="offset points")
-        if logx:
-            ax.set_xscale("log")
-        if logy:
-            ax.set_yscale("log")
-        ax.set_xlabel(xlabel + (f"\n{note}" if note else ""))
-        ax.set_ylabel(ylabel)
-        ax.set_title(title, fontsize=10)
-        ax.grid(True, which="major", alpha=0.3)
-        tidy_log(ax)
-        handles = _fw_handles(cmap, cmap, "line")
-        for h in handles:
-            h.set_linestyle("")
+        handles = _fw_handles(cmap, False)
         handles += [Line2D([], [], color="k", marker=marker[lab], ls="", mfc="none", label=lab) for lab in labels]
         if best:
             handles.append(Line2D([], [], color="0.3", lw=3, alpha=0.35, label="Pareto front (lower-left is better)"))
-        _legend(fig, ax, handles)
-        _save(fig, Path(path))
+        _finish(fig, ax, path, title, xlabel, ylabel, note, logx, logy, handles)
     if data:
         on = set(best)
         write_csv(Path(path).with_suffix(".csv"), ("framework", "label", "x", "y", "on_front"),

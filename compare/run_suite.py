@@ -170,11 +170,10 @@ def saved_outputs(directory: Path, records: list[dict[str, Any]],
 
 def render(out: Path, env: dict[str, Any], records: list[dict[str, Any]],
            outputs: dict[int, dict[str, np.ndarray]], plots: bool) -> None:
-    """Plots (time against error, each scenario's picture) and results.csv/.md in ``out``."""
+    """Plots (``report.write_plots``: speed, time against error, each scenario's picture) and
+    results.csv/.md in ``out``."""
     if plots:
-        (out / "plots").mkdir(parents=True, exist_ok=True)
-        report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")
-        report.plot_outputs(records, outputs, out / "plots")
+        report.write_plots(records, outputs, out / "plots")
     report.write_tables(out, env, records, images=report.images_in(out / "plots", out))
 
 
@@ -265,9 +264,7 @@ def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any
     if args.page:
         page = Path(args.page)
         if not args.no_plots:
-            (out / "plots").mkdir(parents=True, exist_ok=True)
-            report.plot_time_vs_error(records, out / "plots" / "time_vs_error.png")
-            report.plot_outputs(records, outputs, out / "plots")
+            report.write_plots(records, outputs, out / "plots")
         rebuild = " ".join(["python -m compare report", *args.files, "--out", args.out, "--page", args.page]
                            + ([f"--title '{args.title}'"] if args.title else [])
                            + (["--notes", args.notes] if args.notes else [])
