@@ -45,6 +45,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     data.load([Path(f) for f in args.files])          # a bad file refused before anything is written
     if args.against:
         data.load([Path(f) for f in args.against])
+        if same := sorted({f.resolve() for p in args.files for f in data._suite_files(Path(p))}
+                          & {f.resolve() for p in args.against for f in data._suite_files(Path(p))}):
+            raise UsageError(f"--against {same[0]} is also one of the RESULTS: compare against another machine's")
     out, lock = options.claim_output(args.out, 64 * 2**20, "the site")
     with lock:
         written = build([Path(f) for f in args.files], out, args.title, [Path(f) for f in args.against])

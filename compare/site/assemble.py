@@ -77,11 +77,14 @@ BUILDERS = {"bandwidth": qp.bandwidth, "per-call": qp.per_call, "particles": qp.
             "cpu": pages.cpu, "stability": pages.stability, "machine": machine}
 
 
-def _store_arg(inputs: list[Path], out: Path) -> str:
+def store_label(inputs: list[Path]) -> str:
+    """How commands name the store: its path from the repository root when it lies there (the
+    committed reports), else STORE."""
+    root = pages.REPO_DOCS.parent
     try:
-        return " ".join(os.path.relpath(p) for p in inputs)
+        return " ".join(str(Path(p).resolve().relative_to(root)) for p in inputs)
     except ValueError:
-        return " ".join(str(p) for p in inputs)
+        return "STORE"
 
 
 def write_site(inputs: list[Path], out: Path, title: str | None, against: list[Path]) -> list[Path]:
@@ -91,7 +94,7 @@ def write_site(inputs: list[Path], out: Path, title: str | None, against: list[P
     if figures.is_dir() and not figures.is_symlink():
         shutil.rmtree(figures)         # pictures of an earlier build never stay beside new pages
     rows, empty = pages.evaluate(m)
-    c = qp.Ctx(m, rows, out, "STORE")
+    c = qp.Ctx(m, rows, out, store_label(inputs))
     title = title or f"Framework comparison: {m.name()}"
     nav = [("Overview", "index.html")] + [(t, f"{k}.html") for k, t in questions.PAGES.items()]
     written: list[Path] = []
@@ -107,7 +110,7 @@ def write_site(inputs: list[Path], out: Path, title: str | None, against: list[P
             path = out / f"{stem}{suffix}"
             atomic_write(path, render(t, nav, blocks))
             written.append(path)
-    atomic_write(out / "matrix.md", pages.matrix_md(rows, m.frameworks, link_prefix="") + "\n\n" + pages.LEGEND + "\n")
+    atomic_write(out / "matrix.md", pages.matrix_md(rows, m.frameworks) + "\n")
     written.append(out / "matrix.md")
     written += sorted(figures.glob("*")) if figures.is_dir() else []
     return written

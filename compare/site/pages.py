@@ -73,7 +73,8 @@ LEGEND = ("Each cell is the framework's figure divided by the best framework's o
 
 def legend() -> Raw:
     """The legend, with real colour swatches in HTML (no emoji font needed) and emoji in Markdown."""
-    text = html.escape(LEGEND)
+    from compare.site.render import inline_html
+    text = inline_html(LEGEND)
     for band, emoji in fmt.BAND_EMOJI.items():
         text = text.replace(emoji, f'<span class="cell {band}" style="display:inline-block;width:1.2em">&nbsp;</span>')
     return Raw(f'<p class="legend">{text}</p>', LEGEND)
@@ -208,7 +209,7 @@ def stability(c: qp.Ctx) -> list[Any]:
                 charts.write_csv(png.with_suffix(".csv"), ("backend", "device", "precision", "setting", "figure", "value"),
                                  [(r["backend"], r["device"], r["precision"], r["setting"], r["figure"], r["value"])
                                   for r in rows])
-                blocks.append(Figure(rel, exp.title, c.cmd(f"stress --only {name}"), rel[:-4] + ".csv"))
+                blocks.append(Figure(rel, exp.title, c.cmd(f"stress --only {name}", resume=False), rel[:-4] + ".csv"))
         shown = exp.table_rows(rows) if exp.table_rows is not None else rows
         blocks.append(Table(("framework", "device", "precision", "setting", "figure", "value", "verdict", "detail"),
                             tuple((r["backend"], r["device"], r["precision"], str(r["setting"]), str(r["figure"]),

@@ -30,8 +30,11 @@ class Ctx:
         """The PNG's path, and the PNG's and CSV's paths relative to the pages."""
         return self.out / "figures" / f"{name}.png", f"figures/{name}.png", f"figures/{name}.csv"
 
-    def cmd(self, *words: str) -> str:
-        return "python -m compare " + " ".join(words) + f"\npython -m compare site {self.store_arg} --out REPORT"
+    def cmd(self, *words: str, resume: bool = True) -> str:
+        """The commands that remeasure a figure's cells into the store and rebuild the site."""
+        store = self.store_arg if " " not in self.store_arg else "STORE"
+        return (f"python -m compare {' '.join(words)}{' --resume' if resume else ''} --out {store}\n"
+                f"python -m compare site {self.store_arg} --out {store}/report")
 
 
 def verdicts(rows: list[Row]) -> list[Block]:
@@ -134,6 +137,7 @@ def per_call(c: Ctx) -> Page:
     panels = [charts.Panel(g, [_bar(r, matrix.regime(g)) for r in sax
                                if r["status"] != "ok" or data.per_call(r, g) is not None])
               for g in data.REGIMES]
+    panels = [p for p in panels if any(b.value is not None for b in p.bars)]
     png, rel, csv = c.fig("per-call-saxpy")
     charts.bar_panels(png, f"SAXPY n = 10^6 ({c.device}, float32): per-call cost by regime",
                       "seconds per call (whiskers: quartiles; log scale)", panels, log=True, fmt=fmt.seconds)

@@ -1,0 +1,51 @@
+"""The committed reports are generated, current and embedded in README unchanged.
+
+Each docs/results/<machine>/report is rebuilt from its store beside the committed one (at the same
+depth, so relative links to docs/ are the same) and every page, table and figure's data must match
+byte for byte; pictures must be the same set (PNG bytes depend on the installed font renderer).
+README's matrices must equal the reports' matrix.md (``python -m compare.site.readme`` rewrites them).
+"""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from compare.site import readme
+
+ROOT = Path(__file__).resolve().parents[1]
+REPORTS = sorted(p.parent.parent for p in (ROOT / "docs" / "results").glob("*/report/index.html"))
+NOT_GENERATED = {"overview.png"}          # README's screenshot of the overview, taken by a browser
+
+
+def files(d: Path) -> set[str]:
+    return {str(p.relative_to(d)) for p in d.rglob("*") if p.is_file() and p.name not in NOT_GENERATED}
+
+
+def test_committed_reports_exist() -> None:
+    assert {p.name for p in REPORTS} >= {"h100", "cpu"}
+
+
+def test_readme_matrices_are_the_generated_ones() -> None:
+    assert set(readme.blocks()) >= {"docs/results/h100/report/matrix.md", "docs/results/cpu/report/matrix.md"}
+    assert readme.expected() == (ROOT / "README.md").read_text(encoding="utf-8"), \
+        "README's matrices differ from the reports: run python -m compare.site.readme"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("store", REPORTS, ids=[p.name for p in REPORTS])
+def test_committed_report_rebuilds_identically(store: Path) -> None:
+    from compare import site
+    committed = store / "report"
+    fresh = store / f".rebuild-{os.getpid()}"
+    try:
+        site.build([store], fresh)
+        assert files(fresh) == files(committed), "pages or figures added or missing: rebuild the report"
+        for name in sorted(files(committed)):
+            if not name.endswith(".png"):
+                assert (fresh / name).read_bytes() == (committed / name).read_bytes(), \
+                    f"{committed / name} differs from its store: python -m compare site {store} --out {committed}"
+    finally:
+        shutil.rmtree(fresh, ignore_errors=True)
