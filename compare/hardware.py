@@ -69,7 +69,7 @@ def copy_in_slices(dst: np.ndarray, src: np.ndarray, pool: ThreadPoolExecutor, p
 
 def measure_cpu() -> dict[str, Any]:
     """The faster of one thread's ``numpy.copyto`` and one per core on a slice each (copyto
-    releases the GIL): the multi-threaded ports' copies beat one thread's (docs/results/cpu.md)."""
+    releases the GIL): the multi-threaded ports' copies beat one thread's (docs/measurement.md)."""
     n = 1 << 25                                    # float32: 128 MiB per array
     src = np.ones(n, np.float32)
     dst = np.empty_like(src)

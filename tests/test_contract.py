@@ -1,4 +1,4 @@
-"""The contract between the driver and a port, and README's "Adding a backend", proven.
+"""The contract between the driver and a port, and docs/adding.md's "Adding a backend", proven.
 
 A copy of the repository gets backends written by following README's steps alone:
   * ``tiny``: a correct NumPy port (CPU only; it reports no CUDA) of the four scenarios in 'all'

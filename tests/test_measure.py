@@ -306,17 +306,17 @@ def test_old_records_are_upgraded_to_tags():
 def test_old_files_upgrade_without_importing_the_suite():
     """The store upgrades a format-1 file's records itself (no import side effect needed), so
     saving it never writes old-shape records under format 2."""
-    code = ("from compare.store import Store; s = Store.read('docs/results/gpu-measurement/sweep.json', 'sweep'); "
+    code = ("from compare.store import Store; s = Store.read('tests/data/format1-sweep.json', 'sweep'); "
             "assert s.upgraded_from == 1 and s.records and all('tags' in r for r in s.records), 'not upgraded'")
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
 
 
 @pytest.mark.parametrize("published,device,old_format", [
-    ("cpu/sweep.json", "cpu", None),                 # today's format
-    ("gpu-measurement/sweep.json", "cuda", 1)])      # a format-1 file, upgraded on reading
+    ("docs/results/cpu/sweep.json", "cpu", None),    # today's format
+    ("tests/data/format1-sweep.json", "cuda", 1)])   # a format-1 file, upgraded on reading
 def test_published_sweep_file_still_renders(tmp_path, published, device, old_format):
-    store = Store.read(ROOT / "docs" / "results" / published, "sweep")
+    store = Store.read(ROOT / published, "sweep")
     assert store.upgraded_from == old_format
     data = sweep.contents(store)
     assert all("tags" in r for r in data["records"])

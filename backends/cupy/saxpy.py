@@ -5,7 +5,7 @@
   float32; ``a * x + y`` contracts to one FMA under NVRTC's default, as in Warp and Numba.
 * ``vector``: a ``cupy.RawKernel`` that moves 16 bytes per load and store (``float4`` in float32,
   ``double2`` in float64), the CUDA C idiom for bandwidth-bound kernels: the ElementwiseKernel
-  reaches 83-85 % of a device memcpy at 2^26 elements (docs/results/h100-regimes-8.md), and wider
+  falls short of the 90 % target at large n (docs/results/h100/report/bandwidth.md), and wider
   accesses keep more bytes in flight per thread. Each vector is one thread; the ``n % W`` tail
   elements get one thread each, after the vectors. The same arithmetic: one FMA per element under
   NVRTC's default, as the ElementwiseKernel.

@@ -6,9 +6,9 @@ scenario's step order, each contact a select) and compiled for both targets:
 * CUDA: one thread owns one particle and loops over all steps in registers (one launch per run).
 * CPU: each ``prange`` iteration owns a chunk of particles and runs the steps outside, the
   particles of its chunk inside, so LLVM vectorises the inner loop across particles (SIMD). The
-  one-particle-per-iteration form runs every step as one serial chain of dependent operations:
-  0.34 G particle-steps/s at n = 2^20 on the 2-core CPU, against 15.8 G/s now
-  (docs/results/cpu.md), with bit-identical results (tests/test_numba.py).
+  one-particle-per-iteration form runs every step as one serial chain of dependent operations,
+  many times slower (docs/results/cpu/report/particles.md), with bit-identical results
+  (tests/test_numba.py).
 
 Trajectory frames are written only when ``record_every`` asks for them (otherwise the traj arrays
 are empty).
