@@ -234,7 +234,10 @@ class Browser:
         session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
         for domain in ("Runtime", "Log", "Network", "Page"):
             self.call(f"{domain}.enable", session=session)
-        self.call("Network.setBlockedURLs", {"urls": ["http://*", "https://*"]}, session=session)
+        try:     # never wait on the network (an experimental command: a browser without it still reports)
+            self.call("Network.setBlockedURLs", {"urls": ["http://*", "https://*"]}, session=session)
+        except BrowserError:
+            pass
         self.call("Emulation.setDeviceMetricsOverride",
                   {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False}, session=session)
         self._pending = [e for e in self._pending if e.get("sessionId") != session]
