@@ -219,11 +219,13 @@ def yardstick_line(m: Machine, ref: Machine, devices: Iterable[str]) -> str:
         if a and b:
             ma, mb = statistics.median(a), statistics.median(b)
             parts.append(f"on {dev} this run copies at {fmt.rate(ma, 'B/s')}, the reference at "
-                         f"{fmt.rate(mb, 'B/s')} (a byte takes {fmt.ratio(mb / ma)} the reference's time here)")
+                         f"{fmt.rate(mb, 'B/s')}" + ("" if 0.95 < mb / ma < 1.05 else
+                                                     f": a byte takes {fmt.ratio(mb / ma)} the reference's time here, "
+                                                     "and a bandwidth-bound cell may differ by as much for that alone"))
     if not parts:
         return ""
     return ("The machines before any framework (same-run copy yardstick, medians over runs): "
-            + "; ".join(parts) + ". A bandwidth-bound cell can differ by that much for that alone.")
+            + "; ".join(parts) + ".")
 
 
 def summary(mm: Matching) -> list[Block]:
@@ -240,10 +242,11 @@ def summary(mm: Matching) -> list[Block]:
         lines.append(f"Median ratio on {dev}: **{fmt.ratio(statistics.median(c.ratio for c in on))}** "
                      f"over {len(on)} pairs ({'; '.join(per)}).")
     if mm.changed:
-        lines.append(f"**{len(mm.changed)} cells changed status** (listed first, below).")
-    if mm.both_failed or mm.untimed:
-        lines.append(f"Not compared: {mm.both_failed} cells failed or were skipped on both sides, "
-                     f"{mm.untimed} have no timed regime in common.")
+        lines.append(f"**{_n(len(mm.changed), 'cell')} changed status** (listed first, below).")
+    skipped = [f"{_n(k, 'cell')} {why}" for k, why in ((mm.both_failed, "failed or skipped on both sides"),
+                                                       (mm.untimed, "without a timed regime in common")) if k]
+    if skipped:
+        lines.append("Not compared: " + ", ".join(skipped) + ".")
     lines.append(_only(mm))
     return [Items(tuple(lines))]
 
@@ -252,6 +255,10 @@ def _only(mm: Matching) -> str:
     return (f"Cells on one side only (not listed): {len(mm.only_mine)} only in this run "
             f"({_scenarios(mm.only_mine)}), {len(mm.only_ref)} only in the reference "
             f"({_scenarios(mm.only_ref)}).")
+
+
+def _n(k: int, word: str) -> str:
+    return f"{k} {word}{'' if k == 1 else 's'}"
 
 
 def figure(c: Ctx, mm: Matching) -> list[Block]:
@@ -275,9 +282,7 @@ def figure(c: Ctx, mm: Matching) -> list[Block]:
             lo = _geo([x.mine.lo / x.ref.hi for x in xs]) if all(x.mine.lo > 0 for x in xs) else None
             hi = _geo([x.mine.hi / x.ref.lo for x in xs]) if all(x.ref.lo > 0 for x in xs) else None
             inside = sum(x.verdict == WITHIN for x in xs)
-            mark = (f"{inside}/{len(xs)} within spread" if len(xs) > 1
-                    else WITHIN if inside else "")
-            bars.append(charts.Bar(fw, var, _geo([x.ratio for x in xs]), lo, hi, mark))
+            bars.append(charts.Bar(fw, var, _geo([x.ratio for x in xs]), lo, hi, f"{inside}/{len(xs)} within spread"))
         panels.append(charts.Panel(f"{dev}, {g}", bars))
     png, rel, csv = c.fig("against-ratio")
     charts.bar_panels(png, "Per-call time, this run / the reference",
