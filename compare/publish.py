@@ -1,17 +1,396 @@
 """Run what a machine's report needs, then build its site (``python -m compare publish``).
 
-(Being written: see issue 28, item 3.)
+    compare publish --out DIR [--part NAME[,NAME...]] [--list] [--devices ...] [--backends ...]
+                    [--timeout S] [--quick] [--budget S]
+
+DIR is one machine's store, as docs/results/h100/ and cpu/ are: results.json, sweep.json,
+stress.json, and the site in DIR/report/. The parts, in order (``--list`` prints each command):
+
+  all             every scenario in 'all', float32 and float64, every variant, both timing regimes
+                  (the default), with --host-profile (where host time goes)
+  large-DEV-SCn   a kernel-dominated size, float32, the default variant and those that change how
+                  a bandwidth-bound kernel is issued or loads memory (graph, vector, tile). CUDA:
+                  saxpy n=2^26 and 2^28, particles 2^24 (as the H100 store). CPU: saxpy 2^24 and
+                  2^26 (arrays of 64 MiB and more: far beyond the last-level cache, so DRAM-bound,
+                  yet seconds per cell on 2 cores), particles 2^20 (the CPU scaling sweep's top n).
+                  Sizes that do not fit the host's free memory (or the GPU's) are left out, said by
+                  --list. Particles check 4096 sampled items (the float64 oracle of all: minutes).
+  bandwidth, scaling, error, horizon       the sweeps (compare sweep KIND --resume)
+  stress-EXPERIMENT    the stability suite, one experiment each (--only), into DIR/stress-parts/;
+                  full where CUDA is in the plan, else --quick; ulps and races also on the CPU
+  stress-merge    stress --merge of DIR/stress.json and DIR/stress-parts/*/stress.json into DIR
+  site            compare site DIR --out DIR/report (compare.site.build([DIR], DIR/report))
+
+The plan is CUDA's when --devices includes cuda (the default where nvidia-smi lists a GPU, else
+cpu). ``--part`` takes names or the groups ``large`` and ``stress``.
+
+Resuming. Every measuring part passes --resume: a rerun keeps the cells its store holds as ok,
+mismatch or skipped and runs the rest (``run --resume`` keeps other plans' records too, so the large
+and default sizes share results.json). Stress has no --resume: an experiment run again replaces
+its rows in that --out, every backend's. So each experiment runs into its own folder (named with
+--backends unless all) and ``stress --merge`` (newer files win per experiment, backend and device;
+a skipped row erases no finding) carries them into DIR: a run with fewer backends keeps the
+others' rows, and a cut-off part loses only its own experiment. An experiment cut off twice in a
+row is not retried by a plain rerun (it needs more than one call): run it per backend with
+``--part stress-E --backends B``, which the merge picks up. A part is done when its latest
+attempt with the same command (--timeout aside) exited 0, or 1: it ran to the end with some
+mismatch or error cells, data the report marks (--part reruns it, retrying error cells).
+stress-merge and site are done only when they ran after every part they read. A done part is
+skipped unless --part names it.
+
+Parts run one by one as subprocesses, not in-process through compare.cli.main: a driver that
+crashes, exhausts memory or hangs in an import takes only its part down; each part starts with
+clean process-global state (frameworks, matplotlib, test hooks) and exits with the subcommand's
+own status; and --budget or Ctrl-C can stop it (SIGINT, SIGKILL after a grace) while publish logs
+the attempt. A failed part does not stop later ones. --budget S: after S seconds the running part
+is interrupted (its finished cells are kept) and none starts; the same command continues (under
+a 10-minute call limit, --budget 540 leaves time to copy DIR out).
+
+Exit: 0 every selected part done with 0; 1 some part ended with 1 or failed (rerun); 2 bad usage
+(one line, nothing written); 3 stopped by --budget with parts left; 130 Ctrl-C.
+
+Run time: the sum of the parts'; a measuring part's is about its cells times (a worker's start,
+import and first-call compile, then at least --min-time per timing regime), growing with the
+backends installed and their variants. On a CPU the error sweep (most cells) and the all part
+dominate; on CUDA the full stress suite and the error and scaling sweeps (one or more 10-minute
+calls each); the site takes seconds.
+
+DIR/publish.json, the progress log (the site's machine page reads it; written atomically):
+
+    {"format_version": 1,
+     "parts": [{"name": "all",                    one entry per attempt, oldest first
+                "argv": ["all", "--devices", ...], the command after ``python -m compare``
+                "started": "2026-01-01T00:00:00+00:00",   ISO 8601, UTC
+                "seconds": 123.4,                  wall time (so far, updated each minute, while
+                                                   running or if publish was killed)
+                "exit_code": 0,                    null then; negative: ended by that signal
+                "interrupted": false,              true: publish stopped it (--budget, Ctrl-C)
+                "host": {"hostname", "cpu", "cores", "gpus": [{name, driver, memory}]}}]}
+
+A machine's publish run time is the sum of ``seconds`` over ``parts``. History: 1, the first.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import datetime
+import json
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
 
-from compare.options import UsageError
+import backends
+import scenarios
+from compare import environment, options
+from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
+from compare.store import StoreError, atomic_write
+
+FORMAT_VERSION, LOG = 1, "publish.json"
+LOCK = ".publish.lock"         # publish's own lock: each part locks DIR itself while it writes
+DONE_CODES, EXIT_BUDGET = (0, 1), 3
+GRACE_S, HEARTBEAT_S = 30.0, 60.0   # a driver saves and exits within seconds of SIGINT
+HOST_PROFILE_TOP, CHECK_SAMPLE, STAGED = 12, 4096, "stress-parts"
+SWEEPS = ("bandwidth", "scaling", "error", "horizon")
+GROUPS = ("large", "stress")
+# (scenario, log2 n) per device; --quick shrinks them (tests, a look at the pipeline)
+LARGE = {"cuda": (("saxpy", 26), ("saxpy", 28), ("particles", 24)),
+         "cpu": (("saxpy", 24), ("saxpy", 26), ("particles", 20))}
+LARGE_QUICK = (("saxpy", 16), ("saxpy", 18), ("particles", 12))
+LARGE_VARIANTS = {"saxpy": ("default", "graph", "vector", "tile"), "particles": ("default", "graph")}
+
+
+@dataclasses.dataclass(frozen=True)
+class Part:
+    name: str
+    argv: tuple[str, ...]
+    reads: tuple[str, ...] = ()     # a derived part: it reruns after any of these ran
+    resumes: bool = True            # a rerun continues where a cut-off attempt stopped
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, help="the machine's results folder")
+    p.add_argument("--out", required=True, help="the machine's store (the site goes to OUT/report)")
+    p.add_argument("--part", default=None, metavar="NAME[,NAME...]",
+                   help="run only these parts (or groups: large, stress), also when done")
+    p.add_argument("--list", action="store_true", help="print the parts, commands, states; run nothing")
+    p.add_argument("--devices", default=None, help="cpu, cuda or both (default: cuda if nvidia-smi lists a GPU)")
+    p.add_argument("--backends", default="all", help="comma-separated backend names, or all")
+    p.add_argument("--timeout", type=options.seconds, default=None, help="seconds before a cell is killed")
+    p.add_argument("--quick", action="store_true", help="pass --quick to every part (small sizes: CI)")
+    p.add_argument("--budget", type=options.seconds, default=None, metavar="S",
+                   help="stop after S seconds (the running part keeps its finished cells)")
+
+
+# ---- the plan -----------------------------------------------------------------------------
+def memory() -> dict[str, float]:
+    """Bytes free for one worker on the host, and on the smallest GPU (absent: none listed)."""
+    import psutil
+    have = {"cpu": float(psutil.virtual_memory().available)}
+    sizes = [g.get("memory", "").split()[:1] for g in environment.gpus()]    # "81559 MiB"
+    sizes = [float(m[0]) * 2**20 for m in sizes if m and m[0].isdigit()]
+    return {**have, "cuda": min(sizes)} if sizes else have
+
+
+def large_parts(devices: list[str], chosen: list[str], common: list[str], quick: bool,
+                have: dict[str, float]) -> tuple[list[Part], list[str]]:
+    """The large parts, and a line per size left out because it does not fit."""
+    from compare.run_suite import WORKER_BASELINE_BYTES
+    parts, left = [], []
+    for dev in devices:
+        for name, exp in (LARGE_QUICK if quick else LARGE.get(dev, ())):
+            sc = scenarios.get(name)
+            p = sc.params({"n": 2**exp}, quick=quick)
+            host = WORKER_BASELINE_BYTES[dev] + sc.footprint(p, "float32")
+            arrays = sc.input_bytes(p, "float32") + sc.output_bytes(p, "float32")
+            if host > have.get("cpu", float("inf")) or (dev == "cuda" and arrays > have.get("cuda", float("inf"))):
+                left.append(f"large-{dev}-{name}{exp}: left out, needs {options.gib(host)} of host memory"
+                            + (f" and {options.gib(arrays)} on the GPU" if dev == "cuda" else ""))
+                continue
+            variants = [v for v in LARGE_VARIANTS[name] if any(
+                v in backends.get(b).variants_for(name) and not backends.get(b).variant_unavailable(v, dev)
+                for b in chosen)] or ["default"]
+            argv = ["run", name, "--devices", dev, *common, "--precision", "float32", "--variants",
+                    ",".join(variants), "--set", f"n={2**exp}"] + (["--check-sample", str(CHECK_SAMPLE)]
+                                                                   if name == "particles" else [])
+            parts.append(Part(f"large-{dev}-{name}{exp}", tuple(argv)))
+    return parts, left
+
+
+def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
+         timeout: float | None = None, have: dict[str, float] | None = None) -> tuple[list[Part], list[str]]:
+    """Every part in run order, and notes on what was left out. ``out`` as the user spelled it."""
+    chosen = options.names(backends_arg, backends.BACKENDS, "backends")
+    devs = ",".join(devices)
+    sel = ["--backends", backends_arg]
+    tmo = ["--timeout", f"{timeout:g}"] if timeout is not None else []
+    tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
+    parts = [Part("all", ("all", "--devices", devs, *sel, "--precision", "float32,float64",
+                          "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *tail))]
+    large, notes = large_parts(devices, chosen, sel, quick, have if have is not None else memory())
+    parts += [dataclasses.replace(p, argv=p.argv + tuple(tail)) for p in large]
+    parts += [Part(k, ("sweep", k, "--devices", devs, *sel, *tail)) for k in SWEEPS]
+    from compare.stress import experiments, generic
+    for exp in experiments():      # ulps and races compare each device with the CPU
+        d = [x for x in backends.DEVICES if x in devices or (x == "cpu" and exp in generic.EXPERIMENTS)]
+        folder = Path(out) / STAGED / (exp if backends_arg == "all" else "-".join([exp, *chosen]))
+        parts.append(Part(f"stress-{exp}", ("stress", "--devices", ",".join(d), *sel, "--only", exp,
+                                            "--out", str(folder), "--no-plots", *tmo)
+                          + (("--quick",) if quick or "cuda" not in devices else ()), resumes=False))
+    parts.append(Part("stress-merge", ("stress", "--merge", str(Path(out) / "stress.json"),
+                                       str(Path(out) / STAGED / "*" / "stress.json"), "--out", out, "--no-plots"),
+                      reads=tuple(p.name for p in parts if p.name.startswith("stress-"))))
+    parts.append(Part("site", ("site", out, "--out", str(Path(out) / "report")),
+                      reads=tuple(p.name for p in parts)))
+    return parts, notes
+
+
+def merge_argv(part: Part) -> tuple[str, ...] | None:
+    """stress-merge's command with the files that exist now, oldest first (a newer file wins);
+    None when no experiment has run."""
+    import glob
+    i, j = part.argv.index("--merge"), part.argv.index("--out")
+    staged = glob.glob(part.argv[i + 2])
+    files = sorted([f for f in part.argv[i + 1:i + 2] if Path(f).is_file()] + staged, key=os.path.getmtime)
+    return (*part.argv[:i + 1], *files, *part.argv[j:]) if staged else None
+
+
+def select(parts: list[Part], spec: str | None) -> list[Part]:
+    """The parts --part names (names or groups), in plan order; all without --part."""
+    if spec is None:
+        return parts
+    names = options.no_duplicates([s.strip() for s in spec.split(",") if s.strip()], "--part")
+    known = f"parts: {', '.join(p.name for p in parts)}; groups: {', '.join(GROUPS)}"
+    if not names:
+        raise UsageError(f"--part is empty ({known})")
+    bad = [n for n in names if n not in GROUPS and n not in {p.name for p in parts}]
+    if bad:
+        raise UsageError(f"unknown part {bad[0]!r} ({known})")
+    return [p for p in parts if p.name in names or any(p.name.startswith(g + "-") for g in names if g in GROUPS)]
+
+
+# ---- the log ------------------------------------------------------------------------------
+def load_log(out: Path) -> dict[str, Any]:
+    """DIR/publish.json (an empty log when absent); a malformed one is refused in one line."""
+    path = Path(out) / LOG
+    if not path.exists():
+        return {"format_version": FORMAT_VERSION, "parts": []}
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise StoreError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    if not isinstance(data, dict) or data.get("format_version") != FORMAT_VERSION:
+        raise StoreError(f"{path}: not a publish log of format {FORMAT_VERSION}")
+    parts = data.get("parts")
+    if not isinstance(parts, list) or not all(isinstance(e, dict) and isinstance(e.get("name"), str)
+                                              and isinstance(e.get("argv"), list) for e in parts):
+        raise StoreError(f"{path}: 'parts' must be a list of objects with a name and an argv")
+    return data
+
+
+def identity(argv: Any, out: str) -> list[str]:
+    """A command as compared for 'the same part': --timeout aside, paths under DIR relative to it."""
+    base = Path(out).resolve()
+    words, skip = [], False
+    for w in map(str, argv):
+        if skip or w == "--timeout":
+            skip = not skip
+            continue
+        r = Path(w).resolve()
+        words.append(("DIR/" + str(r.relative_to(base))) if r == base or base in r.parents else w)
+    return words
+
+
+def cut_off(e: dict[str, Any]) -> bool:
+    code = e.get("exit_code")
+    return code is None or bool(e.get("interrupted")) or code == EXIT_INTERRUPTED or code < 0
+
+
+def state(part: Part, log: dict[str, Any], out: str) -> str:
+    """'done', 'done (exit 1 ...)', 'given up ...', or why the part is to run. A measuring part is
+    judged by its latest attempt with the same command, a derived one by its latest attempt."""
+    mine = [(i, e) for i, e in enumerate(log["parts"]) if e["name"] == part.name
+            and (part.reads or identity(e["argv"], out) == identity(part.argv, out))]
+    if not mine:
+        return "to run"
+    (i, e), code = mine[-1], mine[-1][1].get("exit_code")
+    if code in DONE_CODES and not cut_off(e):
+        newer = [r for r in part.reads if max((k for k, x in enumerate(log["parts"]) if x["name"] == r), default=-1) > i]
+        return (f"to run ({', '.join(newer)} ran since)" if newer else
+                "done" if code == 0 else "done (exit 1: some cells mismatch or error)")
+    if not part.resumes and len(mine) > 1 and all(cut_off(x) for _, x in mine[-2:]):
+        return (f"given up (cut off twice: longer than one call; run it per backend, "
+                f"--part {part.name} --backends B)")
+    return "to run (" + ("publish was killed during it" if code is None else "interrupted" if e.get("interrupted")
+                         else f"last attempt exited {code}") + ")"
+
+
+def host() -> dict[str, Any]:
+    import platform
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 0
+    return {"hostname": platform.node(), "cpu": environment.cpu_model(), "cores": cores,
+            "gpus": environment.gpus()}
+
+
+def save_log(out: Path, log: dict[str, Any]) -> None:
+    atomic_write(Path(out) / LOG, json.dumps(log, indent=1))
+
+
+def started() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+# ---- running ------------------------------------------------------------------------------
+def child_env() -> dict[str, str]:
+    """This environment, with the tree on PYTHONPATH (a copied tree may not be installed)."""
+    env = dict(os.environ)
+    paths = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
+    if str(environment.ROOT) not in paths:
+        env["PYTHONPATH"] = os.pathsep.join([str(environment.ROOT), *paths])
+    return env
+
+
+def stop(proc: subprocess.Popen, interrupt: bool = True) -> int:
+    """Interrupt a part (SIGINT: its driver saves and exits); kill it after the grace."""
+    if interrupt:
+        proc.send_signal(signal.SIGINT)
+    try:
+        return proc.wait(timeout=GRACE_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.wait()
+
+
+def execute(argv: list[str], deadline: float | None, tick: Any) -> tuple[int, str | None]:
+    """Run one part to its end; (exit code, None | 'budget' | 'interrupted')."""
+    proc = subprocess.Popen([sys.executable, "-m", "compare", *argv], env=child_env())
+    try:
+        while True:
+            left = HEARTBEAT_S if deadline is None else min(HEARTBEAT_S, deadline - time.monotonic())
+            try:
+                return proc.wait(timeout=max(0.0, left)), None
+            except subprocess.TimeoutExpired:
+                tick()
+                if deadline is not None and time.monotonic() >= deadline:
+                    return stop(proc), "budget"
+    except KeyboardInterrupt:       # Ctrl-C reached the part too (one process group)
+        return stop(proc, interrupt=False), "interrupted"
+
+
+def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: float | None) -> int:
+    """Run the chosen parts not done yet (all of them when ``forced``), logging every attempt."""
+    log = load_log(out)
+    deadline = None if budget is None else time.monotonic() + budget
+    who = host()
+    for k, part in enumerate(chosen, 1):
+        st = state(part, log, out_s)
+        if not forced and st.startswith(("done", "given up")):
+            print(f"publish: {part.name}: {st}, skipped", flush=True)
+            continue
+        if deadline is not None and time.monotonic() >= deadline:
+            print(f"publish: --budget spent before {part.name}; run the same command again", file=sys.stderr)
+            return EXIT_BUDGET
+        argv = merge_argv(part) if part.name == "stress-merge" else part.argv
+        if argv is None:
+            print(f"publish: {part.name}: no stress experiment has run, nothing to merge", flush=True)
+            continue
+        print(f"publish: [{k}/{len(chosen)}] {part.name}: python -m compare {shlex.join(argv)}", flush=True)
+        entry: dict[str, Any] = {"name": part.name, "argv": list(argv), "started": started(),
+                                 "seconds": 0.0, "exit_code": None, "interrupted": False, "host": who}
+        log["parts"].append(entry)
+        save_log(out, log)
+        t0 = time.monotonic()
+
+        def tick() -> None:          # a publish killed mid-part still shows the time spent
+            entry["seconds"] = round(time.monotonic() - t0, 1)
+            try:
+                save_log(out, log)
+            except OSError:
+                pass
+        code, why = execute(list(argv), deadline, tick)
+        entry.update(seconds=round(time.monotonic() - t0, 1), exit_code=code, interrupted=why is not None)
+        save_log(out, log)
+        print(f"publish: {part.name}: exit {code} after {entry['seconds']:.0f} s", flush=True)
+        if why is not None:
+            print("interrupted" if why == "interrupted" else f"publish: --budget spent during {part.name} "
+                  "(its finished cells are kept); run the same command again", file=sys.stderr)
+            return EXIT_INTERRUPTED if why == "interrupted" else EXIT_BUDGET
+    bad = [f"{p.name}: {st}" for p in chosen if (st := state(p, log, out_s)) != "done"]
+    print("publish: " + ("every part done" if not bad else "; ".join(bad)), flush=True)
+    return EXIT_FAIL if bad else EXIT_OK
+
+
+def print_list(parts: list[Part], chosen: list[Part], log: dict[str, Any], out_s: str,
+               devices: list[str], notes: list[str]) -> None:
+    print(f"publish {out_s} (devices: {','.join(devices)}; {len(parts)} parts, in this order):")
+    for p in chosen:
+        print(f"  {p.name}: {state(p, log, out_s)}")
+        argv = (merge_argv(p) or p.argv) if p.name == "stress-merge" else p.argv
+        print(f"      python -m compare {shlex.join(argv)}")
+    for n in notes:
+        print(f"  {n}")
 
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
-    raise UsageError("compare publish is not written yet")
+    options.check_output(args.out)
+    devices = (options.names(args.devices, backends.DEVICES, "devices") if args.devices is not None
+               else ["cuda"] if environment.gpus() else ["cpu"])
+    parts, notes = plan(args.out, devices, args.backends, args.quick, args.timeout)
+    chosen = select(parts, args.part)
+    log = load_log(Path(args.out))            # a bad log refused before anything is written
+    if args.list:
+        print_list(parts, chosen, log, args.out, devices, notes)
+        return EXIT_OK
+    from compare.lock import Busy, DirectoryLock
+    out = options.output_directory(args.out)
+    lock = DirectoryLock(out)
+    lock.path = out / LOCK
+    try:
+        lock.acquire()
+    except Busy as exc:
+        raise UsageError(str(exc)) from None
+    with lock:
+        return run_parts(chosen, args.part is not None, args.out, out, args.budget)
