@@ -68,7 +68,15 @@ def _env_rows(m: Machine) -> dict[str, str]:
             "CUDA toolkit": _distinct(e.get("cuda_toolkit") for e in envs),
             "commits": _distinct(str(e.get("git_commit")) + (" (dirty)" if e.get("git_dirty") else "")
                                  for e in envs if e.get("git_commit"))}
+    load = _load(m)
+    rows["host load while timing (1-min average, median over cells)"] = f"{load:.1f}" if load is not None else "-"
     return rows
+
+
+def _load(m: Machine) -> float | None:
+    # a busy host slows every cell alike: the first thing to rule out when all ratios move together
+    load = [v for r in m.records if (v := data.num(r.get("host_load_1m"))) is not None]
+    return statistics.median(load) if load else None
 
 
 def _yard_rows(m: Machine, devices: list[str]) -> dict[str, str]:
@@ -218,14 +226,17 @@ def yardstick_line(m: Machine, ref: Machine, devices: Iterable[str]) -> str:
         b = [v for v in _yard(ref, dev, "copy_bytes_per_s") if v]
         if a and b:
             ma, mb = statistics.median(a), statistics.median(b)
+            same = 0.95 < mb / ma < 1.05
             parts.append(f"on {dev} this run copies at {fmt.rate(ma, 'B/s')}, the reference at "
-                         f"{fmt.rate(mb, 'B/s')}" + ("" if 0.95 < mb / ma < 1.05 else
-                                                     f": a byte takes {fmt.ratio(mb / ma)} the reference's time here, "
-                                                     "and a bandwidth-bound cell may differ by as much for that alone"))
-    if not parts:
-        return ""
-    return ("The machines before any framework (same-run copy yardstick, medians over runs): "
-            + "; ".join(parts) + ".")
+                         f"{fmt.rate(mb, 'B/s')} (same-run copy yardstick, medians over runs)"
+                         + ("" if same else f": a byte takes {fmt.ratio(mb / ma)} the reference's time "
+                            "here, and a bandwidth-bound cell may differ by as much for that alone"))
+    la, lb = _load(m), _load(ref)
+    if la is not None and lb is not None:
+        parts.append(f"the host's load while timing (1-min average, median over cells) was {la:.1f} here "
+                     f"and {lb:.1f} on the reference"
+                     + (" (a busy host slows every cell)" if abs(la - lb) >= 1 else ""))
+    return ("Before any framework: " + "; ".join(parts) + ".") if parts else ""
 
 
 def summary(mm: Matching) -> list[Block]:
