@@ -191,9 +191,8 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
 def merge_argv(part: Part) -> tuple[str, ...] | None:
     """stress-merge's command with the files that exist now, oldest first (a newer file wins);
     None when no experiment has run."""
-    import glob
     i, j = part.argv.index("--merge"), part.argv.index("--out")
-    staged = glob.glob(part.argv[i + 2])
+    staged = [str(f) for f in Path(part.argv[i + 2]).parent.parent.glob("*/stress.json")]   # DIR taken literally
     files = sorted([f for f in part.argv[i + 1:i + 2] if Path(f).is_file()] + staged, key=os.path.getmtime)
     return (*part.argv[:i + 1], *files, *part.argv[j:]) if staged else None
 
@@ -225,9 +224,10 @@ def load_log(out: Path) -> dict[str, Any]:
     if not isinstance(data, dict) or data.get("format_version") != FORMAT_VERSION:
         raise StoreError(f"{path}: not a publish log of format {FORMAT_VERSION}")
     parts = data.get("parts")
-    if not isinstance(parts, list) or not all(isinstance(e, dict) and isinstance(e.get("name"), str)
-                                              and isinstance(e.get("argv"), list) for e in parts):
-        raise StoreError(f"{path}: 'parts' must be a list of objects with a name and an argv")
+    if not isinstance(parts, list) or not all(
+            isinstance(e, dict) and isinstance(e.get("name"), str) and isinstance(e.get("argv"), list)
+            and (e.get("exit_code") is None or type(e["exit_code"]) is int) for e in parts):
+        raise StoreError(f"{path}: 'parts' must be a list of objects with a name, an argv, an exit_code")
     return data
 
 

@@ -108,7 +108,7 @@ def test_states_of_the_log():
     assert publish.state(sweep, log, "d") == "to run"
     log["parts"] += [entry(sweep, 1, [*sweep.argv, "--timeout", "5"])]       # --timeout aside
     assert publish.state(sweep, log, "d").startswith("done (exit 1")
-    assert publish.state(sweep, log, os.path.abspath("d")) .startswith("done")     # DIR spelled otherwise
+    assert publish.state(sweep, log, os.path.abspath("d")).startswith("done")     # DIR spelled otherwise
     log["parts"] += [entry(sweep, 0, ["sweep", "bandwidth", "--backends", "numpy", "--out", "d"])]
     assert publish.state(sweep, log, "d").startswith("done")                  # another command's attempt
     log["parts"] += [entry(site, 0)]
