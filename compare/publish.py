@@ -258,7 +258,7 @@ def state(part: Part, log: dict[str, Any], out: str) -> str:
         return "to run"
     (i, e), code = mine[-1], mine[-1][1].get("exit_code")
     if code in DONE_CODES and not cut_off(e):
-        newer = [r for r in part.reads if max((k for k, x in enumerate(log["parts"]) if x["name"] == r), default=-1) > i]
+        newer = [r for r in part.reads if any(k > i and x["name"] == r for k, x in enumerate(log["parts"]))]
         return (f"to run ({', '.join(newer)} ran since)" if newer else
                 "done" if code == 0 else "done (exit 1: some cells mismatch or error)")
     if not part.resumes and len(mine) > 1 and all(cut_off(x) for _, x in mine[-2:]):
