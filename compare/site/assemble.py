@@ -2,6 +2,7 @@
 (HTML and Markdown) plus matrix.md. Figures are drawn into DIR/figures by the page builders."""
 from __future__ import annotations
 
+import json
 import os
 import shutil
 from pathlib import Path
@@ -87,6 +88,17 @@ def store_label(inputs: list[Path]) -> str:
         return "STORE"
 
 
+MANIFEST = "site.json"        # what the site was built from: a rebuild reads it
+
+
+def _where(p: Path) -> str:
+    """A store's path from the repository root when it lies there, else its absolute path."""
+    try:
+        return Path(p).resolve().relative_to(pages.REPO_DOCS.parent).as_posix()
+    except ValueError:
+        return str(Path(p).resolve())
+
+
 def write_site(inputs: list[Path], out: Path, title: str | None, against: list[Path]) -> list[Path]:
     m = data.load(inputs)
     out = Path(out)
@@ -112,5 +124,8 @@ def write_site(inputs: list[Path], out: Path, title: str | None, against: list[P
             written.append(path)
     atomic_write(out / "matrix.md", pages.matrix_md(rows, m.frameworks) + "\n")
     written.append(out / "matrix.md")
+    atomic_write(out / MANIFEST, json.dumps({"inputs": [_where(p) for p in inputs], "title": title,
+                                             "against": [_where(p) for p in against]}, indent=1) + "\n")
+    written.append(out / MANIFEST)
     written += sorted(figures.glob("*")) if figures.is_dir() else []
     return written

@@ -10,12 +10,17 @@ BAND_EMOJI = {"best": "🟩", "near": "🟨", "far": "🟧", "poor": "🟥", "no
 NOISY_MARK = "~"
 
 
+def _g(x: float) -> str:
+    """Three significant digits without an exponent (999.5 rounds to 1000, not 1e+03)."""
+    return f"{x:.3g}" if abs(x) < 999.5 else f"{x:.0f}"
+
+
 def seconds(v: float | None) -> str:
     if v is None or not math.isfinite(v):
         return "-"
     for unit, scale in (("s", 1.0), ("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9)):
         if abs(v) >= scale or unit == "ns":
-            return f"{v / scale:.3g} {unit}"
+            return f"{_g(v / scale)} {unit}"
     return f"{v:.3g} s"
 
 
@@ -24,8 +29,8 @@ def rate(v: float | None, unit: str = "/s") -> str:
         return "-"
     for suffix, scale in (("T", 1e12), ("G", 1e9), ("M", 1e6), ("k", 1e3)):
         if abs(v) >= scale:
-            return f"{v / scale:.3g} {suffix}{unit}"
-    return f"{v:.3g} {unit}"
+            return f"{_g(v / scale)} {suffix}{unit}"
+    return f"{_g(v)} {unit}"
 
 
 def nbytes(v: float | None) -> str:
@@ -33,7 +38,7 @@ def nbytes(v: float | None) -> str:
         return "-"
     for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
         if abs(v) >= scale:
-            return f"{v / scale:.3g} {unit}"
+            return f"{_g(v / scale)} {unit}"
     return f"{v:.0f} B"
 
 

@@ -116,9 +116,10 @@ def accuracy(c: qp.Ctx) -> list[Any]:
             continue
         e = r.get("error") or {}
         share = matrix.error_share(r)
-        rows.append((r["scenario"], r["backend"], r["status"], f"{data.num(e.get('vs_oracle')) or 0:.3g}",
-                     f"{data.num(e.get('tolerance')) or 0:.3g}", "-" if share is None else f"{share:.3g}",
-                     str(e.get("metric", ""))))
+        err, tol = data.num(e.get("vs_oracle")), data.num(e.get("tolerance"))
+        rows.append((r["scenario"], r["backend"], r["status"], "-" if err is None else f"{err:.3g}",
+                     "-" if tol is None else f"{tol:.3g}", "-" if share is None else f"{share:.3g}",
+                     str(e.get("metric", "")) or r.get("reason", "")))
     blocks += [H("float32 error per scenario (default sizes)"),
                Table(("scenario", "framework", "status", "error", "tolerance", "share", "metric"), tuple(rows))]
     err = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r["device"] == c.device]
@@ -132,10 +133,12 @@ def accuracy(c: qp.Ctx) -> list[Any]:
                                fmt.params_text(r.get("params") or {}, data.defaults(r["scenario"])),
                                (r.get("time") or {}).get("median_s"), (r.get("error") or {}).get("converged"))
                               for r in err if r["status"] == "ok"])
+            fws = ", ".join(f for f in c.m.frameworks if any(r["backend"] == f for r in err))
             blocks += [H("Run time against error"),
                        Figure(rel, "Time against error against a converged float64 reference, both "
                               "precisions and fast-math variants; the Pareto front is the fastest "
-                              "framework at each accuracy.", c.cmd(f"sweep error --devices {c.device}"), csv)]
+                              f"framework at each accuracy. Frameworks in this sweep: {fws}.",
+                              c.cmd(f"sweep error --devices {c.device}"), csv)]
     return blocks
 
 

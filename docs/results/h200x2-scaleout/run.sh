@@ -2,7 +2,7 @@
 # GPU-aware scale-out on the lent two-GPU H200 (issue 18): the same sweep on both GPUs (one Dask
 # worker per GPU, each pinned to its GPU and half the cores) and on one GPU (CUDA_VISIBLE_DEVICES=0,
 # one worker), wall time of each, records compared in status and error afterwards
-# (docs/results/h200x2-scaleout.md). Backends: those the image has (JAX, numba-cuda, CuPy; numpy
+# (docs/results/h200x2-scaleout/report). Backends: those the image has (JAX, numba-cuda, CuPy; numpy
 # 2.4, Dask and its dependencies staged with ../shared/gpu/stage-wheels).
 #   bash docs/results/h200x2-scaleout/run.sh WORK
 set -u
