@@ -256,10 +256,11 @@ def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
         for ax, (scenario, recs) in zip(axes.flat, groups.items()):
             for r in recs:
                 c, err = cmap[r["backend"]], (r.get("error") or {}).get("vs_oracle")
-                if not isinstance(err, (int, float)) or not math.isfinite(err):
+                lat = r["time"].get("latency") or r["time"].get("wall") or r["time"]
+                x = lat.get("median_s") if isinstance(lat, dict) else None
+                if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (err, x)) or x <= 0:
                     continue
-                t = r["time"].get("latency") or r["time"].get("wall") or r["time"]
-                ax.scatter(t["median_s"], max(err, 1e-17), color=c,
+                ax.scatter(x, max(err, 1e-17), color=c,
                            marker="o" if r["device"] == "cpu" else "^",
                            facecolors=c if r["precision"] == "float64" else "none", s=44)
             ax.set_xscale("log"); ax.set_yscale("log")
@@ -283,7 +284,7 @@ def call_time(rec: dict[str, Any]) -> tuple[float | None, float | None, str]:
     """(median, IQR, regime) of one call: the throughput regime (k calls, one synchronize), or
     the cell's own clock where it has no throughput regime."""
     t = rec.get("time") or {}
-    thr = t.get("throughput") or {}
+    thr = t.get("throughput") if isinstance(t.get("throughput"), dict) else {}
     if isinstance(thr.get("median_s"), (int, float)):
         return thr["median_s"], thr.get("iqr_s"), "throughput"
     med = t.get("median_s")
