@@ -21,7 +21,8 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
            data=True)
         points = (framework, label, x, y), both axes lower-is-better; the front is the step line
     write_csv(path, headers, rows)        floats as format(x, ".6g"), None as ""
-    colors(frameworks) -> {framework: colour}; hatch(variant) -> hatch pattern; tidy_log(ax);
+    front_of(points) -> the Pareto front; colors(frameworks) -> {framework: colour};
+    hatch(variant) -> hatch pattern; tidy_log(ax, fmt=None) (1-2-5 labels on log axes);
     pyplot() (Agg); save(fig, path) (atomic, deterministic, closes the figure); RC (rcParams)
 
 Colours: a registered backend keeps ``compare.report.backend_color`` in every figure; any other
