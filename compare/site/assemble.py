@@ -51,18 +51,22 @@ def machine(c: qp.Ctx) -> list[Any]:
                    P("Measured by each run with no framework involved: the device copy that floors "
                      "bandwidth-bound cells and the driver's empty-kernel launch that floors per-call cost."),
                    Table(("run", "device", "copy bandwidth", "launch + sync", "launch pipelined", "how"), tuple(yard))]
-    pub = (m.publish or {}).get("parts") if isinstance(m.publish, dict) else None
+    pub = [p for p in ((m.publish or {}).get("parts") or []) if isinstance(p, dict)]
+    blocks += [H("Publish run time")]
     if pub:
-        total = sum(p.get("seconds") or 0 for p in pub if isinstance(p, dict))
-        blocks += [H("Publish run time"),
-                   P(f"`python -m compare publish` on this machine: {fmt.seconds(total)} in {len(pub)} parts."),
-                   Table(("part", "seconds", "exit", "started"), tuple(
-                       (str(p.get("name")), f"{p.get('seconds', 0):.0f}", str(p.get("exit_code")), str(p.get("started")))
-                       for p in pub if isinstance(p, dict)))]
+        total = sum(data.num(p.get("seconds")) or 0.0 for p in pub)
+        names = list(dict.fromkeys(str(p.get("name")) for p in pub))
+        blocks += [P(f"`python -m compare publish` ran {len(names)} parts on this machine in "
+                     f"{fmt.seconds(total)} of wall time, every attempt counted (publish.json; an "
+                     "attempt cut off by the machine's time limit is resumed by the next, keeping "
+                     "its finished cells). Records of parts not listed here come from the earlier "
+                     "runs below."),
+                   Table(("part", "started", "seconds", "exit code"), tuple(
+                       (str(p.get("name")), str(p.get("started")), f"{data.num(p.get('seconds')) or 0:.0f}",
+                        "cut off" if p.get("exit_code") is None else str(p.get("exit_code"))) for p in pub))]
     else:
-        blocks += [H("Publish run time"),
-                   P("These records were assembled from earlier runs (listed below), not by one "
-                     "`python -m compare publish`; its run time is stated where a publish log exists.")]
+        blocks.append(P("No publish log (publish.json) beside these records: they were assembled from "
+                        "the runs below, not by one `python -m compare publish`."))
     blocks += [H("Runs that produced these records"),
                Table(("created", "commit", "command"), tuple(
                    (str(e.get("created", "?"))[:19], str(e.get("git_commit", "?")), str(e.get("command", "?")))

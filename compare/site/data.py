@@ -33,7 +33,9 @@ class Machine:
 
     @property
     def records(self) -> list[dict[str, Any]]:
-        return [*self.run, *self.sweep]
+        """Sweep records first, so that where both suites measured a cell the run suite's record
+        (the dedicated measurement) is the later one, which the rows keep."""
+        return [*self.sweep, *self.run]
 
     @property
     def frameworks(self) -> list[str]:
