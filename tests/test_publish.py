@@ -145,8 +145,6 @@ def run_publish(monkeypatch, capsys, out, keep, *extra):
     return code, capsys.readouterr().out
 
 
-@pytest.mark.skipif(not (ROOT / "compare/site/pages.py").exists(),
-                    reason="compare/site/pages.py (the site builder) is not written yet")
 def test_a_real_publish_logs_skips_done_parts_and_reruns_one(tmp_path, monkeypatch, capsys):
     out = tmp_path / "m"
     keep = {"bandwidth", "stress-ulps", "stress-merge", "site"}
