@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 import browser
-from test_site import NOT_BUILT, PNG, built_site, store_frameworks  # noqa: F401 (NOT_BUILT: the skip's reason)
+from test_site import PNG, built_site, store_frameworks
 
 MATRIX_JS = "[...document.querySelectorAll('#matrix th[data-framework]')].map(t => t.dataset.framework)"
 
