@@ -55,10 +55,21 @@ class DirectoryLock:
         return Busy(f"--out {self.directory}: in use by another compare driver ({who}); "
                     "wait for it to finish or give another --out")
 
+    def _open(self, flags: int) -> int:
+        """The lock file, never through a symbolic link planted in its place (a link there would
+        make the driver truncate and write its target)."""
+        try:
+            return os.open(self.path, flags | os.O_CLOEXEC | os.O_NOFOLLOW, 0o644)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP or self.path.is_symlink():
+                raise Busy(f"--out {self.directory}: {NAME} is a symbolic link; refusing to follow it "
+                           "(remove it, or give another --out)") from None
+            raise
+
     def acquire(self) -> "DirectoryLock":
         import fcntl
         for _ in range(20):
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            fd = self._open(os.O_RDWR | os.O_CREAT)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -87,7 +98,7 @@ class DirectoryLock:
         """No flock here: create the file exclusively; a file whose PID is dead is taken over."""
         for _ in range(20):
             try:
-                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
+                fd = self._open(os.O_WRONLY | os.O_CREAT | os.O_EXCL)
             except FileExistsError:
                 pid = _read_pid(self.path)
                 if pid is not None and (pid == os.getpid() or _pid_alive(pid)):

@@ -19,6 +19,7 @@ import errno
 import json
 import math
 import os
+import re
 import tempfile
 import zipfile
 from pathlib import Path
@@ -258,11 +259,20 @@ class Store:
 
 
 # ---- arrays (--save-arrays): one .npz per cell beside the results file ------------------------
+_NAME = re.compile(r"[A-Za-z0-9_]+")
+
+
 def array_file(directory: Path, rec: dict[str, Any]) -> Path:
-    name = f"{rec['scenario']}-{rec['backend']}-{rec['device']}-{rec['precision']}"
-    if rec.get("variant", "default") != "default":
-        name += f"-{rec['variant']}"
-    return Path(directory) / "arrays" / f"{name}.npz"
+    """``DIR/arrays/<scenario>-<backend>-<device>-<precision>[-<variant>].npz``; the parts come
+    from a record, so each must be a plain name (letters, digits, '_'): no path can leave arrays/."""
+    parts = [rec.get(f) for f in ("scenario", "backend", "device", "precision")]
+    variant = rec.get("variant", "default")
+    if variant != "default":
+        parts.append(variant)
+    bad = [p for p in parts if not isinstance(p, str) or not _NAME.fullmatch(p)]
+    if bad:
+        raise StoreError(f"record names no plain cell ({bad[0]!r} is not a name of letters, digits or '_')")
+    return Path(directory) / "arrays" / ("-".join(parts) + ".npz")
 
 
 def save_arrays(directory: Path, rec: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
@@ -275,8 +285,11 @@ def save_arrays(directory: Path, rec: dict[str, Any], arrays: dict[str, np.ndarr
 def load_arrays(directory: Path, rec: dict[str, Any], names: Iterable[str]) -> dict[str, np.ndarray] | None:
     """The named arrays of a cell saved beside a results file, or None (absent or unreadable:
     a truncated file must not take a report down)."""
-    f = array_file(directory, rec)
-    if not f.exists():
+    try:
+        f = array_file(directory, rec)
+    except StoreError:
+        return None
+    if not f.is_file() or f.is_symlink():
         return None
     try:
         with np.load(f) as z:

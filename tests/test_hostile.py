@@ -1,0 +1,65 @@
+"""Hostile input: nothing followed through a symbolic link, no path built from a record leaves
+its folder (issue 30's security items; the adversarial suite grows here)."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from compare.lock import Busy, DirectoryLock
+from compare.store import StoreError, array_file, load_arrays, save_arrays
+
+ROOT = Path(__file__).resolve().parents[1]
+CELL = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32"}
+
+
+def test_lock_refuses_a_planted_symlink_and_leaves_its_target_alone(tmp_path: Path) -> None:
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".compare.lock").symlink_to(target)
+    with pytest.raises(Busy, match="symbolic link"):
+        DirectoryLock(out).acquire()
+    assert target.read_text() == "keep me\n"
+
+
+def test_a_command_refuses_the_symlinked_lock_in_one_line(tmp_path: Path) -> None:
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".compare.lock").symlink_to(target)
+    p = subprocess.run([sys.executable, "-m", "compare", "site", str(ROOT / "tests/data/site"), "--out", str(out)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "symbolic link" in p.stderr, p.stderr
+    assert target.read_text() == "keep me\n"
+    assert sorted(os.listdir(out)) == [".compare.lock"]
+
+
+@pytest.mark.parametrize("field,value", [("backend", "x/../../outside"), ("scenario", "../saxpy"),
+                                         ("device", "cpu/.."), ("precision", ""), ("variant", "a b"),
+                                         ("backend", None), ("variant", 3)])
+def test_array_paths_from_records_stay_in_arrays(tmp_path: Path, field: str, value: object) -> None:
+    rec = {**CELL, field: value}
+    with pytest.raises(StoreError):
+        array_file(tmp_path, rec)
+    with pytest.raises(StoreError):
+        save_arrays(tmp_path, rec, {"out": np.zeros(2)})
+    assert load_arrays(tmp_path, rec, ["out"]) is None
+    assert not any(tmp_path.rglob("*.npz"))
+
+
+def test_a_plain_cell_round_trips_and_a_symlinked_array_is_not_read(tmp_path: Path) -> None:
+    save_arrays(tmp_path, {**CELL, "variant": "fastmath"}, {"out": np.arange(3.0)})
+    got = load_arrays(tmp_path, {**CELL, "variant": "fastmath"}, ["out"])
+    assert got is not None and got["out"].tolist() == [0.0, 1.0, 2.0]
+    outside = tmp_path / "outside.npz"
+    np.savez(outside, out=np.ones(2))
+    link = array_file(tmp_path, CELL)
+    link.symlink_to(outside)
+    assert load_arrays(tmp_path, CELL, ["out"]) is None
