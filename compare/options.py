@@ -25,6 +25,29 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:   # one line, exit 2, no usage dump
         raise UsageError(message)
 
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        if args is not None:
+            self._refuse_repeats(list(args))
+        return super().parse_known_args(args, namespace)
+
+    def _refuse_repeats(self, args: list[str]) -> None:
+        """A single-valued option given twice is refused (argparse would keep the last silently)."""
+        repeatable = (argparse._AppendAction, argparse._CountAction, argparse._HelpAction,
+                      argparse._SubParsersAction)
+        sub = next((a for a in self._actions if isinstance(a, argparse._SubParsersAction)), None)
+        words = []
+        for w in args:
+            if w == "--" or (sub is not None and w in sub.choices):
+                break                  # the rest is a positional list or the subcommand's own
+            words.append(w)
+        for action in self._actions:
+            if not action.option_strings or isinstance(action, repeatable):
+                continue
+            n = sum(1 for w in words for o in action.option_strings
+                    if w == o or (o.startswith("--") and w.startswith(o + "=")))
+            if n > 1:
+                raise UsageError(f"argument {'/'.join(action.option_strings)}: given {n} times (give it once)")
+
     def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> Any:
         # argparse drops a lone '--' value (``--repeat=--``) and stores [] unchecked
         if action.option_strings and action.nargs is None and list(arg_strings) == ["--"]:

@@ -81,7 +81,7 @@ def atomic_write(path: Path, data: str | bytes) -> None:
     raw = data.encode() if isinstance(data, str) else data
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMP_SUFFIX)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}{TEMP_MARK}", suffix=TEMP_SUFFIX)
     except OSError as exc:
         raise OSError(exc.errno, exc.strerror, str(path)) from None
     try:
@@ -111,11 +111,12 @@ def save_figure(fig: Any, path: Path, **kwargs: Any) -> None:
 
 
 TEMP_SUFFIX = ".tmp"
+TEMP_MARK = ".compare-"       # in every temporary's name: clean-up touches no file of the user's
 OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
 
 
 def remove_stale_temps(directory: Path) -> list[Path]:
-    """Temporary files of atomic writes (``.NAME.XXXX.tmp``) left in ``directory`` (and its
+    """Temporary files of atomic writes (``.NAME.compare-XXXX.tmp``) left in ``directory`` (and its
     arrays/ and plots/) by a driver that was killed mid-write; only call while holding the
     directory's lock (compare.lock), when no other driver can be writing there."""
     removed = []
@@ -123,7 +124,7 @@ def remove_stale_temps(directory: Path) -> list[Path]:
         d = Path(directory) / sub
         if not d.is_dir():
             continue
-        for p in d.glob(f".*{TEMP_SUFFIX}"):
+        for p in d.glob(f".*{TEMP_MARK}*{TEMP_SUFFIX}"):
             if p.is_file():
                 try:
                     p.unlink()

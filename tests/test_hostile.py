@@ -63,3 +63,14 @@ def test_a_plain_cell_round_trips_and_a_symlinked_array_is_not_read(tmp_path: Pa
     link = array_file(tmp_path, CELL)
     link.symlink_to(outside)
     assert load_arrays(tmp_path, CELL, ["out"]) is None
+
+
+@pytest.mark.parametrize("argv", [["saxpy", "--repeat", "3", "--repeat", "4"],
+                                  ["site", "tests/data/site", "--out", "a", "--out=b"],
+                                  ["sweep", "report", "x.json", "--title", "a", "--title=b"],
+                                  ["stress", "--only", "ulps", "--only", "races"]])
+def test_a_single_valued_option_given_twice_is_refused(tmp_path: Path, argv: list[str]) -> None:
+    p = subprocess.run([sys.executable, "-m", "compare", *argv], cwd=tmp_path, capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert p.returncode == 2 and "given 2 times" in p.stderr and p.stderr.count("\n") == 1, p.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -497,13 +497,16 @@ def test_atomic_write_on_a_full_disk_keeps_the_old_file_and_no_temporary(tmp_pat
 
 def test_claiming_out_removes_temporaries_a_killed_driver_left(tmp_path):
     (tmp_path / "arrays").mkdir()
-    left = [tmp_path / ".results.json.abc123.tmp", tmp_path / "arrays" / ".saxpy-warp-cpu-float32.npz.x.tmp"]
+    left = [tmp_path / ".results.json.compare-abc123.tmp",
+            tmp_path / "arrays" / ".saxpy-warp-cpu-float32.npz.compare-x.tmp"]
     for p in left:
         p.write_text("half")
-    (tmp_path / "keep.tmp").write_text("a user's file")
+    users = [tmp_path / "keep.tmp", tmp_path / ".notes.tmp", tmp_path / ".results.json.abc123.tmp"]
+    for p in users:
+        p.write_text("a user's file")
     out, lock = options.claim_output(str(tmp_path))
     with lock:
-        assert not any(p.exists() for p in left) and (tmp_path / "keep.tmp").exists()
+        assert not any(p.exists() for p in left) and all(p.exists() for p in users)
     FIGURES["faults"].append("temporaries left by a killed driver")
 
 
