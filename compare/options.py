@@ -309,12 +309,17 @@ def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results"):
     return out, lock
 
 
+NOTES_BYTES = 2**20          # hand-written notes: a page's worth, bounded
+
+
 def read_notes(path: str | None) -> str:
     """--notes FILE's text ('' without one)."""
     if not path:
         return ""
+    from compare.store import StoreError, read_bounded
     try:
-        with open(path, encoding="utf-8") as f:
-            return f.read()
+        return read_bounded(Path(path), NOTES_BYTES)
+    except StoreError as exc:
+        raise UsageError(f"--notes: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"cannot read --notes {path}: {getattr(exc, 'strerror', None) or exc}") from None

@@ -39,6 +39,31 @@ class StoreError(ValueError):
     """A results file that cannot be used; the message is one line naming the file."""
 
 
+MAX_FILE_BYTES = 512 * 2**20      # far above any real results file; a bigger one is refused
+
+
+def read_bounded(path: Path, limit: int) -> str:
+    """A regular file's text, at most ``limit`` bytes: a FIFO, a device (``/dev/zero``) or a
+    symbolic link is refused before it is read, so no read can block or exhaust memory."""
+    import stat
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise StoreError(f"cannot read {path}: a symbolic link (give the file it points to)") from None
+        raise
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(f.fileno())
+        if stat.S_ISDIR(st.st_mode):
+            raise IsADirectoryError(errno.EISDIR, "is a directory", str(path))
+        if not stat.S_ISREG(st.st_mode):
+            raise StoreError(f"cannot read {path}: not a regular file")
+        raw = f.read(limit + 1)
+    if len(raw) > limit:
+        raise StoreError(f"cannot read {path}: larger than {limit // 2**20} MiB")
+    return raw.decode("utf-8")
+
+
 def jsonable(x: Any) -> Any:
     """Plain JSON types; non-finite floats as the strings 'nan', 'inf', '-inf'."""
     if isinstance(x, dict):
@@ -200,7 +225,11 @@ class Store:
         """An existing file, validated; a different suite than asked for is refused."""
         path = Path(path)
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(read_bounded(path, MAX_FILE_BYTES))
+        except StoreError:
+            raise
+        except RecursionError:
+            raise StoreError(f"cannot read {path}: JSON nested too deeply") from None
         except FileNotFoundError:
             raise StoreError(f"cannot read {path}: no such file") from None
         except IsADirectoryError:

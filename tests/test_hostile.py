@@ -74,3 +74,34 @@ def test_a_single_valued_option_given_twice_is_refused(tmp_path: Path, argv: lis
                        env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
     assert p.returncode == 2 and "given 2 times" in p.stderr and p.stderr.count("\n") == 1, p.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def _special_files(tmp_path: Path) -> dict[str, Path]:
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    real = tmp_path / "real.json"
+    real.write_text((ROOT / "tests/data/site/results.json").read_text())
+    link = tmp_path / "link.json"
+    link.symlink_to(real)
+    return {"a FIFO": fifo, "/dev/zero": Path("/dev/zero"), "deep nesting": deep, "a symlink": link,
+            "a directory": tmp_path}
+
+
+@pytest.mark.parametrize("what", ["a FIFO", "/dev/zero", "deep nesting", "a symlink", "a directory"])
+def test_readers_refuse_special_files_at_once(tmp_path: Path, what: str) -> None:
+    """No hang, no memory blow-up, no traceback: one line naming the file, exit 2."""
+    path = _special_files(tmp_path)[what]
+    for argv in (["report", str(path), "--out", str(tmp_path / "o1")],
+                 ["site", str(path), "--out", str(tmp_path / "o2")],
+                 ["sweep", "report", str(path), "--out", str(tmp_path / "o3")],
+                 ["sweep", "report", str(ROOT / "tests/data/site/sweep.json"), "--notes", str(path),
+                  "--out", str(tmp_path / "o4")]):
+        if "--notes" in argv and what in ("a directory", "deep nesting"):   # text: fine notes
+            continue
+        p = subprocess.run([sys.executable, "-m", "compare", *argv], cwd=ROOT, capture_output=True, text=True,
+                           timeout=60)
+        assert p.returncode == 2 and p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, (argv, p.stderr)
+        assert "unrecognized" not in p.stderr and ("--notes" in p.stderr) == ("--notes" in argv), p.stderr
+        assert not any((tmp_path / o).exists() for o in ("o1", "o2", "o3", "o4")), argv
