@@ -25,35 +25,26 @@ The plan is CUDA's when --devices includes cuda (the default where nvidia-smi li
 cpu). ``--part`` takes names or the groups ``large`` and ``stress``.
 
 Resuming. Every measuring part passes --resume: a rerun keeps the cells its store holds as ok,
-mismatch or skipped and runs the rest (``run --resume`` keeps other plans' records too, so the large
-and default sizes share results.json). Stress has no --resume: an experiment run again replaces
-its rows in that --out, every backend's. So each experiment runs into its own folder (named with
---backends unless all) and ``stress --merge`` (newer files win per experiment, backend and device;
-a skipped row erases no finding) carries them into DIR: a run with fewer backends keeps the
-others' rows, and a cut-off part loses only its own experiment. An experiment cut off twice in a
-row is not retried by a plain rerun (it needs more than one call): run it per backend with
-``--part stress-E --backends B``, which the merge picks up. A part is done when its latest
-attempt with the same command (--timeout aside) exited 0, or 1: it ran to the end with some
-mismatch or error cells, data the report marks (--part reruns it, retrying error cells).
-stress-merge and site are done only when they ran after every part they read. A done part is
-skipped unless --part names it.
+mismatch or skipped and runs the rest (other plans' records stay, so large and default sizes
+share results.json). Stress has no --resume (an experiment rerun replaces its rows for every
+backend), so each experiment runs into its own folder (named with --backends unless all) and
+``stress --merge`` carries them into DIR (newer files win per experiment, backend and device).
+An experiment cut off twice in a row is not retried by a plain rerun: run it per backend with
+``--part stress-E --backends B``. A part is done when its latest attempt with the same command
+(--timeout aside) exited 0, or 1 (it ran to the end; the report marks its failed cells);
+stress-merge and site when they ran after every part they read. A done part is skipped unless
+--part names it.
 
 Parts run one by one as subprocesses, not in-process through compare.cli.main: a driver that
 crashes, exhausts memory or hangs in an import takes only its part down; each part starts with
 clean process-global state (frameworks, matplotlib, test hooks) and exits with the subcommand's
-own status; and --budget or Ctrl-C can stop it (SIGINT, SIGKILL after a grace) while publish logs
-the attempt. A failed part does not stop later ones. --budget S: after S seconds the running part
+own status; and --budget, Ctrl-C or SIGTERM can stop it (SIGINT, SIGKILL after a grace) while
+publish logs the attempt. A failed part does not stop later ones. --budget S: after S seconds the running part
 is interrupted (its finished cells are kept) and none starts; the same command continues (under
 a 10-minute call limit, --budget 540 leaves time to copy DIR out).
 
 Exit: 0 every selected part done with 0; 1 some part ended with 1 or failed (rerun); 2 bad usage
 (one line, nothing written); 3 stopped by --budget with parts left; 130 Ctrl-C.
-
-Run time: the sum of the parts'; a measuring part's is about its cells times (a worker's start,
-import and first-call compile, then at least --min-time per timing regime), growing with the
-backends installed and their variants. On a CPU the error sweep (most cells) and the all part
-dominate; on CUDA the full stress suite and the error and scaling sweeps (one or more 10-minute
-calls each); the site takes seconds.
 
 DIR/publish.json, the progress log (the site's machine page reads it; written atomically):
 
@@ -61,13 +52,12 @@ DIR/publish.json, the progress log (the site's machine page reads it; written at
      "parts": [{"name": "all",                    one entry per attempt, oldest first
                 "argv": ["all", "--devices", ...], the command after ``python -m compare``
                 "started": "2026-01-01T00:00:00+00:00",   ISO 8601, UTC
-                "seconds": 123.4,                  wall time (so far, updated each minute, while
-                                                   running or if publish was killed)
+                "seconds": 123.4,                  wall time (so far, updated each minute)
                 "exit_code": 0,                    null then; negative: ended by that signal
                 "interrupted": false,              true: publish stopped it (--budget, Ctrl-C)
                 "host": {"hostname", "cpu", "cores", "gpus": [{name, driver, memory}]}}]}
 
-A machine's publish run time is the sum of ``seconds`` over ``parts``. History: 1, the first.
+Run time: the sum of ``seconds`` over ``parts``. History: 1, the first.
 """
 from __future__ import annotations
 
@@ -316,8 +306,20 @@ def execute(argv: list[str], deadline: float | None, tick: Any) -> tuple[int, st
                 tick()
                 if deadline is not None and time.monotonic() >= deadline:
                     return stop(proc), "budget"
-    except KeyboardInterrupt:       # Ctrl-C reached the part too (one process group)
-        return stop(proc, interrupt=False), "interrupted"
+    except KeyboardInterrupt:       # Ctrl-C reaches the part too; kill -INT/-TERM is passed on
+        try:
+            return proc.wait(timeout=2.0), "interrupted"
+        except subprocess.TimeoutExpired:
+            return stop(proc), "interrupted"
+
+
+def catch_signals() -> None:
+    """SIGINT and SIGTERM stop the running part cleanly, even where SIGINT came in ignored (as a
+    background job of a non-interactive shell gets it, and Python then raises nothing)."""
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, interrupt)
 
 
 def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: float | None) -> int:
@@ -392,5 +394,6 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         lock.acquire()
     except Busy as exc:
         raise UsageError(str(exc)) from None
+    catch_signals()
     with lock:
         return run_parts(chosen, args.part is not None, args.out, out, args.budget)
