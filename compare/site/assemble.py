@@ -25,6 +25,13 @@ def _packages(m: Machine) -> list[tuple[str, str]]:
     return [(k, ", ".join(vs)) for k, vs in sorted(seen.items())]
 
 
+def _plan_parts(device: str) -> list[str]:
+    """The parts a publish runs for ``device`` (every size assumed to fit)."""
+    from compare import publish
+    parts, _ = publish.plan("DIR", [device], "all", have={"cpu": float("inf"), "cuda": float("inf")})
+    return [p.name for p in parts]
+
+
 def machine(c: qp.Ctx) -> list[Any]:
     m = c.m
     envs = list(m.runs)
@@ -56,11 +63,12 @@ def machine(c: qp.Ctx) -> list[Any]:
     if pub:
         total = sum(data.num(p.get("seconds")) or 0.0 for p in pub)
         names = list(dict.fromkeys(str(p.get("name")) for p in pub))
+        missing = [n for n in _plan_parts(c.device) if n not in names and n != "site"]
         blocks += [P(f"`python -m compare publish` ran {len(names)} parts on this machine in "
                      f"{fmt.seconds(total)} of wall time, every attempt counted (publish.json; an "
-                     "attempt cut off by the machine's time limit is resumed by the next, keeping "
-                     "its finished cells). Records of parts not listed here come from the earlier "
-                     "runs below."),
+                     "attempt cut off, by a time limit or a signal, is resumed by the next, keeping "
+                     "its finished cells)." + (f" Parts it has not run here: {', '.join(missing)}; "
+                                               "their records come from the earlier runs below." if missing else "")),
                    Table(("part", "started", "seconds", "exit code"), tuple(
                        (str(p.get("name")), str(p.get("started")), f"{data.num(p.get('seconds')) or 0:.0f}",
                         "cut off" if p.get("exit_code") is None else str(p.get("exit_code"))) for p in pub))]

@@ -18,6 +18,8 @@ def _g(x: float) -> str:
 def seconds(v: float | None) -> str:
     if v is None or not math.isfinite(v):
         return "-"
+    if v >= 120:
+        return f"{v / 60:.3g} min"
     for unit, scale in (("s", 1.0), ("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9)):
         if abs(v) >= scale or unit == "ns":
             return f"{_g(v / scale)} {unit}"

@@ -176,6 +176,16 @@ def particles(c: Ctx) -> Page:
                     [_bar(r, matrix.regime("throughput")) for r in small], log=True, fmt=fmt.seconds)
         blocks += [Figure(rel, "Every framework and variant at the default size.",
                           c.cmd(f"run particles --devices {c.device} --precision float32 --variants all"), csv)]
+    big = _variants(matrix.largest_of("particles", (None, "scaling"))(c.m, c.device))
+    if big:
+        png, rel, csv = c.fig("particles-large")
+        charts.bars(png, f"Particles at the largest n ({matrix.scope(big)}, {c.device}, float32): particle-steps "
+                    "per second, throughput regime", "particle-steps per second",
+                    [_bar(r, data.item_rate) for r in big], better="higher", fmt=lambda v: fmt.rate(v))
+        n = int(data.size(big[0]))
+        blocks.append(Figure(rel, "Every framework and variant at the largest n; fastest first.",
+                             c.cmd(f"run particles --devices {c.device} --precision float32 --variants all "
+                                   f"--set n={n} --check-sample 4096"), csv))
     blocks += _scaling(c, "particles", "particle-steps per second", "n (particles)")
     return blocks
 
