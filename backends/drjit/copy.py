@@ -1,0 +1,37 @@
+"""Device copy in Dr.Jit: ``dr.opaque(x)``, a forced copy of an evaluated array.
+
+Dr.Jit elides the copies one would write as kernels: ``dr.copy(x)``, ``Float(x)`` and a gather
+at ``dr.arange`` indices all return x's own variable, with no launch. A forced copy of an
+evaluated array is Dr.Jit's device memory copy (jit_var_mem_copy: an asynchronous memcpy on the
+CUDA stream, or a memcpy task on the LLVM thread pool), into a fresh buffer; ``info`` checks that
+the output is not the input's variable.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from . import download, real_type, upload
+from ..base import ScenarioKernel
+
+
+class Kernel(ScenarioKernel):
+    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+                 variant: str) -> None:
+        self.dtype, self.n = np.dtype(precision), params.n
+        self.x = upload(inputs["x"], real_type(device, precision))
+        self.out: Any = None
+
+    def run(self) -> Any:
+        import drjit as dr
+        self.out = dr.opaque(self.x)
+        dr.eval(self.out)
+        return self.out
+
+    def outputs(self) -> dict[str, np.ndarray]:
+        return {"out": download(self.out, self.dtype, (self.n,))}
+
+    def info(self) -> dict[str, Any]:
+        return {"copy": "dr.opaque(x): Dr.Jit's device memcpy",
+                "distinct_output_buffer": self.out is not None and self.out.index != self.x.index}
