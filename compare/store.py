@@ -197,6 +197,10 @@ def _upgrade(data: Any, path: Path) -> dict[str, Any]:
             raise StoreError(f"{path}: record {i}: {problem}")
         if data["format_version"] == 1 and upgrade:
             data["records"][i] = upgrade(rec)
+    # every field a later step reads, typed and in range, before any reader writes anything
+    from compare.records import store_problem
+    if (problem := store_problem(data)) is not None:
+        raise StoreError(f"{path}: {problem}")
     version = data.pop("format_version")
     data["upgraded_from"] = version if version != FORMAT_VERSION else data.get("upgraded_from")
     return data
@@ -321,8 +325,22 @@ def load_arrays(directory: Path, rec: dict[str, Any], names: Iterable[str]) -> d
         return None
     if not f.is_file() or f.is_symlink():
         return None
+    from compare.records import arrays_problem
     try:
         with np.load(f) as z:
-            return {k: z[k] for k in names if k in z.files}
+            names = [k for k in names if k in z.files]
+            # shapes from the headers first: a record's sizes must not decide what is allocated
+            if arrays_problem(rec, {k: _npy_header(z.zip, k) for k in names}) is not None:
+                return None
+            return {k: z[k] for k in names}
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):
         return None
+
+
+def _npy_header(zf: zipfile.ZipFile, name: str) -> tuple[tuple[int, ...], int]:
+    """(shape, bytes) of an array in an .npz, read from its header without loading it."""
+    with zf.open(f"{name}.npy") as fh:
+        version = np.lib.format.read_magic(fh)
+        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read(fh)
+    return tuple(shape), int(np.prod(shape, dtype=np.float64) * dtype.itemsize)

@@ -1,0 +1,303 @@
+"""What a results file must hold for every later step to read it: one validation, at load time.
+
+``compare.store.Store.read`` (every reader goes through it: ``report``, ``sweep report``, ``stress
+--merge``, ``--resume`` of every suite, stress's own file and ``site``) calls ``store_problem``
+after a file is parsed and upgraded, before anything is written; the first problem becomes one
+line naming the file, the record (or run, or finding) and the field. Every field that a reader
+formats, compares, sorts, divides or indexes is checked here for type and range; fields no reader
+looks at (``info``, ``versions``, a run's ``backends``) pass through untouched. The stored format
+does not change: this module only refuses.
+
+A record's parameters are checked by its scenario (``Scenario.params``: known names, types,
+ranges), so a size no run could have used never reaches a reader. ``arrays_problem`` guards the
+one path that allocates from a record's sizes, the pictures drawn from ``--save-arrays`` outputs:
+the saved arrays must have the shapes the record's parameters declare, and the cell must fit in
+the memory available, or the arrays are not used.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from typing import Any, Callable, Mapping
+
+from compare.spec import STATUSES
+
+# ---- the schema language ----------------------------------------------------------------------
+Check = Callable[[Any], bool]
+
+
+@dataclasses.dataclass(frozen=True)
+class Leaf:
+    what: str                       # in words, for the refusal: "a string", "a number >= 0"
+    ok: Check
+
+
+@dataclasses.dataclass(frozen=True)
+class Obj:
+    fields: Mapping[str, Any] = dataclasses.field(default_factory=dict)   # name -> node
+    required: tuple[str, ...] = ()
+    rest: Any = None                # the node of every other key (None: not read, anything goes)
+    null: bool = True               # null may stand for the object (readers write `x or {}`)
+
+
+@dataclasses.dataclass(frozen=True)
+class Seq:
+    item: Any
+    null: bool = True
+
+
+@dataclasses.dataclass(frozen=True)
+class Either:
+    what: str
+    options: tuple[Any, ...]
+
+
+def _real(v: Any) -> bool:
+    # a huge int would overflow float() in a reader; JSON integers beyond 2^63 have no use here
+    return isinstance(v, float) or (isinstance(v, int) and not isinstance(v, bool) and abs(v) <= 2**63)
+
+
+def _finite(v: Any) -> bool:
+    return _real(v) and math.isfinite(v)
+
+
+def _show(v: Any) -> str:
+    """A value in a refusal: short, on one line."""
+    if isinstance(v, dict):
+        return "an object"
+    if isinstance(v, list):
+        return "a list"
+    if isinstance(v, bool) or v is None:
+        return {True: "true", False: "false", None: "null"}[v]
+    text = repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _key(k: str) -> str:
+    return k if re.fullmatch(r"[A-Za-z0-9_]{1,40}", k) else repr(k)[:40]
+
+
+def problem(node: Any, v: Any, where: str) -> str | None:
+    """The first way ``v`` (found at ``where``) does not fit ``node``, or None."""
+    if isinstance(node, Leaf):
+        return None if node.ok(v) else f"{where} must be {node.what}, got {_show(v)}"
+    if isinstance(node, Either):
+        found = [problem(o, v, where) for o in node.options]
+        if None in found:
+            return None
+        # a list or an object of the right kind: its own first problem says more
+        same = [p for o, p in zip(node.options, found) if isinstance(o, Seq if isinstance(v, list) else Obj)]
+        return same[0] if same and isinstance(v, (list, dict)) else f"{where} must be {node.what}, got {_show(v)}"
+    if v is None and node.null:
+        return None
+    if isinstance(node, Seq):
+        if not isinstance(v, list):
+            return f"{where} must be a list, got {_show(v)}"
+        for i, x in enumerate(v):
+            if (p := problem(node.item, x, f"{where}[{i}]")) is not None:
+                return p
+        return None
+    if not isinstance(v, dict):
+        return f"{where} must be an object, got {_show(v)}"
+    for k in node.required:
+        if k not in v:
+            return f"{where}.{k} is missing"
+    for k, x in v.items():
+        sub = node.fields.get(k, node.rest)
+        if sub is not None and (p := problem(sub, x, f"{where}.{_key(k)}")) is not None:
+            return p
+    return None
+
+
+# ---- leaves -----------------------------------------------------------------------------------
+TEXT = Leaf("a string", lambda v: isinstance(v, str))
+OPT_TEXT = Leaf("a string or null", lambda v: v is None or isinstance(v, str))
+FLAG = Leaf("true, false or null", lambda v: v is None or isinstance(v, bool))
+COUNT = Leaf("an integer >= 0", lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 2**53)
+OPT_COUNT = Leaf("an integer >= 0 or null", lambda v: v is None or COUNT.ok(v))
+SECONDS = Leaf("a finite number >= 0", lambda v: _finite(v) and v >= 0)
+OPT_SECONDS = Leaf("a finite number >= 0 or null", lambda v: v is None or SECONDS.ok(v))
+POSITIVE = Leaf("a finite number > 0", lambda v: _finite(v) and v > 0)
+OPT_POSITIVE = Leaf("a finite number > 0 or null", lambda v: v is None or POSITIVE.ok(v))
+AMOUNT = Leaf("a finite number >= 0", SECONDS.ok)           # bytes, items, flops
+OPT_AMOUNT = Leaf("a finite number >= 0 or null", OPT_SECONDS.ok)
+OPT_NUMBER = Leaf("a finite number or null", lambda v: v is None or _finite(v))
+# an error figure: non-finite floats are stored as the strings jsonable writes
+FIGURE = Leaf("a number, 'nan', 'inf', '-inf' or null",
+              lambda v: v is None or _real(v) or v in ("nan", "inf", "-inf"))
+SCALAR = Leaf("a string, number, boolean or null", lambda v: v is None or isinstance(v, (str, bool)) or _real(v))
+FIGURES = Either("a figure or a list of figures", (FIGURE, Seq(FIGURE)))
+
+# ---- a record ---------------------------------------------------------------------------------
+REGIME = Obj({"median_s": OPT_SECONDS, "iqr_s": OPT_SECONDS, "min_s": OPT_SECONDS, "repeats": OPT_COUNT,
+              "k": OPT_COUNT, "host_s": OPT_SECONDS, "how": TEXT, "failed": TEXT, "unavailable": TEXT})
+TIME = Obj({"first_call_s": SECONDS, "median_s": POSITIVE, "iqr_s": SECONDS, "min_s": SECONDS, "repeats": COUNT,
+            "warmup": COUNT, "timed_total_s": SECONDS, "setup_s": OPT_SECONDS, "download_s": OPT_SECONDS,
+            "timer": TEXT, "clock": TEXT, "cache": TEXT, "first_call_clock": TEXT,
+            "wall": Obj({"median_s": POSITIVE, "iqr_s": SECONDS, "min_s": SECONDS},
+                        ("median_s", "iqr_s", "min_s")),
+            "latency": REGIME, "throughput": REGIME, "graph": REGIME},
+           ("first_call_s", "median_s", "iqr_s", "min_s", "repeats"))
+ERROR = Obj({"vs_oracle": FIGURE, "tolerance": FIGURE, "vs_reference": FIGURE, "reference": TEXT,
+             "vs_reference_device": TEXT, "metric": TEXT, "checked_items": TEXT, "ill_conditioned": COUNT})
+HARDWARE = Obj({"copy_bytes_per_s": POSITIVE, "copy_how": TEXT, "launch_latency_s": OPT_SECONDS,
+                "launch_pipelined_s": OPT_SECONDS, "gpu": TEXT, "copy_bytes": OPT_AMOUNT,
+                "copy_median_s": OPT_SECONDS, "error": TEXT})
+RECORD = Obj({
+    "reason": TEXT, "params": Obj(), "time": TIME, "error": ERROR,
+    "tags": Obj({"sweep": OPT_TEXT, "role": OPT_TEXT,
+                 "knob": Obj({"name": OPT_TEXT, "value": OPT_POSITIVE})}, rest=SCALAR),
+    "work": Obj(rest=AMOUNT),
+    "throughput": Obj({"hw_fraction": OPT_NUMBER, "floor_s": OPT_SECONDS, "floor_kind": TEXT, "floor": TEXT},
+                      rest=Either("a number, a string or null", (OPT_NUMBER, TEXT))),
+    "memory": Obj(rest=Either("a finite number, a string or null", (OPT_NUMBER, TEXT))),   # deltas may be < 0
+    "gradient": Obj({"method": TEXT, "reference": OPT_TEXT, "vs_oracle_rel": FIGURE, "vs_fd64_rel": FIGURE,
+                     "vs_oracle": FIGURE, "fd_agreement": FIGURE, "fd_resolved": FIGURE, "value": FIGURES,
+                     "reference_value": FIGURES, "tolerance": FIGURES}),
+    "converged": Obj({"error": FIGURE, "metric": TEXT, "reference": Obj(rest=SCALAR, null=False)},
+                     ("error", "metric")),
+    "hardware": HARDWARE, "info": Obj(), "versions": Obj(),
+    "host": OPT_TEXT, "host_load_1m": OPT_NUMBER, "host_cores": OPT_COUNT, "machine": OPT_TEXT,
+    "traceback": TEXT})
+
+# identity: names that go into paths, keys and colours; the scenario and precision by registry
+NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
+
+
+def record_problem(rec: dict[str, Any]) -> str | None:
+    """The first field of a record (already of the basic schema, ``spec.record_problem``) that a
+    later step could not read, as 'FIELD must be ...', or None."""
+    import scenarios
+    from scenarios.base import PRECISIONS, ParamError
+    for f in ("backend", "device", "variant"):
+        if f in rec and not (isinstance(rec[f], str) and NAME.fullmatch(rec[f])):
+            return f"{f} must be a name of letters, digits and _.+- (at most 64), got {_show(rec[f])}"
+    if rec["scenario"] not in scenarios.SCENARIOS:
+        return f"scenario {_show(rec['scenario'])} is not one this tool knows ({', '.join(scenarios.SCENARIOS)})"
+    if rec["precision"] not in PRECISIONS:
+        return f"precision must be one of {', '.join(PRECISIONS)}, got {_show(rec['precision'])}"
+    if (p := problem(RECORD, rec, "record")) is not None:
+        return p.removeprefix("record.")
+    try:        # names, types and ranges as a run would have accepted them
+        scenarios.get(rec["scenario"]).params(rec.get("params") or {})
+    except ParamError as exc:
+        return f"params: {exc}"
+    if rec["status"] in ("ok", "mismatch") and not isinstance(rec.get("params"), dict):
+        return f"a {rec['status']} record needs its params (the cell's parameters)"
+    if rec["status"] in ("ok", "mismatch") and (rec.get("time") is None) != (rec.get("error") is None):
+        # a measured cell carries both; a placeholder (every reader skips it) neither
+        return f"a {rec['status']} record needs both time and error (or neither), got only {'time' if rec.get('time') is not None else 'error'}"
+    return _sweep_problem(rec)
+
+
+def _sweep_problem(rec: dict[str, Any]) -> str | None:
+    """What the sweep page and plots index directly in an ok, timed record of each sweep kind."""
+    import scenarios
+    tags = rec.get("tags") or {}
+    knob = tags.get("knob") or {}
+    if knob.get("value") is not None and knob.get("name") is None:
+        return "tags.knob.name must be a string where tags.knob.value is set"
+    if rec["status"] != "ok" or not rec.get("time"):
+        return None
+    kind, role = tags.get("sweep"), tags.get("role")
+    labels = scenarios.SCENARIOS[rec["scenario"]].sweep_labels
+    need: list[tuple[str, Any]] = []
+    if kind == "bandwidth" and role in ("copy", "bandwidth"):
+        need += [("work.bytes", POSITIVE), ("params.n", POSITIVE)]
+    if kind == "bandwidth" and role == "bandwidth" or kind == "horizon":
+        need.append(("tags.knob.value", POSITIVE))
+    if kind == "scaling":
+        need += [("error", Obj(null=False)), ("memory.peak_host_rss_bytes", OPT_AMOUNT),
+                 (f"work.{labels.get('rate_work', 'items')}", AMOUNT)]
+        need += [(f"params.{labels['per_run']}", AMOUNT)] if labels.get("per_run") else []
+    if kind == "horizon":
+        need += [("error", Obj(null=False)), ("variant", TEXT), ("params", Obj(null=False))]
+    for path, node in need:
+        v: Any = rec
+        for part in path.split("."):
+            if not isinstance(v, dict) or part not in v:
+                return f"{path} is missing (an ok {kind} sweep record, role {role}, needs it)"
+            v = v[part]
+        if (p := problem(node, v, path)) is not None:
+            return p
+    return None
+
+
+# ---- runs (environments) and a suite's analysis -----------------------------------------------
+RUN = Obj({
+    "created": OPT_TEXT, "hostname": OPT_TEXT, "os": OPT_TEXT, "cpu": OPT_TEXT, "python": OPT_TEXT,
+    "cuda_toolkit": OPT_TEXT, "command": OPT_TEXT, "git_commit": OPT_TEXT, "git_note": OPT_TEXT,
+    "git_dirty": FLAG, "cores": OPT_COUNT, "memory_gib": OPT_AMOUNT,
+    # readers write env.get("gpus", []) and index a GPU's three names: present means a list
+    "gpus": Seq(Obj({"name": TEXT, "driver": TEXT, "memory": TEXT}, ("name", "driver", "memory"), null=False),
+                null=False),
+    "packages": Obj(rest=TEXT, null=False), "hardware": Obj(rest=HARDWARE), "merged_from": Seq(TEXT, null=False),
+    "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT), "environments": Seq(Obj(null=False))},
+    null=False)
+ROW_FIELDS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
+ROW = Obj({**{k: TEXT for k in ROW_FIELDS}, "value": SCALAR}, ROW_FIELDS, null=False)
+PROVENANCE_RUN = Obj({"command": OPT_TEXT, "created": OPT_TEXT, "git_commit": OPT_TEXT, "backends": Seq(TEXT, null=False)},
+                     null=False)
+ANALYSIS = Obj({"rows": Seq(ROW, null=False), "series": Obj(null=False),
+                "provenance": Obj(rest=Either("a run (command, created, git_commit) or a list of runs",
+                                              (PROVENANCE_RUN, Seq(PROVENANCE_RUN, null=False))), null=False)},
+               null=False)
+
+
+def store_problem(data: dict[str, Any]) -> str | None:
+    """The first problem of a parsed, upgraded file (``records``, ``runs``, ``analysis``), as
+    'record 3: time.latency must be an object, got 5', or None."""
+    for i, env in enumerate(data["runs"]):
+        if (p := problem(RUN, env, f"runs[{i}]")) is not None:
+            return p
+    for i, rec in enumerate(data["records"]):
+        if (p := record_problem(rec)) is not None:
+            return f"record {i}: {p}"
+    if (p := problem(ANALYSIS, data["analysis"], "analysis")) is not None:
+        return p
+    return _rows_problem(data["analysis"].get("rows") or [])
+
+
+def _rows_problem(rows: list[dict[str, Any]]) -> str | None:
+    """A finding its experiment's own page hooks cannot read (a setting they parse)."""
+    if not rows:
+        return None
+    from compare.stress import experiments
+    registry = experiments()
+    for i, r in enumerate(rows):
+        exp = registry.get(r["experiment"])
+        for hook in (exp.extra_markdown, exp.table_rows) if exp is not None else ():
+            try:
+                if hook is not None:
+                    hook([r])
+            except Exception as exc:    # the hook is the experiment's: any failure is this row's
+                return f"analysis.rows[{i}]: the {_show(r['experiment'])} page cannot read this finding ({type(exc).__name__}: {_show(str(exc))})"
+    return None
+
+
+# ---- saved arrays -----------------------------------------------------------------------------
+def arrays_problem(rec: dict[str, Any], headers: dict[str, tuple[tuple[int, ...], int]]) -> str | None:
+    """Why the saved arrays (name -> (shape, bytes), read from their headers) of a loaded record
+    must not be used, or None: a picture or distance drawn from them allocates by the record's
+    parameters, so the shapes must be the ones those parameters declare and the cell must fit in
+    the memory available now."""
+    import psutil
+    import scenarios
+    if "params" not in rec:      # a cell named by hand; a loaded ok or mismatch record has them
+        return None
+    sc = scenarios.get(rec["scenario"])
+    p = sc.params(rec["params"] or {})
+    want = sc.output_shapes(p)
+    for name, (shape, _) in headers.items():
+        if want.get(name) is not None and tuple(want[name]) != shape:
+            return f"{name} has shape {shape}, the parameters declare {tuple(want[name])}"
+    need = max(sc.footprint(p, rec["precision"]), sc.output_bytes(p, rec["precision"]))
+    if sum(b for _, b in headers.values()) > max(need, 1 << 20):
+        return "the arrays are larger than the cell's declared footprint"
+    if need > psutil.virtual_memory().available:
+        return "the cell needs more memory than is available"
+    return None
+
+
+__all__ = ["STATUSES", "arrays_problem", "problem", "record_problem", "store_problem"]
