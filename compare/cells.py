@@ -5,6 +5,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -89,12 +90,13 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
             proc = subprocess.Popen(cmd, cwd=ROOT, env=env,
                                     stdout=subprocess.DEVNULL, stderr=err, text=True, stdin=subprocess.DEVNULL)
             started, done = time.monotonic(), 0
+            began = started             # when the cell now running (or the last one) started
             reason = None
             try:
                 while done < len(specs):
                     if (tmp_path / f"cell-{done}" / "record.json").exists():
                         got(_collect(tmp_path / f"cell-{done}", specs[done]))
-                        done, started = done + 1, time.monotonic()
+                        done, began, started = done + 1, started, time.monotonic()
                         continue
                     if proc.poll() is not None:
                         if (tmp_path / f"cell-{done}" / "record.json").exists():
@@ -109,8 +111,17 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
                         reason = f"timed out after {timeout:g} s; {_tail(err.read(), 2)}".rstrip("; ")
                         break
                     time.sleep(0.02)
-                if proc.poll() is None:
-                    proc.wait()
+                if reason is None and proc.poll() is None:
+                    # the timeout bounds the worker's whole life, its exit included: one that
+                    # saved its last record and hangs (an exit handler, a thread) is killed
+                    try:
+                        proc.wait(None if timeout is None else max(0.0, began + timeout - time.monotonic()))
+                    except subprocess.TimeoutExpired:
+                        proc.kill()
+                        proc.wait()
+                        print(f"warning: a worker of {specs[-1]['scenario']}/{specs[-1]['backend']} did not "
+                              f"exit within --timeout {timeout:g} s of its last cell's start; killed "
+                              "(its records are kept)", file=sys.stderr)
             finally:        # the driver gives up (a full disk, Ctrl-C): no worker runs on
                 if proc.poll() is None:
                     proc.kill()

@@ -165,12 +165,15 @@ def measure_cuda() -> dict[str, Any]:
 
 
 def measure(device: str, timeout: float = 300.0) -> dict[str, Any]:
-    """The yardstick of ``device``, measured in a fresh process; {"error": reason} if it cannot be."""
+    """The yardstick of ``device``, measured in a fresh process; {"error": reason} if it cannot be.
+    The process is tied to this driver's life (compare.lifeline) as cell workers are: a driver
+    killed mid-measurement leaves no yardstick running on."""
+    from compare import lifeline
     from compare.cells import ROOT, worker_env
     try:
-        proc = subprocess.run([sys.executable, "-m", "compare.hardware", device], cwd=ROOT,
-                              env=worker_env(), capture_output=True, text=True, timeout=timeout,
-                              stdin=subprocess.DEVNULL)
+        proc = subprocess.run(lifeline.command("compare.hardware", device), cwd=ROOT,
+                              env=lifeline.child_environment(worker_env()), capture_output=True, text=True,
+                              timeout=timeout, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
         return {"error": f"yardstick timed out after {timeout:g} s"}
     for line in proc.stdout.splitlines():
