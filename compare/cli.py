@@ -14,6 +14,7 @@ parameter is one line on stderr and exit 2, before any cell runs or any file is 
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from typing import Any
 
@@ -111,6 +112,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 def main(argv: list[str]) -> int:
     try:
+        options.check_utf8(argv)
         if argv and not argv[0].startswith("-") and argv[0] not in known_commands():
             raise UsageError(f"unknown scenario or command {argv[0]!r} (known: {', '.join(known_commands())})")
         args = parse(argv)
@@ -128,13 +130,18 @@ def main(argv: list[str]) -> int:
             chosen = [scenarios.get(args.command)]
         return run_suite.run(args, argv, chosen)
     except (UsageError, ParamError, StoreError, SpecError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {options.shown(str(exc))}", file=sys.stderr)   # a path's newline stays escaped
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except OSError as exc:      # the disk filled up (or went away) mid-run: what was saved stays
-        print(f"error: {write_failure(exc, argv)}", file=sys.stderr)
+    except OSError as exc:
+        if exc.errno == errno.ENAMETOOLONG:     # a name the file system cannot hold: bad usage
+            print(f"error: {options.shown(str(exc.filename or 'a path'))}: name too long for the file "
+                  "system (give a shorter path)", file=sys.stderr)
+            return EXIT_USAGE
+        # the disk filled up (or went away) mid-run: what was saved stays
+        print(f"error: {options.shown(write_failure(exc, argv))}", file=sys.stderr)
         return EXIT_FAIL
 
 

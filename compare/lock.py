@@ -6,7 +6,9 @@ is refused with one line naming the holder's PID. The lock is ``fcntl.flock``: t
 it when its holder exits, however it exits (SIGKILL included), so a lock file left behind by a
 dead driver is simply taken over. On a filesystem without flock (some network mounts) the file
 is created exclusively instead, and one whose PID no longer runs counts as stale.
-The file is removed on release.
+The file is removed on release, and a driver that leaves by an exception (a refusal, a failure)
+also removes the directories its claim made (``made``) if they are still empty: a refused
+command leaves nothing behind.
 """
 from __future__ import annotations
 
@@ -44,9 +46,10 @@ def _read_pid(path: Path) -> int | None:
 class DirectoryLock:
     """``with DirectoryLock(out):`` or ``acquire()`` / ``release()``; raises ``Busy``."""
 
-    def __init__(self, directory: str | Path) -> None:
+    def __init__(self, directory: str | Path, made: list[Path] | tuple[Path, ...] = ()) -> None:
         self.directory = Path(directory)
         self.path = self.directory / NAME
+        self.made = list(made)        # directories created for this claim, deepest first
         self._fd: int | None = None
         self._exclusive = False       # the no-flock fallback holds the file itself
 
@@ -134,5 +137,16 @@ class DirectoryLock:
     def __enter__(self) -> "DirectoryLock":
         return self if self.held else self.acquire()
 
-    def __exit__(self, *exc: object) -> None:
+    def remove_made(self) -> None:
+        """Remove the directories this claim created, deepest first, while they are empty."""
+        for d in self.made:
+            try:
+                os.rmdir(d)
+            except OSError:
+                break
+        self.made = []
+
+    def __exit__(self, exc_type: object, *exc: object) -> None:
         self.release()
+        if exc_type is not None:
+            self.remove_made()

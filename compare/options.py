@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -236,19 +237,70 @@ def scenario_sets(raw: dict[str, str], chosen: list[scenarios.Scenario]) -> dict
     return {sc.name: {k: v for k, v in raw.items() if k in known[sc.name]} for sc in chosen}
 
 
+def _exists(p: Path) -> bool:
+    try:
+        return p.exists()
+    except OSError:              # a name too long, a directory we may not search: not usable
+        return False
+
+
 def _existing_ancestor(path: Path) -> Path:
-    p = path.absolute()
-    while not p.exists() and p != p.parent:
-        p = p.parent
-    return p
+    return next(p for p in (path.absolute(), *path.absolute().parents) if _exists(p) or p == p.parent)
+
+
+def _missing_dirs(path: Path) -> list[Path]:
+    """The directories ``mkdir(parents=True)`` would create for ``path``, deepest first."""
+    import itertools
+    return list(itertools.takewhile(lambda p: not _exists(p), (path.absolute(), *path.absolute().parents)))
+
+
+def shown(text: str) -> str:
+    """``text`` with what a terminal cannot show on one line escaped as ``repr`` does (a newline
+    as \\n, a byte that is not UTF-8 as \\xff): an error naming a hostile path stays one line."""
+    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if 0xDC80 <= ord(c) <= 0xDCFF      # undecodable byte
+                   else c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def check_utf8(argv: list[str]) -> None:
+    """Refuse a word that is not UTF-8 (a path with such a byte) up front: results and pages are
+    UTF-8 text naming their command and paths, so it would fail only after every cell ran."""
+    for i, word in enumerate(argv):
+        try:
+            word.encode("utf-8")
+        except UnicodeEncodeError:
+            opt = argv[i - 1] + " " if i and argv[i - 1].startswith("-") and "=" not in word else ""
+            raise UsageError(f"{opt}{shown(word)}: not valid UTF-8 (results and pages are UTF-8 text); "
+                             "give a UTF-8 name") from None
+
+
+INSIDE_BYTES = 256      # names a suite writes under its --out (arrays/.<cell>.npz.compare-*.tmp)
+
+
+def check_length(path: str, flag: str, inside: int = 0) -> None:
+    """Refuse a path the file system cannot name (ENAMETOOLONG) in one line: a component past
+    NAME_MAX, or the path plus ``inside`` bytes (the files written under it) past PATH_MAX."""
+    raw, base = os.fsencode(path), _existing_ancestor(Path(path))
+    limits = []
+    for name, default in (("PC_NAME_MAX", 255), ("PC_PATH_MAX", 4096)):
+        try:
+            limits.append(os.pathconf(base, name) or default)
+        except (OSError, ValueError):
+            limits.append(default)
+    longest = max(raw.split(b"/"), key=len)
+    head = f"{flag} {shown(path[:60])}{'...' if len(path) > 60 else ''}"
+    if len(longest) > limits[0]:
+        raise UsageError(f"{head}: a name in it is {len(longest)} bytes long; this file system allows {limits[0]}")
+    if len(raw) + inside >= limits[1]:
+        raise UsageError(f"{head}: too long ({len(raw)} bytes" + (f" + {inside} for the files in it" if inside
+                         else "") + f"; this file system allows {limits[1]})")
 
 
 def check_output(path: str, flag: str = "--out") -> Path:
     """--out checked without writing anything: not empty, not a file, not under a file, on a
     writable filesystem. ``output_directory`` then creates it."""
-    import os
     if not path or not path.strip():
         raise UsageError(f"{flag} is empty (give a directory)")
+    check_length(path, flag, INSIDE_BYTES)
     out = Path(path)
     if out.exists() and not out.is_dir():
         raise UsageError(f"{flag} {path}: is a file, not a directory")
@@ -260,10 +312,27 @@ def check_output(path: str, flag: str = "--out") -> Path:
     return out
 
 
+def check_page(page: str | None, title: str | None = None) -> None:
+    """--page FILE and --title checked before anything runs or is written: the page a file (not
+    a directory) in a writable directory, the title one line of text (it is a Markdown heading)."""
+    if title is not None and not all(c.isprintable() for c in title):
+        raise UsageError(f"--title {shown(title)}: give one line of printable text")
+    if page is None:
+        return
+    if not page.strip():
+        raise UsageError("--page is empty (give a file)")
+    check_length(page, "--page")
+    p = Path(page)
+    if p.is_dir():
+        raise UsageError(f"--page {page}: is a directory (give a file)")
+    if p.exists() and not p.is_file():
+        raise UsageError(f"--page {page}: not a regular file")
+    check_output(str(p.parent), "--page's directory")
+
+
 def free_bytes(path: Path) -> int:
     """Free space for an unprivileged writer on the filesystem of ``path`` (or its nearest
     existing ancestor). Test hook: COMPARE_FAULT_FREE=BYTES pretends that much is free."""
-    import os
     import shutil
     fake = os.environ.get("COMPARE_FAULT_FREE", "")
     if fake.isdigit():
@@ -297,13 +366,17 @@ def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results"):
     (``with lock:``); the kernel releases it if the driver dies."""
     from compare.lock import Busy, DirectoryLock
     from compare.store import remove_stale_temps
+    made = _missing_dirs(Path(path))
     out = output_directory(path, need_bytes, what)
-    lock = DirectoryLock(out)
+    # a refusal or failure under the lock removes the directories made here if still empty
+    lock = DirectoryLock(out, made=made)
     try:
         lock.acquire()
     except Busy as exc:
+        lock.remove_made()
         raise UsageError(str(exc)) from None
     except OSError as exc:          # creating the lock file is the first write: the write test
+        lock.remove_made()
         raise UsageError(f"--out {path}: cannot write there ({exc.strerror or exc})") from None
     remove_stale_temps(out)
     return out, lock

@@ -2,14 +2,16 @@
 
 Plan: every chosen scenario x backend x device x precision x variant (reference backend first).
 Run: ``engine.run_cells`` (one worker process per cell, one at a time: timed cells never share
-the machine) into the ``run`` store (DIR/results.json, saved after every cell). Render: each
-port's distance to the reference backend, --save-arrays outputs, plots, results.csv/.md, and
-the console table.
+the machine) into the ``run`` store (``RunStore``: DIR/results.json and with it results.csv/.md,
+saved after every cell, each record judged against the run's yardstick and its --save-arrays
+file written before it is saved). Render: each port's distance to the reference backend, plots,
+results.csv/.md, and the console table.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +20,7 @@ import numpy as np
 import backends
 import scenarios
 from compare import engine, environment, hardware, options, report, scaleout
-from compare.store import UPGRADES, Store, load_arrays, save_arrays
+from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
 
@@ -183,35 +185,89 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     Store.open(args.out, "run", keep=args.resume)     # and a bad results.json to resume (read only)
     sel_backends = sorted({s["backend"] for s in specs})
     probes = engine.availability(sel_backends)
-    runnable = [s for s in specs if not engine.not_runnable(engine.prepare(s), probes)]
+    blocked = [engine.not_runnable(engine.prepare(s), probes) for s in specs]
+    runnable = [s for s, b in zip(specs, blocked) if not b]
+    nothing_to_run(specs, blocked)
     check_memory(runnable, worker=args.scheduler in (None, "local"))
     need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
     client = scaleout.client(args.scheduler) if args.scheduler else None
-    out, lock = options.claim_output(args.out, need, "the results" + (" and arrays" if args.save_arrays else ""))
+    try:
+        out, lock = options.claim_output(args.out, need, "the results" + (" and arrays" if args.save_arrays else ""))
+    except UsageError:
+        if client is not None:
+            client.close()
+        raise
     with lock:
         return run_claimed(args, argv, specs, out, probes, client)
+
+
+def nothing_to_run(specs: list[dict[str, Any]], blocked: list[tuple[str, str] | None]) -> None:
+    """Refuse a plan whose every cell would be skipped (no chosen backend can use a chosen
+    device): exit 2 with the first reason, before anything is written."""
+    if specs and all(b is not None and b[0] == "skipped" for b in blocked):
+        s, why = specs[0], blocked[0][1]         # type: ignore[index]
+        raise UsageError(f"nothing to run: every one of the {len(specs)} cells would be skipped "
+                         f"(first: {s['backend']} on {s['device']}: {why})")
+
+
+class RunStore(Store):
+    """results.json whose every save also rewrites results.csv and results.md from the same
+    records (each atomically), so after an interruption the three agree; ``rerun`` names kept
+    cells that --resume runs again (their --save-arrays files are missing)."""
+    env: dict[str, Any] = {}
+    rerun: frozenset[str] = frozenset()
+
+    def save(self) -> None:
+        super().save()
+        out = self.path.parent
+        report.write_tables(out, self.env, self.records, images=report.images_in(out / "plots", out))
+
+    def done(self, cell_key: str) -> bool:
+        return cell_key not in self.rerun and super().done(cell_key)
+
+
+def arrays_saved(out: Path, rec: dict[str, Any]) -> bool:
+    try:
+        return array_file(out, rec).is_file()
+    except StoreError:
+        return False
 
 
 def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str, Any]], out: Path,
                 probes: dict[str, dict[str, Any]], client: Any = None) -> int:
     """The run, once its output directory is checked, has room and is locked by this driver."""
-    store = Store.open(out, "run", keep=args.resume)
-    env = environment.collect(argv)
+    import platform
+    store = RunStore.open(out, "run", keep=args.resume)
+    env = store.env = environment.collect(argv)
     env["backends"] = probes
     # the framework-neutral yardstick of every device some backend can use, in this same run
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s in specs)
                        if any(p["available"].get(d) is None for p in probes.values())}
     store.runs = [*store.runs, env] if args.resume else [env]
+    if args.resume:
+        # kept cells a killed run finished before judging them get this machine's yardstick
+        hardware.annotate([r for r in store.records if "hardware" not in r and r.get("host") == platform.node()],
+                          env["hardware"])
+        if args.save_arrays:        # a kept cell whose arrays were never written runs again
+            store.rerun = frozenset(engine.key(r) for r in store.records
+                                    if r["status"] in ("ok", "mismatch") and not arrays_saved(out, r))
+        if store.records:
+            store.save()            # tables rebuilt from the kept records before any cell runs
     runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
     if client is not None:
         env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
+    show = engine.progress(len(specs))
+
+    def on_record(i: int, rec: dict[str, Any], outs: dict[str, np.ndarray] | None) -> None:
+        hardware.annotate([rec], env["hardware"])        # judged against this run's yardstick
+        if args.save_arrays and outs is not None:        # before its record is saved: a failed
+            save_arrays(out, rec, outs)                  # write leaves the cell to be run again
+        show(i, rec, outs)
     results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
-                               store=store, resume=args.resume, on_record=engine.progress(len(specs)))
+                               store=store, resume=args.resume, on_record=on_record)
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]
     outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
-    # judged against this run's yardstick: the cells run now (a kept record keeps its own)
-    hardware.annotate([records[i] for i in outputs], env["hardware"])
     mine = {engine.key(r) for r in records}
     records += [r for r in store.records if engine.key(r) not in mine]
     if args.save_arrays or args.resume:
@@ -220,13 +276,16 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     for r in records:
         store.put(r)
     store.save()
-    if args.save_arrays:
-        for i, o in outputs.items():
-            save_arrays(out, records[i], o)
     render(out, env, records, outputs, plots=not args.no_plots)
     print(report.tables(records, wide=args.wide))
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
-    return options.EXIT_FAIL if any(r["status"] in ("mismatch", "error") for r in records) else options.EXIT_OK
+    missing = [r for r, _ in results if args.save_arrays and r["status"] in ("ok", "mismatch")
+               and not arrays_saved(out, r)]
+    if missing:
+        print(f"error: the arrays of {len(missing)} cells are missing (first: {array_file(out, missing[0])}); "
+              "rerun with --resume --save-arrays", file=sys.stderr)
+    bad = missing or any(r["status"] in ("mismatch", "error") for r in records)
+    return options.EXIT_FAIL if bad else options.EXIT_OK
 
 
 def report_command(args: argparse.Namespace) -> int:
@@ -252,8 +311,7 @@ def report_command(args: argparse.Namespace) -> int:
         outputs.update({len(records) + i: o for i, o in mine.items()})
         records += recs
     notes = options.read_notes(args.notes)
-    if args.page:
-        options.check_output(str(Path(args.page).parent), "--page's directory")
+    options.check_page(args.page, args.title)
     out, lock = options.claim_output(args.out, PAGE_BYTES + 2 * RECORD_BYTES * len(records))
     with lock:
         return report_claimed(args, out, envs, records, outputs, notes)

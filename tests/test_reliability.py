@@ -598,13 +598,13 @@ def test_sigkilled_driver_leaves_no_worker_no_temp_dir_and_a_stale_lock(tmp_path
 
 @pytest.mark.slow
 def test_full_disk_mid_run_keeps_every_saved_record_and_resume_finishes(tmp_path):
-    """COMPARE_FAULT_DISK=2: the third write fails as a full disk does. The records saved before
-    stay in results.json, no temporary file is left, one line and exit 1; --resume runs exactly
-    the missing cells."""
+    """COMPARE_FAULT_DISK=6: the seventh write fails as a full disk does (each cell's record is
+    saved as results.json, .csv and .md). The records saved before stay in results.json, no
+    temporary file is left, one line and exit 1; --resume runs exactly the missing cells."""
     out = tmp_path / "out"
     args = ["run", "saxpy", "sdf", "projectile", "--quick", "--backends", "numba", "--devices", "cpu",
             "--precision", "float32", "--repeat", "1", "--min-time", "0", "--no-plots", "--out", str(out)]
-    p = compare_proc(*args, env={"COMPARE_FAULT_DISK": "2", "CI": "1"})
+    p = compare_proc(*args, env={"COMPARE_FAULT_DISK": "6", "CI": "1"})
     _, err = p.communicate(timeout=600)
     assert p.returncode == 1, err
     last = err.strip().splitlines()[-1]
@@ -613,7 +613,7 @@ def test_full_disk_mid_run_keeps_every_saved_record_and_resume_finishes(tmp_path
     assert "Traceback" not in err
     kept = Store.read(out / "results.json").records
     assert [r["scenario"] for r in kept] == ["saxpy", "sdf"] and all(r["status"] == "ok" for r in kept)
-    assert sorted(p.name for p in out.iterdir()) == ["results.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["results.csv", "results.json", "results.md"]
     p = compare_proc(*args, "--resume", env={"CI": "1"})
     _, err = p.communicate(timeout=600)
     assert p.returncode == 0, err
@@ -631,17 +631,18 @@ def test_full_disk_mid_run_keeps_every_saved_record_and_resume_finishes(tmp_path
 @pytest.mark.slow
 def test_full_disk_while_saving_arrays_leaves_no_partial_npz(tmp_path):
     """The disk fills while --save-arrays files are written: no truncated .npz, no temporary,
-    exit 1 with one line; the results are complete and a report of them works."""
+    exit 1 with one line; the cell whose arrays failed has no record (--resume runs it again),
+    the results saved before are complete and a report of them works."""
     out = tmp_path / "out"
-    # writes: a record per cell (2), the final results.json (3), then the first .npz fails
+    # writes: the first cell's .npz, results.json, .csv, .md (4), then the second cell's .npz fails
     p = compare_proc("saxpy", "--quick", "--backends", "numba", "--devices", "cpu", "--repeat", "1",
                      "--min-time", "0", "--no-plots", "--save-arrays", "--out", str(out),
-                     env={"COMPARE_FAULT_DISK": "3", "CI": "1"})
+                     env={"COMPARE_FAULT_DISK": "4", "CI": "1"})
     _, err = p.communicate(timeout=600)
     assert p.returncode == 1 and "Traceback" not in err, err
     assert "No space left on device" in err.strip().splitlines()[-1]
-    assert len(Store.read(out / "results.json").records) == 2
-    assert not list(out.rglob("*.npz")) and not list(out.rglob(".*.tmp"))
+    assert len(Store.read(out / "results.json").records) == 1
+    assert [f.name for f in out.rglob("*.npz")] == ["saxpy-numba-cpu-float32.npz"] and not list(out.rglob(".*.tmp"))
     r = compare_proc("report", str(out / "results.json"), "--out", str(tmp_path / "rep"), "--no-plots")
     _, err = r.communicate(timeout=300)
     assert r.returncode == 0, err

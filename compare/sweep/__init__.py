@@ -31,7 +31,7 @@ from typing import Any
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options, scaleout
+from compare import engine, environment, hardware, options, run_suite, scaleout
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
@@ -241,14 +241,26 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError("--resume keeps OUT/sweep.json's records and --fresh drops them: give one")
     options.check_scheduler(args)
     planned = plan(args)
+    if not planned:
+        raise UsageError(f"nothing to run: the {args.kind} sweep has no points for the chosen "
+                         "scenarios, backends and devices")
     notes = options.read_notes(args.notes)
     options.check_output(args.out)
+    options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
     Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
     probes = engine.availability(dict.fromkeys(s["backend"] for s, _ in planned))
-    runnable = [s for s, _ in planned if not engine.not_runnable(engine.prepare(s), probes)]
-    out, lock = options.claim_output(args.out, 2 * (RECORD_BYTES * len(runnable) + existing_bytes(args.out))
-                                     + PAGE_BYTES)
+    blocked = [engine.not_runnable(engine.prepare(s), probes) for s, _ in planned]
+    run_suite.nothing_to_run([s for s, _ in planned], blocked)
+    runnable = [s for (s, _), b in zip(planned, blocked) if not b]
+    # connected before the claim: an unreachable scheduler leaves no lock and no --out behind
     client = scaleout.client(args.scheduler) if args.scheduler else None
+    try:
+        out, lock = options.claim_output(args.out, 2 * (RECORD_BYTES * len(runnable) + existing_bytes(args.out))
+                                         + PAGE_BYTES)
+    except UsageError:
+        if client is not None:
+            client.close()
+        raise
     with lock:
         return run_claimed(args, argv, planned, notes, out, probes, client)
 
@@ -291,8 +303,7 @@ def report(args: argparse.Namespace) -> int:
     merged = Store(Path(args.out) / "sweep.json", "sweep")
     for f in args.files:                  # a later file's record of the same cell wins
         merged.merge(Store.read(f, "sweep"))
-    if args.page:
-        options.check_output(str(Path(args.page).parent), "--page's directory")
+    options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
     out, lock = options.claim_output(args.out, PAGE_BYTES)
     with lock:
         rebuild(contents(merged), args, list(args.files), notes)
