@@ -5,7 +5,7 @@ The state is four arrays over the particles; the loop over time steps is a symbo
 compiles into one kernel in which each thread (SIMD lane on the CPU) keeps its particle in
 registers for all steps. With ``record_every`` > 0 the body also scatters every
 ``record_every``-th state into the trajectory buffers (a masked ``dr.scatter``, a side effect of
-the same kernel); frame 0 is the initial state, written by the same kernel before the loop.
+the same kernel); frame 0 is the initial state, written by the same kernel.
 """
 from __future__ import annotations
 
@@ -29,11 +29,16 @@ def rollout(steps: int, record_every: int, state: tuple, c: dict[str, Any], uint
     lo = -1.0 + c["radius"]
     hi = 1.0 - c["radius"]
     p = dr.arange(uint, n)
-    if traj is not None:
+    if traj is not None and steps == 0:
         dr.scatter(traj[0], state[0], p)
         dr.scatter(traj[1], state[1], p)
 
     def body(s, x, y, u, v):
+        if traj is not None:
+            # frame 0 from the first trip: a scatter pending before a symbolic loop would be
+            # flushed as a kernel of its own, one after it would re-run the loop
+            dr.scatter(traj[0], x, p, active=s == 0)
+            dr.scatter(traj[1], y, p, active=s == 0)
         # the scenario's exact order: velocity, positions, then the three clamps in sequence
         v = v + gdt
         x = x + u * c["dt"]
