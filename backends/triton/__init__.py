@@ -1,0 +1,206 @@
+"""Triton: kernels written with ``@triton.jit`` (block-level Python), tensors from PyTorch.
+
+Why these choices:
+  * CUDA only for timing. Triton compiles for GPUs; on the CPU it runs kernels only in its
+    interpreter (``TRITON_INTERPRET=1``), which executes every program of the grid one after
+    another in NumPy: a correctness tool, not a CPU backend. So ``available()`` never offers the
+    CPU to ``compare`` (its cells are skips naming the interpreter), and under
+    ``TRITON_INTERPRET=1`` not CUDA either (the kernels would be the interpreter's, not compiled).
+    tests/test_triton.py runs the kernels under the interpreter on the CPU for parity.
+  * Precision. Triton types a Python float kernel argument as fp32, so a float64 kernel would see
+    rounded constants: scalar inputs travel in a small device tensor of the cell's dtype (``put``)
+    and are loaded in the kernel. Literals in kernel code (``0.35``) are materialised in the dtype
+    of the tensor they meet, i.e. rounded once from the double, as CuPy's ``R(0.35)``.
+  * IEEE arithmetic (fmath.py): Triton lowers float32 ``/``, ``tl.sqrt`` and ``tl.exp`` to
+    approximate PTX (``div.full``, ``sqrt.approx``, ``ex2.approx``); the kernels call libdevice's
+    correctly rounded division and square root and its exp/log/sin (what CUDA C's ``/``,
+    ``sqrtf``, ``expf`` are under nvcc/NVRTC defaults, as in the CuPy port).
+  * FMA contraction is requested explicitly at every launch (``enable_fp_fusion=True``), as Warp's,
+    Numba's and NVRTC's defaults contract; Triton 3.10 turns its own default off.
+  * Launches go on PyTorch's current stream, so ``capture`` is ``torch.cuda.graph`` and the events
+    and memory figure are PyTorch's (Triton allocates nothing itself here).
+Importing this package does not import triton or torch (the driver imports every backend package).
+"""
+from __future__ import annotations
+
+import importlib.metadata
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..base import Backend, cuda_build_hint, not_installed
+
+CPU_REASON = ("Triton compiles for GPUs only; its CPU interpreter (TRITON_INTERPRET=1: NumPy, one "
+              "program at a time) is for correctness and is not timed (tests/test_triton.py runs "
+              "the parity cases under it)")
+INTERPRETER_REASON = ("TRITON_INTERPRET=1 is set: kernels would run in Triton's interpreter "
+                      "(correctness only), not compiled for the GPU; unset it to time CUDA")
+# Contract a*b + c into one FMA at every launch (Warp's, Numba's and NVRTC's CUDA defaults).
+FP_FUSION = True
+_TRUE = ("1", "true", "on", "yes")
+
+
+def interpreting() -> bool:
+    """Whether ``@triton.jit`` makes interpreted functions in this process (TRITON_INTERPRET)."""
+    return os.environ.get("TRITON_INTERPRET", "0").strip().lower() in _TRUE
+
+
+def torch_device(device: str) -> Any:
+    """The tensors' device; the CPU only under the interpreter (which runs on host tensors)."""
+    import torch
+    if device == "cuda":
+        return torch.device("cuda", 0)
+    if not interpreting():
+        raise RuntimeError("Triton runs kernels on the CPU only in its interpreter: set TRITON_INTERPRET=1")
+    return torch.device("cpu")
+
+
+def put(array: Any, precision: str | np.dtype, device: str) -> Any:
+    """Upload a copy of a host array (a scalar becomes shape (1,)) with an explicit dtype."""
+    import torch
+    host = np.array(np.atleast_1d(np.asarray(array)), dtype=np.dtype(precision), order="C", copy=True)
+    return torch.from_numpy(host).to(torch_device(device))
+
+
+def empty(shape: tuple[int, ...], precision: str | np.dtype, device: str) -> Any:
+    import torch
+    dtype = getattr(torch, np.dtype(precision).name)            # float32, float64, uint8
+    return torch.empty(shape, dtype=dtype, device=torch_device(device))
+
+
+def download(t: Any) -> np.ndarray:
+    return t.detach().cpu().numpy().copy()
+
+
+def launch_options() -> dict[str, Any]:
+    """Compile options every launch passes (the interpreter ignores them)."""
+    return {"enable_fp_fusion": FP_FUSION}
+
+
+def kernel_info(**facts: Any) -> dict[str, Any]:
+    return {"kernel": "triton.jit", "fp_fusion": FP_FUSION, "interpreter": interpreting(), **facts}
+
+
+def tuned(kernel: Any) -> dict[str, Any]:
+    """What ``triton.autotune`` chose (after the first call), for ``info()``."""
+    cfg = getattr(kernel, "best_config", None)
+    if cfg is None:
+        return {}
+    return {"autotuned": {**cfg.kwargs, "num_warps": cfg.num_warps}}
+
+
+class TritonBackend(Backend):
+    name = "triton"
+    package = "triton"
+    gradient_method = "adjoint"          # hand-written discrete adjoint (as CuPy, Numba): no autodiff
+    display_order, color = 7, "C8"
+    related_packages = ("torch",)
+
+    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
+        # Triton's kernel cache (its cubins; autotuning results are not cached on disk by default)
+        return {"TRITON_CACHE_DIR": str(cache_dir / "triton"),
+                "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
+
+    def available(self) -> dict[str, str | None]:
+        reason = not_installed("triton", self.package, extra="triton") or \
+            not_installed("torch", "torch", extra="triton")
+        if reason:
+            return {"cpu": CPU_REASON, "cuda": reason}
+        return {"cpu": CPU_REASON, "cuda": INTERPRETER_REASON if interpreting() else self._cuda_reason()}
+
+    @staticmethod
+    def _cuda_reason() -> str | None:
+        import torch
+        if torch.cuda.is_available():
+            return None
+        if torch.version.cuda is None:
+            return cuda_build_hint(f"this PyTorch build has no CUDA support (torch {torch.__version__}), "
+                                   "and Triton takes its tensors from PyTorch")
+        return cuda_build_hint(f"no CUDA device visible to PyTorch (torch {torch.__version__})")
+
+    def versions(self) -> dict[str, str]:
+        out = {}
+        for dist in ("triton", "torch"):
+            try:
+                out[dist] = importlib.metadata.version(dist)
+            except importlib.metadata.PackageNotFoundError:
+                pass
+        try:
+            import torch
+            out["torch_cuda"] = str(torch.version.cuda)
+        except Exception:
+            pass
+        return out
+
+    def setup(self, device: str, precision: str, variant: str) -> None:
+        if variant != "default":
+            raise ValueError(f"Triton has no variant {variant!r}")
+        if device == "cuda":
+            import torch
+            torch.cuda.set_device(torch_device(device))
+
+    def ensure_context(self, device: str) -> None:
+        if device == "cuda":
+            import torch
+            torch.cuda.init()
+            torch.cuda.synchronize(torch_device(device))   # creates the primary context now
+
+    def synchronize(self, device: str, result: Any) -> None:
+        if device == "cuda":
+            import torch
+            torch.cuda.synchronize(torch_device(device))
+
+    def capture(self, device: str, run: Any) -> Any:
+        """``torch.cuda.graph`` of one ``run()``: Triton launches on PyTorch's current stream, so
+        stream capture records them (after a warm-up on a side stream, as PyTorch's CUDA-graph
+        docs ask; autotuning already happened at the first call). CUDA only."""
+        if device != "cuda":
+            return None
+        import torch
+        side = torch.cuda.Stream()
+        side.wait_stream(torch.cuda.current_stream())
+        with torch.cuda.stream(side):
+            run()
+        torch.cuda.current_stream().wait_stream(side)
+        graph = torch.cuda.CUDAGraph()
+        with torch.cuda.graph(graph):
+            run()
+        return graph.replay
+
+    def event_timer(self, device: str) -> "TorchEvents | None":
+        return TorchEvents() if device == "cuda" else None
+
+    def memory(self, device: str) -> dict[str, Any]:
+        """Peak bytes of PyTorch's CUDA caching allocator: every tensor the kernels touch is its."""
+        if device != "cuda":
+            return {}
+        import torch
+        dev = torch_device(device)
+        return {"device_peak_bytes": int(torch.cuda.max_memory_allocated(dev)),
+                "device_reserved_peak_bytes": int(torch.cuda.max_memory_reserved(dev)),
+                "device_memory_source": "torch.cuda.max_memory_allocated (caching allocator)"}
+
+
+class TorchEvents:
+    description = "CUDA events (torch.cuda.Event on the current stream) around run()"
+
+    def __init__(self) -> None:
+        import torch
+        self.torch = torch
+        self.a = torch.cuda.Event(enable_timing=True)
+        self.b = torch.cuda.Event(enable_timing=True)
+
+    def start(self) -> None:
+        self.a.record(self.torch.cuda.current_stream())
+
+    def stop(self) -> None:
+        self.b.record(self.torch.cuda.current_stream())
+
+    def elapsed_s(self) -> float:
+        self.b.synchronize()
+        return self.a.elapsed_time(self.b) * 1e-3          # milliseconds
+
+
+BACKEND = TritonBackend()
