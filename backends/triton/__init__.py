@@ -16,7 +16,9 @@ Why these choices:
     correctly rounded division and square root and its exp/log/sin (what CUDA C's ``/``,
     ``sqrtf``, ``expf`` are under nvcc/NVRTC defaults, as in the CuPy port).
   * FMA contraction is requested explicitly at every launch (``enable_fp_fusion=True``), as Warp's,
-    Numba's and NVRTC's defaults contract; Triton 3.10 turns its own default off.
+    Numba's and NVRTC's defaults contract (Triton 3.10 turns its own default off), and libdevice
+    is linked without flush-to-zero (``enable_reflect_ftz=False``; Triton's default flushes float32
+    subnormals in div_rn, sqrt_rn, exp ..., CUDA C's does not).
   * Launches go on PyTorch's current stream, so ``capture`` is ``torch.cuda.graph`` and the events
     and memory figure are PyTorch's (Triton allocates nothing itself here).
 Importing this package does not import triton or torch (the driver imports every backend package).
@@ -75,12 +77,19 @@ def download(t: Any) -> np.ndarray:
 
 
 def launch_options() -> dict[str, Any]:
-    """Compile options every launch passes (the interpreter ignores them)."""
-    return {"enable_fp_fusion": FP_FUSION}
+    """Compile options every launch passes: FMA contraction on, and libdevice without
+    flush-to-zero (CUDA C's default; Triton's own is FTZ). An option this Triton does not know is
+    left out (a launch with an unknown keyword raises); ``info()`` records what was passed."""
+    opts = {"enable_fp_fusion": FP_FUSION, "enable_reflect_ftz": False}
+    if interpreting():                 # the interpreter drops launch options
+        return opts
+    from triton.backends.nvidia.compiler import CUDAOptions
+    return {k: v for k, v in opts.items() if k in CUDAOptions.__dataclass_fields__}
 
 
 def kernel_info(**facts: Any) -> dict[str, Any]:
-    return {"kernel": "triton.jit", "fp_fusion": FP_FUSION, "interpreter": interpreting(), **facts}
+    return {"kernel": "triton.jit", "interpreter": interpreting(), "launch_options": launch_options(),
+            **facts}
 
 
 def tuned(kernel: Any) -> dict[str, Any]:
