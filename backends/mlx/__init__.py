@@ -102,11 +102,18 @@ def cpu_fusion() -> str:
 
 class Program:
     """``mx.compile(fn)``: traced and compiled (the CPU's g++ included) inside its first call, so
-    compilation stays in the driver's first-call time."""
+    compilation stays in the driver's first-call time. ``traces`` counts how often MLX ran the
+    Python function to trace it (once per input signature; a compiled call runs no Python)."""
 
     def __init__(self, fn: Callable[..., Any]) -> None:
         import mlx.core as mx
-        self.fn = mx.compile(fn)
+        self.traces = 0
+
+        def traced(*args: Any) -> Any:
+            self.traces += 1
+            return fn(*args)
+
+        self.fn = mx.compile(traced)
 
     def __call__(self, *args: Any) -> Any:
         return self.fn(*args)
@@ -119,9 +126,12 @@ def launch(out: Any) -> Any:
     return out
 
 
-def kernel_info(device: str, precision: str, **extra: Any) -> dict[str, Any]:
+def kernel_info(device: str, precision: str, program: Program | None = None,
+                **extra: Any) -> dict[str, Any]:
     out: dict[str, Any] = {"compiled": "mx.compile", "launch": "mx.async_eval per run()",
                            "transcendentals": transcendentals(precision)}
+    if program is not None:
+        out["traces"] = program.traces
     if device == "cpu":
         out["cpu_fusion"] = cpu_fusion()
     return {**out, **extra}

@@ -33,4 +33,4 @@ class Kernel(ScenarioKernel):
         return {"out": download(self.out, self.precision)}
 
     def info(self) -> dict[str, Any]:
-        return kernel_info(self.device, self.precision)
+        return kernel_info(self.device, self.precision, self.program)

@@ -1,13 +1,16 @@
 """Bouncing particles in MLX: one compiled step over all particles, called once per time step.
 
 The step (the scenario's order: velocity, positions, then the floor and the two walls, each a
-``mx.where``) is one ``mx.compile``d function, fused into one elementwise kernel over the
-particles; ``run()`` calls it ``steps`` times, which adds one node per step to the lazy graph.
-That is MLX's documented pattern (compile the step, loop in Python); tracing the whole rollout
-into one compiled function instead was slower at the sizes tried and compiles longer. Every
-``CHUNK`` steps the graph built so far is handed to ``mx.async_eval``, so the stream computes
-while Python builds the next steps. With ``record_every`` > 0 every k-th position is kept (frame 0
-the initial state) and the frames stacked at the end.
+``mx.where``) is one ``mx.compile``d function over all particles; ``run()`` calls it ``steps``
+times, adding the step's kernels to the lazy graph each time. MLX fuses per output chain: a value
+that several outputs need (a contact mask, a position after a clamp) is computed by a kernel of
+its own, so a step is about ten small elementwise kernels rather than one. Compiling the function
+that runs many times (MLX's compile guide: compile what you call more than once) and looping in
+Python is the MLX way; tracing the whole rollout into one compiled function instead was slower at
+the sizes tried and compiles longer. Every ``CHUNK`` steps the graph built so far is handed to
+``mx.async_eval``, so the stream computes while Python builds the next steps. With
+``record_every`` > 0 every k-th position is kept (frame 0 the initial state) and the frames
+stacked at the end.
 """
 from __future__ import annotations
 
@@ -81,6 +84,6 @@ class Kernel(ScenarioKernel):
         return {k: download(a, self.precision) for k, a in zip(names, self.out)}
 
     def info(self) -> dict[str, Any]:
-        return kernel_info(self.device, self.precision,
+        return kernel_info(self.device, self.precision, self.step,
                            loop="Python loop over steps of one compiled step, vectorised over particles",
                            async_eval_every=CHUNK)

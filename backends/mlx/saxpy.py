@@ -35,4 +35,4 @@ class Kernel(ScenarioKernel):
         return {"out": download(self.out, self.precision)}
 
     def info(self) -> dict[str, Any]:
-        return kernel_info(self.device, self.precision, expression="a * x + y")
+        return kernel_info(self.device, self.precision, self.program, expression="a * x + y")

@@ -52,4 +52,4 @@ class Kernel(ScenarioKernel):
         return {"image": download(self.image, self.precision)}
 
     def info(self) -> dict[str, Any]:
-        return kernel_info(self.device, self.precision)
+        return kernel_info(self.device, self.precision, self.program)
