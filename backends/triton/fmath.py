@@ -3,8 +3,9 @@
 Compiled (CUDA): libdevice's correctly rounded division and square root (``div.rn``,
 ``sqrt.rn``) and its ``exp``/``log``/``sin`` (``__nv_expf`` ... in float32, ``__nv_exp`` ... in
 float64): what CUDA C's ``/``, ``sqrtf``, ``expf`` are under NVRTC's defaults, so the work is the
-CuPy port's. Triton's own float32 ``/``, ``tl.sqrt`` and ``tl.exp`` are approximate instructions
-(``div.full.f32``, ``sqrt.approx.f32``, ``ex2.approx`` after a multiply by log2 e).
+CuPy port's (linked without flush-to-zero: ``launch_options``). Triton's own float32 ``/``,
+``tl.sqrt`` and ``tl.exp`` are approximate instructions (``div.full.f32``,
+``sqrt.approx.ftz.f32``, ``ex2.approx`` after a multiply by log2 e).
 Interpreted (TRITON_INTERPRET=1): the interpreter has no libdevice (extern calls raise there), so
 the same names are Triton's ``/`` and ``tl.*`` functions, which it evaluates with NumPy's IEEE
 division and square root and its exp/log/sin.

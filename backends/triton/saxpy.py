@@ -8,8 +8,10 @@ tensor of the cell's dtype (a Python float argument would be fp32).
 
 Block size and warps: ``triton.autotune`` over CONFIGS, keyed on n (and the dtypes), so the first
 call of a cell compiles and times every config (that is in its first-call time) and later calls
-launch the fastest; ``info()`` reports the choice. The element offsets are int64 so n up to 2^31-1
-cannot overflow. Under the interpreter the first config runs (autotuning would time NumPy).
+launch the fastest through the autotuner; ``info()`` reports the choice. Its benchmark allocates
+Triton's L2-flush buffer (256 MB) through PyTorch, so the cell's device-memory peak includes it.
+The element offsets are int64, so n up to 2^31-1 cannot overflow. Under the interpreter the first
+config runs (autotuning would time NumPy).
 copy.py and launch.py reuse ``elementwise``.
 """
 from __future__ import annotations
