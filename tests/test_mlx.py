@@ -240,3 +240,23 @@ def test_devices_and_precisions_say_why():
     assert avail["cpu"] is None
     if avail["cuda"]:
         assert "MLX sees no CUDA GPU" in avail["cuda"]
+
+
+def test_findings_reproducer_still_needs_the_workaround():
+    """docs/findings.md #8 run against the installed MLX: its float64 mx.exp/sin/cos still round
+    through float32 (else the workaround in backends/mlx can go) and the workaround is exact."""
+    import re
+    import subprocess
+    import sys
+    from conftest import ROOT
+    require_device("mlx", "cpu")
+    text = (ROOT / "docs" / "findings.md").read_text()
+    code = dict((name, body) for body, name in
+                re.findall(r"```python\n(# reproducer: (\S+)\n.*?)```", text, flags=re.S))["mlx-float64-transcendentals"]
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=cells.worker_env(),
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = dict(line.split(" ", 1) for line in proc.stdout.splitlines())
+    assert all(lines[k].endswith("OK") for k in ("pow(e,", "2t/(1+t*t)")), proc.stdout
+    fixed = [k for k in ("mx.exp", "mx.sin", "mx.cos") if lines[k].endswith("OK")]
+    assert not fixed, f"MLX now computes float64 {fixed} in float64: drop backends.mlx.exp/sin"
