@@ -54,15 +54,16 @@ class Either:
 
 
 def _real(v: Any) -> bool:
-    # a huge int would overflow float() in a reader; JSON integers beyond 2^63 have no use here
-    return isinstance(v, float) or (isinstance(v, int) and not isinstance(v, bool) and abs(v) <= 2**63)
+    # a huge int overflows float() in a reader, or makes NumPy build an object array (a plot
+    # fails); integers past 2^53 (exact in a float) have no use in a results file
+    return isinstance(v, float) or (isinstance(v, int) and not isinstance(v, bool) and abs(v) <= 2**53)
 
 
 def _finite(v: Any) -> bool:
     return _real(v) and math.isfinite(v)
 
 
-def _show(v: Any) -> str:
+def show(v: Any) -> str:
     """A value in a refusal: short, on one line."""
     if isinstance(v, dict):
         return "an object"
@@ -81,25 +82,25 @@ def _key(k: str) -> str:
 def problem(node: Any, v: Any, where: str) -> str | None:
     """The first way ``v`` (found at ``where``) does not fit ``node``, or None."""
     if isinstance(node, Leaf):
-        return None if node.ok(v) else f"{where} must be {node.what}, got {_show(v)}"
+        return None if node.ok(v) else f"{where} must be {node.what}, got {show(v)}"
     if isinstance(node, Either):
         found = [problem(o, v, where) for o in node.options]
         if None in found:
             return None
         # a list or an object of the right kind: its own first problem says more
         same = [p for o, p in zip(node.options, found) if isinstance(o, Seq if isinstance(v, list) else Obj)]
-        return same[0] if same and isinstance(v, (list, dict)) else f"{where} must be {node.what}, got {_show(v)}"
+        return same[0] if same and isinstance(v, (list, dict)) else f"{where} must be {node.what}, got {show(v)}"
     if v is None and node.null:
         return None
     if isinstance(node, Seq):
         if not isinstance(v, list):
-            return f"{where} must be a list, got {_show(v)}"
+            return f"{where} must be a list, got {show(v)}"
         for i, x in enumerate(v):
             if (p := problem(node.item, x, f"{where}[{i}]")) is not None:
                 return p
         return None
     if not isinstance(v, dict):
-        return f"{where} must be an object, got {_show(v)}"
+        return f"{where} must be an object, got {show(v)}"
     for k in node.required:
         if k not in v:
             return f"{where}.{k} is missing"
@@ -172,11 +173,11 @@ def record_problem(rec: dict[str, Any]) -> str | None:
     from scenarios.base import PRECISIONS, ParamError
     for f in ("backend", "device", "variant"):
         if f in rec and not (isinstance(rec[f], str) and NAME.fullmatch(rec[f])):
-            return f"{f} must be a name of letters, digits and _.+- (at most 64), got {_show(rec[f])}"
+            return f"{f} must be a name of letters, digits and _.+- (at most 64), got {show(rec[f])}"
     if rec["scenario"] not in scenarios.SCENARIOS:
-        return f"scenario {_show(rec['scenario'])} is not one this tool knows ({', '.join(scenarios.SCENARIOS)})"
+        return f"scenario {show(rec['scenario'])} is not one this tool knows ({', '.join(scenarios.SCENARIOS)})"
     if rec["precision"] not in PRECISIONS:
-        return f"precision must be one of {', '.join(PRECISIONS)}, got {_show(rec['precision'])}"
+        return f"precision must be one of {', '.join(PRECISIONS)}, got {show(rec['precision'])}"
     if (p := problem(RECORD, rec, "record")) is not None:
         return p.removeprefix("record.")
     try:        # names, types and ranges as a run would have accepted them
@@ -187,7 +188,8 @@ def record_problem(rec: dict[str, Any]) -> str | None:
         return f"a {rec['status']} record needs its params (the cell's parameters)"
     if rec["status"] in ("ok", "mismatch") and (rec.get("time") is None) != (rec.get("error") is None):
         # a measured cell carries both; a placeholder (every reader skips it) neither
-        return f"a {rec['status']} record needs both time and error (or neither), got only {'time' if rec.get('time') is not None else 'error'}"
+        only = "time" if rec.get("time") is not None else "error"
+        return f"a {rec['status']} record needs both time and error (or neither), got only {only}"
     return _sweep_problem(rec)
 
 
@@ -205,10 +207,10 @@ def _sweep_problem(rec: dict[str, Any]) -> str | None:
     need: list[tuple[str, Any]] = []
     if kind == "bandwidth" and role in ("copy", "bandwidth"):
         need += [("work.bytes", POSITIVE), ("params.n", POSITIVE)]
-    if kind == "bandwidth" and role == "bandwidth" or kind == "horizon":
-        need.append(("tags.knob.value", POSITIVE))
+    if kind == "bandwidth" and role == "bandwidth" or kind in ("scaling", "horizon"):
+        need.append(("tags.knob.value", POSITIVE))          # sorted by, and a log axis of
     if kind == "scaling":
-        need += [("error", Obj(null=False)), ("memory.peak_host_rss_bytes", OPT_AMOUNT),
+        need += [("error", Obj(null=False)), ("memory.peak_host_rss_bytes", AMOUNT),
                  (f"work.{labels.get('rate_work', 'items')}", AMOUNT)]
         need += [(f"params.{labels['per_run']}", AMOUNT)] if labels.get("per_run") else []
     if kind == "horizon":
@@ -237,8 +239,8 @@ RUN = Obj({
     null=False)
 ROW_FIELDS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 ROW = Obj({**{k: TEXT for k in ROW_FIELDS}, "value": SCALAR}, ROW_FIELDS, null=False)
-PROVENANCE_RUN = Obj({"command": OPT_TEXT, "created": OPT_TEXT, "git_commit": OPT_TEXT, "backends": Seq(TEXT, null=False)},
-                     null=False)
+PROVENANCE_RUN = Obj({"command": OPT_TEXT, "created": OPT_TEXT, "git_commit": OPT_TEXT,
+                      "backends": Seq(TEXT, null=False)}, null=False)
 ANALYSIS = Obj({"rows": Seq(ROW, null=False), "series": Obj(null=False),
                 "provenance": Obj(rest=Either("a run (command, created, git_commit) or a list of runs",
                                               (PROVENANCE_RUN, Seq(PROVENANCE_RUN, null=False))), null=False)},
@@ -272,7 +274,8 @@ def _rows_problem(rows: list[dict[str, Any]]) -> str | None:
                 if hook is not None:
                     hook([r])
             except Exception as exc:    # the hook is the experiment's: any failure is this row's
-                return f"analysis.rows[{i}]: the {_show(r['experiment'])} page cannot read this finding ({type(exc).__name__}: {_show(str(exc))})"
+                why = f"{type(exc).__name__}: {show(str(exc))}"
+                return f"analysis.rows[{i}]: the {show(r['experiment'])} page cannot read this finding ({why})"
     return None
 
 

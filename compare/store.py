@@ -27,6 +27,8 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from compare.records import arrays_problem, store_problem
+from compare.records import show as _show
 from compare.spec import FORMAT_VERSION, KEPT_ON_RESUME, key, record_problem
 
 SUITES = {"run": "results.json", "sweep": "sweep.json", "stress": "stress.json"}
@@ -178,9 +180,9 @@ def _upgrade(data: Any, path: Path) -> dict[str, Any]:
             raise StoreError(f"{path}: not a results file (no format_version, records or rows)")
         data["format_version"] = 1
     elif version != FORMAT_VERSION:
-        raise StoreError(f"{path}: format_version {version!r} is not supported (this tool reads 1 and {FORMAT_VERSION})")
-    if data.get("suite") not in SUITES:
-        raise StoreError(f"{path}: unknown suite {data.get('suite')!r} (known: {', '.join(SUITES)})")
+        raise StoreError(f"{path}: format_version {_show(version)} is not supported (this tool reads 1 and {FORMAT_VERSION})")
+    if not isinstance(data.get("suite"), str) or data["suite"] not in SUITES:
+        raise StoreError(f"{path}: unknown suite {_show(data.get('suite'))} (known: {', '.join(SUITES)})")
     if not isinstance(data.get("runs"), list) or not all(isinstance(r, dict) for r in data["runs"]):
         raise StoreError(f"{path}: 'runs' must be a list of objects")
     if not isinstance(data.get("records"), list):
@@ -198,7 +200,6 @@ def _upgrade(data: Any, path: Path) -> dict[str, Any]:
         if data["format_version"] == 1 and upgrade:
             data["records"][i] = upgrade(rec)
     # every field a later step reads, typed and in range, before any reader writes anything
-    from compare.records import store_problem
     if (problem := store_problem(data)) is not None:
         raise StoreError(f"{path}: {problem}")
     version = data.pop("format_version")
@@ -325,7 +326,6 @@ def load_arrays(directory: Path, rec: dict[str, Any], names: Iterable[str]) -> d
         return None
     if not f.is_file() or f.is_symlink():
         return None
-    from compare.records import arrays_problem
     try:
         with np.load(f) as z:
             names = [k for k in names if k in z.files]
