@@ -238,8 +238,10 @@ def test_devices_and_precisions_say_why():
     assert "mlx[cuda12]" in CUDA_INSTALL and "pip uninstall -y mlx-cpu" in CUDA_INSTALL
     avail = be.available()
     assert avail["cpu"] is None
-    if avail["cuda"]:
-        assert "MLX sees no CUDA GPU" in avail["cuda"]
+    if avail["cuda"] and "mlx-cuda" not in avail["cuda"]:     # a CPU (or Metal) build
+        assert "has no CUDA backend" in avail["cuda"] and CUDA_INSTALL in avail["cuda"]
+    elif avail["cuda"]:
+        assert "sees no usable GPU" in avail["cuda"]
 
 
 def test_findings_reproducer_still_needs_the_workaround():

@@ -36,8 +36,7 @@ from scenarios.base import dtype_of
 
 from ..base import Backend, not_installed, visible_gpus
 
-CUDA_INSTALL = ("pip uninstall -y mlx-cpu && pip install 'mlx[cuda12]' "
-                "(CUDA 13: 'mlx[cuda13]'; MLX documents its CUDA build for Linux)")
+CUDA_INSTALL = "pip uninstall -y mlx-cpu && pip install 'mlx[cuda12]' (CUDA 13: 'mlx[cuda13]')"
 NO_FLOAT64_GPU = ("MLX has no float64 on a GPU (its documentation: float64 arrays only work with "
                   "CPU operations)")
 
@@ -142,7 +141,7 @@ class MlxBackend(Backend):
     package = "mlx"
     gradient_method = "ad"
     display_order, color = 8, "#393b79"     # tab10 is taken by the others: a dark indigo
-    related_packages = ("mlx-cpu", "mlx-cuda", "mlx-metal")
+    related_packages = ("mlx-cpu", "mlx-cuda-12", "mlx-cuda-13", "mlx-metal")
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
         # MLX keeps the CPU's compiled kernels (.cpp and .so) under temp_directory_path()/mlx
@@ -153,12 +152,23 @@ class MlxBackend(Backend):
         if reason:
             return {"cpu": reason, "cuda": reason}
         import mlx.core as mx
-        if mx.cuda.is_available():
+        cuda_module = getattr(mx, "cuda", None)         # absent from older MLX releases
+        if cuda_module is not None and cuda_module.is_available():
             return {"cpu": None, "cuda": None}
-        cuda = "MLX sees no CUDA GPU (mlx.core.cuda.is_available() is False)"
-        if visible_gpus():
-            cuda += f"; the driver sees a GPU: a CPU-only MLX build? install: {CUDA_INSTALL}"
-        return {"cpu": None, "cuda": cuda}
+        return {"cpu": None, "cuda": self._no_cuda_reason()}
+
+    def _no_cuda_reason(self) -> str:
+        """Why MLX cannot use CUDA: a build without the backend (the install command), or a CUDA
+        build that sees no GPU."""
+        builds = self.versions()
+        cuda_builds = [d for d in builds if d.startswith("mlx-cuda")]
+        if not cuda_builds:
+            other = next((d for d in ("mlx-cpu", "mlx-metal") if d in builds), "mlx")
+            return (f"this MLX build has no CUDA backend ({other} {builds.get(other, '?')}); "
+                    f"on Linux with an NVIDIA GPU install: {CUDA_INSTALL}")
+        seen = visible_gpus()
+        return (f"MLX's CUDA build ({', '.join(cuda_builds)}) sees no usable GPU "
+                f"(mlx.core.cuda.is_available() is False; the driver sees {seen} NVIDIA GPU(s))")
 
     def precision_unavailable(self, precision: str, device: str) -> str | None:
         """Why ``precision`` cannot run on ``device`` (decided without importing MLX), or None."""

@@ -18,7 +18,7 @@ soft contact's exp goes through ``backends.mlx.exp`` (float64-accurate for float
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from ..base import ScenarioKernel
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
 
 
-def make_loss(steps: int, contact: str):
+def make_loss(steps: int, contact: str) -> Callable[..., Any]:
     """loss(v, target, c) of one trajectory, v and target of shape (2,), c the 0-d constants."""
     import mlx.core as mx
 
@@ -57,7 +57,7 @@ def make_loss(steps: int, contact: str):
     return loss
 
 
-def make_iteration(steps: int, contact: str, batched: bool):
+def make_iteration(steps: int, contact: str, batched: bool) -> Callable[..., Any]:
     """(v, target, c) -> (loss, grad, v - lr*grad); vmapped over the leading axis when batched."""
     import mlx.core as mx
     value_and_grad = mx.value_and_grad(make_loss(steps, contact))
