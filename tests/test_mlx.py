@@ -253,8 +253,8 @@ def test_findings_reproducer_still_needs_the_workaround():
     from conftest import ROOT
     require_device("mlx", "cpu")
     text = (ROOT / "docs" / "findings.md").read_text()
-    code = dict((name, body) for body, name in
-                re.findall(r"```python\n(# reproducer: (\S+)\n.*?)```", text, flags=re.S))["mlx-float64-transcendentals"]
+    blocks = re.findall(r"```python\n(# reproducer: (\S+)\n.*?)```", text, flags=re.S)
+    code = {name: body for body, name in blocks}["mlx-float64-transcendentals"]
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=cells.worker_env(),
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]

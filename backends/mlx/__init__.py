@@ -87,7 +87,8 @@ def sin(x: Any) -> Any:
 def transcendentals(precision: str) -> str:
     """How exp and sin are evaluated in this precision (for info())."""
     if precision == "float64":
-        return "float64: exp as pow(e, x), sin as 2t/(1+t^2), t = tan(x/2) (mx.exp/mx.sin round through float32)"
+        return ("float64: exp as pow(e, x), sin as 2t/(1+t^2), t = tan(x/2) "
+                "(mx.exp/mx.sin round through float32)")
     return "mx.exp, mx.sin"
 
 

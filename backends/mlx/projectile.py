@@ -111,6 +111,7 @@ class Kernel(ScenarioKernel):
 
     def info(self) -> dict[str, Any]:
         b = self.params.batch
-        how = "mx.value_and_grad through the unrolled steps" + ("" if b == 1 else ", mx.vmap over trajectories")
+        how = "mx.value_and_grad through the unrolled steps"
+        how += "" if b == 1 else ", mx.vmap over trajectories"
         return kernel_info(self.device, self.precision, self.program, gradient=how, batch=b,
                            compiled_unit="one gradient-descent iteration")
