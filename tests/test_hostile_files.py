@@ -98,7 +98,8 @@ CASES: list[tuple[str, str, Callable[[dict[str, Any]], Any], Any, Any, str]] = [
     ("n-negative", "run", ok(scenario="saxpy"), ("params", "n"), -5, "params: n must be in"),
     ("n-bool", "run", ok(scenario="saxpy"), ("params", "n"), True, "params: n must be an integer"),
     ("n-beyond-json", "run", ok(scenario="saxpy"), ("params", "n"), 10**400, "params: n must be in"),
-    ("param-unknown", "run", ok(scenario="saxpy"), ("params", "bogus"), 1, "unknown parameter 'bogus'"),
+    ("dt-negative", "run", ok(scenario="particles"), ("params", "dt"), -0.1, "params: dt must be finite and in (0, 1]"),
+    ("throughput-median-null", "run", ok(), ("time", "throughput", "median_s"), None, "time.throughput.median_s"),
     ("dt-text", "run", ok(scenario="particles"), ("params", "dt"), "small", "params: dt must be a number"),
     ("params-list", "run", ok(), ("params",), [1], "'params' must be an object"),
     ("ok-params-missing", "run", ok(), ("params",), DELETE, "needs its params"),
@@ -224,20 +225,23 @@ def test_every_committed_store_still_loads(path: Path) -> None:
 
 
 # ---- the picture path: sizes come from the saved arrays, not from the record -----------------
-def saxpy_store(tmp: Path, n: int, saved: int) -> tuple[Path, dict[str, Any]]:
+def saxpy_store(tmp: Path, n: int, saved: int, **extra: Any) -> tuple[Path, dict[str, Any]]:
     """A run store with one ok float32 SAXPY record claiming ``n`` and arrays of ``saved`` elements."""
     rec = copy.deepcopy(ok(scenario="saxpy")(BASE["run"]))
-    rec.update(precision="float32", variant="default", params={**rec["params"], "n": n})
+    rec.update(precision="float32", variant="default", params={**rec["params"], "n": n, **extra})
     doc = {**BASE["run"], "records": [rec]}
     (tmp / "results.json").write_text(json.dumps(doc))
     save_arrays(tmp, rec, {"out": np.linspace(0, 1, saved, dtype=np.float32)})
     return tmp / "results.json", rec
 
 
-@pytest.mark.parametrize("n,saved,used", [(1000, 1000, True), (2**31 - 1, 1000, False), (10**8, 1000, False),
-                                          (1000, 999, False)])
-def test_saved_arrays_are_used_only_when_they_match_the_record(tmp_path: Path, n: int, saved: int, used: bool) -> None:
-    f, rec = saxpy_store(tmp_path, n, saved)
+@pytest.mark.parametrize("n,saved,extra,used", [(1000, 1000, {}, True), (2**31 - 1, 1000, {}, False),
+                                                (10**8, 1000, {}, False), (1000, 999, {}, False),
+                                                (1000, 1000, {"bogus": 1}, False)])
+def test_saved_arrays_are_used_only_when_they_match_the_record(tmp_path: Path, n: int, saved: int,
+                                                               extra: dict[str, Any], used: bool) -> None:
+    """A parameter the scenario lacks loads (no reader resolves it) but keeps the arrays unused."""
+    f, rec = saxpy_store(tmp_path, n, saved, **extra)
     got = load_arrays(tmp_path, Store.read(f).records[0], ["out"])
     assert (got is not None) == used
     t0 = time.perf_counter()
