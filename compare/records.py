@@ -21,8 +21,6 @@ import math
 import re
 from typing import Any, Callable, Mapping
 
-from compare.spec import STATUSES
-
 # ---- the schema language ----------------------------------------------------------------------
 Check = Callable[[Any], bool]
 
@@ -308,4 +306,4 @@ def arrays_problem(rec: dict[str, Any], headers: dict[str, tuple[tuple[int, ...]
     return None
 
 
-__all__ = ["STATUSES", "arrays_problem", "problem", "record_problem", "store_problem"]
+__all__ = ["arrays_problem", "problem", "record_problem", "show", "store_problem"]

@@ -13,6 +13,9 @@ Record (``format_version`` 2; users load these with pandas, so the keys are stab
     time          {first_call_s, median_s, iqr_s, min_s, repeats, wall: {...}, setup_s, ...} | None
     error         {vs_oracle, tolerance, vs_reference, reference, ...} | None
     work, throughput, memory, info, versions, host, gradient        when the cell ran
+
+``record_problem`` checks this shape; compare/records.py then checks, when a file is read, every
+field inside it that a later step reads (types, ranges, the params by their scenario).
 """
 from __future__ import annotations
 
