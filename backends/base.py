@@ -107,6 +107,11 @@ class Backend:
         cell is skipped with this reason), or None. Decided without importing the framework."""
         return None
 
+    def precision_unavailable(self, precision: str, device: str) -> str | None:
+        """Why ``precision`` cannot run on ``device`` (e.g. no float64 on a GPU): the cell is
+        skipped with this reason, or None. Decided without importing the framework."""
+        return None
+
     def ensure_context(self, device: str) -> None:
         """Create the framework's device context now (not lazily inside the first kernel), so the
         device-memory baseline taken after it leaves the context out. Default: ``setup`` did."""

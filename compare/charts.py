@@ -214,6 +214,7 @@ def _draw_bars(ax: Any, panel: Panel, cmap: dict[str, str], log: bool | None, be
     pos = [v for v in ends if v > 0]
     if log is None:                     # per panel: a log axis only where values span decades
         log = bool(pos) and max(pos) / min(pos) > 20
+    log = log and bool(pos)             # no positive value: a log axis has nothing to show
     if log and pos:                     # right of the largest end: about a third for the labels
         left = min(pos) / 2
         right = max(pos) * max(2.0, (max(pos) / left) ** 0.45)

@@ -85,7 +85,8 @@ def not_runnable(spec: dict[str, Any], probes: dict[str, dict[str, Any]]) -> tup
     if why:
         return "skipped", why
     be = backends.get(spec["backend"])
-    why = be.variant_unavailable(spec.get("variant", "default"), spec["device"])
+    why = (be.variant_unavailable(spec.get("variant", "default"), spec["device"])
+           or be.precision_unavailable(spec["precision"], spec["device"]))
     if why:
         return "skipped", why
     if not be.has_kernel(spec["scenario"]):

@@ -99,10 +99,13 @@ def load(paths: Iterable[Path]) -> Machine:
                 merged[s.suite] = s
         log = (p if p.is_dir() else p.parent) / PUBLISH_LOG
         if log.is_file():
+            from compare.store import read_bounded
             try:
-                publish = json.loads(log.read_text())
-            except (OSError, ValueError) as exc:
+                publish = json.loads(read_bounded(log, 16 * 2**20))
+            except (OSError, ValueError, RecursionError) as exc:
                 raise StoreError(f"cannot read {log}: {exc}") from None
+            if not isinstance(publish, dict) or not isinstance(publish.get("parts", []), list):
+                raise StoreError(f"{log}: not a publish log (an object with a list of parts)")
     runs = [env for s in merged.values() for env in s.runs]
     return Machine(tuple(sources), tuple(merged["run"].records) if "run" in merged else (),
                    tuple(merged["sweep"].records) if "sweep" in merged else (),
