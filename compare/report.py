@@ -196,7 +196,7 @@ def write_tables(out: Path, environment: dict[str, Any], records: list[dict[str,
 
 
 # results.csv: one row per cell, one column per quantity, plain numbers in SI units (seconds,
-# bytes) or empty; README "results.csv" documents each column. Loaded with pandas as is.
+# bytes) or empty; docs/commands.md "results.csv" documents each column. Loaded with pandas as is.
 CSV_COLUMNS = {
     "scenario": ("scenario",), "backend": ("backend",), "device": ("device",),
     "precision": ("precision",), "variant": ("variant",), "status": ("status",), "reason": ("reason",),

@@ -5,7 +5,7 @@ says what to run and how to time it; its record says what happened. ``tags`` car
 own identity of the cell (a sweep's kind, role and knob; a stress experiment), so two suites can
 run the same cell for different reasons and keep both records.
 
-Record (``format_version`` 2; users load these with pandas, so the keys are stable; README
+Record (``format_version`` 2; users load these with pandas, so the keys are stable; docs/commands.md
 "What each column means" documents them):
     scenario, backend, device, precision, variant, params, tags   identity
     status        ok | mismatch | error | skipped
