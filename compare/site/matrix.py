@@ -14,6 +14,7 @@ import dataclasses
 import math
 from typing import Any, Callable
 
+import scenarios
 from compare.site import data
 from compare.site.data import Machine, Timing
 
@@ -148,7 +149,7 @@ def _sum_first(recs: list[dict[str, Any]]) -> float | None:
 # Per-framework aggregates over several scenarios: (records of one framework) -> figure.
 AGGREGATES: dict[str, Callable[[list[dict[str, Any]]], float | None]] = {
     "accuracy": _error_geomean, "compile": _sum_first}
-IN_ALL = ("saxpy", "sdf", "particles", "projectile")
+IN_ALL = tuple(n for n, sc in scenarios.SCENARIOS.items() if sc.in_all)   # the scenarios of `all`
 
 
 def _geomean_vs_best(m: Machine, device: str) -> dict[str, Cell]:
