@@ -237,6 +237,9 @@ def test_devices_and_precisions_say_why():
         be.setup("cuda", "float64", "default")
     assert "mlx[cuda12]" in CUDA_INSTALL and "pip uninstall -y mlx-cpu" in CUDA_INSTALL
     avail = be.available()
+    if avail["cpu"] and "not importable" in avail["cpu"]:
+        assert "pip install -e '.[mlx]'" in avail["cpu"]
+        pytest.skip(f"MLX not installed: {avail['cpu']}")
     assert avail["cpu"] is None
     if avail["cuda"] and "mlx-cuda" not in avail["cuda"]:     # a CPU (or Metal) build
         assert "has no CUDA backend" in avail["cuda"] and CUDA_INSTALL in avail["cuda"]
