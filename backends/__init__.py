@@ -77,4 +77,16 @@ def reference() -> str:
     return next((n for n, b in BACKENDS.items() if b.is_reference), next(iter(BACKENDS), ""))
 
 
-__all__ = ["BACKENDS", "DEVICES", "PROBLEMS", "Backend", "ScenarioKernel", "get", "reference"]
+def cpu_baseline() -> str | None:
+    """The backend CPU figures are shown against (marked ``is_cpu_baseline``), or None."""
+    return next((n for n, b in BACKENDS.items() if b.is_cpu_baseline), None)
+
+
+def display_name(name: str) -> str:
+    """A backend's name as pages print it (its ``title``, else its name)."""
+    b = BACKENDS.get(name)
+    return (b.title if b is not None else "") or name
+
+
+__all__ = ["BACKENDS", "DEVICES", "PROBLEMS", "Backend", "ScenarioKernel", "cpu_baseline", "display_name", "get",
+           "reference"]

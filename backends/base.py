@@ -73,6 +73,9 @@ class Backend:
     # Variants that exist for one scenario only (e.g. a checkpointed projectile): scenario -> names.
     scenario_variants: ClassVar[dict[str, tuple[str, ...]]] = {}
     is_reference: ClassVar[bool] = False
+    # The plain-CPU yardstick every CPU figure is also shown against ("speed-up against NumPy").
+    is_cpu_baseline: ClassVar[bool] = False
+    title: ClassVar[str] = ""                  # as prose writes it ('NumPy'); default: ``name``
     # Deliberately wrong variants the stress suite runs as controls its detectors must flag:
     # scenario -> {variant: what is wrong}. Never listed in ``variants``, never in tables.
     control_variants: ClassVar[dict[str, dict[str, str]]] = {}
@@ -157,14 +160,15 @@ class Backend:
             return False
 
 
-def not_installed(module: str, package: str, extra: str = "") -> str | None:
+def not_installed(module: str, package: str, extra: str = "", first: str = "") -> str | None:
     """None if ``module`` imports, else a one-line reason, with the install command when the
-    package comes with one of the project's extras (``pip install -e '.[extra]'``)."""
+    package comes with one of the project's extras (``pip install -e '.[extra]'``), after
+    ``first`` where the right build must be installed before the extra."""
     try:
         importlib.import_module(module)
     except Exception as exc:  # ImportError, or a framework failing at import (driver/ABI issues)
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        how = f" (install: pip install -e '.[{extra}]')" if extra else ""
+        how = f" (install: {first + ' && ' if first else ''}pip install -e '.[{extra}]')" if extra else ""
         return f"{package} not importable: {first}{how}"
     return None
 

@@ -30,9 +30,9 @@ Result = tuple[dict[str, Any], Outputs | None]
 def gpu_lane(spec: dict[str, Any]) -> Any:
     """Cells that must not overlap: those of one backend on one GPU (None: no constraint).
 
-    Frameworks reserve device memory per process: Taichi sizes each kernel's autodiff-stack local
-    memory for every thread the GPU can hold resident, so eight Taichi processes on one H100 ran out
-    of memory at launch. One process per backend per GPU still lets different backends overlap.
+    Frameworks reserve device memory per process (some size local memory for every thread the GPU
+    can hold resident: docs/stress.md, "Running it on a GPU"), so several processes of one framework on one GPU can run
+    out of memory at launch. One process per backend per GPU still lets different backends overlap.
     """
     return None if spec.get("device") in ("cpu", "host") else (spec.get("backend"), spec.get("device"))
 

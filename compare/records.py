@@ -138,7 +138,10 @@ TIME = Obj({"first_call_s": SECONDS, "median_s": POSITIVE, "iqr_s": SECONDS, "mi
             "wall": Obj({"median_s": POSITIVE, "iqr_s": SECONDS, "min_s": SECONDS},
                         ("median_s", "iqr_s", "min_s")),
             # the yardstick judges a throughput regime by its median (compare.hardware.annotate)
-            "latency": REGIME, "throughput": THROUGHPUT, "graph": REGIME},
+            "latency": REGIME, "throughput": THROUGHPUT, "graph": REGIME,
+            "noise": Obj({"noisy": FLAG, "cores": OPT_COUNT, "measured_s": OPT_SECONDS, "own_cores": OPT_SECONDS,
+                          "others_cores": OPT_SECONDS,
+                          "reasons": Seq(Obj({"regime": TEXT, "why": TEXT}, ("regime", "why"), null=False))})},
            ("first_call_s", "median_s", "iqr_s", "min_s", "repeats"))
 ERROR = Obj({"vs_oracle": FIGURE, "tolerance": FIGURE, "vs_reference": FIGURE, "reference": TEXT,
              "vs_reference_device": TEXT, "metric": TEXT, "checked_items": TEXT, "ill_conditioned": COUNT})

@@ -5,20 +5,25 @@ import csv
 import json
 import math
 import os
+import textwrap
 from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
 from tabulate import tabulate
 
+from compare import noise
 from compare.store import atomic_write, save_figure
+
+NOISY_MARK = noise.MARK
 
 COLUMNS = ("backend", "device", "precision", "variant", "status", "first call", "latency", "IQR",
            "min", "events median", "throughput", "host issue", "graph", "hw fraction", "device mem", "err vs oracle",
            "tolerance", "err vs reference", "gradient", "note")
+NOTE_WIDTH = 22
 # the terminal's default view (fits 120 columns); --wide and the Markdown/CSV files have all
-COMPACT = ("backend", "device", "precision", "variant", "status", "latency", "throughput",
-           "hw fraction", "err vs oracle", "tolerance", "note")
+COMPACT = ("cell", "status", "latency", "throughput", "hw fraction", "err vs oracle", "tolerance", "note")
+COMPACT_HEADERS = ("cell", "status", "latency", "throughput", "hw", "error", "tol", "note")
 
 
 def backend_color(name: str) -> str:
@@ -71,7 +76,7 @@ def fmt_bytes(b: Any) -> str:
     return f"{int(b)} B"
 
 
-def row(rec: dict[str, Any], width: int = 120) -> list[str]:
+def row(rec: dict[str, Any]) -> list[str]:
     t = rec.get("time") or {}
     # the same clock for every backend: wall clock around run() + synchronize (latency), k calls
     # and one synchronize (throughput); where the framework offers device events their median is
@@ -82,24 +87,49 @@ def row(rec: dict[str, Any], width: int = 120) -> list[str]:
     note = rec.get("reason", "") or ""
     if rec.get("status") == "ok" and e.get("ill_conditioned"):
         note = f"{e['ill_conditioned']} ill-conditioned particles not checked"
+    if rec.get("status") == "ok" and noise.reasons_for(rec):
+        note = "; ".join(filter(None, [note, "noisy: " + "; ".join(noise.reasons_for(rec))]))
     device = rec["device"] + (f" ({rec['machine']})" if rec.get("machine") else "")
     hw = (rec.get("throughput") or {}).get("hw_fraction")
     kind = (rec.get("throughput") or {}).get("floor_kind", "")
+
+    def mark(regime: str) -> str:
+        return NOISY_MARK if noise.reasons_for(rec, regime) else ""
     return [rec["backend"], device, rec["precision"], rec.get("variant", "default"),
-            rec["status"], fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")),
+            rec["status"], fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")) + mark("latency"),
             fmt_time(lat.get("iqr_s")), fmt_time(lat.get("min_s")),
             fmt_time(t.get("median_s")) if t.get("timer") == "events" else "-",
-            fmt_time(thr.get("median_s")), fmt_time(thr.get("host_s")), fmt_time(graph.get("median_s")),
+            fmt_time(thr.get("median_s")) + mark("throughput"), fmt_time(thr.get("host_s")),
+            fmt_time(graph.get("median_s")) + mark("graph"),
             f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",
             fmt_bytes((rec.get("memory") or {}).get("device_bytes")),
             fmt_num(e.get("vs_oracle")), fmt_num(e.get("tolerance")), fmt_num(e.get("vs_reference")),
-            fmt_gradient(rec), note[:width]]
+            fmt_gradient(rec), note]
+
+
+def noise_lines(records: list[dict[str, Any]]) -> list[str]:
+    """The closing lines: which timed cells are noisy (``~`` in the tables), why, what to do."""
+    noisy = [r for r in records if r.get("status") == "ok" and noise.reasons_for(r)]
+    if not noisy:
+        return []
+    busy = any("host busy" in why or "taken between calls" in why for r in noisy for why in noise.reasons_for(r))
+    out = [f"{NOISY_MARK} {len(noisy)} of {sum(r.get('status') == 'ok' for r in records)} timed cells are noisy "
+           "(their figures are not to be trusted as they stand):"]
+    out += [f"  {r['scenario']}/{r['backend']}/{r['device']}/{r['precision']}/{r.get('variant', 'default')}: "
+            + "; ".join(noise.reasons_for(r)) for r in noisy]
+    out.append("  what to do: " + ("stop the other work on this machine, then " if busy else "")
+               + "rerun these cells (more repeats: --repeat, --min-time) into a new --out and compare")
+    return out
+
+
+SHORT_KIND = {"bandwidth": "bw", "serial latency": "lat", "launch": "launch", "flops": "flops"}
 
 
 def compact(records: list[dict[str, Any]]) -> list[list[str]]:
-    """The terminal view: the COMPACT columns, and one line per backend and device whose cells
-    were all skipped for the same reason (instead of one per precision and variant)."""
-    idx = [COLUMNS.index(c) for c in COMPACT]
+    """The terminal view (COMPACT columns, at most 120 wide): backend, device, precision and
+    variant in one column, the hardware fraction with its floor's short name, and one line per
+    backend and device whose cells were all skipped for the same reason."""
+    idx = [COLUMNS.index(c) for c in COMPACT[1:]]
     out, seen = [], set()
     for r in records:
         if r["status"] == "skipped":
@@ -108,11 +138,15 @@ def compact(records: list[dict[str, Any]]) -> list[list[str]]:
                 if (r["backend"], r["device"]) in seen:
                     continue
                 seen.add((r["backend"], r["device"]))
-                out.append([r["backend"], r["device"], "all", "all", "skipped", "-", "-", "-", "-", "-",
-                            (r.get("reason") or "")[:40]])
+                out.append([f"{r['backend']} {r['device']}", "skipped", "-", "-", "-", "-", "-", r.get("reason") or ""])
                 continue
-        full = row(r, width=40)
-        out.append([full[i] for i in idx])
+        full = row(r)
+        hw = (r.get("throughput") or {}).get("hw_fraction")
+        kind = (r.get("throughput") or {}).get("floor_kind", "")
+        cells = [full[i] for i in idx]
+        cells[COMPACT.index("hw fraction") - 1] = (f"{hw:.2g} {SHORT_KIND.get(kind, kind)}"
+                                                   if isinstance(hw, (int, float)) else "-")
+        out.append([" ".join([r["backend"], full[1], r["precision"].replace("float", "f"), full[3]])] + cells)
     return out
 
 
@@ -136,9 +170,13 @@ def tables(records: list[dict[str, Any]], fmt: str = "simple", images: dict[str,
     for scenario, recs in by_scenario(records).items():
         head = f"{scenario} ({params_line(recs)})"
         pics = [(name, (images or {}).get(name)) for name in (f"speed_{scenario}", scenario)]
-        body, headers = ([row(r) for r in recs], COLUMNS) if wide else (compact(recs), COMPACT)
+        body, headers = ([row(r) for r in recs], COLUMNS) if wide else (compact(recs), COMPACT_HEADERS)
+        if not wide:
+            head = textwrap.fill(head, 120, subsequent_indent="    ", break_on_hyphens=False)
+        # the terminal's note column wraps a long reason under its row (an install command whole)
+        widths = None if wide else [None] * (len(COMPACT) - 1) + [NOTE_WIDTH]
         parts.append(("## " if fmt == "github" else "") + head + "\n\n" +
-                     tabulate(body, headers=headers, tablefmt=fmt, disable_numparse=True)
+                     tabulate(body, headers=headers, tablefmt=fmt, disable_numparse=True, maxcolwidths=widths)
                      + "".join(f"\n\n![{name}]({img})" for name, img in pics if img))
     return "\n\n".join(parts) + "\n"
 
@@ -173,8 +211,11 @@ def page(title: str, envs: list[dict[str, Any]], records: list[dict[str, Any]], 
     out += ["## Environment", ""]
     for env in envs:
         out += environment_lines(env) + [""]
-    if "speedup_vs_numpy_cpu" in images:
-        out += ["## Speed-up against NumPy (CPU)", "", f"![speed-up vs NumPy]({images['speedup_vs_numpy_cpu']})", ""]
+    import backends
+    base = backends.cpu_baseline()
+    if base and f"speedup_vs_{base}_cpu" in images:
+        who = backends.display_name(base)
+        out += [f"## Speed-up against {who} (CPU)", "", f"![speed-up vs {who}]({images[f'speedup_vs_{base}_cpu']})", ""]
     if "time_vs_error" in images:
         out += ["## Run time against error", "", f"![time vs error]({images['time_vs_error']})", ""]
     return "\n".join(out) + "\n" + tables(records, "github", images)
@@ -191,8 +232,9 @@ def write_tables(out: Path, environment: dict[str, Any], records: list[dict[str,
     atomic_write(out / "results.csv", buf.getvalue())
     env_lines = "\n".join(f"- {k}: {v}" for k, v in environment.items() if k != "packages")
     pkgs = ", ".join(f"{k} {v}" for k, v in environment.get("packages", {}).items())
+    closing = "\n".join(noise_lines(records))
     atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n- packages: {pkgs}\n\n"
-                 + tables(records, "github", images))
+                 + tables(records, "github", images) + (f"\n```\n{closing}\n```\n" if closing else ""))
 
 
 # results.csv: one row per cell, one column per quantity, plain numbers in SI units (seconds,
@@ -219,6 +261,8 @@ CSV_COLUMNS = {
     "gradient_method": ("gradient", "method"), "gradient_rel_error": ("gradient", "vs_oracle_rel"),
     "gradient_fd_agreement": ("gradient", "fd_agreement"),
     "setup_s": ("time", "setup_s"), "download_s": ("time", "download_s"), "machine": ("machine",),
+    "noisy": ("time", "noise", "noisy"), "noise_reasons": None,      # compare/noise.py
+    "others_cores": ("time", "noise", "others_cores"),
 }
 
 
@@ -228,6 +272,9 @@ def tidy(rec: dict[str, Any]) -> dict[str, Any]:
     for col, path in CSV_COLUMNS.items():
         if col == "params":
             out[col] = json.dumps(rec.get("params"), sort_keys=True)
+            continue
+        if col == "noise_reasons":
+            out[col] = "; ".join(noise.reasons_for(rec))
             continue
         if col == "events_median_s":
             t = rec.get("time") or {}
@@ -344,23 +391,26 @@ def plot_speed(records: list[dict[str, Any]], out: Path) -> list[Path]:
     return written
 
 
-def plot_speedup_vs_numpy(records: list[dict[str, Any]], path: Path) -> bool:
-    """speedup_vs_numpy_cpu.png: per scenario, precision and size on the CPU, NumPy's time per
-    call over each framework's (same run, same regime); groups without an ok NumPy cell left out."""
+def plot_speedup_vs_baseline(records: list[dict[str, Any]], path: Path, baseline: str) -> bool:
+    """speedup_vs_<baseline>_cpu.png: per scenario, precision and size on the CPU, the baseline's
+    (NumPy's) time per call over each framework's (same run, same regime); groups without an ok
+    baseline cell left out."""
     from compare import charts
+    import backends
+    who = backends.display_name(baseline)
     panels = []
     for scenario, recs in by_scenario(r for r in records if r["device"] == "cpu").items():
         for title, rs in speed_panels(recs).items():
-            base = next((r for r in rs if r["backend"] == "numpy" and r["status"] == "ok"
+            base = next((r for r in rs if r["backend"] == baseline and r["status"] == "ok"
                          and r.get("variant", "default") == "default" and call_time(r)[0]), None)
             bars = [speed_bar(r, base) for r in rs if r is not base]
             if base is not None and bars:
                 panels.append(charts.Panel(f"{scenario}: {title}", bars))
     if not panels:
         return False
-    charts.bar_panels(path, "CPU: speed-up against NumPy, same run, throughput regime",
-                      "NumPy's time per call / the framework's (log)", panels, log=True, better="higher",
-                      reference=(1.0, "NumPy = 1"), fmt=lambda v: f"{v:.3g}×",
+    charts.bar_panels(path, f"CPU: speed-up against {who}, same run, throughput regime",
+                      f"{who}'s time per call / the framework's (log)", panels, log=True, better="higher",
+                      reference=(1.0, f"{who} = 1"), fmt=lambda v: f"{v:.3g}×",
                       note="whiskers: both cells' IQR combined")
     return True
 
@@ -393,6 +443,9 @@ def write_plots(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.n
     time against error, and each scenario's own picture of its outputs."""
     plots.mkdir(parents=True, exist_ok=True)
     plot_speed(records, plots)
-    plot_speedup_vs_numpy(records, plots / "speedup_vs_numpy_cpu.png")
+    import backends
+    base = backends.cpu_baseline()
+    if base:
+        plot_speedup_vs_baseline(records, plots / f"speedup_vs_{base}_cpu.png", base)
     plot_time_vs_error(records, plots / "time_vs_error.png")
     plot_outputs(records, outputs, plots)

@@ -61,9 +61,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 # Host memory of one worker process beyond its cell's data (Scenario.footprint): the interpreter,
-# NumPy, the framework and, on a GPU, its CUDA libraries. Measured peaks of small cells
-# (docs/reliability.md): on CPU at most 222 MiB (warp 222, numba 206, jax 224, taichi 135); on the
-# H100 at most 806 MiB (JAX; warp 429, numba 480, taichi 382).
+# NumPy, the framework and, on a GPU, its CUDA libraries; about twice the largest measured peak of
+# a small cell (docs/reliability.md, "Host memory of CUDA workers").
 WORKER_BASELINE_BYTES = {"cpu": 512 * 2**20, "cuda": 1024 * 2**20}
 RECORD_BYTES = 64 * 2**10          # one record in results.json, generously (params, info, gradients)
 PAGE_BYTES = 32 * 2**20            # results.csv, results.md and the plots of one run
@@ -278,6 +277,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     store.save()
     render(out, env, records, outputs, plots=not args.no_plots)
     print(report.tables(records, wide=args.wide))
+    print("\n".join(report.noise_lines(records) + [""]), end="")
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
     missing = [r for r, _ in results if args.save_arrays and r["status"] in ("ok", "mismatch")
                and not arrays_saved(out, r)]
@@ -335,6 +335,7 @@ def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any
     merged.save()
     render(out, merged.runs[0], records, outputs, plots=not args.no_plots)
     print(report.tables(records, wide=False))
+    print("\n".join(report.noise_lines(records) + [""]), end="")
     return options.EXIT_OK
 
 

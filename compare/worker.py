@@ -25,7 +25,7 @@ import numpy as np
 import backends
 import scenarios
 from backends.base import Backend
-from compare import scaleout, timing
+from compare import noise, scaleout, timing
 from compare.nvml import open_nvml
 from compare.spec import CellSpec
 from compare.store import jsonable
@@ -153,6 +153,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     if nvml:
         nvml.sample()
     timer, clock = timing.event_timer(be, device, spec.timer)
+    meter = noise.HostMeter()
     t = timing.steady_state(kernel.run, sync, warmup=spec.warmup, repeat=spec.repeat, min_time=spec.min_time,
                             max_time=spec.max_time, timer=timer)
     if nvml:
@@ -162,6 +163,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=spec.max_time)
         if nvml:
             nvml.sample()
+    host = meter.stop()
     run_peak = peak_rss_bytes()               # before the download and the oracle add theirs
     t0 = time.perf_counter()
     got = kernel.outputs()
@@ -197,14 +199,16 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     reference = sc.oracle(params, c_in)
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
+    times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
+             "clock": timing.CLOCK if "events_error" in t else clock,
+             "timer": "events" if timer is not None and "events_error" not in t else "wall",
+             "first_call_clock": timing.CLOCK, "cache": cache_note}
+    times["noise"] = noise.verdict(times, host)
     record: dict[str, Any] = {
         "status": "ok" if check.ok else "mismatch",
         "reason": "" if check.ok else f"error {check.error:.3g} exceeds tolerance {check.tolerance:.3g}",
         "params": dataclasses.asdict(params),
-        "time": {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
-                 "clock": timing.CLOCK if "events_error" in t else clock,
-                 "timer": "events" if timer is not None and "events_error" not in t else "wall",
-                 "first_call_clock": timing.CLOCK, "cache": cache_note},
+        "time": times,
         "error": {"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
                   **{k: v for k, v in check.details.items()},
                   "checked_items": f"{sampled[2]} of {sampled[3]}{' ' + sampled[4] if sampled[4] else ''} "

@@ -10,6 +10,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+import adversarial  # noqa: E402
 from compare import cells  # noqa: E402
 
 
@@ -24,13 +25,37 @@ def require_device(backend: str, device: str) -> None:
         pytest.skip(f"{backend}/{device}: {why}")
 
 
+def pytest_runtest_setup(item):
+    adversarial.start()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """The adversarial tally (tests/adversarial.py): each hostile-input or fault test's cases."""
+    outcome = yield
+    if item.path.stem not in adversarial.MODULES:
+        return
+    rep = outcome.get_result()
+    if rep.skipped:
+        if call.when in ("setup", "call"):
+            reason = rep.longrepr[2] if isinstance(rep.longrepr, tuple) else str(rep.longrepr)
+            adversarial.skipped(reason.removeprefix("Skipped: "))
+    elif call.when == "call" or (call.when == "setup" and rep.failed):
+        adversarial.finish(item.name, rep.passed)
+
+
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
-    """tests/test_reliability.py's figures (docs/reliability.md), when it ran."""
+    """The adversarial tally and tests/test_reliability.py's figures (docs/reliability.md)."""
+    tr = terminalreporter
     mod = sys.modules.get("test_reliability")
     figures = getattr(mod, "FIGURES", None)
+    tally = adversarial.lines()
+    if tally:
+        tr.write_sep("-", "adversarial tally")
+        for line in tally:
+            tr.write_line(line)
     if not figures or not (figures["tried"] or figures["json_fuzzed"] or figures["faults"]):
         return
-    tr = terminalreporter
     tr.write_sep("-", "reliability figures")
     tr.write_line(f"bad inputs tried: {figures['tried']}, refused cleanly (exit 2, one line, no traceback, "
                   f"nothing written): {figures['refused']}")

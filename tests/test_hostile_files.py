@@ -26,6 +26,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import adversarial
 from conftest import ROOT
 
 from compare import cli
@@ -333,6 +334,7 @@ def mutated(draw: st.DrawFn) -> tuple[str, bytes]:
 @given(case=mutated())
 def test_property_a_mutated_file_loads_and_builds_a_site_or_is_refused(tmp_path_factory: Any,
                                                                        case: tuple[str, bytes]) -> None:
+    adversarial.case()
     suite, raw = case
     tmp = tmp_path_factory.mktemp("fuzz")
     f = tmp / FILES[suite]

@@ -28,6 +28,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import adversarial
 from conftest import ROOT
 
 from compare import cli, options, run_suite
@@ -44,6 +45,7 @@ FIGURES = {"tried": 0, "refused": 0, "json_fuzzed": 0, "json_clean": 0, "faults"
 
 
 def count_tried() -> None:
+    adversarial.case()
     FIGURES["tried"] += 1
     test = os.environ.get("PYTEST_CURRENT_TEST", "?").split("::")[-1].split("[")[0].split(" ")[0]
     FIGURES["by_test"][test] = FIGURES["by_test"].get(test, 0) + 1
@@ -415,6 +417,7 @@ def test_property_store_read_validates_or_refuses(tmp_path_factory, data):
     f = tmp_path_factory.mktemp("json") / "results.json"
     f.write_text(json.dumps(data))
     FIGURES["json_fuzzed"] += 1
+    adversarial.case()
     try:
         store = Store.read(f)
     except StoreError as exc:

@@ -137,6 +137,18 @@ def test_missing_torch_is_a_skip_naming_the_install_command(monkeypatch):
         assert why and "torch not importable" in why and "pip install -e '.[torch]'" in why, (device, why)
 
 
+@pytest.mark.parametrize("gpus", [0, 1])
+def test_the_install_hint_names_the_cpu_wheel_only_without_a_gpu(monkeypatch, gpus):
+    """A bare `pip install torch` on a machine without an NVIDIA GPU pulls several GB of CUDA
+    libraries: there the hint names PyTorch's CPU wheel first."""
+    import backends.torch as bt
+    monkeypatch.setitem(sys.modules, "torch", None)
+    monkeypatch.setattr(bt, "visible_gpus", lambda: gpus)
+    why = backends.get("torch").available()["cpu"]
+    assert ("download.pytorch.org/whl/cpu" in why) == (gpus == 0), why
+    assert why.endswith("pip install -e '.[torch]')"), why
+
+
 def test_cpu_has_no_graph_capture_or_events():
     _torch()
     b = backends.get("torch")

@@ -33,7 +33,9 @@ def kernel_info(**extra: Any) -> dict[str, Any]:
 
 class NumpyBackend(Backend):
     name = "numpy"
+    title = "NumPy"
     package = "numpy"
+    is_cpu_baseline = True
     gradient_method = "adjoint"          # hand-written discrete adjoint: NumPy has no autodiff
     # The baseline comes last in tables (after warp 0 ... numba 3 and the newer ports at 4 and up),
     # in grey (tab10 C7): no other backend's hue, told apart by lightness alone, so it stays

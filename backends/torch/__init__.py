@@ -24,7 +24,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..base import Backend, not_installed
+from ..base import Backend, not_installed, visible_gpus
+
+CPU_WHEEL = "pip install torch --index-url https://download.pytorch.org/whl/cpu"
 
 VARIANTS = ("default", "compile")
 COMPILE_MODE = "default"
@@ -133,7 +135,8 @@ class TorchBackend(Backend):
         return TorchEvents() if device == "cuda" else None
 
     def available(self) -> dict[str, str | None]:
-        reason = not_installed("torch", self.package, extra="torch")
+        # without an NVIDIA GPU the CPU wheel (about 200 MB), not the default CUDA one (several GB)
+        reason = not_installed("torch", self.package, extra="torch", first="" if visible_gpus() else CPU_WHEEL)
         if reason:
             return {"cpu": reason, "cuda": reason}
         import torch

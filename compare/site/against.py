@@ -331,7 +331,7 @@ def tables(mm: Matching) -> list[Block]:
         blocks += [H("Every matched cell", "cells"),
                    P("Per-call time in each regime both runs measured; ratio = this run / reference "
                      f"(below 1: faster here). {WITHIN.capitalize()}: the two quartile ranges overlap. "
-                     f"{fmt.NOISY_MARK} marks a noisy figure (wide spread or few repeats). Click a "
+                     f"{fmt.NOISY_MARK} marks a noisy figure (wide spread, few repeats or a busy host). Click a "
                      "header to sort."),
                    Table(("device", "scenario", "framework", "variant", "precision", "parameters", "regime",
                           "this run", "reference", "ratio", "verdict"), tuple(rows))]

@@ -14,11 +14,10 @@ from pathlib import Path
 from typing import Any, Iterable
 
 import scenarios
+from compare import noise
 from compare.store import SUITES, Store, StoreError
 
 PUBLISH_LOG = "publish.json"
-NOISY_SPREAD = 0.10          # IQR / median above this: the figure is marked noisy
-MIN_REPEATS = 3              # fewer timed repeats than this: marked noisy
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,11 +152,10 @@ def timing(rec: dict[str, Any], regime: str) -> Timing | None:
         return None
     iqr = iqr or 0.0
     reps = part.get("repeats") if isinstance(part.get("repeats"), int) else None
-    why = []
-    if iqr / med > NOISY_SPREAD:
-        why.append(f"spread {100 * iqr / med:.0f} % of the median")
-    if reps is not None and reps < MIN_REPEATS:
-        why.append(f"{reps} repeats")
+    # the spread and repeats of this regime, and what the run saw of the host (a record made
+    # before time.noise existed has only the first two)
+    why = noise.regime_reasons(part)
+    why += [w for w in noise.reasons_for(rec, regime) if w not in why]
     return Timing(med, max(med - iqr / 2, 0.0), med + iqr / 2, reps, "; ".join(why))
 
 

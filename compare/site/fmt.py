@@ -4,10 +4,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from compare.noise import MARK as NOISY_MARK
 from compare.site.matrix import Cell
 
 BAND_EMOJI = {"best": "🟩", "near": "🟨", "far": "🟧", "poor": "🟥", "none": "⬜"}
-NOISY_MARK = "~"
 
 
 def _g(x: float) -> str:

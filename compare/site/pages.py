@@ -9,7 +9,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from compare import charts
+import backends
+from compare import charts, noise
 from compare.site import data, fmt, matrix, questions
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
@@ -64,8 +65,9 @@ def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "") -> 
 LEGEND = ("Each cell is the framework's figure divided by the best framework's on that row "
           "(1.00× is the best, named in the last column; 2.00× is twice as slow, half the rate or "
           "twice the memory). Colours: 🟩 within 10 % of the best, 🟨 within 2×, 🟧 within 5×, "
-          "🟥 beyond. `~` marks a noisy figure (quartile spread above 10 % of the median, or "
-          "under 3 repeats); `✗` a cell that failed its check or crashed; `skipped` a framework or "
+          f"🟥 beyond. `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
+          f"median, under {noise.MIN_REPEATS} repeats, other processes busy on the host while it was "
+          "timed, or pipelined calls slower than one synchronised call); `✗` a cell that failed its check or crashed; `skipped` a framework or "
           "device not available (the reason is in the tooltip and on the question's page); `—` "
           "not measured. A framework's cell is its fastest variant; the variant and the raw "
           "figure are in the tooltip and on the pages.")
@@ -162,10 +164,12 @@ def cpu(c: qp.Ctx) -> list[Any]:
     recs = [r for r in matrix.all_defaults(c.m, "cpu") if r["scenario"] in matrix.IN_ALL]
     if not recs:
         return blocks + [P("This machine's records hold no CPU cells: see the CPU report.")]
+    baseline = backends.cpu_baseline()
+    who = backends.display_name(baseline or "")
     panels = []
-    for sc in matrix.IN_ALL:
+    for sc in matrix.IN_ALL if baseline else ():
         mine = [r for r in recs if r["scenario"] == sc]
-        base = next((data.per_call(r, "throughput") for r in mine if r["backend"] == "numpy" and r["status"] == "ok"), None)
+        base = next((data.per_call(r, "throughput") for r in mine if r["backend"] == baseline and r["status"] == "ok"), None)
         if base is None:
             continue
         bars = []
@@ -175,11 +179,11 @@ def cpu(c: qp.Ctx) -> list[Any]:
                                    mark="" if t else r["status"]))
         panels.append(charts.Panel(sc, bars))
     if panels:
-        png, rel, csv = c.fig("cpu-speedup-vs-numpy")
-        charts.bar_panels(png, "CPU: speed-up against NumPy in the same run (float32, throughput regime)",
-                          "times faster than NumPy (log scale)", panels, log=True, better="higher",
-                          reference=(1.0, "NumPy"), fmt=lambda v: f"{v:.3g}×")
-        blocks.append(Figure(rel, "Speed-up of each framework against NumPy, per scenario.",
+        png, rel, csv = c.fig(f"cpu-speedup-vs-{baseline}")
+        charts.bar_panels(png, f"CPU: speed-up against {who} in the same run (float32, throughput regime)",
+                          f"times faster than {who} (log scale)", panels, log=True, better="higher",
+                          reference=(1.0, who), fmt=lambda v: f"{v:.3g}×")
+        blocks.append(Figure(rel, f"Speed-up of each framework against {who}, per scenario.",
                              c.cmd("all --devices cpu --precision float32"), csv))
     blocks += [H("Every CPU cell at the defaults"), qp.timing_table(recs, ("latency", "throughput"))]
     return blocks

@@ -1,0 +1,92 @@
+"""The noise verdict (compare/noise.py): a cell timed while every core was busy with other work is
+flagged, with the reason, in the record, the tables, the CSV, the closing lines and the site; an
+idle run is not flagged for its host; each rule on its own numbers."""
+from __future__ import annotations
+
+import csv
+import io
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from compare import cells, noise, report
+from compare.site import data
+
+IDLE = {"cores": 2, "measured_s": 1.0, "own_cores": 1.0, "others_cores": 0.05}
+QUIET = {"median_s": 1e-3, "iqr_s": 1e-5, "min_s": 9e-4, "repeats": 20,
+         "wall": {"median_s": 1.1e-3, "iqr_s": 1e-5, "min_s": 1e-3},
+         "throughput": {"median_s": 1e-3, "iqr_s": 1e-5, "min_s": 9e-4, "repeats": 5}}
+
+
+def test_quiet_figures_on_an_idle_host_are_not_noisy() -> None:
+    v = noise.verdict(QUIET, IDLE)
+    assert v["noisy"] is False and v["reasons"] == [] and v["others_cores"] == 0.05
+
+
+@pytest.mark.parametrize("change,needle,regime", [
+    ({"iqr_s": 2e-4}, "spread 20 % of the median", "latency"),
+    ({"repeats": 2}, "2 repeats", "latency"),
+    ({"throughput": {**QUIET["throughput"], "median_s": 3e-3}}, "3.0x the synchronised call", "throughput"),
+    ({"throughput": {**QUIET["throughput"], "iqr_s": 5e-4}}, "spread 50 %", "throughput"),
+])
+def test_each_rule_flags_on_its_own(change: dict, needle: str, regime: str) -> None:
+    v = noise.verdict({**QUIET, **change}, IDLE)
+    assert v["noisy"] and len(v["reasons"]) == 1
+    assert needle in v["reasons"][0]["why"] and v["reasons"][0]["regime"] == regime
+
+
+@pytest.mark.parametrize("host,busy", [
+    ({"cores": 2, "own_cores": 1.0, "others_cores": 0.9}, False),    # one core was left free
+    ({"cores": 2, "own_cores": 1.0, "others_cores": 1.3}, True),
+    ({"cores": 2, "own_cores": 2.0, "others_cores": 0.2}, False),    # an idle host's daemons
+    ({"cores": 2, "own_cores": 2.0, "others_cores": 0.4}, True),     # a parallel cell: none free
+    ({"cores": 16, "own_cores": 1.0, "others_cores": 8.0}, False),
+    ({"cores": 2}, False),                                            # not measured (no /proc/stat)
+])
+def test_host_busy_means_more_than_the_cores_left_free(host: dict, busy: bool) -> None:
+    assert (noise.host_reason(host) is not None) == busy
+
+
+def _cell(repeat: int = 30) -> dict:
+    spec = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
+            "params": {"n": 200_000}, "quick": True, "repeat": repeat, "min_time": 0.5, "variant": "default"}
+    record, _ = cells.run(spec, timeout=300)
+    assert record["status"] == "ok", record.get("reason")
+    return record
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the host meter reads /proc/stat (Linux)")
+def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not() -> None:
+    idle = _cell()
+    assert not any("host busy" in r["why"] for r in idle["time"]["noise"]["reasons"]), idle["time"]["noise"]
+    spin = "import time\nt = time.time() + 120\nwhile time.time() < t: pass\n"
+    hogs = [subprocess.Popen([sys.executable, "-c", spin]) for _ in range(os.cpu_count() or 1)]
+    try:
+        time.sleep(0.5)
+        busy = _cell()
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    v = busy["time"]["noise"]
+    assert v["noisy"] and v["others_cores"] > 0.5 * (os.cpu_count() or 1), v
+    why = noise.reasons_for(busy)
+    assert any("host busy" in w for w in why), why
+
+    # every view says so: the tables' mark and note, the closing lines, the CSV, the site
+    text = report.tables([busy], wide=True)
+    assert noise.MARK in text and "noisy: " in text and "host busy" in text
+    closing = report.noise_lines([busy, idle])
+    assert closing and "1 of 2 timed cells are noisy" in closing[0] and "saxpy/numpy/cpu/float32/default" in closing[1]
+    assert "stop the other work" in closing[-1]
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(report.CSV_COLUMNS))
+    w.writerow(report.tidy(busy))
+    row = next(csv.DictReader(io.StringIO(",".join(report.CSV_COLUMNS) + "\n" + buf.getvalue())))
+    assert row["noisy"] == "True" and "host busy" in row["noise_reasons"]
+    for regime in ("latency", "throughput"):
+        t = data.timing(busy, regime)
+        assert t is not None and "host busy" in t.noisy, (regime, t)
