@@ -361,3 +361,28 @@ def test_cpu_yardstick_is_the_faster_of_one_thread_and_one_per_core():
         with ThreadPoolExecutor(parts) as pool:
             hardware.copy_in_slices(dst, src, pool, parts)
         assert np.array_equal(dst, src), parts
+
+
+def test_cpu_cells_are_judged_against_a_copy_of_their_own_size():
+    """The CPU yardstick has a copy at every power of two from 64 KiB to 128 MiB; a cell's
+    bandwidth floor uses the one nearest its traffic, so a cache-resident SAXPY is not compared
+    with DRAM (a hardware fraction of 4 at n = 1e6 was the symptom) and its floor says so."""
+    from compare import hardware
+    hw = hardware.measure_cpu()
+    sizes = [p[0] for p in hw["copy_curve"]]
+    assert sizes == sorted(sizes) and sizes[0] == 1 << 16 and sizes[-1] == hw["copy_bytes"]
+    assert all(bw > 0 for _, bw in hw["copy_curve"])
+    assert hardware.matched_copy(hw, 2 * 2**20) == (hw["copy_curve"][4][1], 1 << 20)
+    assert hardware.matched_copy(hw, 10**12)[1] == hw["copy_bytes"]       # past the end: the largest
+    assert hardware.matched_copy({}, 1e6) is None and hardware.matched_copy(hw, 0) is None
+
+    curve = [[1 << 20, 100e9], [1 << 27, 20e9]]      # a fast cache, a slow DRAM
+    fake = {"copy_bytes_per_s": 20e9, "copy_bytes": 1 << 27, "copy_curve": curve, "copy_how": "test"}
+    small = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32", "status": "ok",
+             "params": {"n": 2**18}, "time": {"throughput": {"median_s": 1e-4}}}
+    big = {**small, "params": {"n": 2**27}, "time": {"throughput": {"median_s": 1.0}}}
+    hardware.annotate([small, big], {"cpu": fake})
+    assert small["throughput"]["floor_s"] == pytest.approx(3 * 4 * 2**18 / 100e9)
+    assert "same size (1 MiB per array" in small["throughput"]["floor"]
+    assert big["throughput"]["floor_s"] == pytest.approx(3 * 4 * 2**27 / 20e9)
+    assert "same size" not in big["throughput"]["floor"]
