@@ -5,6 +5,7 @@ import csv
 import json
 import math
 import os
+import re
 import textwrap
 from pathlib import Path
 from typing import Any, Iterable
@@ -199,6 +200,23 @@ def environment_lines(env: dict[str, Any]) -> list[str]:
             f"- OS: {env.get('os')}; Python {env.get('python')}", f"- packages: {pkgs}"]
 
 
+def yardstick_lines(env: dict[str, Any]) -> list[str]:
+    """The run's hardware yardstick per device, in words (``env['hardware']``)."""
+    out = []
+    for device, hw in (env.get("hardware") or {}).items():
+        if not isinstance(hw, dict):
+            continue
+        if hw.get("error"):
+            out.append(f"- yardstick ({device}): not measured ({hw['error']})")
+            continue
+        bw = hw.get("copy_bytes_per_s")
+        launch = hw.get("launch_pipelined_s")
+        out.append(f"- yardstick ({device}): copy {bw / 1e9:.3g} GB/s ({hw.get('copy_how', '')})"
+                   + (f"; empty-kernel launch {fmt_time(launch)} pipelined" if launch else "")
+                   if isinstance(bw, (int, float)) else f"- yardstick ({device}): -")
+    return out
+
+
 def page(title: str, envs: list[dict[str, Any]], records: list[dict[str, Any]], images: dict[str, str],
          notes: str = "", rebuild: str = "") -> str:
     """A results page: title, hand-written notes, environments, time against error, then each
@@ -230,10 +248,9 @@ def write_tables(out: Path, environment: dict[str, Any], records: list[dict[str,
     w.writeheader()
     w.writerows(tidy(r) for r in records)
     atomic_write(out / "results.csv", buf.getvalue())
-    env_lines = "\n".join(f"- {k}: {v}" for k, v in environment.items() if k != "packages")
-    pkgs = ", ".join(f"{k} {v}" for k, v in environment.get("packages", {}).items())
+    env_lines = "\n".join(environment_lines(environment) + yardstick_lines(environment))
     closing = "\n".join(noise_lines(records))
-    atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n- packages: {pkgs}\n\n"
+    atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n\n"
                  + tables(records, "github", images) + (f"\n```\n{closing}\n```\n" if closing else ""))
 
 
@@ -436,6 +453,17 @@ def plot_outputs(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.
         plt.close(fig)
         written.append(p)
     return written
+
+
+def remove_pictures(plots: Path) -> None:
+    """An earlier run's pictures in ``plots`` (only the names ``write_plots`` writes), so that
+    none stays beside a new run's results."""
+    import scenarios
+    ours = re.compile(r"(speed_\w+|speedup_vs_\w+_cpu|time_vs_error|" + "|".join(scenarios.SCENARIOS) + r")\.(png|csv)")
+    if plots.is_dir() and not plots.is_symlink():
+        for old in plots.iterdir():
+            if ours.fullmatch(old.name) and old.is_file() and not old.is_symlink():
+                old.unlink()
 
 
 def write_plots(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], plots: Path) -> None:

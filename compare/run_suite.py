@@ -56,6 +56,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "the TOP functions by own time in each record (time.host_profile)")
     p.add_argument("--resume", action="store_true",
                    help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
+    p.add_argument("--force", action="store_true",
+                   help="replace the results of an earlier run in --out (default: refuse them)")
     options.add_scheduler(p)
     p.add_argument("--wide", action="store_true", help="print every column (default: a view that fits 120)")
 
@@ -170,17 +172,29 @@ def saved_outputs(directory: Path, records: list[dict[str, Any]],
 
 
 def render(out: Path, env: dict[str, Any], records: list[dict[str, Any]],
-           outputs: dict[int, dict[str, np.ndarray]], plots: bool) -> None:
-    """Plots (``report.write_plots``: speed, time against error, each scenario's picture) and
-    results.csv/.md in ``out``."""
+           outputs: dict[int, dict[str, np.ndarray]], plots: bool, clean: bool = False) -> None:
+    """Plots (``report.write_plots``: speed, time against error, each scenario's picture; an
+    earlier run's removed first when ``clean``) and results.csv/.md in ``out``."""
+    if clean:
+        report.remove_pictures(out / "plots")
     if plots:
         report.write_plots(records, outputs, out / "plots")
     report.write_tables(out, env, records, images=report.images_in(out / "plots", out))
 
 
+def refuse_overwrite(args: argparse.Namespace) -> None:
+    """An earlier run's results in --out are kept (--resume) or replaced (--force), never silently."""
+    if args.resume and args.force:
+        raise UsageError("--resume keeps --out's earlier results and --force replaces them: give one")
+    if not (args.resume or args.force) and (Path(args.out) / "results.json").exists():
+        raise UsageError(f"--out {args.out} holds an earlier run's results: --resume adds to them, "
+                         "--force replaces them, or choose another --out")
+
+
 def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
     specs = plan(args, chosen)
     options.check_output(args.out)                    # a bad --out is refused before the probes
+    refuse_overwrite(args)
     Store.open(args.out, "run", keep=args.resume)     # and a bad results.json to resume (read only)
     sel_backends = sorted({s["backend"] for s in specs})
     probes = engine.availability(sel_backends)
@@ -275,7 +289,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     for r in records:
         store.put(r)
     store.save()
-    render(out, env, records, outputs, plots=not args.no_plots)
+    render(out, env, records, outputs, plots=not args.no_plots, clean=not args.resume)
     print(report.tables(records, wide=args.wide))
     print("\n".join(report.noise_lines(records) + [""]), end="")
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
@@ -312,6 +326,9 @@ def report_command(args: argparse.Namespace) -> int:
         records += recs
     notes = options.read_notes(args.notes)
     options.check_page(args.page, args.title)
+    written = Path(args.out) / "results.json"
+    if not args.page and any(Path(f).resolve() == written.resolve() for f in args.files):
+        raise UsageError(f"report would rewrite its input {written}: give another --out (or --page FILE)")
     out, lock = options.claim_output(args.out, PAGE_BYTES + 2 * RECORD_BYTES * len(records))
     with lock:
         return report_claimed(args, out, envs, records, outputs, notes)

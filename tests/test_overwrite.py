@@ -1,0 +1,58 @@
+"""Nothing overwritten silently: a run refuses an --out holding an earlier run's results unless
+told (--resume keeps them, --force replaces them), a forced run leaves no picture of the earlier
+one, `report` never rewrites its inputs, and results.md opens with readable text."""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from pathlib import Path
+
+from compare import cli
+
+RUN = ["saxpy", "--backends", "numpy", "--devices", "cpu", "--precision", "float32", "--quick",
+       "--repeat", "2", "--min-time", "0"]
+
+
+def main(argv: list[str]) -> tuple[int, str]:
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        rc = cli.main(argv)
+    return rc, err.getvalue()
+
+
+def test_an_earlier_run_is_kept_or_replaced_only_when_told(tmp_path: Path) -> None:
+    out = tmp_path / "results"
+    assert main([*RUN, "--out", str(out)])[0] == 0
+    first = (out / "results.json").read_bytes()
+    stale = out / "plots" / "sdf.png"             # a picture only an earlier run drew
+    stale.write_bytes(b"old")
+    (out / "plots" / "mine.png").write_bytes(b"the user's")
+
+    rc, err = main([*RUN, "--out", str(out)])
+    assert rc == 2 and err.count("\n") == 1 and "earlier run's results" in err and "--force" in err, err
+    assert (out / "results.json").read_bytes() == first
+
+    rc, err = main([*RUN, "--out", str(out), "--resume", "--force"])
+    assert rc == 2 and "give one" in err
+
+    assert main([*RUN, "--out", str(out), "--force", "--set", "n=300"])[0] == 0
+    recs = json.loads((out / "results.json").read_text())["records"]
+    assert [r["params"]["n"] for r in recs] == [300]
+    assert not stale.exists() and (out / "plots" / "mine.png").read_bytes() == b"the user's"
+    assert (out / "plots" / "speed_saxpy.png").is_file()
+
+    md = (out / "results.md").read_text()
+    head = md.split("## saxpy")[0]
+    assert "- command: `" in head and "yardstick (cpu): copy" in head
+    assert "{'" not in head and max(len(line) for line in head.splitlines()) < 600, head
+
+
+def test_report_never_rewrites_its_input(tmp_path: Path) -> None:
+    out = tmp_path / "results"
+    assert main([*RUN, "--out", str(out)])[0] == 0
+    before = (out / "results.json").read_bytes()
+    rc, err = main(["report", str(out / "results.json"), "--out", str(out)])
+    assert rc == 2 and "rewrite its input" in err, err
+    assert (out / "results.json").read_bytes() == before
+    assert main(["report", str(out / "results.json"), "--out", str(tmp_path / "merged")])[0] == 0
