@@ -42,7 +42,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scenarios", nargs="+", metavar="SCENARIO", help=", ".join(scenarios.SCENARIOS))
     run_suite.add_arguments(r)
     for sc in scenarios.SCENARIOS.values():
-        run_suite.add_arguments(sub.add_parser(sc.name, help=sc.title))
+        rules = "\n".join(f"  {name} (default {default!r}): {rule}" for name, default, rule in sc.param_rules())
+        run_suite.add_arguments(sub.add_parser(
+            sc.name, help=sc.title, formatter_class=argparse.RawDescriptionHelpFormatter,
+            epilog=f"{sc.title}. Parameters (--set NAME=VALUE):\n{rules}"))
     rep = sub.add_parser("report", help="rebuild tables/plots (or a page) from saved results.json files")
     rep.add_argument("files", nargs="+", metavar="RESULTS_JSON")
     options.add_output(rep, "results")

@@ -139,6 +139,25 @@ class Scenario:
     def describe_params(self) -> str:
         return ", ".join(f"{f.name}={f.default!r}" for f in dataclasses.fields(self.Params))
 
+    def param_rules(self) -> list[tuple[str, Any, str]]:
+        """(name, default, what a value must be) per parameter, for ``--help``. The rule is the
+        validation's own words, found by offering values it refuses (no second copy to drift)."""
+        hints = typing.get_type_hints(self.Params)
+        out = []
+        for f in dataclasses.fields(self.Params):
+            kind = {int: "an integer", float: "a number", bool: "a boolean", str: "a string"}.get(hints[f.name], "")
+            rule = f"must be {kind}" if kind else ""
+            for probe in ("?", "1e300", "-1e300", "-1", "0", "nan", "inf"):
+                try:
+                    self.params({f.name: probe})
+                except ParamError as exc:
+                    msg = str(exc).split(", got")[0]
+                    if msg.startswith(f"{f.name} must") and not msg.endswith(f"must be {kind}"):
+                        rule = msg[len(f.name) + 1:]
+                        break
+            out.append((f.name, f.default, rule))
+        return out
+
     # ---- data -------------------------------------------------------------------------------
     def inputs(self, params, precision: str) -> dict[str, np.ndarray]:
         """Deterministic inputs, already rounded to ``precision``."""

@@ -233,3 +233,19 @@ def test_dask_local_cluster_gives_the_same_records(tmp_path):
                        r["error"] and {k: v for k, v in r["error"].items()},
                        r.get("gradient", {}).get("value"))
     assert [strip(r) for r in ra] == [strip(r) for r in rb]   # bitwise: same outputs on CPU
+
+
+def test_scenario_help_lists_its_parameters_with_defaults_and_ranges():
+    import contextlib
+    import io
+    from compare import cli
+    import scenarios
+    for sc in scenarios.SCENARIOS.values():
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+            cli.main([sc.name, "--help"])
+        text = buf.getvalue()
+        for name, default, rule in sc.param_rules():
+            assert f"  {name} (default {default!r}): must be" in text, (sc.name, name, text[-800:])
+    rules = dict((n, r) for n, _, r in scenarios.get("saxpy").param_rules())
+    assert rules["n"] == "must be in [1, 2^31-1]" and rules["inputs"] == "must be one of linspace, random"
