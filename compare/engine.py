@@ -174,9 +174,10 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
     return [r for r in done if r is not None]
 
 
-def progress(total: int) -> Callable[[int, dict[str, Any], Outputs | None], None]:
+def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None
+             ) -> Callable[[int, dict[str, Any], Outputs | None], None]:
     """An ``on_record`` that reports each finished cell on stderr: a tqdm bar on a terminal, one
-    line per cell otherwise (CI logs)."""
+    line per cell otherwise (CI logs). ``label``: a record's name (default: its identity)."""
     import os
     import sys
     quiet = bool(os.environ.get("CI")) or not sys.stderr.isatty()
@@ -186,12 +187,13 @@ def progress(total: int) -> Callable[[int, dict[str, Any], Outputs | None], None
         bar = tqdm(total=total, unit="cell", file=sys.stderr)
 
     def on_record(i: int, rec: dict[str, Any], out: Outputs | None) -> None:
-        label = "/".join(str(rec.get(k)) for k in IDENTITY)
+        name = label(rec) if label else "/".join(str(rec.get(k)) for k in IDENTITY)
         if bar is not None:
-            bar.set_description(label)
+            bar.set_description(name)
             bar.update(1)
             if bar.n >= total:
                 bar.close()
         else:
-            print(f"  {label}: {rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr)
+            print(f"  [{i + 1}/{total}] {name}: {rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr,
+                  flush=True)
     return on_record

@@ -25,7 +25,6 @@ import argparse
 import dataclasses
 import json
 import shlex
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -192,7 +191,15 @@ def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None
     its converged error attached first: one at a time here (they would share cores and the
     GPU), or on a Dask cluster's workers, one per GPU and core set (``runner``)."""
     cache: dict[Any, Any] = {}
-    count = iter(range(1, len(specs) + 1))
+
+    def label(rec: dict[str, Any]) -> str:
+        tags = rec.get("tags") or {}
+        knob = tags.get("knob") or {}
+        setting = f" {knob.get('name')}={knob.get('value')}" if knob.get("name") and knob.get("value") is not None else ""
+        return (f"{tags.get('sweep')} {rec['scenario']}/{rec['backend']}/{rec['device']}/{rec['precision']}/"
+                f"{rec['variant']}{setting}")
+    show = engine.progress(len(specs), label)
+    count = iter(range(len(specs)))
 
     def on_record(j: int, rec: dict[str, Any], outputs) -> None:
         if pages.tag(rec, "sweep") == "error" and rec["status"] in ("ok", "mismatch"):
@@ -201,10 +208,7 @@ def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None
             if conv is not None:
                 rec["converged"] = conv
         hardware.annotate([rec], yardstick)
-        tags = rec.get("tags") or {}
-        print(f"[{next(count)}/{len(specs)}] {tags.get('sweep')} {rec['scenario']}/{rec['backend']}/"
-              f"{rec['device']}/{rec['precision']}/{rec['variant']} {tags.get('knob') or ''}: "
-              f"{rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr, flush=True)
+        show(next(count), rec, outputs)
     engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
                      resume=args.resume, runner=runner)
 
