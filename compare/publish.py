@@ -134,7 +134,7 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
         for name, exp in (LARGE_QUICK if quick else LARGE.get(dev, ())):
             sc = scenarios.get(name)
             p = sc.params({"n": 2**exp}, quick=quick)
-            host = WORKER_BASELINE_BYTES[dev] + sc.footprint(p, "float32")
+            host = WORKER_BASELINE_BYTES[dev] + sc.footprint(p, "float32", dev)
             arrays = sc.input_bytes(p, "float32") + sc.output_bytes(p, "float32")
             if host > have.get("cpu", float("inf")) or (dev == "cuda" and arrays > have.get("cuda", float("inf"))):
                 left.append(f"large-{dev}-{name}{exp}: left out, needs {options.gib(host)} of host memory"

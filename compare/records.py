@@ -301,7 +301,7 @@ def arrays_problem(rec: dict[str, Any], headers: dict[str, tuple[tuple[int, ...]
     for name, (shape, _) in headers.items():
         if want.get(name) is not None and tuple(want[name]) != shape:
             return f"{name} has shape {shape}, the parameters declare {tuple(want[name])}"
-    need = max(sc.footprint(p, rec["precision"]), sc.output_bytes(p, rec["precision"]))
+    need = max(sc.footprint(p, rec["precision"], rec["device"]), sc.output_bytes(p, rec["precision"]))
     if sum(b for _, b in headers.values()) > max(need, 1 << 20):
         return "the arrays are larger than the cell's declared footprint"
     if need > psutil.virtual_memory().available:

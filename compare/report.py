@@ -88,6 +88,9 @@ def row(rec: dict[str, Any]) -> list[str]:
     note = rec.get("reason", "") or ""
     if rec.get("status") == "ok" and e.get("ill_conditioned"):
         note = f"{e['ill_conditioned']} ill-conditioned particles not checked"
+    checked = e.get("checked_items")
+    if rec.get("status") in ("ok", "mismatch") and isinstance(checked, str) and checked != "all":
+        note = "; ".join(filter(None, [note, f"oracle checked {checked}"]))
     if rec.get("status") == "ok" and noise.reasons_for(rec):
         note = "; ".join(filter(None, [note, "noisy: " + "; ".join(noise.reasons_for(rec))]))
     device = rec["device"] + (f" ({rec['machine']})" if rec.get("machine") else "")

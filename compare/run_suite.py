@@ -77,7 +77,7 @@ def cell_bytes(spec: dict[str, Any]) -> tuple[float, float, float]:
     prec = spec["precision"]
     outputs = sc.output_bytes(p, prec)
     arrays = outputs + sc.input_bytes(p, prec)
-    worker = WORKER_BASELINE_BYTES.get(spec["device"], max(WORKER_BASELINE_BYTES.values())) + sc.footprint(p, prec)
+    worker = WORKER_BASELINE_BYTES.get(spec["device"], max(WORKER_BASELINE_BYTES.values())) + sc.footprint(p, prec, spec["device"])
     return worker, (arrays if spec.get("save_inputs") else outputs), arrays
 
 

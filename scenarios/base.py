@@ -183,10 +183,11 @@ class Scenario:
         turns a violation into an ``error`` record naming it."""
         return {name: None for name in self.outputs}
 
-    def footprint(self, params, precision: str) -> float:
+    def footprint(self, params, precision: str, device: str = "cpu") -> float:
         """Bytes of host memory a cell's worker needs for its data at its peak (inputs, the
         framework's copies, outputs, oracle and check temporaries), beyond the interpreter and
-        framework (compare.run_suite.WORKER_BASELINE_BYTES, per device). An upper bound: the run suite
+        framework (compare.run_suite.WORKER_BASELINE_BYTES, per device). ``device``: where the
+        framework's own working copies live (on a GPU they are not host memory). An upper bound: the run suite
         refuses sizes whose bound exceeds the available memory, and tests/test_reliability.py
         checks it against measured peaks."""
         return 0.0

@@ -70,7 +70,7 @@ class Copy(Scenario):
     def distance(self, params, inputs, outputs, other) -> float:
         return self._max_abs(outputs["out"], other["out"])
 
-    def footprint(self, params: CopyParams, precision: str) -> float:
+    def footprint(self, params: CopyParams, precision: str, device: str = "cpu") -> float:
         # x, the framework's copies, out, float64 temporaries of the check; measured on CPU at
         # n = 2^24: at most 32 B/element in float32, 48 in float64; bound 1.5x that
         itemsize = 4 if precision == "float32" else 8

@@ -60,7 +60,7 @@ class Launch(Scenario):
     def distance(self, params, inputs, outputs, other) -> float:
         return self._max_abs(outputs["out"], np.asarray(other["out"], np.float64))
 
-    def footprint(self, params: LaunchParams, precision: str) -> float:
+    def footprint(self, params: LaunchParams, precision: str, device: str = "cpu") -> float:
         # measured on CPU at n = 2^20: at most 48 B/element in float32, 59 in float64 (taichi)
         itemsize = 4 if precision == "float32" else 8
         return params.n * (48.0 + 8.0 * itemsize)

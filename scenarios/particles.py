@@ -347,7 +347,7 @@ class Particles(Scenario):
         fig.tight_layout()
         return fig
 
-    def footprint(self, params: ParticlesParams, precision: str) -> float:
+    def footprint(self, params: ParticlesParams, precision: str, device: str = "cpu") -> float:
         # state, the oracle's float64 rollout with its running bounds and margins, and with
         # record_every the kept frames (the port's and the oracle's, with bounds). Measured on
         # CPU (all four backends): at most 304 B/particle at n = 2^20 (JAX adds ~50 MB at any

@@ -669,14 +669,15 @@ class Projectile(Scenario):
         return {"items": evals * params.steps, "gradients": evals,
                 "flops": evals * params.steps * FLOPS_PER_STEP[params.contact]}
 
-    def footprint(self, params: ProjectileParams, precision: str) -> float:
+    def footprint(self, params: ProjectileParams, precision: str, device: str = "cpu") -> float:
         # per checked trajectory, the per-step states of the float64 oracle's rollout + adjoint +
-        # bounds (soft: also its steps x 4 x 4 transition stack); per trajectory, the port's tape
-        # (at most ~900 B/step measured on CPU for a single trajectory: a bound for the host
-        # copy of any device) and the inputs and outputs; plus a fixed part (JAX's ~22 MiB)
+        # bounds (soft: also its steps x 4 x 4 transition stack); per trajectory, the inputs and
+        # outputs and, on the CPU, the port's tape (at most ~900 B/step measured for a single
+        # trajectory; on a GPU the tape is device memory); plus a fixed part (JAX's ~22 MiB)
         checked = min(params.batch, BATCH_CHECKED)
         oracle = params.steps * (1400.0 + (128.0 * params.steps if params.contact == "soft" else 0.0))
-        per_traj = params.steps * 900.0 + (params.iters + 8) * 8.0 * 3
+        tape = params.steps * 900.0 if device == "cpu" else 0.0
+        per_traj = tape + (params.iters + 8) * 8.0 * 3
         return 32.0 * 2**20 + checked * oracle + params.batch * per_traj + params.iters * 64.0
 
     def floor(self, params: ProjectileParams, precision: str, hardware: dict) -> dict | None:

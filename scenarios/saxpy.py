@@ -139,7 +139,7 @@ class Saxpy(Scenario):
         fig.tight_layout()
         return fig
 
-    def footprint(self, params: SaxpyParams, precision: str) -> float:
+    def footprint(self, params: SaxpyParams, precision: str, device: str = "cpu") -> float:
         # inputs, the framework's copies, outputs, the float64 oracle and check temporaries.
         # Measured on CPU at n = 2^24 (all four backends): at most 64 B/element in float32 and
         # 88 in float64; bound ~1.36x that (docs/reliability.md)

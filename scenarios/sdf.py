@@ -169,7 +169,7 @@ class Sdf(Scenario):
         fig.tight_layout()
         return fig
 
-    def footprint(self, params: SdfParams, precision: str) -> float:
+    def footprint(self, params: SdfParams, precision: str, device: str = "cpu") -> float:
         # image + float64 oracle temporaries; measured on CPU at 2048^2 (all four backends): at
         # most 58 B/pixel in float32 and 65 in float64; bound ~1.4x that (docs/reliability.md)
         itemsize = 4 if precision == "float32" else 8
