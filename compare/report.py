@@ -111,6 +111,41 @@ def row(rec: dict[str, Any]) -> list[str]:
             fmt_gradient(rec), note]
 
 
+def summary_lines(records: list[dict[str, Any]]) -> list[str]:
+    """The end of a run in a few lines: cells by status (and noisy); per scenario, device and
+    precision the fastest framework (its best variant, throughput regime) and its lead over the
+    next; on the CPU each framework's speed-up against the baseline (NumPy)."""
+    import backends
+    counts: dict[str, int] = {}
+    for r in records:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    noisy = sum(1 for r in records if r["status"] == "ok" and noise.reasons_for(r))
+    out = [f"{len(records)} cells: " + ", ".join(f"{n} {st}" + (f" ({noisy} noisy {NOISY_MARK})" if st == "ok" and noisy
+                                                                 else "") for st, n in counts.items())]
+    base = backends.cpu_baseline()
+    groups: dict[tuple, dict[str, float]] = {}
+    for r in records:
+        med = call_time(r)[0] if r["status"] == "ok" else None
+        if med:
+            best = groups.setdefault((r["scenario"], r["device"], r["precision"], params_text(r)), {})
+            best[r["backend"]] = min(best.get(r["backend"], med), med)
+    for (scenario, device, precision, _), best in groups.items():
+        if len(best) < 2:
+            continue
+        order = sorted(best, key=best.get)
+        line = (f"  {scenario} {device} {precision}: fastest {order[0]} ({fmt_time(best[order[0]])} a call), "
+                f"{best[order[1]] / best[order[0]]:.3g}x ahead of {order[1]}")
+        if device == "cpu" and base in best:
+            ups = ", ".join(f"{b} {best[base] / best[b]:.3g}x" for b in order if b != base)
+            line += f"; against {backends.display_name(base)}: {ups}"
+        out += textwrap.wrap(line, 118, subsequent_indent="      ", break_on_hyphens=False)
+    return out
+
+
+def params_text(rec: dict[str, Any]) -> str:
+    return json.dumps(rec.get("params"), sort_keys=True)
+
+
 def noise_lines(records: list[dict[str, Any]]) -> list[str]:
     """The closing lines: which timed cells are noisy (``~`` in the tables), why, what to do."""
     noisy = [r for r in records if r.get("status") == "ok" and noise.reasons_for(r)]

@@ -291,7 +291,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     store.save()
     render(out, env, records, outputs, plots=not args.no_plots, clean=not args.resume)
     print(report.tables(records, wide=args.wide))
-    print("\n".join(report.noise_lines(records) + [""]), end="")
+    print("\n".join(report.summary_lines(records) + report.noise_lines(records) + [""]), end="")
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
     missing = [r for r, _ in results if args.save_arrays and r["status"] in ("ok", "mismatch")
                and not arrays_saved(out, r)]
