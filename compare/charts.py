@@ -25,7 +25,7 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
     hatch(variant) -> hatch pattern; tidy_log(ax, fmt=None) (1-2-5 labels on log axes);
     pyplot() (Agg); save(fig, path) (atomic, deterministic, closes the figure); RC (rcParams)
 
-Colours: a registered backend keeps ``compare.report.backend_color`` in every figure; any other
+Colours: a registered backend keeps ``compare.colors.backend_color`` in every figure; any other
 framework gets a spare colour chosen from its name (so the same in every figure) and moved on
 only when that colour is already taken in the figure. Variants never get colours of their own:
 bars are hatched per variant, curves and points get markers.
@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+from compare.colors import backend_color
 from compare.store import atomic_write, save_figure
 
 DPI = 110
@@ -102,7 +103,6 @@ def colors(frameworks: Iterable[str]) -> dict[str, str]:
     """framework -> colour, in display order (registry order, then by name); distinct within
     the call, stable across calls for registered backends and for unknown names alike."""
     import backends
-    from compare.report import backend_color
     names = sorted(set(frameworks), key=_order)
     out = {n: backend_color(n) for n in names if n in backends.BACKENDS}
     used = set(out.values())

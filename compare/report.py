@@ -13,7 +13,7 @@ from typing import Any, Iterable
 import numpy as np
 from tabulate import tabulate
 
-from compare import noise
+from compare import charts, noise
 from compare.store import atomic_write, save_figure
 
 NOISY_MARK = noise.MARK
@@ -25,17 +25,6 @@ NOTE_WIDTH = 22
 # the terminal's default view (fits 120 columns); --wide and the Markdown/CSV files have all
 COMPACT = ("cell", "status", "latency", "throughput", "hw fraction", "err vs oracle", "tolerance", "note")
 COMPACT_HEADERS = ("cell", "status", "latency", "throughput", "hw", "error", "tol", "note")
-
-
-def backend_color(name: str) -> str:
-    """A backend's own colour (``Backend.color``) in every plot, whatever else ran; a backend
-    without one gets the colour of its place in the registry."""
-    import backends
-    b = backends.BACKENDS.get(name)
-    if b is not None and b.color:
-        return b.color
-    names = list(backends.BACKENDS)
-    return f"C{names.index(name) % 10}" if name in names else "0.4"
 
 
 def fmt_time(s: Any) -> str:
@@ -344,7 +333,6 @@ def tidy(rec: dict[str, Any]) -> dict[str, Any]:
 
 def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
     """Latency-regime time against error, one panel per scenario (two columns)."""
-    from compare import charts
     plt = charts.pyplot()
     groups = by_scenario(r for r in records if r["status"] in ("ok", "mismatch") and r.get("time"))
     if not groups:
@@ -403,7 +391,6 @@ def _spread(med: float, iqr: Any) -> tuple[float | None, float | None]:
 def speed_bar(rec: dict[str, Any], base: dict[str, Any] | None = None) -> Any:
     """A cell's ``charts.Bar``: its time per call, or with ``base`` base's time over its own
     (a speed-up, the spread of both cells combined); a failed or skipped cell has no value."""
-    from compare import charts
     t, i, regime = call_time(rec) if rec["status"] in ("ok", "mismatch") else (None, None, "")
     lo, hi = _spread(t, i) if t else (None, None)
     marks = ([rec["status"]] if rec["status"] != "ok" else []) + (["latency regime"] if regime == "latency" else [])
@@ -432,7 +419,6 @@ def speed_panels(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]
 def plot_speed(records: list[dict[str, Any]], out: Path) -> list[Path]:
     """speed_<scenario>.png: time per call in the throughput regime per framework and variant,
     one panel per device, precision and size; a failed or skipped cell is an empty slot."""
-    from compare import charts
     written = []
     for scenario, recs in by_scenario(records).items():
         panels = [charts.Panel(title, [speed_bar(r) for r in rs]) for title, rs in speed_panels(recs).items()]
@@ -450,7 +436,6 @@ def plot_speedup_vs_baseline(records: list[dict[str, Any]], path: Path, baseline
     """speedup_vs_<baseline>_cpu.png: per scenario, precision and size on the CPU, the baseline's
     (NumPy's) time per call over each framework's (same run, same regime); groups without an ok
     baseline cell left out."""
-    from compare import charts
     import backends
     who = backends.display_name(baseline)
     panels = []

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from compare import charts, report, run_suite
+from compare import charts, colors, report, run_suite
 
 pytestmark = pytest.mark.cli
 
@@ -69,7 +69,7 @@ def test_every_chart_writes_a_png_and_its_data_and_is_deterministic(tmp_path):
 def test_colours_are_distinct_and_stable_and_variants_are_hatched():
     cmap = charts.colors(FRAMEWORKS)
     assert len(set(cmap.values())) == len(FRAMEWORKS)
-    assert all(cmap[f] == report.backend_color(f) for f in FRAMEWORKS[:8])
+    assert all(cmap[f] == colors.backend_color(f) for f in FRAMEWORKS[:8])
     # an unknown framework's colour does not depend on the registered backends drawn beside it
     assert charts.colors(["mlx"])["mlx"] == charts.colors(["mlx", *FRAMEWORKS[:8]])["mlx"]
     assert charts.hatch("default") == "" and charts.hatch("fastmath") != charts.hatch("graph")

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare.report import backend_color
+from compare.colors import backend_color
 from compare.store import atomic_write
 from scenarios.numerics import ORACLE, Experiment
 
@@ -25,7 +25,7 @@ def _plt():
 
 
 def _colour(name: str) -> str:
-    """The backend's own colour (``report.backend_color``); the float64 oracle comes after every
+    """The backend's own colour (``colors.backend_color``); the float64 oracle comes after every
     backend; anything else (a prediction) is black."""
     if name in backends.BACKENDS:
         return backend_color(name)

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare.report import backend_color
+from compare.colors import backend_color
 from compare.store import save_figure
 from compare.sweep.page import (ERROR_FLOOR, device_bytes, error_points, error_scenarios, event_s,
                                 gbps, knob, label, launch_wall, ok, plot_key, roofline, swept,
