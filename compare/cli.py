@@ -27,9 +27,14 @@ from compare.store import StoreError
 from scenarios.base import ParamError
 
 
+# The subcommands with a module of their own: each has add_arguments, run and a docstring.
+SUITE_MODULES = {"sweep": "compare.sweep.suite", "stress": "compare.stress.suite", "site": "compare.site",
+                 "publish": "compare.publish"}
+
+
 def suite_modules() -> dict[str, Any]:
     import importlib
-    return {name: importlib.import_module(f"compare.{name}") for name in ("sweep", "stress", "site", "publish")}
+    return {name: importlib.import_module(module) for name, module in SUITE_MODULES.items()}
 
 
 def build_parser() -> argparse.ArgumentParser:

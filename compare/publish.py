@@ -163,7 +163,8 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     large, notes = large_parts(devices, chosen, sel, quick, have if have is not None else memory())
     parts += [dataclasses.replace(p, argv=p.argv + tuple(tail)) for p in large]
     parts += [Part(k, ("sweep", k, "--devices", devs, *sel, *tail)) for k in SWEEPS]
-    from compare.stress import experiments, generic
+    from compare.stress import generic
+    from compare.stress.registry import experiments
     for exp in experiments():      # ulps and races compare each device with the CPU
         d = [x for x in backends.DEVICES if x in devices or (x == "cpu" and exp in generic.EXPERIMENTS)]
         folder = Path(out) / STAGED / (exp if backends_arg == "all" else "-".join([exp, *chosen]))

@@ -201,7 +201,7 @@ def record_problem(rec: dict[str, Any]) -> str | None:
 
 def _sweep_problem(rec: dict[str, Any]) -> str | None:
     """What the sweep page and plots index directly in an ok, timed record of each sweep kind."""
-    import scenarios
+    from compare.sweep.points import sweeps
     tags = rec.get("tags") or {}
     knob = tags.get("knob") or {}
     if knob.get("value") is not None and knob.get("name") is None:
@@ -209,7 +209,7 @@ def _sweep_problem(rec: dict[str, Any]) -> str | None:
     if rec["status"] != "ok" or not rec.get("time"):
         return None
     kind, role = tags.get("sweep"), tags.get("role")
-    labels = scenarios.SCENARIOS[rec["scenario"]].sweep_labels
+    labels = sweeps(rec["scenario"]).labels
     need: list[tuple[str, Any]] = []
     if kind == "bandwidth" and role in ("copy", "bandwidth"):
         need += [("work.bytes", POSITIVE), ("params.n", POSITIVE)]
@@ -271,7 +271,7 @@ def _rows_problem(rows: list[dict[str, Any]]) -> str | None:
     """A finding its experiment's own page hooks cannot read (a setting they parse)."""
     if not rows:
         return None
-    from compare.stress import experiments
+    from compare.stress.registry import experiments
     registry = experiments()
     for i, r in enumerate(rows):
         exp = registry.get(r["experiment"])

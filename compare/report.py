@@ -456,19 +456,19 @@ def plot_speedup_vs_baseline(records: list[dict[str, Any]], path: Path, baseline
 
 
 def plot_outputs(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], out: Path) -> list[Path]:
-    """One picture per scenario, drawn by the scenario (``Scenario.figure``) from the runs whose
-    outputs are at hand, reference backend first."""
+    """One picture per scenario (``compare.figures``) from the runs whose outputs are at hand,
+    reference backend first."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import backends
-    import scenarios
+    from compare import figures
     ref = backends.reference()
     written = []
     for scenario in by_scenario(records):
         runs = [(r, outputs[i]) for i, r in enumerate(records) if r["scenario"] == scenario and i in outputs]
         runs.sort(key=lambda ro: ro[0]["backend"] != ref)
-        fig = scenarios.get(scenario).figure(runs) if runs else None
+        fig = figures.figure(scenario, runs)
         if fig is None:
             continue
         p = out / f"{scenario}.png"

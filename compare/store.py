@@ -34,7 +34,7 @@ from compare.spec import FORMAT_VERSION, KEPT_ON_RESUME, key, record_problem
 SUITES = {"run": "results.json", "sweep": "sweep.json", "stress": "stress.json"}
 # per suite: turn a record of an older format into today's (registered by the suite's module)
 UPGRADES: dict[str, Callable[[dict[str, Any]], dict[str, Any]]] = {}
-UPGRADE_MODULES = {"run": "compare.run_suite", "sweep": "compare.sweep"}
+UPGRADE_MODULES = {"run": "compare.run_suite", "sweep": "compare.sweep.suite"}
 
 
 class StoreError(ValueError):

@@ -2,6 +2,11 @@
 
 A scenario knows nothing about frameworks. A backend's kernel file receives the inputs this module
 makes (already rounded to the cell's precision) and returns outputs named as in ``outputs``.
+
+A scenario holds physics only, and knows nothing of the suites either: what they do with it is
+registered by scenario name beside them (sweep points and converged errors in
+compare/sweep/points.py, stress experiments in compare/stress/registry.py, the report's picture
+in compare/figures/).
 """
 from __future__ import annotations
 
@@ -10,9 +15,6 @@ import typing
 from typing import Any, ClassVar
 
 import numpy as np
-
-if typing.TYPE_CHECKING:
-    from .numerics import Experiment
 
 PRECISIONS: tuple[str, ...] = ("float32", "float64")
 
@@ -106,17 +108,6 @@ class Scenario:
     outputs: ClassVar[tuple[str, ...]]     # names of the arrays a backend returns
     has_gradient: ClassVar[bool] = False
     in_all: ClassVar[bool] = True          # False for measurement-only scenarios (launch, copy)
-    # Measurement sweeps (compare/sweep, docs/measurement.md). ``measures``: the generic role the
-    # sweep page finds rows by: 'launch' (trivial-launch overhead yardstick), 'copy' (bandwidth
-    # roofline yardstick), 'bandwidth' (the size sweep). ``error_metric``: what ``converged_error``
-    # measures, in words. ``sweep_labels``: the words the sweep page and plots use for this
-    # scenario, all optional: 'name' (display name; default the scenario name), 'bytes' (how the
-    # bytes per call are counted), 'error_axis' (time-against-error y label; '{floor}' is replaced
-    # by the value an exact 0 is drawn at), and for the scaling sweep 'items' (what the swept size
-    # counts), 'per_run' (the parameter counted per run, e.g. steps), 'item_rate' (the work item).
-    measures: ClassVar[str | None] = None
-    error_metric: ClassVar[str] = ""
-    sweep_labels: ClassVar[dict[str, str]] = {}
 
     # ---- parameters -------------------------------------------------------------------------
     def params(self, overrides: dict[str, Any] | None = None, quick: bool = False):
@@ -253,92 +244,3 @@ class Scenario:
                            "derivation": f"{w['flops']:.4g} FLOP at the stated peak {peak / 1e12:.3g} TFLOP/s "
                                          f"({hardware['peak_flops'].get('source', '')})"})
         return max(floors, key=lambda f: f["seconds"]) if floors else None
-
-    # ---- measurement sweeps ---------------------------------------------------------------
-    def sweep_points(self, kind: str, device: str, quick: bool) -> list[dict[str, Any]]:
-        """The points of measurement sweep ``kind`` ('bandwidth', 'error', 'scaling') on ``device``.
-
-        Each point: {'params': {...}, 'knob': {'name', 'value'}} (knob optional), plus optional
-        cell-spec options ('check_sample', 'save_outputs') and 'reference' (what
-        ``converged_error`` compares against, e.g. the dt of a converged rollout: a property of
-        the sweep, not of the cell, so it is handed back to ``converged_error``, never stored
-        in the cell's identity). Default: the scenario takes part in no sweep of that kind."""
-        return []
-
-    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
-                        record: dict[str, Any], cache: dict[Any, Any],
-                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
-        """Error of an error-sweep cell against a converged float64 reference of the same quantity:
-        {'error': ..., 'metric': ..., 'reference': {...}, ...}, or None when it cannot be measured
-        (e.g. the outputs were not kept). ``params``: the cell's parameters; ``record``: its
-        record; ``cache``: a dict the suite keeps for a whole run, for memoising references;
-        ``reference``: the point's 'reference' from ``sweep_points`` (None: the scenario's
-        default)."""
-        return None
-
-    def state_bytes_per_step(self, precision: str) -> float | None:
-        """Bytes of state one item carries per step: the least a tape storing every step keeps
-        (the horizon sweep draws it beside each framework's measured memory). Default: none."""
-        return None
-
-    # ---- report -----------------------------------------------------------------------------
-    def figure(self, runs: list[tuple[dict[str, Any], dict[str, np.ndarray]]]) -> Any:
-        """A matplotlib Figure of this scenario's results for the report, or None.
-
-        ``runs``: (record, outputs) of every cell that kept its outputs, reference backend first.
-        The scenario draws what its results mean (it owns the oracle), the driver only saves it."""
-        return None
-
-    # ---- stress suite (compare/stress, docs/stress.md) ---------------------------------------
-    def ulp_cases(self, quick: bool) -> list[tuple[dict[str, Any], str, str]]:
-        """Cases of the stress suite's float32 ulp-distribution experiment: (parameter overrides,
-        output whose elements are measured in ulps, setting label). Default: none."""
-        return []
-
-    def stress_experiments(self) -> dict[str, "Experiment"]:
-        """This scenario's own stress experiments by name (``scenarios.numerics.Experiment``), run
-        through the context the suite hands them. Default: none."""
-        return {}
-
-
-SWEEP_CHECK_SAMPLE = 1 << 16     # items checked against the oracle in large per-item sweep cells
-REF_FACTOR = 16                  # converged dt references: smallest swept dt / REF_FACTOR
-
-
-def dt_reference(cache: dict[Any, Any], scenario: str, params: dict[str, Any],
-                 reference: dict[str, Any] | None, default_dt: float, solve, distance,
-                 simulated_time: float) -> tuple[Any, dict[str, Any]]:
-    """A converged float64 reference over ``simulated_time`` at the sweep point's reference time
-    step (``reference["dt"]``, else ``default_dt``) for ``params`` without their dt and steps,
-    memoised in ``cache``, and what it is: ``solve(base_params, dt, steps)`` computes it; its
-    ``self_difference`` is ``distance(coarse, reference)`` to the same at 2 dt (its own error
-    scale, which must be far below the errors it measures)."""
-    import json
-    dt = (reference or {}).get("dt") or default_dt
-    base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
-    key = (scenario, json.dumps(base, sort_keys=True), dt)
-    if key not in cache:
-        steps = round(simulated_time / dt)
-        ref = solve(base, dt, steps)
-        coarse = solve(base, 2 * dt, round(simulated_time / (2 * dt)))
-        cache[key] = (ref, {"dt": dt, "steps": steps, "simulated_time_s": simulated_time,
-                            "self_difference": distance(coarse, ref),
-                            "note": "float64 NumPy rollout; self_difference: same metric "
-                                    "against a reference at 2 dt (its own error scale)"})
-    return cache[key]
-
-
-def run_label(record: dict[str, Any]) -> str:
-    v = record.get("variant", "default")
-    return f"{record['backend']}/{record['device']}/{record['precision']}" + ("" if v == "default" else f"/{v}")
-
-
-def pick_runs(runs: list[tuple[dict[str, Any], dict[str, np.ndarray]]], limit: int
-              ) -> list[tuple[dict[str, Any], dict[str, np.ndarray]]]:
-    """One float32 default-variant run per (backend, device) if there are any, else the first runs."""
-    seen, out = set(), []
-    for rec, o in runs:
-        key = (rec["backend"], rec["device"])
-        if rec["precision"] == "float32" and rec.get("variant", "default") == "default" and key not in seen:
-            seen.add(key); out.append((rec, o))
-    return (out or runs)[:limit]

@@ -12,12 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from .base import SWEEP_CHECK_SAMPLE, Check, Scenario, dtype_of, require
-
-# Bandwidth-sweep size per (device, quick): far beyond the caches; on the GPU ~1 GiB per array.
-SWEEP_N = {("cpu", False): 1 << 25, ("cpu", True): 1 << 22,
-           ("cuda", False): 1 << 28, ("cuda", True): 1 << 24}
-
+from .base import Check, Scenario, dtype_of, require
 
 @dataclasses.dataclass(frozen=True)
 class CopyParams:
@@ -34,13 +29,6 @@ class Copy(Scenario):
     quick = {"n": (1 << 22) + 3}   # 16 MiB per float32 array; not a multiple of any block size
     outputs = ("out",)
     in_all = False
-    measures = "copy"            # the sweeps' bandwidth yardstick (the roofline)
-
-    def sweep_points(self, kind, device, quick):
-        if kind != "bandwidth" or (device, quick) not in SWEEP_N:
-            return []
-        return [{"params": {"n": SWEEP_N[device, quick]}, "check_sample": SWEEP_CHECK_SAMPLE,
-                 "save_outputs": False}]
 
     def inputs(self, params: CopyParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)

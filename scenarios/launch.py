@@ -31,10 +31,6 @@ class Launch(Scenario):
     Params = LaunchParams
     outputs = ("out",)
     in_all = False
-    measures = "launch"          # the sweeps' trivial-launch overhead yardstick
-
-    def sweep_points(self, kind, device, quick):
-        return [{"params": {"n": 1}}] if kind == "bandwidth" else []
 
     def inputs(self, params: LaunchParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)

@@ -33,18 +33,9 @@ import math
 
 import numpy as np
 
-from .base import (REF_FACTOR, Check, Scenario, UNIT_ROUNDOFF, dt_reference, dtype_of, pick_runs,
-                   precision_of, require, run_label)
+from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require
 
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
-# Time-against-error sweep: dt halves down the list at a fixed simulated time SWEEP_T (the
-# default 300 steps of 0.01 s; every dt divides it exactly). Scaling sweep: n per (device, quick).
-SWEEP_T = 3.0
-SWEEP_DT = {False: (0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125), True: (0.02, 0.01, 0.005)}
-SWEEP_N = {("cpu", False): (256, 4096, 65536, 1 << 20), ("cpu", True): (256, 4096, 65536),
-           ("cuda", False): (256, 4096, 65536, 1 << 20, 1 << 22, 1 << 24),
-           ("cuda", True): (256, 4096, 65536, 1 << 20)}
-SWEEP_CHECKED = 4096       # particles checked against the oracle in a large scaling cell
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,48 +154,6 @@ class Particles(Scenario):
     Params = ParticlesParams
     quick = {"n": 1000, "steps": 300}     # n not a multiple of any block size
     outputs = ("x", "y", "vx", "vy")
-    error_metric = "RMS over particles of |position - reference| [m] at the same simulated time"
-    sweep_labels = {"error_axis": "RMS position error vs converged ref. [m] (log)",
-                    "items": "particles", "per_run": "steps", "item_rate": "particle-steps"}
-
-    def sweep_points(self, kind, device, quick):
-        if kind == "error":        # reference: the smallest dt / REF_FACTOR
-            ref = {"dt": min(SWEEP_DT[quick]) / REF_FACTOR}
-            return [{"params": {"dt": dt, "steps": round(SWEEP_T / dt)},
-                     "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in SWEEP_DT[quick]]
-        if kind == "scaling":      # no trajectory: every array is per particle, so sampled checks
-            return [{"params": {"n": n, "record_every": 0}, "knob": {"name": "n", "value": n},
-                     "check_sample": SWEEP_CHECKED, "save_outputs": False}
-                    for n in SWEEP_N.get((device, quick), ())]
-        return []
-
-    def converged_positions(self, params: dict, dt: float, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """Float64 positions after ``steps`` steps of ``dt`` (the one NumPy stepper, ``simulate``)
-        from the float64 initial state of ``params``."""
-        p = self.params({**params, "dt": dt, "steps": steps})
-        (x, y, _, _), _ = simulate(self.inputs(p, "float64"), steps, np.float64)
-        return x, y
-
-    @staticmethod
-    def position_error(px, py, rx, ry) -> dict[str, float]:
-        """RMS (``error``) and max over particles of the position distance to (rx, ry)."""
-        d = np.hypot(np.asarray(px, np.float64) - rx, np.asarray(py, np.float64) - ry)
-        return {"error": float(np.sqrt(np.mean(d * d))), "max": float(d.max())}
-
-    def converged_error(self, params, outputs, record, cache, reference=None):
-        """Positions at SWEEP_T against a float64 rollout at the sweep point's reference dt
-        (default: the full sweep's smallest dt / REF_FACTOR)."""
-        if outputs is None:
-            return None
-        ref, info = dt_reference(cache, self.name, params, reference, min(SWEEP_DT[False]) / REF_FACTOR,
-                                 self.converged_positions,
-                                 lambda a, b: self.position_error(*a, *b)["error"], SWEEP_T)
-        return {**self.position_error(outputs["x"], outputs["y"], *ref), "metric": self.error_metric,
-                "reference": info}
-
-    def stress_experiments(self):
-        from . import particles_stress
-        return particles_stress.EXPERIMENTS
 
     def inputs(self, params: ParticlesParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)
@@ -264,12 +213,13 @@ class Particles(Scenario):
         return out
 
     @staticmethod
-    def _state_error(outputs, other) -> np.ndarray:
+    def state_error(outputs, other) -> np.ndarray:
+        """Per particle, the largest difference of any state component (x, y, vx, vy)."""
         return np.max([np.abs(np.asarray(outputs[k], np.float64) - np.asarray(other[k], np.float64))
                        for k in ("x", "y", "vx", "vy")], axis=0)
 
     def check(self, params, inputs, outputs, reference, precision) -> Check:
-        err = self._state_error(outputs, reference)
+        err = self.state_error(outputs, reference)
         bound = reference["error_bound"]
         ill = reference["ill_conditioned"]
         good = ~ill
@@ -300,52 +250,8 @@ class Particles(Scenario):
         return Check(worst if finite else math.inf, tol, ok, details)
 
     def distance(self, params, inputs, outputs, other) -> float:
-        err = self._state_error(outputs, other)
+        err = self.state_error(outputs, other)
         return float(err.max()) if np.all(np.isfinite(err)) else math.inf
-
-    def figure(self, runs):
-        """Left: trajectories (the run's own if it recorded them, else the float64 oracle's from the
-        same rounded inputs) ending at each backend's final positions. Right: each backend's
-        per-particle final-state error against the oracle and the derived bound."""
-        import matplotlib.pyplot as plt
-        runs = pick_runs(runs, 6)
-        rec0, out0 = runs[0]
-        p = self.params(rec0["params"])
-        if p.n * (p.steps + 1) > 5e7:              # the oracle would be too big for a picture
-            return None
-        # one float64 oracle per precision (with every frame), for the trajectories and the errors
-        refs = {prec: self.oracle(dataclasses.replace(p, record_every=1), self.inputs(p, prec))
-                for prec in {r["precision"] for r, _ in runs}}
-        ref = refs[rec0["precision"]]
-        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.6))
-        shown = np.unique(np.linspace(0, p.n - 1, min(p.n, 48)).astype(int))
-        own = "traj_x" in out0
-        tx, ty = (np.asarray(out0[k]) for k in ("traj_x", "traj_y")) if own else (ref["traj_x"], ref["traj_y"])
-        ax.plot(tx[:, shown], ty[:, shown], lw=0.5, alpha=0.7)
-        markers = "osd^v<"
-        for (r, o), m in zip(runs, markers):
-            ax.scatter(o["x"], o["y"], s=9, marker=m, facecolors="none", edgecolors="k", lw=0.5,
-                       label=f"{run_label(r)} final")
-        ax.set_xlim(-1, 1); ax.set_ylim(bottom=0)
-        ax.set_xlabel("x [m]"); ax.set_ylabel("y [m]")
-        ax.set_title(f"{len(shown)} of {p.n} trajectories over {p.steps} steps "
-                     f"({run_label(rec0) if own else 'float64 oracle, same rounded inputs'})", fontsize=8)
-        ax.legend(fontsize=6, loc="upper right")
-        idx = np.arange(p.n)
-        for (r, o), m in zip(runs, markers):
-            err = self._state_error(o, refs[r["precision"]])
-            ax2.scatter(idx, np.maximum(err, 1e-18), s=6, marker=m, label=run_label(r), alpha=0.7)
-        ax2.plot(idx, ref["error_bound"], "r-", lw=1, label=f"derived bound ({rec0['precision']})")
-        ill = ref["ill_conditioned"]
-        if ill.any():
-            ax2.scatter(idx[ill], ref["error_bound"][ill], marker="x", color="r", s=14,
-                        label=f"ill-conditioned ({int(ill.sum())}, not checked)")
-        ax2.set_yscale("log"); ax2.set_xlabel("particle index")
-        ax2.set_ylabel("max |state - float64 oracle| (0 drawn at 1e-18)")
-        ax2.set_title("final-state error per particle", fontsize=8)
-        ax2.legend(fontsize=6)
-        fig.tight_layout()
-        return fig
 
     def footprint(self, params: ParticlesParams, precision: str, device: str = "cpu") -> float:
         # state, the oracle's float64 rollout with its running bounds and margins, and with

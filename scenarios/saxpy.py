@@ -17,13 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from .base import SWEEP_CHECK_SAMPLE, Check, Scenario, UNIT_ROUNDOFF, dtype_of, require, run_label
-
-# Bandwidth-sweep sizes per (device, quick), exponents of 2: CPU sizes stop where a cell still
-# takes seconds on a small machine, GPU sizes where the arrays are ~1 GiB.
-SWEEP_EXP = {("cpu", False): range(10, 25, 2), ("cpu", True): range(10, 21, 2),
-             ("cuda", False): range(10, 29, 2), ("cuda", True): range(10, 23, 2)}
-
+from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, require
 
 @dataclasses.dataclass(frozen=True)
 class SaxpyParams:
@@ -44,31 +38,6 @@ class Saxpy(Scenario):
     Params = SaxpyParams
     quick = {"n": 100_003}          # not a multiple of any block size
     outputs = ("out",)
-    measures = "bandwidth"          # the sweeps' size sweep (achieved bandwidth against size)
-    error_metric = "scenario metric against the float64 oracle: max |err|/(|a x|+|y|)"
-    sweep_labels = {"name": "SAXPY", "bytes": "3·n·itemsize",
-                    "error_axis": "max |err|/(|a x|+|y|) vs float64 oracle (0 drawn at {floor:g})"}
-
-    def sweep_points(self, kind, device, quick):
-        if kind == "bandwidth":
-            return [{"params": {"n": 1 << e}, "knob": {"name": "n", "value": 1 << e},
-                     "check_sample": SWEEP_CHECK_SAMPLE, "save_outputs": False}
-                    for e in SWEEP_EXP.get((device, quick), ())]
-        if kind == "error":        # knobs: precision and variant only
-            return [{"params": {"n": self.params(quick=quick).n},
-                     "knob": {"name": "precision", "value": None}}]
-        return []
-
-    def converged_error(self, params, outputs, record, cache, reference=None):
-        """The oracle's error is already converged: float64 of the same rounded inputs."""
-        return {"error": record["error"]["vs_oracle"], "metric": self.error_metric,
-                "reference": {"note": "float64 oracle of the same rounded inputs"}}
-
-    def ulp_cases(self, quick):
-        """Both input kinds (cancellation in random ones), at the quick or the full size."""
-        n = 100_003 if quick else 1_000_000
-        return [({"n": n, "inputs": "linspace"}, "out", "saxpy (linspace)"),
-                ({"n": n, "inputs": "random", "seed": 3}, "out", "saxpy (random)")]
 
     def inputs(self, params: SaxpyParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)
@@ -107,37 +76,6 @@ class Saxpy(Scenario):
 
     def distance(self, params, inputs, outputs, other) -> float:
         return self.normalised_error(inputs, outputs["out"], other["out"])
-
-    def figure(self, runs):
-        """Distribution of each float32 run's error in ulps of the exact result (float64 a*x + y
-        of the float32 inputs: the product is exact, the sum far below a float32 ulp): <= 0.5 is
-        correctly rounded (an FMA), up to ~1 for the two roundings of a*x then + y."""
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(6.5, 4.2))
-        edges = np.linspace(0.0, 1.5, 31)
-        p = self.params(runs[0][0]["params"])
-        runs = [(r, o) for r, o in runs if r["precision"] == "float32"]
-        if not runs:
-            return None
-        for r, o in runs:
-            inputs = self.inputs(p, r["precision"])
-            ref = self.oracle(p, inputs)["out"]
-            out = np.asarray(o["out"], np.float64)
-            if out.shape != ref.shape:
-                continue
-            ulp = np.spacing(np.abs(ref).astype(np.float32)).astype(np.float64)
-            ulps = np.abs(out - ref) / np.maximum(ulp, np.finfo(np.float64).tiny)
-            ax.hist(np.clip(ulps, 0, edges[-1]), bins=edges, histtype="step", lw=1.2,
-                    weights=np.full(ulps.size, 100.0 / max(ulps.size, 1)),
-                    label=f"{run_label(r)} (max {ulps.max():.2f})")
-        ax.axvline(0.5, color="0.4", ls=":", lw=1)
-        ax.set_xlabel("|out - exact| in float32 ulps of the exact result")
-        ax.set_ylabel("% of elements"); ax.set_yscale("log")
-        ax.set_title(f"saxpy float32 error distribution (n={p.n}, inputs={p.inputs}); "
-                     "identical runs overlap", fontsize=8)
-        ax.legend(fontsize=6)
-        fig.tight_layout()
-        return fig
 
     def footprint(self, params: SaxpyParams, precision: str, device: str = "cpu") -> float:
         # inputs, the framework's copies, outputs, the float64 oracle and check temporaries.

@@ -22,14 +22,9 @@ import dataclasses
 
 import numpy as np
 
-from .base import UNIT_ROUNDOFF, Check, Scenario, pick_runs, require, run_label
+from .base import UNIT_ROUNDOFF, Check, Scenario, require
 
 TOLERANCE_ULPS = 300.0
-# Time-against-error sweep: resolutions r x r per (device, quick), and the evaluation grid (per
-# axis) of the reconstruction error against the analytic field.
-SWEEP_RES = {("cpu", False): (64, 128, 256, 512, 1024, 2048), ("cpu", True): (32, 64, 128),
-             ("cuda", False): (64, 128, 256, 512, 1024, 2048, 4096), ("cuda", True): (32, 64, 128)}
-SWEEP_EVAL = 2001
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,47 +51,6 @@ class Sdf(Scenario):
     Params = SdfParams
     quick = {"width": 203, "height": 97}   # non-square, not a multiple of any block size
     outputs = ("image",)
-    error_metric = (f"max |bilinear(image) - f| over a {SWEEP_EVAL}x{SWEEP_EVAL} grid, "
-                    "f the analytic field in float64")
-    sweep_labels = {"error_axis": "max |bilinear(image) - field| (log)"}
-
-    def sweep_points(self, kind, device, quick):
-        if kind != "error":
-            return []
-        return [{"params": {"width": r, "height": r}, "knob": {"name": "resolution", "value": r}}
-                for r in SWEEP_RES.get((device, quick), ())]
-
-    def reconstruction_error(self, image: np.ndarray, cache: dict | None = None) -> dict[str, float]:
-        """Bilinear reconstruction of the image against the analytic field on a fixed fine grid
-        (SWEEP_EVAL points per axis over [-1, 1]^2): max and RMS of the difference."""
-        img = np.asarray(image, np.float64)
-        h, w = img.shape
-        t = np.linspace(-1.0, 1.0, SWEEP_EVAL)
-        cache = {} if cache is None else cache
-        if ("sdf-field", SWEEP_EVAL) not in cache:
-            cache["sdf-field", SWEEP_EVAL] = sdf_field(t[None, :], t[:, None])
-        exact = cache["sdf-field", SWEEP_EVAL]
-
-        def axis(n):
-            pos = (t + 1.0) * 0.5 * (n - 1)
-            i0 = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
-            return i0, pos - i0
-        i0, fx = axis(w)
-        j0, fy = axis(h)
-        rows0, rows1 = img[j0], img[j0 + 1]
-        top = rows0[:, i0] * (1 - fx) + rows0[:, i0 + 1] * fx
-        bot = rows1[:, i0] * (1 - fx) + rows1[:, i0 + 1] * fx
-        d = np.abs(top * (1 - fy)[:, None] + bot * fy[:, None] - exact)
-        return {"error": float(d.max()), "rms": float(np.sqrt(np.mean(d * d)))}
-
-    def converged_error(self, params, outputs, record, cache, reference=None):
-        if outputs is None:
-            return None
-        return {**self.reconstruction_error(outputs["image"], cache), "metric": self.error_metric,
-                "reference": {"eval_grid": SWEEP_EVAL, "note": "analytic field, float64"}}
-
-    def ulp_cases(self, quick):
-        return [({"width": 512, "height": 512}, "image", "sdf")]
 
     def inputs(self, params: SdfParams, precision: str) -> dict[str, np.ndarray]:
         return {}  # the image is a pure function of the pixel index
@@ -127,47 +81,6 @@ class Sdf(Scenario):
 
     def distance(self, params, inputs, outputs, other) -> float:
         return self._max_abs(outputs["image"], other["image"])
-
-    def figure(self, runs):
-        """The float64 oracle image, then |image - oracle| per backend (log colour, one scale for
-        all panels, the maximum also as a fraction of the derived tolerance)."""
-        import matplotlib.pyplot as plt
-        from matplotlib.colors import LogNorm
-        runs = [(r, o) for r, o in pick_runs(runs, 8) if np.ndim(o.get("image")) == 2]
-        if not runs:
-            return None
-        p = self.params(runs[0][0]["params"])
-        ref = self.oracle(p, {})["image"]
-        diffs = []
-        for r, o in runs:
-            img = np.asarray(o["image"], np.float64)
-            diffs.append(np.abs(img - ref) if img.shape == ref.shape else None)
-        tiny = 1e-12
-        top = max([float(d.max()) for d in diffs if d is not None] + [tiny * 10])
-        cols = min(3, len(runs) + 1)
-        rows = -(-(len(runs) + 1) // cols)
-        fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.3 * rows), squeeze=False)
-        ax = axes.flat[0]
-        im = ax.imshow(ref, origin="lower", cmap="magma")
-        fig.colorbar(im, ax=ax, label="exp(-18|d|)", shrink=0.85)
-        ax.set_title(f"float64 oracle, {p.width}x{p.height}", fontsize=8)
-        norm = LogNorm(vmin=max(tiny, top * 1e-6), vmax=top)
-        for ax, (r, _), d in zip(axes.flat[1:], runs, diffs):
-            if d is None:
-                ax.set_title(f"{run_label(r)}: shape differs", fontsize=8); continue
-            im = ax.imshow(np.maximum(d, norm.vmin), origin="lower", cmap="viridis", norm=norm)
-            fig.colorbar(im, ax=ax, label="|image - oracle|", shrink=0.85)
-            tol = TOLERANCE_ULPS * (UNIT_ROUNDOFF[r["precision"]] + UNIT_ROUNDOFF["float64"])
-            ax.set_title(f"{run_label(r)}\nmax {d.max():.2g} = {d.max() / tol:.2g} x derived tolerance",
-                         fontsize=8)
-        for ax in axes.flat:
-            ax.set_xlabel("pixel column i", fontsize=7); ax.set_ylabel("pixel row j", fontsize=7)
-            ax.tick_params(labelsize=6)
-        for ax in axes.flat[len(runs) + 1:]:
-            ax.set_visible(False)
-        fig.suptitle("sdf: oracle image and each backend's difference to it", fontsize=10)
-        fig.tight_layout()
-        return fig
 
     def footprint(self, params: SdfParams, precision: str, device: str = "cpu") -> float:
         # image + float64 oracle temporaries; measured on CPU at 2048^2 (all four backends): at

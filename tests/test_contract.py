@@ -103,7 +103,8 @@ KERNELS = {
     "projectile.py": '''
         import numpy as np
         from ..base import ScenarioKernel
-        from scenarios.projectile import CONSTANTS, adjoint, rollout
+        from scenarios.projectile import CONSTANTS
+        from scenarios.projectile_adjoint import adjoint, rollout
 
         class Kernel(ScenarioKernel):
             def __init__(self, params, inputs, device, precision, variant):

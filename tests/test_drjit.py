@@ -22,7 +22,8 @@ import pytest
 import backends
 import scenarios
 from conftest import ROOT, require_device
-from scenarios.projectile import CONSTANTS, closed_form, finite_difference_gradient, loss_of
+from scenarios.projectile import CONSTANTS
+from scenarios.projectile_adjoint import closed_form, finite_difference_gradient, loss_of
 
 pytestmark = pytest.mark.drjit
 

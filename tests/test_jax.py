@@ -14,7 +14,8 @@ import pytest
 import scenarios
 from compare import cells
 from conftest import ROOT, require_device
-from scenarios.projectile import CONSTANTS, finite_difference_gradient, loss_of
+from scenarios.projectile import CONSTANTS
+from scenarios.projectile_adjoint import finite_difference_gradient, loss_of
 
 pytestmark = pytest.mark.jax
 

@@ -11,10 +11,13 @@ import numpy as np
 import pytest
 
 import backends
-from compare import cells, sweep, timing, worker
+from compare import cells, timing, worker
 from compare.store import Store
+from compare.sweep import converged
 from compare.sweep import page as sweep_page
 from compare.sweep import plots as sweep_plots
+from compare.sweep import suite as sweep
+from compare.sweep.points import sweeps
 from conftest import ROOT, require_device
 
 pytestmark = pytest.mark.cli
@@ -146,13 +149,12 @@ def test_pareto_front():
 def test_references_converge():
     import scenarios
     sdf = scenarios.get("sdf")
-    errs = [sdf.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {})["image"])["error"]
+    errs = [converged.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {})["image"])["error"]
             for r in (32, 128, 512)]
     assert errs[0] > errs[1] > errs[2] > 0
-    part = scenarios.get("particles")
     params = {"n": 16, "seed": 0}
-    ref = part.converged_positions(params, 0.001, 3000)
-    e = [part.position_error(*part.converged_positions(params, dt, round(3.0 / dt)), *ref)["error"]
+    ref = converged.converged_positions(params, 0.001, 3000)
+    e = [converged.position_error(*converged.converged_positions(params, dt, round(3.0 / dt)), *ref)["error"]
          for dt in (0.02, 0.004)]
     assert e[0] > e[1] > 0
     p = {"contact": "none", "iters": 0}
@@ -161,7 +163,7 @@ def test_references_converge():
     T = 4.5
     x, y = exact.vx0 * T, exact.vy0 * T + 0.5 * exact.gravity * T * T
     dx, dy = x - exact.target_x, y - exact.target_y
-    loss, grad = proj.converged_loss_grad(p, 0.0005, 9000)
+    loss, grad = converged.converged_loss_grad(p, 0.0005, 9000)
     assert abs(loss - (dx * dx + dy * dy)) / (dx * dx + dy * dy) < 1e-3
     assert np.allclose(grad, [2 * dx * T, 2 * dy * T], rtol=1e-3)
 
@@ -255,12 +257,12 @@ def plan_of(*argv):
     return sweep.plan(p.parse_args(list(argv)))
 
 
-def test_plan_comes_from_the_scenarios_hooks():
+def test_plan_comes_from_the_scenarios_sweeps():
     import scenarios
     specs = [s for s, _ in plan_of("bandwidth", "--quick", "--backends", "warp", "--devices", "cpu")]
     assert [s["tags"]["role"] for s in specs[:2]] == ["launch", "copy"]      # yardsticks first
     assert {s["scenario"] for s in specs if s["tags"]["role"] == "bandwidth"} == {
-        sc.name for sc in scenarios.SCENARIOS.values() if sc.measures == "bandwidth"}
+        name for name in scenarios.SCENARIOS if sweeps(name).measures == "bandwidth"}
     assert all(s["check_sample"] for s in specs if s["tags"]["role"] != "launch")
     # a scenario's own variants join the size sweep of that scenario only (Warp's tiled SAXPY; its
     # recorded launches of SAXPY and of the copy and launch yardsticks), never another's

@@ -13,7 +13,8 @@ import pytest
 import scenarios
 from compare import cells
 from conftest import require_device, run_script
-from scenarios.projectile import CONSTANTS, closed_form, finite_difference_gradient, loss_of
+from scenarios.projectile import CONSTANTS
+from scenarios.projectile_adjoint import closed_form, finite_difference_gradient, loss_of
 
 pytestmark = pytest.mark.mlx
 

@@ -6,6 +6,7 @@ import pytest
 
 import scenarios
 from scenarios import projectile as pj
+from scenarios import projectile_adjoint as adj
 
 pytestmark = pytest.mark.cli
 
@@ -17,7 +18,7 @@ def _consts(precision="float64", **over):
 
 
 def _loss(c, contact, steps, v):
-    (x, y, _, _), _ = pj.rollout(c, contact, steps, v[0], v[1])
+    (x, y, _, _), _ = adj.rollout(c, contact, steps, v[0], v[1])
     return (x - c["target_x"]) ** 2 + (y - c["target_y"]) ** 2
 
 
@@ -25,7 +26,7 @@ def _loss(c, contact, steps, v):
 def test_adjoint_matches_central_differences(contact):
     p, c = _consts(contact=contact)
     v = np.array([p.vx0, p.vy0])
-    loss, grad, _, _ = pj.evaluate(c, contact, p.steps, v, 2.0**-53)
+    loss, grad, _, _ = adj.evaluate(c, contact, p.steps, v, 2.0**-53)
     assert loss == pytest.approx(_loss(c, contact, p.steps, v), rel=1e-15)
     for h in (1e-6, 3e-7):   # central differences: truncation O(h^2), rounding O(eps/h)
         fd = np.array([(_loss(c, contact, p.steps, v + h * e) - _loss(c, contact, p.steps, v - h * e)) / (2 * h)
@@ -36,8 +37,8 @@ def test_adjoint_matches_central_differences(contact):
 def test_closed_form_equals_rollout_without_contact():
     p, c = _consts()
     for v in ([2.0, 6.5], [-1.0, 30.0], [0.0, 0.0]):
-        loss, grad = pj.closed_form(c, p.steps, v)
-        l2, g2, _, _ = pj.evaluate(c, "none", p.steps, v, 2.0**-53)
+        loss, grad = adj.closed_form(c, p.steps, v)
+        l2, g2, _, _ = adj.evaluate(c, "none", p.steps, v, 2.0**-53)
         assert loss == pytest.approx(l2, rel=1e-12)
         assert np.allclose(grad, g2, rtol=1e-12)
 

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, require_device
-from compare.stress import context, generic, host_loop
-from scenarios import numerics, particles, particles_stress, projectile_stress
+from compare.stress import context, generic, host_loop, numerics, projectile_rules
+from compare.stress import particles as particles_stress
+from scenarios import particles
 
 pytestmark = pytest.mark.cli
 
@@ -30,7 +31,7 @@ pytestmark = pytest.mark.cli
     ([], "diverged"),
 ])
 def test_classify(history, expected):
-    assert projectile_stress.classify(history) == expected
+    assert projectile_rules.classify(history) == expected
 
 
 def test_classify_gradient_descent_on_a_quadratic_matches_the_stability_bound():
@@ -43,16 +44,16 @@ def test_classify_gradient_descent_on_a_quadratic_matches_the_stability_bound():
             out.append(0.5 * lam * v * v)
             v -= lr * lam * v
         return out
-    assert projectile_stress.classify(hist(0.01)) == "converged"
-    assert projectile_stress.classify(hist(0.049)) == "stalled"          # |1 - lr lam| = 0.98: slow
-    assert projectile_stress.classify(hist(0.08)) == "diverged"
+    assert projectile_rules.classify(hist(0.01)) == "converged"
+    assert projectile_rules.classify(hist(0.049)) == "stalled"          # |1 - lr lam| = 0.98: slow
+    assert projectile_rules.classify(hist(0.08)) == "diverged"
     lrs = [0.01, 0.045, 0.055, 0.08]
-    below, first = projectile_stress.observed_boundary(lrs, [projectile_stress.classify(hist(lr)) for lr in lrs])
+    below, first = projectile_rules.observed_boundary(lrs, [projectile_rules.classify(hist(lr)) for lr in lrs])
     assert below == 0.045 and first == 0.055 and below < 2 / lam <= first
 
 
 def test_observed_boundary_without_divergence():
-    assert projectile_stress.observed_boundary([0.1, 0.2], ["stalled", "converged"]) == (0.2, None)
+    assert projectile_rules.observed_boundary([0.1, 0.2], ["stalled", "converged"]) == (0.2, None)
 
 
 # ---- race detector ----------------------------------------------------------------------------
@@ -131,11 +132,11 @@ def test_energy_bound_holds_for_the_float64_oracle():
 def test_loss_mispredictions_separates_jumps_from_curvature_and_rounding():
     vy = np.linspace(0.0, 1.0, 11)
     smooth = [[0.0, 2 * v] for v in vy]                      # L = v^2, exact gradient
-    assert projectile_stress.loss_mispredictions(vy, vy ** 2, smooth) == (0, 0)
+    assert projectile_rules.loss_mispredictions(vy, vy ** 2, smooth) == (0, 0)
     jump = vy ** 2 + (vy > 0.55)                             # a step the gradient cannot see
-    assert projectile_stress.loss_mispredictions(vy, jump, smooth) == (1, 0)
+    assert projectile_rules.loss_mispredictions(vy, jump, smooth) == (1, 0)
     flat = np.full(11, 25.0) + 1e-7 * (-1.0) ** np.arange(11)  # rounding noise on a flat loss
-    assert projectile_stress.loss_mispredictions(vy, flat, [[0.0, 0.0]] * 11, noise_rel=2 ** -23) == (0, 10)
+    assert projectile_rules.loss_mispredictions(vy, flat, [[0.0, 0.0]] * 11, noise_rel=2 ** -23) == (0, 10)
 
 
 def test_ulps_of_correctly_rounded_results_are_at_most_half():
@@ -218,7 +219,7 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
 def test_host_loop_scan_reuses_one_kernel_and_matches_the_oracle(backend):
     """A scan moves v0 in place (set_input); in float64 every point must match the float64 adjoint,
     so a stale v0 (the kernel not seeing the new input) fails here."""
-    from scenarios import projectile_tasks
+    from compare.stress import projectile_tasks
     require_device(backend, "cpu")
     scans = {"s": [6.3, 6.45, 6.5, 6.7]}
     task = projectile_tasks.task("scan", backend=backend, device="cpu", precision="float64",

@@ -26,7 +26,8 @@ import backends
 import scenarios
 from compare import cells
 from conftest import ROOT, require_device, run_cell, run_script
-from scenarios.projectile import CONSTANTS, finite_difference_gradient, loss_of, rollout
+from scenarios.projectile import CONSTANTS
+from scenarios.projectile_adjoint import finite_difference_gradient, loss_of, rollout
 
 pytestmark = pytest.mark.taichi
 

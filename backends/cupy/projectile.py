@@ -8,7 +8,7 @@ Per iteration: the forward pass in Warp's operation order with the state in regi
 a preallocated tape what the reverse sweep reads, y_s before each step (the soft contact's
 d acc/d y) and whether the hard contact fired, written every step as Numba's port does; the tape
 is (steps, B), so step s of consecutive threads lies at consecutive addresses (coalesced). Then the
-loss; then the reverse sweep, ``adjoint`` of scenarios/projectile.py (same operations, same order)
+loss; then the reverse sweep, ``adjoint`` of scenarios/projectile_adjoint.py (same operations, same order)
 except the soft-contact term, which is taken in reverse-mode order through the forward as written,
 acc = g + k*(eps*sp(z)), with d sp/dz = sigmoid(z) from the forward's own exp(-|z|): Warp's tape's
 order, which Numba's docstring explains (the soft-contact descent amplifies one-ulp gradient

@@ -14,7 +14,7 @@ trajectory, the least a reverse sweep needs without recomputing the forward. The
 (steps, B) on CUDA, so consecutive threads touch consecutive addresses (coalesced), and (B, steps)
 on the CPU, so each thread's tape is contiguous and stays in its cache; ``descend`` sees one
 trajectory's column or row. Then the loss; then the reverse sweep, which is ``adjoint`` of
-scenarios/projectile.py (same operations, same order) except the soft-contact term: that one is
+scenarios/projectile_adjoint.py (same operations, same order) except the soft-contact term: that one is
 taken in reverse-mode order through the forward as written, acc = g + k*(eps*sp(z)), with
 d sp/dz = sigmoid(z) evaluated from the forward's own exp(-|z|). That is the order Warp's tape
 uses, and the gradient-descent history of the soft contact amplifies one-ulp differences in the

@@ -10,7 +10,7 @@ calls per step, and a batch spreads that over its trajectories).
 Forward in Warp's operation order; the tape is what the reverse sweep reads and nothing else,
 preallocated (steps, B) so a step is one contiguous row: y before each step for soft contact (the
 forward writes y straight into the tape's next row: no copy), the hit flag for hard contact,
-nothing for 'none'. The reverse sweep is ``adjoint`` of scenarios/projectile.py with the
+nothing for 'none'. The reverse sweep is ``adjoint`` of scenarios/projectile_adjoint.py with the
 soft-contact term in the order of the other ports (Warp's tape; see backends/numba/projectile.py):
 a_sp = eps*(k*(dt*avy)), a_z = e*((1/(1+e))*a_sp) with e = exp(-|z|) recomputed from the taped y,
 a_z = a_sp - a_z where z > 0, ay -= a_z/eps. Terms that do not change over a sweep are computed

@@ -9,7 +9,7 @@ Per iteration: the forward pass in the scenario's (Warp's) operation order with 
 registers, writing the tape the reverse sweep reads, y_s before each step and whether the hard
 contact fired, every step as the CuPy and Numba ports do; the tape is (steps, B), so step s of a
 program's trajectories lies at consecutive addresses (coalesced). Then the loss; then the reverse
-sweep, ``adjoint`` of scenarios/projectile.py (same operations, same order) except the
+sweep, ``adjoint`` of scenarios/projectile_adjoint.py (same operations, same order) except the
 soft-contact term, taken in reverse-mode order through the forward as written,
 acc = g + k*(eps*sp(z)), with d sp/dz = sigmoid(z) from the forward's own exp(-|z|) (Warp's
 tape's order; see backends/numba/projectile.py for why it matters). Then history[k, b] =

@@ -16,6 +16,7 @@ from typing import Any, Iterable
 import scenarios
 from compare import noise
 from compare.store import SUITES, Store, StoreError
+from compare.sweep.points import sweeps
 
 PUBLISH_LOG = "publish.json"
 
@@ -198,8 +199,7 @@ def device_bytes(rec: dict[str, Any]) -> float | None:
 
 def item_rate(rec: dict[str, Any], regime: str = "throughput") -> float | None:
     """Work items per second in ``regime`` (particle-steps, trajectory-gradients, elements)."""
-    sc = scenarios.SCENARIOS.get(rec["scenario"])
-    words = sc.sweep_labels if sc is not None else {}
+    words = sweeps(rec["scenario"]).labels
     work = (rec.get("work") or {}).get(words.get("rate_work", "items"))
     t = per_call(rec, regime) or timing(rec, "latency")
     w = num(work)

@@ -192,7 +192,8 @@ def cpu(c: qp.Ctx) -> list[Any]:
 def stability(c: qp.Ctx) -> list[Any]:
     if c.m.stress is None:
         return [P("No stability records (stress.json) in this store: `python -m compare stress`.")]
-    from compare.stress import experiments, plots
+    from compare.stress import plots
+    from compare.stress.registry import experiments
     a = c.m.stress.analysis
     blocks: list[Any] = [P("The stability stress suite: long rollouts, dt sweeps, overflow, learning-rate "
                            "divergence, gradient quality through contact, float32 error distributions and "

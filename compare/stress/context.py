@@ -1,7 +1,8 @@
 """The context every stress experiment runs in: which backends and devices, and how to run things.
 
-Experiments (``scenarios.numerics.Experiment``) receive a ``Ctx`` and use only its methods and
-pure numerics, so the scenario modules that define most of them never import the driver. Cells
+Experiments (``compare.stress.numerics.Experiment``) receive a ``Ctx`` and use only its methods
+(``numerics.StressContext``) and pure numerics, so the modules that define them never import the
+driver. Cells
 go through ``compare.engine.run_cells`` (a worker process per cell, ``jobs`` at a time, one lane
 per backend and GPU); host work and host-loop tasks through the same lanes.
 """
@@ -16,6 +17,7 @@ import backends
 from compare import engine
 from compare.report import fmt_num
 from compare.store import Store
+from compare.stress import host_loop
 
 COLUMNS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 
@@ -116,5 +118,4 @@ class Ctx:
 
     def run_tasks(self, tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
         """Host-loop tasks (``compare.stress.host_loop``), each in its own worker process."""
-        from compare.stress import host_loop
         return self.map(lambda t: host_loop.run(t, timeout=self.timeout), tasks)

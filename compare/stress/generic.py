@@ -1,5 +1,5 @@
 """The stress experiments that name no scenario: ``ulps`` (float32 error distributions, every
-variant; the cases come from ``Scenario.ulp_cases``) and ``races`` (every scenario in 'all' run
+variant; the cases come from compare/stress/ulp_cases.py) and ``races`` (every scenario in 'all' run
 twice, CPU against GPU, and the deliberately racy controls of ``Backend.control_variants``)."""
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ import numpy as np
 
 import backends
 import scenarios
-from compare.stress.context import Ctx
-from scenarios.numerics import Experiment, Result, Style, bitwise_differences, log_floor, ulps
+from compare.stress.numerics import (Experiment, Result, StressContext, Style, bitwise_differences, log_floor,
+                                     ulps)
+from compare.stress.ulp_cases import ulp_cases
 
 
 def race_verdict(device: str, differing: int, oracle_ok: tuple[bool, bool]) -> str:
@@ -28,11 +29,11 @@ def race_verdict(device: str, differing: int, oracle_ok: tuple[bool, bool]) -> s
     return "race not observable on CPU" if device == "cpu" else "MISSED: race not flagged"
 
 
-def exp_ulps(ctx: Ctx) -> Result:
-    """float32 error distributions in ulps (every scenario's ``ulp_cases``), every variant."""
+def exp_ulps(ctx: StressContext) -> Result:
+    """float32 error distributions in ulps (every scenario's ulp cases), every variant."""
     name = "ulps"
     cases = [(sc.name, prm, key, setting) for sc in scenarios.SCENARIOS.values()
-             for prm, key, setting in sc.ulp_cases(ctx.quick)]
+             for prm, key, setting in ulp_cases(sc.name, ctx.quick)]
     planned = [(case, ctx.spec(case[0], b, d, "float32", case[1], v))
                for b, d, v in ctx.targets(variants=True) for case in cases]
     refs = {}
@@ -78,7 +79,7 @@ def exp_ulps(ctx: Ctx) -> Result:
     return rows, series
 
 
-def controls(ctx: Ctx) -> list[tuple[dict[str, Any], str]]:
+def controls(ctx: StressContext) -> list[tuple[dict[str, Any], str]]:
     """(spec, what is wrong) of every racy control a chosen backend offers, at quick sizes."""
     out = []
     for b in ctx.backends:
@@ -91,7 +92,7 @@ def controls(ctx: Ctx) -> list[tuple[dict[str, Any], str]]:
     return out
 
 
-def exp_races(ctx: Ctx) -> Result:
+def exp_races(ctx: StressContext) -> Result:
     """Every cell twice (bitwise), CPU against GPU, and the racy control kernels."""
     name = "races"
     precisions = ("float32",) if ctx.quick else ("float32", "float64")

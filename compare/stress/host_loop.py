@@ -2,10 +2,10 @@
 
 Some experiments need more than one cell gives, e.g. an optimiser no backend implements, driven
 on the host with the backend's loss and gradient. Such a task is a JSON-able dict whose ``call``
-names the function that runs it (``"package.module:function"``, a scenario's module); the
-function gets the task and returns a JSON-able dict. Process isolation is as for cells
-(``compare.cells``): frameworks' global state lives and dies with the process, and a crash or
-a hang becomes ``{"error": ...}`` instead of a lost run.
+names the function that runs it (``"package.module:function"``, e.g.
+``compare.stress.projectile_tasks:run_task``); the function gets the task and returns a JSON-able
+dict. Process isolation is as for cells (``compare.cells``): frameworks' global state lives and
+dies with the process, and a crash or a hang becomes ``{"error": ...}`` instead of a lost run.
 """
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ from compare.report import fmt_num
 from compare.store import Store, atomic_write, jsonable
 from compare.stress import plots
 from compare.stress.context import COLUMNS
-from scenarios.numerics import Experiment
+from compare.stress.numerics import Experiment
 
 Registry = dict[str, Experiment]
 

@@ -2,7 +2,7 @@
 
 An experiment's ``plot(series, path, style)`` gets ``style`` from here, so a backend keeps its
 colour (``Backend.color``) and a device its marker in every plot, whatever else ran. The log-axis
-floor every plot uses is ``scenarios.numerics.log_floor`` (scenario plots cannot import this).
+floor every plot uses is ``compare.stress.numerics.log_floor``.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from typing import Any
 import backends
 from compare.colors import backend_color
 from compare.store import atomic_write
-from scenarios.numerics import ORACLE, Experiment
+from compare.stress.numerics import ORACLE, Experiment
 
 
 def _plt():

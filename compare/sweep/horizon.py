@@ -1,10 +1,10 @@
 """The horizon sweep's table and plot: memory, time and gradient quality against the horizon.
 
-A scenario takes part through ``sweep_points('horizon', ...)`` (the knob is the horizon, e.g. the
-projectile's steps) and its ``sweep_labels``: 'horizon_items' (the parameter that counts
-independent items per run, e.g. batch), 'horizon_memory' (the parameter values whose points the
-memory and time panels draw, e.g. {'contact': 'hard'}), and ``state_bytes_per_step`` (the floor a
-tape needs). Definitions (docs/measurement.md):
+A scenario takes part through its sweeps (compare/sweep/points.py): ``points('horizon', ...)``
+(the knob is the horizon, e.g. the projectile's steps), ``labels`` 'horizon_items' (the parameter
+that counts independent items per run, e.g. batch) and 'horizon_memory' (the parameter values
+whose points the memory and time panels draw, e.g. {'contact': 'hard'}), and
+``state_bytes_per_step`` (the floor a tape needs). Definitions (docs/measurement.md):
   * memory = ``memory.device_bytes`` on CUDA (NVML above the context), ``memory.host_bytes`` on the
     CPU (resident set above the baseline taken before the kernel was built);
   * bytes per item-step = the memory's growth from the previous horizon of the same group over the
@@ -19,10 +19,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-import scenarios
 from compare.report import fmt_bytes, fmt_time
 from compare.store import save_figure
 from compare.sweep.page import knob, label, ok, throughput_s, wall_s
+from compare.sweep.points import sweeps
 
 
 def memory(rec: dict[str, Any]) -> tuple[float | None, str]:
@@ -100,7 +100,7 @@ def plot(records: list[dict[str, Any]], device: str, path: Path, scenario: str, 
     groups = series(records, device, scenario)
     if not groups:
         return False
-    sc = scenarios.get(scenario)
+    tape = sweeps(scenario)
     want = dict(json.loads(label(scenario, "horizon_memory", "{}")))
     fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(16, 4.8))
     floor_done = set()
@@ -118,7 +118,7 @@ def plot(records: list[dict[str, Any]], device: str, path: Path, scenario: str, 
                 ms=4, label=lab)
         a2.plot(n, [(throughput_s(r) or wall_s(r)) for r in rows], style + mark, color=colors.get(backend),
                 ms=4, label=lab)
-        floor = sc.state_bytes_per_step(prec)
+        floor = tape.state_bytes_per_step(prec)
         if floor and prec not in floor_done:
             floor_done.add(prec)
             a1.plot(n, [floor * items(r) * knob(r)["value"] / 2**20 for r in rows], "k" + ("--" if prec == "float32" else "-."),

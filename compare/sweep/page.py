@@ -2,7 +2,7 @@
 
 Pure functions of saved records: ``python -m compare sweep report sweep.json`` rebuilds everything
 without rerunning. Rows are found by the suite's tags (``rec["tags"]``: sweep kind, role, knob),
-never by scenario name; the words for a scenario come from the scenario (``sweep_labels``).
+never by scenario name; the words for a scenario come from its sweeps (``points.Sweeps.labels``).
 Definitions (docs/measurement.md):
   * achieved bandwidth = bytes the kernel must move (scenario ``work``) / median time per call;
   * copy roofline = the highest bandwidth of any backend on that device in the run, measured by
@@ -26,6 +26,7 @@ from tabulate import tabulate
 import backends
 import scenarios
 from compare.report import fmt_bytes, fmt_num, fmt_time
+from compare.sweep.points import sweeps
 
 OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
 BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
@@ -50,16 +51,14 @@ def ok(records: Iterable[dict[str, Any]], sweep: str | None = None, role: str | 
             and all(r.get(k) == v for k, v in match.items())]
 
 
-def with_role(role: str) -> list[scenarios.Scenario]:
-    """The scenarios that measure ``role`` ('launch', 'copy', 'bandwidth')."""
-    return [sc for sc in scenarios.SCENARIOS.values() if sc.measures == role]
+def with_role(role: str) -> list[str]:
+    """The scenarios that measure ``role`` ('launch', 'copy', 'bandwidth'), in registry order."""
+    return [name for name in scenarios.SCENARIOS if sweeps(name).measures == role]
 
 
 def label(scenario: str, what: str, default: str = "") -> str:
-    """A scenario's word for the sweep page (``Scenario.sweep_labels``); 'name' defaults to its name."""
-    sc = scenarios.SCENARIOS.get(scenario)
-    words = sc.sweep_labels if sc is not None else {}
-    return words.get(what, scenario if what == "name" else default)
+    """A scenario's word for the sweep page (``points.Sweeps.labels``); 'name' defaults to its name."""
+    return sweeps(scenario).labels.get(what, scenario if what == "name" else default)
 
 
 def in_registry_order(names: Iterable[str]) -> list[str]:
@@ -355,10 +354,10 @@ def plot_key(kind: str, device: str, scenario: str, scenarios_of_kind: list[str]
 
 def _launch_section(records, d) -> list[str]:
     intro = "A trivial launch"
-    for sc in with_role("launch")[:1]:
-        pts = sc.sweep_points("bandwidth", d, False)
+    for name in with_role("launch")[:1]:
+        pts = sweeps(name).points("bandwidth", d, False)
         size = ", ".join(f"{k} = {v}" for k, v in (pts[0]["params"] if pts else {}).items())
-        intro += f" (`{sc.name}` scenario" + (f", {size})" if size else ")")
+        intro += f" (`{name}` scenario" + (f", {size})" if size else ")")
     return [f"## {d}: launch overhead\n",
             f"{intro}. Small cells whose time is mostly this are overhead-bound.\n\n"
             + (launch_table(records, d) or "No data.\n")]
@@ -410,7 +409,7 @@ def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title:
                        f"({roof['backend']}, {roof['precision']}, n = {roof['n']}, "
                        f"{roof['clock']} clock; recorded before the hardware yardstick existed, so "
                        f"the best of the contestants' own copies).\n")
-        sized = [sc.name for sc in with_role("bandwidth")]
+        sized = with_role("bandwidth")
         for s in sized:
             name = label(s, "name")
             out.append(f"## {d}: {name} bandwidth against size\n")

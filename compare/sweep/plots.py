@@ -238,7 +238,7 @@ def write_plots(records: list[dict[str, Any]], out: Path) -> dict[str, Path]:
     out.mkdir(parents=True, exist_ok=True)
     written = {}
     for device in sorted({r["device"] for r in records}):
-        sized = [sc.name for sc in with_role("bandwidth")]
+        sized = with_role("bandwidth")
         scaled = swept(records, "scaling", device)
         jobs = [(plot_key("bandwidth", device, s, sized), plot_bandwidth, (s,)) for s in sized]
         jobs += [(f"time_vs_error-{device}", plot_time_vs_error, ())]

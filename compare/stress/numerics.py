@@ -1,8 +1,9 @@
-"""Scenario-agnostic numerics of the stress suite, and what a scenario's stress experiment is.
+"""Scenario-agnostic numerics of the stress suite, and what a stress experiment is.
 
-A scenario contributes stress experiments (``Scenario.stress_experiments``) that run through a
-context the driver hands them (``StressContext``: cells, host-loop tasks, row helpers), so that
-no module in ``scenarios/`` imports the driver. What those experiments share is here.
+An experiment (registered per scenario in compare/stress/registry.py) runs through a context the
+driver hands it (``StressContext``: cells, host-loop tasks, row helpers), so that experiments
+import neither the driver nor the store, and compare/records.py can read their page hooks. What
+those experiments share is here.
 """
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ class StressContext(Protocol):
     def label(self, spec_or_rec: dict[str, Any]) -> str: ...
     def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: dict[str, Any]) -> Row: ...
     def fmt(self, x: Any) -> str: ...
-    def run_cells(self, specs: list[dict[str, Any]]) -> list[tuple[dict[str, Any], Outputs | None]]: ...
+    def run_cells(self, specs: list[dict[str, Any]], fresh_process: bool = False
+                  ) -> list[tuple[dict[str, Any], Outputs | None]]: ...
     def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]: ...
     def run_tasks(self, tasks: list[dict[str, Any]]) -> list[dict[str, Any]]: ...
 

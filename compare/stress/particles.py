@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from .base import UNIT_ROUNDOFF, dtype_of
-from .numerics import Experiment, Result, StressContext, Style, bitwise_differences, log_floor
-from .particles import Particles, ParticlesParams, energy, energy_bound, simulate
+from compare.stress.numerics import Experiment, Result, StressContext, Style, bitwise_differences, log_floor
+from scenarios.base import UNIT_ROUNDOFF, dtype_of
+from scenarios.particles import Particles, ParticlesParams, energy, energy_bound, simulate
 
 SC = Particles()
 STATE = ("x", "y", "vx", "vy")

@@ -18,8 +18,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import projectile as P
-from .numerics import ORACLE
+import backends
+from compare.stress.numerics import ORACLE
+from scenarios.projectile import CONSTANTS, Projectile
+from scenarios.projectile_adjoint import loss_and_gradient
 
 CLIP_NORM = 100.0                       # gradient clipping threshold (|grad| at v0 is ~636 for 'none')
 ADAM = {"beta1": 0.9, "beta2": 0.999, "eps": 1e-8}
@@ -69,9 +71,8 @@ def optimise(evaluate: Evaluate, v0: np.ndarray, lr: float, iters: int, method: 
 def backend_evaluator(backend: str, device: str, precision: str, params: dict[str, Any]) -> Evaluate:
     """loss and gradient at v from the backend's projectile kernel (iters = 0): one kernel, its v0
     replaced in place per call (``set_input``), else one kernel per call. Runs in a host-loop
-    worker process, the only place a scenario module touches a backend."""
-    import backends
-    be, sc = backends.get(backend), P.Projectile()
+    worker process."""
+    be, sc = backends.get(backend), Projectile()
     p = sc.params({**params, "iters": 0})
     base = sc.inputs(p, precision)
     be.setup(device, precision, "default")
@@ -102,15 +103,15 @@ def backend_evaluator(backend: str, device: str, precision: str, params: dict[st
 def oracle_evaluator(params: dict[str, Any], precision: str = "float64") -> Evaluate:
     """The same from the scenario's float64 rollout and adjoint (constants rounded to
     ``precision`` as the backends receive them)."""
-    sc = P.Projectile()
+    sc = Projectile()
     p = sc.params({**params, "iters": 0})
     inputs = sc.inputs(p, precision)
-    c = {k: float(inputs[k]) for k in P.CONSTANTS}
+    c = {k: float(inputs[k]) for k in CONSTANTS}
 
     def evaluate(v: np.ndarray) -> tuple[float, np.ndarray]:
         if not np.all(np.isfinite(v)):
             return math.nan, np.full(2, math.nan)
-        return P.loss_and_gradient(c, p.contact, p.steps, v)
+        return loss_and_gradient(c, p.contact, p.steps, v)
     return evaluate
 
 

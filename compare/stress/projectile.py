@@ -1,95 +1,29 @@
 """The projectile scenario's stress experiments (docs/stress.md): projectile-lr (learning rate x
 contact x optimiser), projectile-gradient (gradient quality against finite differences and along
-vy0) and projectile-horizon (gradient growth with the number of steps), their verdict rules,
-plots and the lr matrix of the page.
+vy0) and projectile-horizon (gradient growth with the number of steps).
 
-Loss, gradient and Hessian come from the scenario (``scenarios.projectile``); the optimisers and
-scans run as host-loop tasks (``scenarios.projectile_tasks``).
+Their verdict rules and predictions are in compare/stress/projectile_rules.py, their page hooks
+and plots in compare/stress/projectile_plots.py; loss, gradient and Hessian come from the
+scenario's float64 model, the optimisers and scans run as host-loop tasks
+(compare/stress/projectile_tasks.py).
 """
 from __future__ import annotations
 
 import math
-from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
-from . import projectile as P
-from . import projectile_tasks as T
-from .numerics import ORACLE, Experiment, Result, Row, StressContext, Style, log_floor
+from compare.stress import projectile_tasks as T
+from compare.stress.numerics import ORACLE, Experiment, Result, StressContext
+from compare.stress.projectile_plots import (lr_matrix, lr_table_rows, plot_projectile_gradient,
+                                             plot_projectile_horizon, plot_projectile_lr)
+from compare.stress.projectile_rules import (CONTACTS, FD_AGREE, FD_STEPS, SC, classify, fd_gradient,
+                                             loss_mispredictions, observed_boundary, predicted_lr)
+from scenarios.projectile import CONSTANTS
+from scenarios.projectile_adjoint import gradient
 
-SC = P.Projectile()
-CONTACTS = ("none", "hard", "soft")
-CONVERGED_REL = 1e-6              # loss reduced a million-fold = miss distance reduced 1000-fold
-DIVERGED_REL = 1e-3               # ended more than 0.1 % above its start
-FD_AGREE = 0.01                   # a gradient 'agrees' with finite differences to 1 % (stated)
-SEED_LRS = (0.01, 0.08, 0.2)
-FD_STEPS = tuple(10.0 ** (e / 2) for e in range(2, -17, -1))     # 10 ... 1e-8, half decades
-
-
-# ---- verdict rules (unit-tested in tests/test_stress.py) ------------------------------------------
-
-def classify(history: Iterable[float], rel: float = CONVERGED_REL, worse: float = DIVERGED_REL) -> str:
-    """converged / stalled / diverged from a loss history h[0..K].
-
-    diverged: a non-finite value, or h[K] > (1 + worse) h[0] (descent ended worse than it started;
-    ``worse`` = 1e-3 is far above float32 rounding of the loss and far below any real growth);
-    converged: h[K] <= rel h[0]; stalled: anything else (finite, not worse, not converged).
-    """
-    h = np.asarray(list(history), np.float64)
-    if h.size == 0 or not np.all(np.isfinite(h)):
-        return "diverged"
-    if h[-1] > (1.0 + worse) * h[0]:
-        return "diverged"
-    return "converged" if h[-1] <= rel * h[0] else "stalled"
-
-
-def observed_boundary(lrs: list[float], classes: list[str]) -> tuple[float | None, float | None]:
-    """(largest lr below which nothing diverged, smallest lr that diverged)."""
-    pairs = sorted(zip(lrs, classes))
-    first_div = next((lr for lr, c in pairs if c == "diverged"), None)
-    stable = [lr for lr, c in pairs if first_div is None or lr < first_div]
-    return (max(stable) if stable else None), first_div
-
-
-def loss_mispredictions(vys: list[float], losses: list[float], grads: list[list[float]],
-                        noise_rel: float = 0.0) -> tuple[int, int]:
-    """(mispredicted, unresolved) scan intervals. Mispredicted: the gradient's trapezoid prediction
-    of the loss change is off by more than a factor 2 or in sign, |dL - pred| > max(|dL|, |pred|)/2,
-    and by more than the loss's own rounding, noise_rel (|L_i| + |L_i+1|); unresolved: off by a
-    factor 2 but within that rounding (the precision cannot tell)."""
-    vy, loss = np.asarray(vys, np.float64), np.asarray(losses, np.float64)
-    g = np.asarray(grads, np.float64)[:, 1]
-    dl, pred = np.diff(loss), np.diff(vy) * 0.5 * (g[1:] + g[:-1])
-    noise = noise_rel * (np.abs(loss[1:]) + np.abs(loss[:-1]))
-    with np.errstate(invalid="ignore"):
-        off = np.abs(dl - pred)
-        factor2 = (off > 0.5 * np.maximum(np.abs(dl), np.abs(pred))) | ~np.isfinite(off)
-        resolved = ~(off <= noise)
-    return int(np.sum(factor2 & resolved)), int(np.sum(factor2 & ~resolved))
-
-
-def predicted_lr(contact: str, iters: int) -> tuple[float, dict[str, float]]:
-    """2/lambda_max of the float64 loss Hessian where descent at the seed's lr = 0.01 ends (local
-    stability of gradient descent), and at v0; for 'none' also the closed form 1/(N dt)^2."""
-    p = SC.params({"contact": contact, "iters": 0})
-    inp = SC.inputs(p, "float64")
-    c = {k: float(inp[k]) for k in P.CONSTANTS}
-    hist, v_end = T.optimise(T.oracle_evaluator({"contact": contact}), inp["v0"], 0.01, iters, "gd")
-    lam = {}
-    for where, v in (("v0", inp["v0"].astype(np.float64)), ("v_end", v_end)):
-        lam[where] = float(np.max(np.linalg.eigvalsh(P.hessian(c, contact, p.steps, v)))) if np.all(np.isfinite(v)) else math.nan
-    info = {f"lambda_max({k})": val for k, val in lam.items()}
-    if contact == "none":
-        info["closed form 1/(N dt)^2"] = 1.0 / (p.steps * c["dt"]) ** 2
-    lam_end = lam["v_end"] if math.isfinite(lam["v_end"]) else lam["v0"]
-    return (2.0 / lam_end if lam_end > 0 else math.inf), info
-
-
-def fd_gradient(c: dict[str, float], contact: str, steps: int, v: np.ndarray, h: float) -> np.ndarray:
-    """Float64 central differences of the scenario's loss with step h."""
-    return np.array([(P.loss_of(c, contact, steps, v + h * e) - P.loss_of(c, contact, steps, v - h * e)) / (2 * h)
-                     for e in np.eye(2)])
+SEED_LRS = (0.01, 0.08, 0.2)      # the seeds' learning rates: their histories are plotted
 
 
 def lr_grid(quick: bool) -> tuple[float, ...]:
@@ -183,10 +117,10 @@ def exp_projectile_gradient(ctx: StressContext) -> Result:
         for c in CONTACTS:
             p = SC.params({"contact": c, "iters": 0})
             inp = SC.inputs(p, prec)
-            cc = {k: float(inp[k]) for k in P.CONSTANTS}
+            cc = {k: float(inp[k]) for k in CONSTANTS}
             v = inp["v0"].astype(np.float64)
             fd[(prec, c)] = [fd_gradient(cc, c, p.steps, v, h) for h in FD_STEPS]
-            gsize[c] = float(np.linalg.norm(P.gradient(cc, c, p.steps, v)))
+            gsize[c] = float(np.linalg.norm(gradient(cc, c, p.steps, v)))
     specs = [ctx.spec(SC.name, b, d, prec, {"contact": c, "iters": 0}) for b, d, _ in ctx.targets()
              for prec in (("float32",) if ctx.quick else ("float32", "float64")) for c in CONTACTS]
     rows, series = ctx.skip_rows(name), {"h": list(FD_STEPS), "lines": {}, "scans": {}}
@@ -297,97 +231,6 @@ def exp_projectile_horizon(ctx: StressContext) -> Result:
                             + ", ".join(f"{int(n_)}:{ctx.fmt(r)}" for n_, r in zip(ns, rel))))
         series[f"{b}/{d}/{c}"] = {"steps": ns.tolist(), "grad": gs.tolist(), "rel": rel}
     return rows, series
-
-
-# ---- page and plots -----------------------------------------------------------------------------
-
-def lr_matrix(rows: list[Row]) -> str:
-    """projectile-lr as one line per (backend, device, optimiser, contact): C/S/D per lr, under
-    its legend (goes above the row table on the page)."""
-    from tabulate import tabulate
-    cells_: dict[tuple, dict[float, str]] = {}
-    lrs: set[float] = set()
-    for r in rows:
-        if r["experiment"] != "projectile-lr" or not r["setting"].count("lr="):
-            continue
-        parts = dict(p.split("=", 1) for p in r["setting"].split(", ")[1:])
-        m = r["setting"].split(",", 1)[0]
-        lr = float(parts["lr"]); lrs.add(lr)
-        cells_.setdefault((r["backend"], r["device"], r["precision"], m, parts["contact"]), {})[lr] = \
-            {"converged": "C", "stalled": "S", "diverged": "**D**"}.get(r["verdict"], "E")
-    table = "" if not cells_ else tabulate(
-        [[*k, *(v.get(lr, "") for lr in sorted(lrs))] for k, v in cells_.items()],
-        headers=["backend", "device", "precision", "optimiser", "contact", *[f"lr {lr:g}" for lr in sorted(lrs)]],
-        tablefmt="github", disable_numparse=True)
-    return ("C converged, S stalled, **D** diverged (GD: the backend's own device loop; "
-            f"clip, adam: host loop with the backend's gradient; {ORACLE}: float64 Python).\n\n" + table)
-
-
-def lr_table_rows(rows: list[Row]) -> list[Row]:
-    """The rows the page tables below the matrix: predictions and boundaries (not per-lr rows)."""
-    return [r for r in rows if "lr=" not in r["setting"]]
-
-
-def plot_projectile_lr(series: dict[str, Any], path: Path, style: Style) -> None:
-    import matplotlib.pyplot as plt
-    hist = series.get("histories", {})
-    methods = T.OPTIMISERS
-    fig, axes = plt.subplots(3, 3, figsize=(12, 9), sharex=True)
-    for key, h in sorted(hist.items()):
-        b, d, m, c, lr = key.split("/")
-        ax = axes[methods.index(m)][CONTACTS.index(c)]
-        ax.plot(range(len(h)), log_floor(h, 1e-30), ls="-" if b != ORACLE else ":", lw=1, label=f"{b} lr={lr}")
-    for i, m in enumerate(methods):
-        for j, c in enumerate(CONTACTS):
-            ax = axes[i][j]
-            ax.set_yscale("log"); ax.set_title(f"{m}, contact={c}", fontsize=9); ax.grid(True, alpha=0.3)
-            if ax.lines:
-                ax.legend(fontsize=5)
-    for ax in axes[-1]:
-        ax.set_xlabel("iteration")
-    fig.tight_layout(); fig.savefig(path, dpi=100); plt.close(fig)
-
-
-def plot_projectile_gradient(series: dict[str, Any], path: Path, style: Style) -> None:
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
-    for j, c in enumerate(CONTACTS):
-        ax = axes[0][j]
-        for lbl, rel in sorted(series["lines"].items()):
-            if lbl.endswith("/" + c):
-                ax.plot(series["h"], log_floor(rel), lw=1, ls="-" if "float32" in lbl else ":",
-                        label=lbl.rsplit("/", 1)[0], **style(lbl))
-        ax.axhline(FD_AGREE, color="k", ls="--", lw=0.8)
-        if c in series.get("gd_step", {}):
-            ax.axvline(series["gd_step"][c], color="r", lw=0.8, label="one GD step at lr 0.01")
-        ax.set_xscale("log"); ax.set_yscale("log"); ax.set_title(f"contact={c}: |g - g_FD(h)|/|g|", fontsize=9)
-        ax.set_xlabel("FD step h"); ax.grid(True, which="both", alpha=0.3); ax.legend(fontsize=5)
-    for j, c in enumerate(("hard", "soft")):
-        ax = axes[1][j]
-        for lbl, s in sorted(series["scans"].items()):
-            if lbl.endswith("/" + c):
-                ax.plot(s["vy"], s["loss"], lw=1, label=lbl.rsplit("/", 1)[0])
-        ax.set_title(f"contact={c}: loss along vy0 (vx0 = 2)", fontsize=9); ax.set_xlabel("vy0"); ax.legend(fontsize=6)
-        ax2 = axes[1][2]
-        for lbl, s in sorted(series["scans"].items()):
-            if lbl.endswith("/" + c):
-                ax2.plot(s["vy"], s["dvy"], lw=1, ls="-" if c == "soft" else "--", label=f"{c} {lbl.rsplit('/', 1)[0]}")
-        ax2.set_title("d loss / d vy0 along the scan (AD)", fontsize=9); ax2.set_xlabel("vy0"); ax2.legend(fontsize=6)
-    fig.tight_layout(); fig.savefig(path, dpi=100); plt.close(fig)
-
-
-def plot_projectile_horizon(series: dict[str, Any], path: Path, style: Style) -> None:
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for lbl, s in sorted(series.items()):
-        ls = {"none": "-", "hard": "--", "soft": ":"}[lbl.rsplit("/", 1)[1]]
-        axes[0].plot(s["steps"], log_floor(s["grad"]), ls=ls, lw=1, label=lbl, **style(lbl))
-        axes[1].plot(s["steps"], log_floor(s["rel"]), ls=ls, lw=1, label=lbl, **style(lbl))
-    axes[0].set_ylabel("|grad| (float32)"); axes[1].set_ylabel("float32 gradient rel. error vs float64")
-    for ax in axes:
-        ax.set_xscale("log"); ax.set_yscale("log"); ax.set_xlabel("steps (dt = 0.025)")
-        ax.grid(True, which="both", alpha=0.3); ax.legend(fontsize=5)
-    fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (

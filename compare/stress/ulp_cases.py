@@ -1,0 +1,27 @@
+"""The cases of the ``ulps`` experiment (compare/stress/generic.py), by scenario: (parameter
+overrides, the output whose elements are measured in ulps, setting label). A scenario not listed
+has none."""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+Case = tuple[dict[str, Any], str, str]
+
+
+def saxpy(quick: bool) -> list[Case]:
+    """Both input kinds (cancellation in random ones), at the quick or the full size."""
+    n = 100_003 if quick else 1_000_000
+    return [({"n": n, "inputs": "linspace"}, "out", "saxpy (linspace)"),
+            ({"n": n, "inputs": "random", "seed": 3}, "out", "saxpy (random)")]
+
+
+def sdf(quick: bool) -> list[Case]:
+    return [({"width": 512, "height": 512}, "image", "sdf")]
+
+
+ULP_CASES: dict[str, Callable[[bool], list[Case]]] = {"saxpy": saxpy, "sdf": sdf}
+
+
+def ulp_cases(scenario: str, quick: bool) -> list[Case]:
+    cases = ULP_CASES.get(scenario)
+    return cases(quick) if cases is not None else []

@@ -1,0 +1,321 @@
+"""Measurement sweeps (docs/measurement.md): bandwidth, time against error, scaling.
+
+    sweep bandwidth   launch overhead, copy roofline, achieved bandwidth against size
+    sweep error       time against error: precision, fast-math variants and each scenario's own
+                      knobs (resolution, dt, ...) against a converged float64 reference
+    sweep scaling     throughput and memory against problem size (the projectile: against batch)
+    sweep horizon     memory and gradient quality against the horizon (the projectile's steps),
+                      with each backend's memory-saving variants (e.g. checkpointing)
+    sweep all         the four above
+    sweep report F... rebuild the page and plots from saved sweep.json files (no rerun)
+
+What is swept per scenario is registered beside this suite (``compare.sweep.points``: points,
+role, converged error): this suite plans the cells, runs them on ``compare.engine.run_cells`` (one
+worker process each, the same protocol as ``python -m compare``), attaches each error-sweep
+cell's converged error, and keeps DIR/sweep.json in the common store (compare/store.py; a cell
+run again replaces its old record; --resume keeps ok, mismatch and skipped cells and retries
+errors, as every suite does). A record's suite identity is its ``tags``: sweep
+kind, role (the scenario's ``measures`` in the bandwidth sweep, else its name) and knob. Every run
+rebuilds the Markdown page (--page, default DIR/measurement.md) and the PNGs in DIR from the whole
+file (compare/sweep/page.py, compare/sweep/plots.py).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import shlex
+from pathlib import Path
+from typing import Any
+
+import backends
+import scenarios
+from compare import engine, environment, hardware, options, run_suite, scaleout
+from compare.options import EXIT_FAIL, EXIT_OK, UsageError
+from compare.store import UPGRADES, Store, atomic_write
+from compare.sweep import page as pages
+from compare.sweep import plots
+from compare.sweep.points import sweeps
+from scenarios.base import PRECISIONS, ParamError
+
+KINDS = ("bandwidth", "error", "scaling", "horizon")
+PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32",
+             "horizon": "float32,float64"}
+ROLE_ORDER = ("launch", "copy", "bandwidth")    # the bandwidth sweep measures its yardsticks first
+SPEC_OPTIONS = ("check_sample", "save_outputs")  # what a sweep point may set in its cell's spec
+RECORD_BYTES = 64 * 2**10      # disk preflight: one record in sweep.json, generously
+PAGE_BYTES = 32 * 2**20        # ... and the page and plots
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("kind", help="bandwidth | error | scaling | horizon | all | report")
+    p.add_argument("files", nargs="*", help="report: sweep.json files to merge")
+    options.add_selection(p, precision=None, variants=False)   # error: every variant a backend has
+    p.add_argument("--scenarios", default=None, help="error, scaling, horizon: which scenarios to sweep "
+                   f"(default: every one with points of that kind; error: {','.join(error_scenarios())})")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a scenario parameter for every swept scenario that has it (repeatable), "
+                        "e.g. contact=hard; a parameter the sweep varies cannot be set")
+    p.add_argument("--record-every", type=int, default=0, metavar="K",
+                   help="scaling: also keep every K-th state (default 0: no trajectory)")
+    p.add_argument("--quick", action="store_true", help="few, small points (minutes on 2 cores)")
+    options.add_timing(p, repeat=None, min_time=None, timeout=600.0)
+    p.add_argument("--cache", default="cold", choices=("cold", "warm"),
+                   help="framework kernel caches for the first call (docs/measurement.md)")
+    options.add_output(p, "results/sweep")
+    options.add_page(p)
+    options.add_scheduler(p)
+    p.add_argument("--resume", action="store_true",
+                   help="keep OUT/sweep.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
+    p.add_argument("--fresh", action="store_true", help="drop OUT/sweep.json's records first")
+
+
+def error_scenarios() -> list[str]:
+    """Every scenario with time-against-error points on some device."""
+    return [sc.name for sc in scenarios.SCENARIOS.values()
+            if any(sweeps(sc.name).points("error", d, q) for d in backends.DEVICES for q in (False, True))]
+
+
+# ---- plans ----------------------------------------------------------------------------------
+def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scenarios.Scenario]:
+    """The scenarios sweep ``kind`` runs, in the order it runs them."""
+    if kind == "error":
+        return [scenarios.get(n) for n in
+                options.names(",".join(error_scenarios()) if args.scenarios is None else args.scenarios,
+                              error_scenarios(), "scenarios")]
+    found = [sc for sc in scenarios.SCENARIOS.values()
+             if any(sweeps(sc.name).points(kind, d, args.quick) for d in devices)]
+    if args.scenarios is not None and kind != "bandwidth":
+        wanted = options.names(args.scenarios, list(scenarios.SCENARIOS), "scenarios")
+        found = [sc for sc in found if sc.name in wanted]
+    rank = {role: i for i, role in enumerate(ROLE_ORDER)}
+    return sorted(found, key=lambda sc: rank.get(sweeps(sc.name).measures, len(rank)))
+
+
+def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str, Any]) -> list[dict[str, Any]]:
+    """The scenario's points with --set (and, for scaling, --record-every) applied and the
+    parameters resolved: each {'params', 'knob', 'options', 'reference'}."""
+    raw = sweeps(sc.name).points(kind, device, args.quick)
+    over = dict(sets)
+    if kind == "scaling" and args.record_every and "record_every" in sc.Params.__dataclass_fields__:
+        over["record_every"] = args.record_every
+    for k in over:
+        if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
+            raise ParamError(f"--set {k}: the {kind} sweep of {sc.name} varies it")
+    return [{"params": dataclasses.asdict(sc.params({**pt["params"], **over})),
+             "knob": pt.get("knob") or {}, "reference": pt.get("reference"),
+             "options": {k: pt[k] for k in SPEC_OPTIONS if k in pt}} for pt in raw]
+
+
+def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] | None]]:
+    """Every cell of the requested sweeps as (spec, the point's converged-error reference), in
+    run order: kind, device, backend, variant (error sweep only), precision, scenario, point."""
+    sel = options.selection(args)
+    kinds = KINDS if args.kind == "all" else (args.kind,)
+    precisions = {k: options.names(PRECISION[k] if args.precision is None else args.precision, PRECISIONS,
+                                   "precision") for k in kinds}
+    if args.record_every < 0:
+        raise ParamError(f"--record-every must be >= 0, got {args.record_every}")
+    chosen = {k: swept(k, args, sel["devices"]) for k in kinds}
+    everyone = list({sc.name: sc for k in kinds for sc in chosen[k]}.values())
+    sets = options.scenario_sets(options.parse_sets(args.set), everyone)
+    repeat = args.repeat or (3 if args.quick else 10)
+    min_time = args.min_time if args.min_time is not None else (0.05 if args.quick else 0.2)
+    out = []
+    for kind in kinds:
+        for dev in sel["devices"]:
+            pts = {sc.name: points(sc, kind, dev, args, sets[sc.name]) for sc in chosen[kind]}
+            for sc in chosen[kind]:          # --set values each swept precision can represent
+                for pt in pts[sc.name]:
+                    for prec in precisions[kind]:
+                        options.check_precision(sc, sc.params(pt["params"]), prec)
+            for be in sel["backends"]:
+                for variant in variants(kind, be, chosen[kind]):
+                    for prec in precisions[kind]:
+                        for sc in chosen[kind]:
+                            if variant not in sweep_variants(kind, be, sc.name):
+                                continue
+                            measures = sweeps(sc.name).measures
+                            role = measures if kind == "bandwidth" and measures else sc.name
+                            for pt in pts[sc.name]:
+                                spec = {"scenario": sc.name, "backend": be, "device": dev,
+                                        "precision": prec, "variant": variant,
+                                        "params": dict(pt["params"]),
+                                        "tags": {"sweep": kind, "role": role, "knob": dict(pt["knob"])},
+                                        "repeat": repeat, "min_time": min_time, "cache": args.cache,
+                                        **pt["options"]}
+                                out.append((spec, pt["reference"]))
+    return out
+
+
+def sweep_variants(kind: str, backend: str, scenario: str) -> tuple[str, ...]:
+    """The variants sweep ``kind`` runs: the backend's general variants in the error sweep (e.g.
+    fast math: precision against speed), the scenario's own variants in the horizon sweep (e.g.
+    checkpointing: memory against time) and the bandwidth sweep (e.g. vector loads: bandwidth
+    against size), else the default."""
+    be = backends.get(backend)
+    if kind == "error":
+        return be.variants
+    if kind in ("horizon", "bandwidth"):
+        return ("default",) + be.scenario_variants.get(scenario, ())
+    return ("default",)
+
+
+def variants(kind: str, backend: str, swept_scenarios: list[scenarios.Scenario]) -> list[str]:
+    return list(dict.fromkeys(v for sc in swept_scenarios for v in sweep_variants(kind, backend, sc.name)))
+
+
+# ---- records and the results file ----------------------------------------------------------
+def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
+    """A record of an older sweep.json (top-level 'sweep', 'role', 'knob'; the size sweep's role
+    was its scenario's name) in today's shape: the three under ``tags``, the bandwidth sweep's
+    role the scenario's ``measures``."""
+    if "tags" in rec or not any(k in rec for k in ("sweep", "role", "knob")):
+        return rec
+    new = {k: v for k, v in rec.items() if k not in ("sweep", "role", "knob")}
+    role = rec.get("role")
+    measures = sweeps(rec.get("scenario")).measures
+    if rec.get("sweep") == "bandwidth" and measures:
+        role = measures
+    new["tags"] = {"sweep": rec.get("sweep"), "role": role, "knob": rec.get("knob") or {}}
+    return new
+
+
+def contents(store: Store) -> dict[str, Any]:
+    """What the page and plots read: {'runs': [...], 'records': [...]}."""
+    return {"runs": store.runs, "records": store.records}
+
+
+# ---- running --------------------------------------------------------------------------------
+def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None], probes, args,
+             store: Store, yardstick: dict[str, dict[str, Any]], runner=None) -> None:
+    """Run the cells into the store (saved after every record), each error-sweep record with
+    its converged error attached first: one at a time here (they would share cores and the
+    GPU), or on a Dask cluster's workers, one per GPU and core set (``runner``)."""
+    cache: dict[Any, Any] = {}
+
+    def label(rec: dict[str, Any]) -> str:
+        tags = rec.get("tags") or {}
+        knob = tags.get("knob") or {}
+        setting = f" {knob.get('name')}={knob.get('value')}" if knob.get("name") and knob.get("value") is not None else ""
+        return (f"{tags.get('sweep')} {rec['scenario']}/{rec['backend']}/{rec['device']}/{rec['precision']}/"
+                f"{rec['variant']}{setting}")
+    show = engine.progress(len(specs), label)
+    count = iter(range(len(specs)))
+
+    def on_record(j: int, rec: dict[str, Any], outputs) -> None:
+        if pages.tag(rec, "sweep") == "error" and rec["status"] in ("ok", "mismatch"):
+            conv = sweeps(rec["scenario"]).converged_error(rec["params"], outputs, rec, cache,
+                                                           reference=references[j])
+            if conv is not None:
+                rec["converged"] = conv
+        hardware.annotate([rec], yardstick)
+        show(next(count), rec, outputs)
+    engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
+                     resume=args.resume, runner=runner)
+
+
+def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
+    """Write the PNGs into --out and the Markdown page (--page); returns the page's path."""
+    out = Path(args.out)
+    page = Path(args.page) if args.page else out / "measurement.md"
+    written = plots.write_plots(data["records"], out) if not args.no_plots else {}
+    cmd = ["python -m compare sweep report", *map(shlex.quote, [*sources, "--out", str(out),
+                                                                "--page", str(page)])]
+    if args.title:
+        cmd += ["--title", shlex.quote(args.title)]
+    if args.notes:
+        cmd += ["--notes", shlex.quote(args.notes)]
+    atomic_write(page, pages.page(data, written, page, args.title, sources, " ".join(cmd), notes))
+    return page
+
+
+def run(args: argparse.Namespace, argv: list[str]) -> int:
+    """``argv``: the command line after ``python -m compare`` (``sweep ...``), for the record."""
+    if args.kind == "report":
+        return report(args)
+    if args.kind not in (*KINDS, "all"):
+        raise UsageError(f"unknown sweep {args.kind!r} ({', '.join(KINDS)}, all, report)")
+    if args.files:
+        raise UsageError(f"unexpected argument {args.files[0]!r}")
+    given = options.given(args, add_arguments, args.kind)
+    if "--scenarios" in given and args.kind == "bandwidth":
+        raise UsageError("--scenarios does not apply to the bandwidth sweep (its scenarios are its yardsticks)")
+    if "--record-every" in given and args.kind not in ("scaling", "all"):
+        raise UsageError(f"--record-every does not apply to the {args.kind} sweep (only to scaling)")
+    if args.resume and args.fresh:
+        raise UsageError("--resume keeps OUT/sweep.json's records and --fresh drops them: give one")
+    options.check_scheduler(args)
+    planned = plan(args)
+    if not planned:
+        raise UsageError(f"nothing to run: the {args.kind} sweep has no points for the chosen "
+                         "scenarios, backends and devices")
+    notes = options.read_notes(args.notes)
+    options.check_output(args.out)
+    options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
+    Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
+    probes = engine.availability(dict.fromkeys(s["backend"] for s, _ in planned))
+    blocked = [engine.not_runnable(engine.prepare(s), probes) for s, _ in planned]
+    run_suite.nothing_to_run([s for s, _ in planned], blocked)
+    runnable = [s for (s, _), b in zip(planned, blocked) if not b]
+    # connected before the claim: an unreachable scheduler leaves no lock and no --out behind
+    client = scaleout.client(args.scheduler) if args.scheduler else None
+    try:
+        out, lock = options.claim_output(args.out, 2 * (RECORD_BYTES * len(runnable) + existing_bytes(args.out))
+                                         + PAGE_BYTES)
+    except UsageError:
+        if client is not None:
+            client.close()
+        raise
+    with lock:
+        return run_claimed(args, argv, planned, notes, out, probes, client)
+
+
+def existing_bytes(out: str) -> int:
+    f = Path(out) / "sweep.json"
+    return f.stat().st_size if f.is_file() else 0
+
+
+def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, out: Path,
+                probes: dict[str, dict[str, Any]], client: Any = None) -> int:
+    """The sweep, once its output directory is checked, has room and is locked by this driver."""
+    store = Store.open(out, "sweep", keep=not args.fresh)
+    env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
+    env["backends"] = probes
+    env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
+    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s, _ in planned)
+                       if any(p["available"].get(d) is None for p in probes.values())}
+    if client is not None:
+        env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
+    store.runs.append(env)
+    store.save()
+    specs = [s for s, _ in planned]
+    runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
+    run_plan(specs, [r for _, r in planned], probes, args, store, env["hardware"], runner)
+    page = rebuild(contents(store), args, [str(store.path)], notes)
+    print(pages.summary(store.records))
+    print(f"wrote {store.path} and {page}")
+    bad = [r for r in store.records if r["status"] in ("mismatch", "error")]
+    return EXIT_FAIL if bad else EXIT_OK
+
+
+def report(args: argparse.Namespace) -> int:
+    if not args.files:
+        raise UsageError("report needs at least one sweep.json")
+    options.refuse_inapplicable(args, add_arguments, ("kind", "files", "--out", "--no-plots", "--page",
+                                                      "--title", "--notes"), "to sweep report", "report")
+    options.no_duplicates(args.files, "sweep report")
+    notes = options.read_notes(args.notes)
+    merged = Store(Path(args.out) / "sweep.json", "sweep")
+    for f in args.files:                  # a later file's record of the same cell wins
+        merged.merge(Store.read(f, "sweep"))
+    options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
+    out, lock = options.claim_output(args.out, PAGE_BYTES)
+    with lock:
+        rebuild(contents(merged), args, list(args.files), notes)
+    print(pages.summary(merged.records))
+    return EXIT_OK
+
+
+# Older sweep.json files read through the common store get today's record shape.
+UPGRADES["sweep"] = upgrade_record
