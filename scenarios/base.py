@@ -6,7 +6,8 @@ makes (already rounded to the cell's precision) and returns outputs named as in 
 A scenario holds physics only, and knows nothing of the suites either: what they do with it is
 registered by scenario name beside them (sweep points and converged errors in
 compare/sweep/points.py, stress experiments in compare/stress/registry.py, the report's picture
-in compare/figures/).
+in compare/figures/). tests/test_layout.py checks that nothing here imports ``backends`` or
+``compare``.
 """
 from __future__ import annotations
 

@@ -14,6 +14,7 @@ import backends
 from compare import cells, timing, worker
 from compare.store import Store
 from compare.sweep import converged
+from compare.sweep import metrics as sweep_metrics
 from compare.sweep import page as sweep_page
 from compare.sweep import plots as sweep_plots
 from compare.sweep import suite as sweep
@@ -125,24 +126,24 @@ def test_roofline_and_bandwidth_rows():
             _rec("launch", "a", 1, 1e-5, 8, wall=1e-5),
             _rec("bandwidth", "a", 1 << 10, 2e-6, 3e3, wall=1.2e-5, timer="events"),
             _rec("bandwidth", "a", 1 << 28, 2e-3, 3e9, wall=2.1e-3, timer="events")]
-    roof = sweep_page.roofline(recs, "cuda")
+    roof = sweep_metrics.roofline(recs, "cuda")
     assert roof["backend"] == "a" and math.isclose(roof["gbps"], 2000.0)
-    assert sweep_page.roofline(recs, "cpu") is None
-    small = sweep_page.bandwidth_row(recs[3], recs)
+    assert sweep_metrics.roofline(recs, "cpu") is None
+    small = sweep_metrics.bandwidth_row(recs[3], recs)
     assert math.isclose(small["gbps"], 3e3 / 2e-6 / 1e9)              # primary clock (events)
     assert math.isclose(small["wall_gbps"], 3e3 / 1.2e-5 / 1e9)
     assert math.isclose(small["launch_share"], 1e-5 / 1.2e-5) and small["regime"] == "overhead-bound"
-    big = sweep_page.bandwidth_row(recs[4], recs)
+    big = sweep_metrics.bandwidth_row(recs[4], recs)
     assert math.isclose(big["roof_share"], 1500.0 / 2000.0) and big["regime"] == "bandwidth-bound"
-    assert sweep_page.regime(0.1, 0.2) == "mixed" and sweep_page.regime(None, None) == "-"
-    assert sweep_page.gbps(1e9, 0.5) == 2.0
+    assert sweep_metrics.regime(0.1, 0.2) == "mixed" and sweep_metrics.regime(None, None) == "-"
+    assert sweep_metrics.gbps(1e9, 0.5) == 2.0
 
 
 def test_pareto_front():
     pts = [(1.0, 10.0), (2.0, 5.0), (3.0, 6.0), (4.0, 1.0), (2.0, 5.0), (0.5, 20.0), (5.0, 1.0)]
-    assert sweep_page.pareto_front(pts) == [True, True, False, True, True, True, False]
-    assert sweep_page.pareto_front([]) == []
-    assert sweep_page.pareto_front([(1.0, 1.0)]) == [True]
+    assert sweep_metrics.pareto_front(pts) == [True, True, False, True, True, True, False]
+    assert sweep_metrics.pareto_front([]) == []
+    assert sweep_metrics.pareto_front([(1.0, 1.0)]) == [True]
 
 
 # ---- converged references -------------------------------------------------------------------

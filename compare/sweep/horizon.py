@@ -21,8 +21,8 @@ from typing import Any
 
 from compare.report import fmt_bytes, fmt_time
 from compare.store import save_figure
-from compare.sweep.page import knob, label, ok, throughput_s, wall_s
 from compare.sweep.points import sweeps
+from compare.sweep.rows import knob, label, ok, throughput_s, wall_s
 
 
 def memory(rec: dict[str, Any]) -> tuple[float | None, str]:

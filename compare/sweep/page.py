@@ -1,15 +1,9 @@
-"""Derived figures, tables and the Markdown page of the measurement sweeps (compare/sweep).
+"""The tables and the Markdown page of the measurement sweeps (compare/sweep).
 
 Pure functions of saved records: ``python -m compare sweep report sweep.json`` rebuilds everything
 without rerunning. Rows are found by the suite's tags (``rec["tags"]``: sweep kind, role, knob),
-never by scenario name; the words for a scenario come from its sweeps (``points.Sweeps.labels``).
-Definitions (docs/measurement.md):
-  * achieved bandwidth = bytes the kernel must move (scenario ``work``) / median time per call;
-  * copy roofline = the highest bandwidth of any backend on that device in the run, measured by
-    the scenario whose role is 'copy';
-  * launch share = trivial-launch wall time (role 'launch') / the cell's wall time
-    (>= 1/2: overhead-bound);
-  * Pareto front = points no other point beats in both time and error.
+never by scenario name; the words for a scenario come from its sweeps (``points.Sweeps.labels``);
+the derived figures (bandwidth, roofline, regime, Pareto fronts) from compare/sweep/metrics.py.
 Cross-backend plots use the wall-clock median (what a caller waits, the same clock for every
 framework); CUDA-event medians, where a framework has events, are shown beside it.
 """
@@ -26,39 +20,15 @@ from tabulate import tabulate
 import backends
 import scenarios
 from compare.report import fmt_bytes, fmt_num, fmt_time
+from compare.sweep import horizon
+from compare.sweep.metrics import bandwidth_row, device_bytes, error_points, gbps, roofline
 from compare.sweep.points import sweeps
-
-OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
-BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
-CACHE_SHARE = 1.25       # above the roofline by more than write-allocate accounting (9/8) explains
-ERROR_FLOOR = 1e-17      # where an exact (0) error is drawn on a log axis
-
+from compare.sweep.rows import event_s, knob, label, ok, tag, throughput_s, wall_s
 
 # ---- records and scenarios --------------------------------------------------------------------
-def tag(rec: dict[str, Any], name: str) -> Any:
-    return (rec.get("tags") or {}).get(name)
-
-
-def knob(rec: dict[str, Any]) -> dict[str, Any]:
-    return tag(rec, "knob") or {}
-
-
-def ok(records: Iterable[dict[str, Any]], sweep: str | None = None, role: str | None = None,
-       **match: Any) -> list[dict[str, Any]]:
-    """ok records with timings, of one sweep kind / role (tags) and matching fields."""
-    return [r for r in records if r.get("status") == "ok" and r.get("time")
-            and (sweep is None or tag(r, "sweep") == sweep) and (role is None or tag(r, "role") == role)
-            and all(r.get(k) == v for k, v in match.items())]
-
-
 def with_role(role: str) -> list[str]:
     """The scenarios that measure ``role`` ('launch', 'copy', 'bandwidth'), in registry order."""
     return [name for name in scenarios.SCENARIOS if sweeps(name).measures == role]
-
-
-def label(scenario: str, what: str, default: str = "") -> str:
-    """A scenario's word for the sweep page (``points.Sweeps.labels``); 'name' defaults to its name."""
-    return sweeps(scenario).labels.get(what, scenario if what == "name" else default)
 
 
 def in_registry_order(names: Iterable[str]) -> list[str]:
@@ -75,114 +45,6 @@ def error_scenarios(records: list[dict[str, Any]], device: str) -> list[str]:
     """Scenarios with time-against-error points on ``device``, in registry order."""
     return [s for s in in_registry_order(r["scenario"] for r in records if tag(r, "sweep") == "error")
             if error_points(records, device, s)]
-
-
-# ---- numbers ----------------------------------------------------------------------------------
-def wall_s(rec: dict[str, Any]) -> float:
-    t = rec["time"]
-    return float((t.get("wall") or {}).get("median_s", t["median_s"]))
-
-
-def event_s(rec: dict[str, Any]) -> float | None:
-    t = rec["time"]
-    return float(t["median_s"]) if t.get("timer") == "events" else None
-
-
-def gbps(nbytes: float, seconds: float) -> float:
-    """Achieved bandwidth in GB/s (10^9 bytes per second)."""
-    return nbytes / seconds / 1e9 if seconds > 0 else math.nan
-
-
-def roofline(records: list[dict[str, Any]], device: str) -> dict[str, Any] | None:
-    """The copy roofline of ``device``: the same-run hardware yardstick (a driver memcpy that no
-    contestant controls; ``compare/hardware.py``) where the records carry it; for files made
-    before it existed, the best copy bandwidth of any backend (primary clock), so labelled."""
-    hw = next((r["hardware"] for r in records if r.get("device") == device
-               and (r.get("hardware") or {}).get("copy_bytes_per_s")), None)
-    if hw:
-        return {"gbps": hw["copy_bytes_per_s"] / 1e9, "backend": "hardware yardstick",
-                "precision": "bytes", "n": hw.get("copy_how", ""), "clock": "same-run"}
-    best = None
-    for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        bw = gbps(r["work"]["bytes"], r["time"]["median_s"])
-        if best is None or bw > best["gbps"]:
-            best = {"gbps": bw, "backend": r["backend"], "precision": r["precision"],
-                    "n": r["params"]["n"], "clock": r["time"].get("timer", "wall")}
-    return best
-
-
-def throughput_s(rec: dict[str, Any]) -> float | None:
-    """Per-call time in the throughput regime (k calls, one synchronise), where measured."""
-    thr = (rec.get("time") or {}).get("throughput") or {}
-    return float(thr["median_s"]) if thr.get("median_s") else None
-
-
-def launch_wall(records: list[dict[str, Any]], backend: str, device: str, precision: str) -> float | None:
-    hits = ok(records, sweep="bandwidth", role="launch", backend=backend, device=device, precision=precision)
-    return wall_s(hits[-1]) if hits else None
-
-
-def regime(launch_share: float | None, roof_share: float | None) -> str:
-    if launch_share is not None and launch_share >= OVERHEAD_SHARE:
-        return "overhead-bound"
-    if roof_share is not None and roof_share > CACHE_SHARE:
-        return "cache-resident"
-    if roof_share is not None and roof_share >= BANDWIDTH_SHARE:
-        return "bandwidth-bound"
-    return "mixed" if launch_share is not None and roof_share is not None else "-"
-
-
-def bandwidth_row(rec: dict[str, Any], records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Achieved GB/s, % of the copy roofline, launch share and regime of one bandwidth cell."""
-    nbytes = rec["work"]["bytes"]
-    bw = gbps(nbytes, rec["time"]["median_s"])
-    roof = roofline(records, rec["device"])
-    lw = launch_wall(records, rec["backend"], rec["device"], rec["precision"])
-    share = lw / wall_s(rec) if lw else None
-    frac = bw / roof["gbps"] if roof else None
-    return {"gbps": bw, "wall_gbps": gbps(nbytes, wall_s(rec)), "roof_share": frac,
-            "launch_share": share, "regime": regime(share, frac)}
-
-
-def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
-    """For each (time, error) point: True if no other point is <= in both and < in one."""
-    flags = []
-    for i, (t, e) in enumerate(points):
-        dominated = any((t2 <= t and e2 <= e) and (t2 < t or e2 < e)
-                        for j, (t2, e2) in enumerate(points) if j != i)
-        flags.append(not dominated)
-    return flags
-
-
-def error_points(records: list[dict[str, Any]], device: str, scenario: str) -> list[dict[str, Any]]:
-    """Time-against-error points (ok cells with a finite error), with Pareto flags."""
-    pts = []
-    for r in ok(records, sweep="error", device=device, scenario=scenario):
-        e = (r.get("converged") or {}).get("error")
-        if isinstance(e, (int, float)) and math.isfinite(e):
-            pts.append({"rec": r, "time": wall_s(r), "error": max(float(e), ERROR_FLOOR)})
-    overall = pareto_front([(p["time"], p["error"]) for p in pts])
-    for backend in {p["rec"]["backend"] for p in pts}:
-        mine = [p for p in pts if p["rec"]["backend"] == backend]
-        for p, f in zip(mine, pareto_front([(p["time"], p["error"]) for p in mine])):
-            p["front_backend"] = f
-    for p, f in zip(pts, overall):
-        p["front_all"] = f
-    return pts
-
-
-def device_bytes(rec: dict[str, Any]) -> tuple[int | None, str]:
-    m = rec.get("memory") or {}
-    if isinstance(m.get("device_bytes"), (int, float)):   # the one metric every backend shares
-        own = m.get("device_peak_bytes")
-        return int(m["device_bytes"]), "NVML above the context" + (
-            f"; framework's own figure {fmt_bytes(own)}" if isinstance(own, (int, float)) else "")
-    for k, src in (("device_peak_bytes", m.get("device_memory_source", "framework")),
-                   ("nvml_process_peak_bytes", "nvml process"),
-                   ("nvml_device_delta_peak_bytes", "nvml device delta")):
-        if isinstance(m.get(k), (int, float)):
-            return int(m[k]), src
-    return None, m.get("nvml_note", "-") if rec["device"] != "cpu" else "-"
 
 
 def fmt_rate(x: float | None, unit: str = "") -> str:
@@ -378,7 +240,6 @@ def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title:
     """The Markdown page: commands, environment, optional notes, then one set of sections per
     device (launch, copy roofline, size sweep, time against error, scaling, horizon) and the
     problems."""
-    from compare.sweep import horizon      # it reads this module's helpers
     records, runs = data["records"], data["runs"]
     devices = [d for d in backends.DEVICES if any(r["device"] == d and r["status"] != "skipped"
                                                   for r in records)]

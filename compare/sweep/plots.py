@@ -12,9 +12,10 @@ from typing import Any
 import backends
 from compare.colors import backend_color
 from compare.store import save_figure
-from compare.sweep.page import (ERROR_FLOOR, device_bytes, error_points, error_scenarios, event_s,
-                                gbps, knob, label, launch_wall, ok, plot_key, roofline, swept,
-                                wall_s, with_role)
+from compare.sweep import horizon
+from compare.sweep.metrics import ERROR_FLOOR, device_bytes, error_points, gbps, launch_wall, roofline
+from compare.sweep.page import error_scenarios, plot_key, swept, with_role
+from compare.sweep.rows import event_s, knob, label, ok, wall_s
 
 MARKERS = {"float64": "o", "float32": "^"}
 
@@ -228,7 +229,6 @@ def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenari
 
 
 def plot_horizon(records: list[dict[str, Any]], device: str, path: Path, scenario: str) -> bool:
-    from compare.sweep import horizon
     return horizon.plot(records, device, path, scenario, colors(records), _plt())
 
 

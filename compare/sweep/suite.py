@@ -36,6 +36,7 @@ from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
 from compare.sweep.points import sweeps
+from compare.sweep.rows import tag
 from scenarios.base import PRECISIONS, ParamError
 
 KINDS = ("bandwidth", "error", "scaling", "horizon")
@@ -204,7 +205,7 @@ def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None
     count = iter(range(len(specs)))
 
     def on_record(j: int, rec: dict[str, Any], outputs) -> None:
-        if pages.tag(rec, "sweep") == "error" and rec["status"] in ("ok", "mismatch"):
+        if tag(rec, "sweep") == "error" and rec["status"] in ("ok", "mismatch"):
             conv = sweeps(rec["scenario"]).converged_error(rec["params"], outputs, rec, cache,
                                                            reference=references[j])
             if conv is not None:
