@@ -16,6 +16,7 @@ def saxpy(quick: bool) -> list[Case]:
 
 
 def sdf(quick: bool) -> list[Case]:
+    """The default-size image (its per-pixel distribution is plotted)."""
     return [({"width": 512, "height": 512}, "image", "sdf")]
 
 

@@ -79,7 +79,7 @@ def converged_positions(params: dict[str, Any], dt: float, steps: int) -> tuple[
     return x, y
 
 
-def position_error(px, py, rx, ry) -> dict[str, float]:
+def position_error(px: np.ndarray, py: np.ndarray, rx: np.ndarray, ry: np.ndarray) -> dict[str, float]:
     """RMS (``error``) and max over particles of the position distance to (rx, ry)."""
     d = np.hypot(np.asarray(px, np.float64) - rx, np.asarray(py, np.float64) - ry)
     return {"error": float(np.sqrt(np.mean(d * d))), "max": float(d.max())}
@@ -94,7 +94,7 @@ def converged_loss_grad(params: dict[str, Any], dt: float, steps: int) -> tuple[
     return loss_and_gradient(c, p.contact, steps, (p.vx0, p.vy0))
 
 
-def loss_grad_error(loss, grad, rloss: float, rgrad: np.ndarray) -> dict[str, float]:
+def loss_grad_error(loss: np.ndarray, grad: np.ndarray, rloss: float, rgrad: np.ndarray) -> dict[str, float]:
     """max(relative error of the loss, relative 2-norm error of the gradient) (``error``)."""
     el = abs(float(np.asarray(loss).reshape(())) - rloss) / abs(rloss)
     eg = float(np.linalg.norm(np.asarray(grad, np.float64).reshape(2) - rgrad) / np.linalg.norm(rgrad))

@@ -76,7 +76,7 @@ class SaxpySweeps(Sweeps):
     labels = {"name": "SAXPY", "bytes": "3·n·itemsize",
               "error_axis": "max |err|/(|a x|+|y|) vs float64 oracle (0 drawn at {floor:g})"}
 
-    def points(self, kind, device, quick):
+    def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind == "bandwidth":
             return [{"params": {"n": 1 << e}, "knob": {"name": "n", "value": 1 << e},
                      "check_sample": CHECK_SAMPLE, "save_outputs": False}
@@ -86,7 +86,9 @@ class SaxpySweeps(Sweeps):
                      "knob": {"name": "precision", "value": None}}]
         return []
 
-    def converged_error(self, params, outputs, record, cache, reference=None):
+    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
+                        record: dict[str, Any], cache: dict[Any, Any],
+                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
         """The oracle's error is already converged: float64 of the same rounded inputs."""
         return {"error": record["error"]["vs_oracle"], "metric": self.error_metric,
                 "reference": {"note": "float64 oracle of the same rounded inputs"}}
@@ -102,13 +104,15 @@ class SdfSweeps(Sweeps):
                     "f the analytic field in float64")
     labels = {"error_axis": "max |bilinear(image) - field| (log)"}
 
-    def points(self, kind, device, quick):
+    def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind != "error":
             return []
         return [{"params": {"width": r, "height": r}, "knob": {"name": "resolution", "value": r}}
                 for r in SDF_RES.get((device, quick), ())]
 
-    def converged_error(self, params, outputs, record, cache, reference=None):
+    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
+                        record: dict[str, Any], cache: dict[Any, Any],
+                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
         if outputs is None:
             return None
         return {**converged.reconstruction_error(outputs["image"], cache), "metric": self.error_metric,
@@ -130,7 +134,7 @@ class ParticlesSweeps(Sweeps):
     labels = {"error_axis": "RMS position error vs converged ref. [m] (log)",
               "items": "particles", "per_run": "steps", "item_rate": "particle-steps"}
 
-    def points(self, kind, device, quick):
+    def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind == "error":        # reference: the smallest dt / REF_FACTOR
             ref = {"dt": min(PARTICLES_DT[quick]) / REF_FACTOR}
             return [{"params": {"dt": dt, "steps": round(PARTICLES_T / dt)},
@@ -141,7 +145,9 @@ class ParticlesSweeps(Sweeps):
                     for n in PARTICLES_N.get((device, quick), ())]
         return []
 
-    def converged_error(self, params, outputs, record, cache, reference=None):
+    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
+                        record: dict[str, Any], cache: dict[Any, Any],
+                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
         """Positions at PARTICLES_T against a float64 rollout at the sweep point's reference dt
         (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
@@ -179,7 +185,7 @@ class ProjectileSweeps(Sweeps):
               "items": "trajectories", "item_rate": "trajectory-gradients", "rate_work": "gradients",
               "horizon_items": "batch", "horizon_memory": '{"contact": "hard"}'}
 
-    def points(self, kind, device, quick):
+    def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind == "scaling":     # gradient throughput against the batch
             return [{"params": {"batch": b, **BATCH_SWEEP_PARAMS}, "knob": {"name": "batch", "value": b},
                      "save_outputs": False} for b in BATCH_SWEEP[(device, quick)]]
@@ -195,7 +201,9 @@ class ProjectileSweeps(Sweeps):
                             "contact": PROJECTILE_CONTACT},
                  "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in PROJECTILE_DT[quick]]
 
-    def converged_error(self, params, outputs, record, cache, reference=None):
+    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
+                        record: dict[str, Any], cache: dict[Any, Any],
+                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
         """Loss and gradient at v0 against a float64 rollout + adjoint at the sweep point's
         reference dt (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
@@ -206,7 +214,7 @@ class ProjectileSweeps(Sweeps):
         return {**converged.loss_grad_error(outputs["loss"], outputs["grad"], *ref),
                 "metric": self.error_metric, "reference": info}
 
-    def state_bytes_per_step(self, precision):
+    def state_bytes_per_step(self, precision: str) -> float:
         """x, y, vx, vy: what a tape that stores every step must keep at the least."""
         return 4.0 * np.dtype(dtype_of(precision)).itemsize
 
@@ -214,7 +222,7 @@ class ProjectileSweeps(Sweeps):
 class LaunchSweeps(Sweeps):
     measures = "launch"          # the trivial-launch overhead yardstick
 
-    def points(self, kind, device, quick):
+    def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         return [{"params": {"n": 1}}] if kind == "bandwidth" else []
 
 
@@ -226,7 +234,7 @@ COPY_N = {("cpu", False): 1 << 25, ("cpu", True): 1 << 22,
 class CopySweeps(Sweeps):
     measures = "copy"            # the bandwidth yardstick (the roofline)
 
-    def points(self, kind, device, quick):
+    def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind != "bandwidth" or (device, quick) not in COPY_N:
             return []
         return [{"params": {"n": COPY_N[device, quick]}, "check_sample": CHECK_SAMPLE,
