@@ -1,9 +1,8 @@
 """The particles picture: trajectories and each run's final-state error against its bound."""
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
+from typing import Any
 
 import numpy as np
 

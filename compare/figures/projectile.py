@@ -1,9 +1,8 @@
 """The projectile picture: each run's descent against the oracle's, and its distance to it."""
 from __future__ import annotations
 
-from typing import Any
-
 import dataclasses
+from typing import Any
 
 import numpy as np
 
