@@ -17,8 +17,8 @@ lr = 0.01 (also one of the seed's suggested rates, contraction factor 0.595 per 
 0.2 are exercised by the stability suite.
 
 Oracle: for 'none' the closed form (x_N = vx0 N dt, y_N = vy0 N dt + g dt^2 N(N+1)/2); for
-'hard' and 'soft' a float64 rollout with its hand-written discrete adjoint (checked against
-central finite differences in the tests). The oracle also carries first-order running bounds on
+'hard' and 'soft' a float64 rollout with its hand-written discrete adjoint (both in
+scenarios/projectile_adjoint.py; checked against central finite differences in the tests). The oracle also carries first-order running bounds on
 the rounding error of the state (as in the particles scenario), from which the tolerances for
 loss, gradient and history are derived (see ``check``).
 """
