@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import backends
-from compare import cells, sweep, timing, worker
+from compare import cells, sweep, timing
 from compare.store import Store
 from compare.sweep import page as sweep_page
 from compare.sweep import plots as sweep_plots
