@@ -167,9 +167,9 @@ def not_installed(module: str, package: str, extra: str = "", first: str = "") -
     try:
         importlib.import_module(module)
     except Exception as exc:  # ImportError, or a framework failing at import (driver/ABI issues)
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         how = f" (install: {first + ' && ' if first else ''}pip install -e '.[{extra}]')" if extra else ""
-        return f"{package} not importable: {first}{how}"
+        return f"{package} not importable: {why}{how}"
     return None
 
 

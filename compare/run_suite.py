@@ -19,7 +19,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options, report, scaleout
+from compare import engine, environment, hardware, options, report, run_plots, scaleout
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
@@ -173,12 +173,12 @@ def saved_outputs(directory: Path, records: list[dict[str, Any]],
 
 def render(out: Path, env: dict[str, Any], records: list[dict[str, Any]],
            outputs: dict[int, dict[str, np.ndarray]], plots: bool, clean: bool = False) -> None:
-    """Plots (``report.write_plots``: speed, time against error, each scenario's picture; an
+    """Plots (``run_plots.write_plots``: speed, time against error, each scenario's picture; an
     earlier run's removed first when ``clean``) and results.csv/.md in ``out``."""
     if clean:
-        report.remove_pictures(out / "plots")
+        run_plots.remove_pictures(out / "plots")
     if plots:
-        report.write_plots(records, outputs, out / "plots")
+        run_plots.write_plots(records, outputs, out / "plots")
     report.write_tables(out, env, records, images=report.images_in(out / "plots", out))
 
 
@@ -339,7 +339,7 @@ def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any
     if args.page:
         page = Path(args.page)
         if not args.no_plots:
-            report.write_plots(records, outputs, out / "plots")
+            run_plots.write_plots(records, outputs, out / "plots")
         rebuild = " ".join(["python -m compare report", *args.files, "--out", args.out, "--page", args.page]
                            + ([f"--title '{args.title}'"] if args.title else [])
                            + (["--notes", args.notes] if args.notes else [])

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from compare import charts, colors, report, run_suite
+from compare import charts, colors, report, run_plots, run_suite
 
 pytestmark = pytest.mark.cli
 
@@ -130,7 +130,7 @@ def test_run_writes_speed_pictures_and_the_cpu_speedup(tmp_path):
 
 def test_no_numpy_no_speedup_and_no_plots_no_png(tmp_path):
     recs = [r for r in synthetic_records() if r["backend"] != "numpy"]
-    assert not report.plot_speedup_vs_baseline(recs, tmp_path / "up.png", "numpy")
+    assert not run_plots.plot_speedup_vs_baseline(recs, tmp_path / "up.png", "numpy")
     assert not (tmp_path / "up.png").exists()
     run_suite.render(tmp_path / "run", {}, recs, {}, plots=False)
     assert not list((tmp_path / "run").rglob("*.png"))

@@ -169,7 +169,8 @@ def test_a_page_naming_a_directory_is_refused_before_out_exists(work: Path, argv
     ["sweep", "horizon", "--backends", "numpy", "--devices", "cuda", "--quick"],       # every cell skipped
     ["saxpy", "--backends", "numpy", "--devices", "cuda", "--quick"],
     ["run", "saxpy", "sdf", "--backends", "numpy", "--devices", "cuda", "--quick", "--resume"],
-], ids=["sweep-empty", "sweep-skipped", "run-skipped", "run-resume-skipped"])
+    ["stress", "--backends", "numpy", "--devices", "cuda", "--quick", "--only", "ulps"],
+], ids=["sweep-empty", "sweep-skipped", "run-skipped", "run-resume-skipped", "stress-skipped"])
 def test_nothing_to_run_is_exit_2_and_writes_nothing(work: Path, argv: list) -> None:
     refused([*argv, "--out", "out"], work, "nothing to run")
     assert not (work / "out").exists()

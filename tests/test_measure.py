@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import backends
-from compare import cells, timing, worker
+from compare import cells, timing
 from compare.store import Store
 from compare.sweep import converged
 from compare.sweep import metrics as sweep_metrics

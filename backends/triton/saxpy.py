@@ -56,8 +56,8 @@ def elementwise(kernel: Any, n: int, *args: Any) -> tuple[Any, Any]:
     opts = launch_options()
     if interpreting():
         block = CONFIGS[0][0]
-        grid = (triton.cdiv(n, block),)
-        return (lambda: fn[grid](*args, n, BLOCK_SIZE=block)), fn
+        blocks = (triton.cdiv(n, block),)
+        return (lambda: fn[blocks](*args, n, BLOCK_SIZE=block)), fn
 
     def grid(meta: dict) -> tuple[int]:
         return (triton.cdiv(n, meta["BLOCK_SIZE"]),)

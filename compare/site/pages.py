@@ -15,8 +15,7 @@ from compare.site import data, fmt, matrix, questions
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.matrix import Row
-from compare.site.render import Figure, H, Items, P, Raw, Table, page_html, page_md
-from compare.store import atomic_write
+from compare.site.render import Figure, H, Items, P, Raw, Table
 
 REPO_DOCS = Path(__file__).resolve().parents[2] / "docs"
 

@@ -77,16 +77,22 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             return page.merge(args.merge, out, registry, plots_=not args.no_plots)
     options.check_output(args.out)
     Store.open(args.out, "stress")                 # a bad stress.json refused (read only)
+    probes = engine.availability(chosen["backends"])
+    usable = [(b, d) for b in chosen["backends"] for d in chosen["devices"] if probes[b]["available"].get(d) is None]
+    if not usable:      # every experiment would record only skips: refused before anything is written
+        b, d = chosen["backends"][0], chosen["devices"][0]
+        raise UsageError(f"nothing to run: no chosen backend can use a chosen device "
+                         f"(first: {b} on {d}: {probes[b]['available'].get(d)})")
     out, lock = options.claim_output(args.out, RESERVE_BYTES)
     with lock:
-        return run_claimed(args, argv, registry, chosen, only, Store.open(out, "stress"))
+        return run_claimed(args, argv, registry, chosen, only, Store.open(out, "stress"), probes)
 
 
 def run_claimed(args: argparse.Namespace, argv: list[str], registry: dict[str, Experiment],
-                chosen: dict[str, list[str]], only: list[str], store: Store) -> int:
+                chosen: dict[str, list[str]], only: list[str], store: Store,
+                probes: dict[str, dict[str, Any]]) -> int:
     """The suite, once its output directory is checked and locked by this driver."""
-    ctx = Ctx(chosen["backends"], chosen["devices"], args.quick, args.jobs, args.timeout,
-              engine.availability(chosen["backends"]), store)
+    ctx = Ctx(chosen["backends"], chosen["devices"], args.quick, args.jobs, args.timeout, probes, store)
     env = environment.collect(argv)
     rows: list[dict[str, Any]] = []
     series: dict[str, Any] = {}
