@@ -4,9 +4,9 @@ A cell is noisy when any of these holds (the thresholds are the page's; docs/mea
 
 - **spread**: a regime's quartile spread (IQR) above ``SPREAD`` of its median;
 - **few repeats**: a regime timed fewer than ``MIN_REPEATS`` times;
-- **host busy**: while the cell's clocks ran, other processes used more CPU than the cores the cell
-  left free (at least ``IDLE_FLOOR`` cores: what an idle host's daemons use), read from /proc/stat
-  against the worker's own CPU time;
+- **host busy**: while the cell's clocks ran, other processes used more than ``IDLE_FLOOR`` cores
+  (what an idle host's daemons use) and, with the cell's own use, all the cores but
+  ``IDLE_FLOOR``: read from /proc/stat against the worker's own CPU time;
 - **throughput slower than latency**: the pipelined per-call time above ``SLOW_THROUGHPUT`` times
   the synchronised call's wall time. Queuing calls can only hide host work, so this means the
   host was taken away between calls.
@@ -77,13 +77,15 @@ class HostMeter:
 
 
 def host_reason(host: dict[str, Any]) -> str | None:
+    """Busy: other processes used more than an idle host's daemons and, with the cell's own use,
+    (nearly) every core. The cell's own use is what it got, not what it wanted: a starved cell
+    uses less, so "others above the cores the cell left free" alone would miss it."""
     others, own, cores = host.get("others_cores"), host.get("own_cores"), host.get("cores")
     if others is None or own is None or not cores:
         return None
-    free = max(IDLE_FLOOR, cores - own)
-    if others > free:
+    if others > IDLE_FLOOR and others + own > cores - IDLE_FLOOR:
         return (f"host busy: other processes used {others:.2f} cores while the cell's clocks ran "
-                f"({free:.2f} left free of {cores})")
+                f"(the cell {own:.2f}, of {cores})")
     return None
 
 
