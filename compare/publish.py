@@ -87,11 +87,6 @@ GRACE_S, HEARTBEAT_S = 30.0, 60.0   # a driver saves and exits within seconds of
 HOST_PROFILE_TOP, CHECK_SAMPLE, STAGED = 12, 4096, "stress-parts"
 SWEEPS = ("bandwidth", "scaling", "error", "horizon")
 GROUPS = ("large", "stress")
-# (scenario, log2 n) per device; --quick shrinks them (tests, a look at the pipeline)
-LARGE = {"cuda": (("saxpy", 26), ("saxpy", 28), ("particles", 24)),
-         "cpu": (("saxpy", 24), ("saxpy", 26), ("particles", 20))}
-LARGE_QUICK = (("saxpy", 16), ("saxpy", 18), ("particles", 12))
-LARGE_VARIANTS = {"saxpy": ("default", "graph", "vector", "tile"), "particles": ("default", "graph")}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,10 +124,12 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
                 have: dict[str, float]) -> tuple[list[Part], list[str]]:
     """The large parts, and a line per size left out because it does not fit."""
     from compare.run_suite import WORKER_BASELINE_BYTES
+    from compare.sweep.points import SWEEPS
     parts, left = [], []
     for dev in devices:
-        for name, exp in (LARGE_QUICK if quick else LARGE.get(dev, ())):
-            sc = scenarios.get(name)
+        # each scenario's sizes (compare/sweep/points.py; --quick shrinks them), in registry order
+        for name, exp in ((n, e) for n, sw in SWEEPS.items() for e in (sw.large_quick if quick else sw.large.get(dev, ()))):
+            sc, sw = scenarios.get(name), SWEEPS[name]
             p = sc.params({"n": 2**exp}, quick=quick)
             host = WORKER_BASELINE_BYTES[dev] + sc.footprint(p, "float32", dev)
             arrays = sc.input_bytes(p, "float32") + sc.output_bytes(p, "float32")
@@ -140,12 +137,12 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
                 left.append(f"large-{dev}-{name}{exp}: left out, needs {options.gib(host)} of host memory"
                             + (f" and {options.gib(arrays)} on the GPU" if dev == "cuda" else ""))
                 continue
-            variants = [v for v in LARGE_VARIANTS[name] if any(
+            variants = [v for v in sw.large_variants if any(
                 v in backends.get(b).variants_for(name) and not backends.get(b).variant_unavailable(v, dev)
                 for b in chosen)] or ["default"]
             argv = ["run", name, "--devices", dev, *common, "--precision", "float32", "--variants",
                     ",".join(variants), "--set", f"n={2**exp}"] + (["--check-sample", str(CHECK_SAMPLE)]
-                                                                   if name == "particles" else [])
+                                                                   if sw.large_sampled else [])
             parts.append(Part(f"large-{dev}-{name}{exp}", tuple(argv)))
     return parts, left
 

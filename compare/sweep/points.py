@@ -37,6 +37,12 @@ class Sweeps:
     measures: ClassVar[str | None] = None
     error_metric: ClassVar[str] = ""
     labels: ClassVar[dict[str, str]] = {}
+    # ``compare publish``'s kernel-dominated sizes: log2 n per device (and for --quick), the
+    # variants worth timing there, and whether the oracle checks a sample (per-item scenarios)
+    large: ClassVar[dict[str, tuple[int, ...]]] = {}
+    large_quick: ClassVar[tuple[int, ...]] = ()
+    large_variants: ClassVar[tuple[str, ...]] = ("default",)
+    large_sampled: ClassVar[bool] = False
 
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         """The points of sweep ``kind`` ('bandwidth', 'error', 'scaling', 'horizon') on ``device``.
@@ -72,6 +78,9 @@ SAXPY_EXP = {("cpu", False): range(10, 25, 2), ("cpu", True): range(10, 21, 2),
 
 class SaxpySweeps(Sweeps):
     measures = "bandwidth"          # the size sweep (achieved bandwidth against size)
+    large = {"cuda": (26, 28), "cpu": (24, 26)}
+    large_quick = (16, 18)
+    large_variants = ("default", "graph", "vector", "tile")
     error_metric = "scenario metric against the float64 oracle: max |err|/(|a x|+|y|)"
     labels = {"name": "SAXPY", "bytes": "3·n·itemsize",
               "error_axis": "max |err|/(|a x|+|y|) vs float64 oracle (0 drawn at {floor:g})"}
@@ -131,6 +140,10 @@ PARTICLES_CHECKED = 4096       # particles checked against the oracle in a large
 
 class ParticlesSweeps(Sweeps):
     error_metric = "RMS over particles of |position - reference| [m] at the same simulated time"
+    large = {"cuda": (24,), "cpu": (20,)}
+    large_quick = (12,)
+    large_variants = ("default", "graph")
+    large_sampled = True
     labels = {"error_axis": "RMS position error vs converged ref. [m] (log)",
               "items": "particles", "per_run": "steps", "item_rate": "particle-steps"}
 
