@@ -1,26 +1,38 @@
 #!/usr/bin/env bash
-# How this store's `compare publish` parts ran on a lent H100 (issue 28): the machine allows 10
-# minutes a call and stays warm about 30 s after one, so the publish runs in the background and
-# each call waits for it up to WAIT seconds (setsid: a call's end kills its process group), then copies what it has so far to $OUT:
+# How this store's `compare publish` parts ran on a lent H100 (issues 28, 32): the machine allows
+# 10 minutes a call and stays warm about 30 s after one, so the publish runs in the background and
+# each call waits for it up to WAIT seconds (setsid: a call's end kills its process group), then
+# copies what it has so far to $OUT:
 #
-#   device call 1..7: bash .gpu/pK/install.sh                (Warp, Taichi, quadrants wheels)
-#   device call 7:    ... && bash docs/results/h100/publish.sh start
-#   next calls:       bash docs/results/h100/publish.sh wait  (until publish.log says it ended)
+#   device calls 1..N: bash .gpu/pK/install.sh   (wheels the GPU image lacks: ../shared/gpu/stage-wheels)
+#   device call N:     ... && bash docs/results/h100/publish.sh start "BACKENDS:PARTS" ["BACKENDS:PARTS" ...]
+#   (a later machine: unpack the last publish.tgz into .pubstate/ and carry it in that call)
+#   next calls:        bash docs/results/h100/publish.sh wait     (until it says "publish ended")
 #
-# then, here: merge $OUT's results.json into docs/results/h100 (python -m compare report is not
-# needed: a later record of a cell replaces the earlier one) and copy publish.json beside it.
+# Each "BACKENDS:PARTS" argument is one `compare publish` run into the same --out, in order; with no
+# argument: all backends, parts all and large. Then, here: merge $OUT's results.json / sweep.json /
+# stress.json into docs/results/h100 (a later record of a cell replaces the earlier one) and keep
+# publish.json beside them.
 set -u
 W=/root/publish
 WAIT=${WAIT:-540}
 export PYTHONPATH=/tmp/site:$PWD
 if [ "${1:-wait}" = start ]; then
+  shift
   mkdir -p "$W"
+  # a carried .pubstate/ (an earlier machine's --out, unpacked) lets --resume skip what it finished
+  [ -d .pubstate ] && cp -r .pubstate/. "$W"/ && rm -f "$W"/.*.lock
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
-  setsid nohup python -m compare publish --out "$W" --devices cuda --part all,large > "$W/publish.log" 2>&1 &
-  sleep 1; pgrep -f "compare publish --out $W" | head -1 > "$W/pid"
+  [ "$#" -gt 0 ] || set -- "all:all,large"
+  script=""
+  for run in "$@"; do
+    script+="python -m compare publish --out $W --devices cuda --backends ${run%%:*} --part ${run#*:}; "
+  done
+  setsid nohup bash -c "$script echo ALL-DONE" > "$W/publish.log" 2>&1 &
+  echo $! > "$W/pid"
 fi
 end=$((SECONDS + WAIT))
 while kill -0 "$(cat "$W/pid")" 2>/dev/null && [ $SECONDS -lt $end ]; do sleep 5; done
 kill -0 "$(cat "$W/pid")" 2>/dev/null && echo "publish still running" || echo "publish ended"
-for f in results.json publish.json publish.log gpu.txt; do [ -f "$W/$f" ] && cp "$W/$f" "$OUT/"; done
+cd "$W" && tar -czf "$OUT/publish.tgz" --exclude='*.npz' --exclude='*.png' --exclude='*.svg' . 2>/dev/null
 tail -5 "$W/publish.log"
