@@ -52,7 +52,7 @@ class CellSpec:
     timer: str = "auto"                 # 'auto': device events where the backend has them; 'wall'
     cache: str = "cold"                 # 'cold': empty kernel caches for the first call; 'warm'
     throughput: bool = True             # also time the throughput (and graph) regimes
-    check_sample: int = 0               # check k evenly spaced items of large per-item cells
+    check_sample: int = 0               # check k sampled items of large per-item cells (sample_rows)
     host_profile: int = 0               # >0: cProfile the throughput regime, keep this many functions
     save_outputs: bool = True           # hand the outputs back (cross-backend comparison)
     save_inputs: bool = False           # also the inputs (--save-arrays)

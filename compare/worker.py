@@ -195,7 +195,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     if violation:
         raise ContractError(violation)
     sampled = sc.sample(params, inputs, outputs, spec.check_sample)
-    c_in, c_out = (sampled[0], sampled[1]) if sampled else (inputs, outputs)
+    c_in, c_out = (sampled.inputs, sampled.outputs) if sampled else (inputs, outputs)
     reference = sc.oracle(params, c_in)
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
@@ -211,8 +211,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         "time": times,
         "error": {"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
                   **{k: v for k, v in check.details.items()},
-                  "checked_items": f"{sampled[2]} of {sampled[3]}{' ' + sampled[4] if sampled[4] else ''} "
-                                   "(evenly spaced)" if sampled else "all"},
+                  "checked_items": sampled.text() if sampled else "all"},
         "work": work,
         # useful work per second in the throughput regime (the latency regime where not measured)
         "throughput": {f"{k}_per_s": v / per_call for k, v in work.items()

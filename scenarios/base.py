@@ -58,6 +58,57 @@ def require(cond: bool, message: str) -> None:
         raise ParamError(message)
 
 
+# ---- which items of a large cell the check looks at -------------------------------------------
+SAMPLE_SEED = 0     # seeds the sample of a scenario without a ``seed`` parameter
+
+
+def sample_seed(params: Any) -> int:
+    """The sample's seed: the scenario's own ``seed`` where it has one, else SAMPLE_SEED, so
+    the same cell always checks the same rows."""
+    return int(getattr(params, "seed", SAMPLE_SEED))
+
+
+def sample_rows(n: int, k: int, seed: int, extremes_from: typing.Iterable[np.ndarray] = ()) -> np.ndarray:
+    """Sorted unique int64 rows of ``n`` for a sampled check: row 0, row n-1, the rows holding
+    the minimum and the maximum of every column (along axis 0) of each array in
+    ``extremes_from``, then rows drawn by default_rng(seed) without replacement from the rest
+    until there are k in all (more only where those forced rows alone exceed k).
+
+    Why not evenly spaced: a stride can line up with a port's own pattern (a block size, a
+    wrap-around) and miss every row it gets wrong; a seeded draw cannot, and stays repeatable.
+    The forced rows are where range and boundary errors show (first, last, extreme inputs)."""
+    forced = [0, n - 1]
+    for a in extremes_from:
+        a = np.asarray(a)
+        if a.ndim and a.shape[0] == n and a.size:
+            cols = a.reshape(n, -1)
+            forced += np.argmin(cols, axis=0).tolist() + np.argmax(cols, axis=0).tolist()
+    f = np.unique(np.asarray(forced, np.int64))
+    free = n - f.size
+    j = np.random.default_rng(seed).choice(free, max(0, min(k - f.size, free)), replace=False)
+    # the j-th row not forced is j plus the forced rows at or before it (f - arange is sorted)
+    j = j + np.searchsorted(f - np.arange(f.size), j, side="right")
+    return np.union1d(f, j.astype(np.int64))
+
+
+class Sample(typing.NamedTuple):
+    """What a sampled check looks at (``Scenario.sample``): the sampled inputs and outputs, the
+    items checked, the items in all, what an item is ('' where unnamed) and the draw's seed."""
+
+    inputs: dict[str, np.ndarray]
+    outputs: dict[str, np.ndarray]
+    checked: int
+    total: int
+    item: str
+    seed: int
+
+    def text(self) -> str:
+        """The record's ``error.checked_items``."""
+        what = f" {self.item}" if self.item else ""
+        return (f"{self.checked} of {self.total}{what} "
+                f"(seeded random: row 0, last, extremes + random, seed {self.seed})")
+
+
 def _coerce(name: str, value: Any, typ: Any) -> Any:
     """Turn a CLI string (or a Python value) into the field's type, with a one-line error."""
     origin = typing.get_origin(typ)
@@ -109,6 +160,7 @@ class Scenario:
     outputs: ClassVar[tuple[str, ...]]     # names of the arrays a backend returns
     has_gradient: ClassVar[bool] = False
     in_all: ClassVar[bool] = True          # False for measurement-only scenarios (launch, copy)
+    item: ClassVar[str] = ""               # what one item is, for a sampled check's record
 
     # ---- parameters -------------------------------------------------------------------------
     def params(self, overrides: dict[str, Any] | None = None, quick: bool = False):
@@ -196,25 +248,25 @@ class Scenario:
         return self.output_bytes(params, precision)
 
     def sample(self, params, inputs: dict[str, np.ndarray], outputs: dict[str, np.ndarray], k: int
-               ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int, int, str] | None:
-        """The part of a large cell the check looks at: (inputs, outputs, items checked, items in
-        all, what an item is), or None to check everything. ``k``: the cell's ``check_sample``
-        (0: the scenario's default). The oracle of the sampled inputs must be the sample of the
-        oracle.
+               ) -> Sample | None:
+        """The part of a large cell the check looks at, or None to check everything. ``k``: the
+        cell's ``check_sample`` (0: the scenario's default). The oracle of the sampled inputs
+        must be the sample of the oracle.
 
         Default, for per-item scenarios (saxpy, copy, launch, particles without trajectories):
-        every input and output array is indexed by item along axis 0 (scalars pass through); k
-        evenly spaced items, first and last included, when k is set and below ``params.n``.
-        Anything else is checked in full."""
+        every input and output array is indexed by item along axis 0 (scalars pass through); the
+        rows of ``sample_rows`` (extremes of every input array) when k is set and below
+        ``params.n``. Anything else is checked in full."""
         n = getattr(params, "n", None)
         if not k or n is None or n <= k:
             return None
         arrays = list(inputs.values()) + list(outputs.values())
         if any(np.ndim(a) and np.shape(a)[0] != n for a in arrays):
             return None
-        idx = np.unique(np.linspace(0, n - 1, k).round().astype(np.int64))
+        seed = sample_seed(params)
+        idx = sample_rows(n, k, seed, inputs.values())
         pick = lambda d: {key: (np.asarray(a)[idx] if np.ndim(a) else a) for key, a in d.items()}  # noqa: E731
-        return pick(inputs), pick(outputs), int(idx.size), n, ""
+        return Sample(pick(inputs), pick(outputs), int(idx.size), n, self.item, seed)
 
     def size_text(self, params) -> str:
         return ", ".join(f"{k}={getattr(params, k)}" for k in ("n", "width", "height", "steps")

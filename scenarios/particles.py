@@ -154,6 +154,7 @@ class Particles(Scenario):
     Params = ParticlesParams
     quick = {"n": 1000, "steps": 300}     # n not a multiple of any block size
     outputs = ("x", "y", "vx", "vy")
+    item = "particles"
 
     def inputs(self, params: ParticlesParams, precision: str) -> dict[str, np.ndarray]:
         dt = dtype_of(precision)

@@ -30,7 +30,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require
+from .base import (Check, Sample, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require, sample_rows,
+                   sample_seed)
 from .projectile_adjoint import closed_form, evaluate, finite_difference_gradient, hessian, spectral_norm_sym
 
 CONSTANTS = ("dt", "gravity", "target_x", "target_y", "bounce", "damping", "stiffness",
@@ -133,17 +134,19 @@ class Projectile(Scenario):
         return f"steps={params.steps}" + (f", batch={params.batch}" if params.batch > 1 else "")
 
     def sample(self, params: ProjectileParams, inputs: dict[str, np.ndarray],
-               outputs: dict[str, np.ndarray], k: int):
-        """k evenly spaced trajectories of a batch (BATCH_CHECKED when k is 0): the oracle's
-        cost grows with steps (steps^2 for soft contact) per trajectory and evaluation."""
+               outputs: dict[str, np.ndarray], k: int) -> Sample | None:
+        """k trajectories of a batch (BATCH_CHECKED when k is 0), the rows of ``sample_rows``
+        (extremes of v0 and target): the oracle's cost grows with steps (steps^2 for soft
+        contact) per trajectory and evaluation."""
         k = k or BATCH_CHECKED
         if params.batch <= k:
             return None
-        idx = np.unique(np.linspace(0, params.batch - 1, k).round().astype(np.int64))
+        seed = sample_seed(params)
+        idx = sample_rows(params.batch, k, seed, (inputs["v0"], inputs["target"]))
         ins = {n: (a[idx] if n in ("v0", "target") else a) for n, a in inputs.items()}
         outs = {n: (np.asarray(a)[:, idx] if n == "loss_history" else np.asarray(a)[idx])
                 for n, a in outputs.items()}
-        return ins, outs, int(idx.size), params.batch, "trajectories"
+        return Sample(ins, outs, int(idx.size), params.batch, "trajectories", seed)
 
     @staticmethod
     def constants(inputs: dict[str, np.ndarray]) -> dict[str, Any]:

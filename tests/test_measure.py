@@ -44,31 +44,18 @@ def test_launch_and_copy_cells(backend, scenario, params):
     assert out["out"].dtype == np.float32
 
 
-def test_check_sample_checks_evenly_spaced_items():
+def test_check_sample_checks_a_seeded_sample():
+    """The worker checks the sample of scenarios.base.sample_rows (tests/test_sample.py)."""
     spec = {"scenario": "saxpy", "backend": "warp", "device": "cpu", "precision": "float32",
             "params": {"n": 50_001}, "repeat": 1, "min_time": 0.0, "check_sample": 1000,
             "save_outputs": False, "cache": "warm"}
     require_device("warp", "cpu")
     rec, out = cells.run(spec, timeout=600)
     assert rec["status"] == "ok", rec.get("reason")
-    assert rec["error"]["checked_items"] == "1000 of 50001 (evenly spaced)"
+    assert rec["error"]["checked_items"] == ("1000 of 50001 (seeded random: row 0, last, "
+                                             "extremes + random, seed 0)")
     assert rec["time"]["cache"].startswith("warm")
     assert out is None
-
-
-def test_default_sample_only_for_per_item_scenarios():
-    import scenarios
-    sax = scenarios.get("saxpy")
-    p = sax.params({"n": 10})
-    inp = sax.inputs(p, "float32")
-    s_in, s_out, k, n, _ = sax.sample(p, inp, {"out": inp["x"]}, 4)
-    assert (k, n) == (4, 10) and s_in["x"].tolist() == inp["x"][[0, 3, 6, 9]].tolist()
-    assert np.ndim(s_in["a"]) == 0
-    assert sax.sample(p, inp, {"out": inp["x"]}, 10) is None      # n <= k: all
-    part = scenarios.get("particles")
-    p = part.params({"n": 10, "steps": 3, "record_every": 1})
-    inp = part.inputs(p, "float32")
-    assert part.sample(p, inp, {"traj_x": np.zeros((4, 10))}, 4) is None
 
 
 # ---- timing --------------------------------------------------------------------------------
