@@ -76,7 +76,8 @@ def sample_rows(n: int, k: int, seed: int, extremes_from: typing.Iterable[np.nda
 
     Why not evenly spaced: a stride can line up with a port's own pattern (a block size, a
     wrap-around) and miss every row it gets wrong; a seeded draw cannot, and stays repeatable.
-    The forced rows are where range and boundary errors show (first, last, extreme inputs)."""
+    The forced rows are where range and boundary errors show (first, last, extreme inputs)
+    and where a broken row shows (extreme outputs: np.argmin/argmax return a NaN's row)."""
     forced = [0, n - 1]
     for a in extremes_from:
         a = np.asarray(a)
@@ -93,7 +94,8 @@ def sample_rows(n: int, k: int, seed: int, extremes_from: typing.Iterable[np.nda
 
 class Sample(typing.NamedTuple):
     """What a sampled check looks at (``Scenario.sample``): the sampled inputs and outputs, the
-    items checked, the items in all, what an item is ('' where unnamed) and the draw's seed."""
+    items checked, the items in all, what an item is ('' where unnamed), the draw's seed and the
+    rows (of ``sample_rows``) the check looks at."""
 
     inputs: dict[str, np.ndarray]
     outputs: dict[str, np.ndarray]
@@ -101,6 +103,7 @@ class Sample(typing.NamedTuple):
     total: int
     item: str
     seed: int
+    rows: np.ndarray
 
     def text(self) -> str:
         """The record's ``error.checked_items``."""
@@ -255,7 +258,8 @@ class Scenario:
 
         Default, for per-item scenarios (saxpy, copy, launch, particles without trajectories):
         every input and output array is indexed by item along axis 0 (scalars pass through); the
-        rows of ``sample_rows`` (extremes of every input array) when k is set and below
+        rows of ``sample_rows`` (extremes of every input and output array: a NaN or a wild
+        value a port writes into one row is always looked at) when k is set and below
         ``params.n``. Anything else is checked in full."""
         n = getattr(params, "n", None)
         if not k or n is None or n <= k:
@@ -264,9 +268,9 @@ class Scenario:
         if any(np.ndim(a) and np.shape(a)[0] != n for a in arrays):
             return None
         seed = sample_seed(params)
-        idx = sample_rows(n, k, seed, inputs.values())
+        idx = sample_rows(n, k, seed, arrays)
         pick = lambda d: {key: (np.asarray(a)[idx] if np.ndim(a) else a) for key, a in d.items()}  # noqa: E731
-        return Sample(pick(inputs), pick(outputs), int(idx.size), n, self.item, seed)
+        return Sample(pick(inputs), pick(outputs), int(idx.size), n, self.item, seed, idx)
 
     def size_text(self, params) -> str:
         return ", ".join(f"{k}={getattr(params, k)}" for k in ("n", "width", "height", "steps")

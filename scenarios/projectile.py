@@ -136,17 +136,20 @@ class Projectile(Scenario):
     def sample(self, params: ProjectileParams, inputs: dict[str, np.ndarray],
                outputs: dict[str, np.ndarray], k: int) -> Sample | None:
         """k trajectories of a batch (BATCH_CHECKED when k is 0), the rows of ``sample_rows``
-        (extremes of v0 and target): the oracle's cost grows with steps (steps^2 for soft
+        (extremes of v0, target and of every output, so a NaN or a wild value a port writes into
+        one trajectory is always looked at): the oracle's cost grows with steps (steps^2 for soft
         contact) per trajectory and evaluation."""
         k = k or BATCH_CHECKED
         if params.batch <= k:
             return None
         seed = sample_seed(params)
-        idx = sample_rows(params.batch, k, seed, (inputs["v0"], inputs["target"]))
+        per_row = [inputs["v0"], inputs["target"]] + [np.asarray(a).T if n == "loss_history" else a
+                                                      for n, a in outputs.items()]
+        idx = sample_rows(params.batch, k, seed, per_row)
         ins = {n: (a[idx] if n in ("v0", "target") else a) for n, a in inputs.items()}
         outs = {n: (np.asarray(a)[:, idx] if n == "loss_history" else np.asarray(a)[idx])
                 for n, a in outputs.items()}
-        return Sample(ins, outs, int(idx.size), params.batch, "trajectories", seed)
+        return Sample(ins, outs, int(idx.size), params.batch, "trajectories", seed, idx)
 
     @staticmethod
     def constants(inputs: dict[str, np.ndarray]) -> dict[str, Any]:

@@ -101,7 +101,7 @@ def test_particles_sample_oracle_is_the_oracle_sample_and_catches_a_planted_erro
     port = {k: full[k].copy() for k in sc.outputs}       # a port that agrees with the oracle
     s, chk = checked(sc, p, inp, port, 64)
     assert chk.ok and s.checked == 64
-    rows = sample_rows(p.n, 64, p.seed, (inp["x0"], inp["y0"], inp["vx0"], inp["vy0"]))
+    rows = s.rows
     assert forced_rows(p.n, inp["x0"], inp["y0"], inp["vx0"], inp["vy0"]) <= set(rows.tolist())
     sub = sc.oracle(p, s.inputs)
     for k in ("x", "y", "vx", "vy", "error_bound", "ill_conditioned"):
@@ -117,6 +117,11 @@ def test_particles_sample_oracle_is_the_oracle_sample_and_catches_a_planted_erro
     bad = {k: v.copy() for k, v in port.items()}
     bad["x"][outside] += 1e-3
     assert checked(sc, p, inp, bad, 64)[1].ok
+    # a NaN a port writes into any row is always looked at: it is an extreme of its output
+    bad = {k: v.copy() for k, v in port.items()}
+    bad["vy"][outside] = np.nan
+    s_nan, chk_nan = checked(sc, p, inp, bad, 64)
+    assert outside in s_nan.rows.tolist() and not chk_nan.ok
 
 
 def test_projectile_batch_sample_oracle_is_the_oracle_sample_and_catches_a_planted_error():
@@ -127,7 +132,7 @@ def test_projectile_batch_sample_oracle_is_the_oracle_sample_and_catches_a_plant
     port = {k: np.array(full[k]) for k in sc.outputs}
     s, chk = checked(sc, p, inp, port, 16)
     assert chk.ok and (s.checked, s.total, s.item, s.seed) == (16, 150, "trajectories", 4)
-    rows = sample_rows(p.batch, 16, 4, (inp["v0"], inp["target"]))
+    rows = s.rows
     forced = forced_rows(p.batch, inp["v0"], inp["target"])
     assert forced <= set(rows.tolist()) and len(forced) > 2
     assert np.array_equal(s.inputs["v0"], inp["v0"][rows])
