@@ -346,3 +346,23 @@ def test_targets_leave_out_variants_the_framework_lacks_on_a_device_and_say_why(
     assert [(r["backend"], r["device"], r["setting"], r["verdict"]) for r in skips] == [(b, d, f"variant={v}", "skipped")]
     assert skips[0]["detail"] == backends.get(b).variant_unavailable(v, d)
     assert ctx.skip_rows("ulps") == []
+
+
+def test_precisions_a_framework_lacks_on_a_device_are_skipped_rows_not_errors():
+    """A precision a backend declares unavailable on a device (MLX: no float64 on a GPU) is never
+    asked for there: the experiments take ``ctx.precisions`` and skip_rows says why, once per
+    backend, device and precision."""
+    import backends
+    limited = [(b, p, d) for b, be in backends.BACKENDS.items() for p in ("float32", "float64")
+               for d in ("cpu", "cuda") if be.precision_unavailable(p, d)]
+    if not limited:
+        pytest.skip("no backend declares a precision unavailable on a device")
+    b, p, d = limited[0]
+    probes = {b: {"available": {"cpu": None, "cuda": None}}}
+    ctx = context.Ctx([b], [d], False, 1, 1.0, probes)
+    both = ("float32", "float64")
+    assert p not in ctx.precisions(b, d, both) and len(ctx.precisions(b, d, both)) == 1
+    skips = ctx.skip_rows("particles-dt", precisions=both)
+    assert [(r["backend"], r["device"], r["precision"], r["verdict"]) for r in skips] == [(b, d, p, "skipped")]
+    assert skips[0]["detail"] == backends.get(b).precision_unavailable(p, d)
+    assert ctx.skip_rows("particles-dt") == []

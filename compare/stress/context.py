@@ -58,11 +58,24 @@ class Ctx:
                         if not be.variant_unavailable(v, d)]
         return out
 
-    def skip_rows(self, experiment: str, variants: bool = False) -> list[dict[str, Any]]:
+    @staticmethod
+    def precisions(backend: str, device: str, wanted: tuple[str, ...]) -> tuple[str, ...]:
+        """The precisions of ``wanted`` that the framework has on that device (MLX: no float64
+        on a GPU); skip_rows(..., precisions=wanted) says why the others are missing."""
+        be = backends.get(backend)
+        return tuple(p for p in wanted if not be.precision_unavailable(p, device))
+
+    def skip_rows(self, experiment: str, variants: bool = False,
+                  precisions: tuple[str, ...] = ()) -> list[dict[str, Any]]:
         """A ``skipped`` row, with its reason, per backend and device that cannot run (and, with
-        ``variants``, per variant that the framework lacks on that device)."""
+        ``variants``, per variant that the framework lacks on that device; with ``precisions``,
+        per precision of them that it lacks there)."""
         rows = [self.row(experiment, b, d, "-", "-", "-", None, "skipped", self.why_not(b, d))
                 for d in self.devices for b in self.backends if self.why_not(b, d)]
+        rows += [self.row(experiment, b, d, p, "-", "-", None, "skipped",
+                          backends.get(b).precision_unavailable(p, d))
+                 for d in self.devices for b in self.backends if not self.why_not(b, d)
+                 for p in precisions if backends.get(b).precision_unavailable(p, d)]
         if variants:
             rows += [self.row(experiment, b, d, "-", f"variant={v}", "-", None, "skipped",
                               backends.get(b).variant_unavailable(v, d))

@@ -100,14 +100,14 @@ def exp_races(ctx: StressContext) -> Result:
     specs = []
     for b, d, _ in ctx.targets():
         for scn, p in cases:
-            for prec in precisions:
+            for prec in ctx.precisions(b, d, precisions):
                 prm = {k: getattr(p, k) for k in scenarios.get(scn).quick}
                 specs += [ctx.spec(scn, b, d, prec, prm)] * 2
     control = controls(ctx)
     wrong = {(s["backend"], s["scenario"], s["variant"]): why for s, why in control}
     specs += [s for s, _ in control for _ in range(2)]
     results = ctx.run_cells(specs, fresh_process=True)      # run to run: two separate processes
-    rows, first_run = ctx.skip_rows(name), {}
+    rows, first_run = ctx.skip_rows(name, precisions=precisions), {}
     for i in range(0, len(specs), 2):
         s = specs[i]
         (ra, oa), (rb, ob) = results[i], results[i + 1]

@@ -80,8 +80,8 @@ def exp_particles_dt(ctx: StressContext) -> Result:
         p, i32 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, "float32")
         ref32[dt] = SC.oracle(p, i32)
     specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": steps[dt], "dt": dt})
-             for b, d, _ in ctx.targets() for prec in precisions for dt in dts]
-    rows, lines = ctx.skip_rows(name), {}
+             for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions) for dt in dts]
+    rows, lines = ctx.skip_rows(name, precisions=precisions), {}
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         dt = s["params"]["dt"]
         setting = f"dt={dt:g}, steps={steps[dt]}, T={T:g} s"
@@ -118,8 +118,9 @@ def exp_particles_long(ctx: StressContext) -> Result:
     bounces = (0.82, 1.05) if ctx.quick else (0.82, 0.99, 1.05)
     precisions = ("float32",) if ctx.quick else ("float32", "float64")
     specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": st, "bounce": bo})
-             for b, d, _ in ctx.targets() for prec in precisions for bo in bounces for st in lengths]
-    rows, series = ctx.skip_rows(name), {}
+             for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions)
+             for bo in bounces for st in lengths]
+    rows, series = ctx.skip_rows(name, precisions=precisions), {}
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         prm = s["params"]
         setting = f"bounce={prm['bounce']}, steps={prm['steps']}"
@@ -191,8 +192,9 @@ def exp_particles_inf(ctx: StressContext) -> Result:
         except RuntimeError as exc:
             return item, None, calls, str(exc)
 
-    items = [(b, d, v, prec) for b, d, v in ctx.targets(variants=True) for prec in ("float32", "float64")]
-    rows = ctx.skip_rows(name, variants=True)
+    both = ("float32", "float64")
+    items = [(b, d, v, prec) for b, d, v in ctx.targets(variants=True) for prec in ctx.precisions(b, d, both)]
+    rows = ctx.skip_rows(name, variants=True, precisions=both)
     for (b, d, var, prec), first, calls, err in ctx.map(search, items):
         setting = f"bounce=1.05, n={n}" + ("" if var == "default" else f", variant={var}")
         pred = predicted[prec]
@@ -215,7 +217,7 @@ def exp_particles_divergence(ctx: StressContext) -> Result:
     name, n = "particles-divergence", 256
     steps = 1000 if ctx.quick else 5000
     bounces = (0.99,) if ctx.quick else (0.82, 0.99)
-    rows, series = ctx.skip_rows(name), {}
+    rows, series = ctx.skip_rows(name, precisions=("float32", "float64")), {}
     for bounce in bounces:
         r, s = divergence_for(ctx, name, {"n": n, "steps": steps, "record_every": 1, "bounce": bounce})
         rows += r
@@ -231,7 +233,8 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
         ref = SC.oracle(p, inp)
         refs[prec] = (ref, contacts(ref["traj_x"][1:], ref["traj_y"][1:], float(inp["radius"]), np.float64),
                       float(inp["radius"]))
-    specs = [ctx.spec(SC.name, b, d, prec, prm) for b, d, _ in ctx.targets() for prec in ("float32", "float64")]
+    specs = [ctx.spec(SC.name, b, d, prec, prm) for b, d, _ in ctx.targets()
+             for prec in ctx.precisions(b, d, ("float32", "float64"))]
     res = dict(zip([(s["backend"], s["device"], s["precision"]) for s in specs], ctx.run_cells(specs)))
     rows, series = [], {}
     setting = f"bounce={prm['bounce']:g}, n={n}, steps={steps}"

@@ -121,9 +121,10 @@ def exp_projectile_gradient(ctx: StressContext) -> Result:
             v = inp["v0"].astype(np.float64)
             fd[(prec, c)] = [fd_gradient(cc, c, p.steps, v, h) for h in FD_STEPS]
             gsize[c] = float(np.linalg.norm(gradient(cc, c, p.steps, v)))
+    precisions = ("float32",) if ctx.quick else ("float32", "float64")
     specs = [ctx.spec(SC.name, b, d, prec, {"contact": c, "iters": 0}) for b, d, _ in ctx.targets()
-             for prec in (("float32",) if ctx.quick else ("float32", "float64")) for c in CONTACTS]
-    rows, series = ctx.skip_rows(name), {"h": list(FD_STEPS), "lines": {}, "scans": {}}
+             for prec in ctx.precisions(b, d, precisions) for c in CONTACTS]
+    rows, series = ctx.skip_rows(name, precisions=precisions), {"h": list(FD_STEPS), "lines": {}, "scans": {}}
     step_len = {c: 0.01 * gsize[c] for c in CONTACTS}       # one GD step at the seed's lr = 0.01
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         c, prec = s["params"]["contact"], s["precision"]
