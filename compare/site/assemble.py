@@ -68,8 +68,9 @@ def machine(c: qp.Ctx) -> list[Any]:
                      "attempt cut off, by a time limit or a signal, is resumed by the next, keeping "
                      "its finished cells)." + (f" Parts it has not run here: {', '.join(missing)}; "
                                                "their records come from the earlier runs below." if missing else "")),
-                   Table(("part", "started", "seconds", "exit code"), tuple(
-                       (str(p.get("name")), str(p.get("started")), f"{data.num(p.get('seconds')) or 0:.0f}",
+                   Table(("part", "backends", "started", "seconds", "exit code"), tuple(
+                       (str(p.get("name")), _argv_value(p.get("argv"), "--backends"), str(p.get("started")),
+                        f"{data.num(p.get('seconds')) or 0:.0f}",
                         "cut off" if p.get("exit_code") is None else str(p.get("exit_code"))) for p in pub))]
     else:
         blocks.append(P("No publish log (publish.json) beside these records: they were assembled from "
@@ -140,3 +141,10 @@ def write_site(inputs: list[Path], out: Path, title: str | None, against: list[P
     written.append(out / MANIFEST)
     written += sorted(figures.glob("*")) if figures.is_dir() else []
     return written
+
+
+def _argv_value(argv: Any, flag: str) -> str:
+    """The value after ``flag`` in a publish part's command ('all' where absent)."""
+    argv = argv if isinstance(argv, list) else []
+    i = argv.index(flag) if flag in argv else -1
+    return str(argv[i + 1]) if 0 <= i < len(argv) - 1 else "all"
