@@ -1,7 +1,8 @@
 """Trivial launch in Numba: out[i] = x[i] + 1 over n (default 1) elements.
 
 CPU: ``@njit(parallel=True)`` like every other CPU kernel here, so the figure includes what a
-parallel region costs to start; CUDA: one block.
+parallel region costs to start; CUDA: one block. The copy's ``Kernel`` (copy.py: the same arrays,
+launch configuration and download) with these kernels, which take the typed 1 as an argument.
 """
 from __future__ import annotations
 
@@ -15,8 +16,8 @@ try:
 except ImportError:          # CPU-only install
     cuda = None
 
-from . import THREADS_PER_BLOCK, blocks, kernel_info, launch_stream, scalar_type, use_fastmath
-from ..base import ScenarioKernel
+from . import kernel_info, scalar_type
+from .copy import Kernel as CopyKernel
 
 
 @functools.cache
@@ -38,27 +39,16 @@ def cuda_kernel(fastmath: bool):
     return plus_one
 
 
-class Kernel(ScenarioKernel):
+class Kernel(CopyKernel):
+    cpu_make, cuda_make = staticmethod(cpu_kernel), staticmethod(cuda_kernel)
+
     def __init__(self, params, inputs: dict[str, np.ndarray], device: str, precision: str,
                  variant: str) -> None:
-        S = scalar_type(precision)
-        self.device, self.fastmath = device, use_fastmath(variant)
-        self.one = S(1)                      # typed: a Python 1.0 would promote float32 to float64
-        if device == "cuda":
-            self.x = cuda.to_device(inputs["x"])
-            self.out = cuda.device_array(params.n, dtype=S)
-            self.fn = cuda_kernel(self.fastmath)[blocks(params.n), THREADS_PER_BLOCK, launch_stream()]
-        else:
-            self.x = np.ascontiguousarray(inputs["x"])
-            self.out = np.empty(params.n, dtype=S)
-            self.fn = cpu_kernel(self.fastmath)
+        super().__init__(params, inputs, device, precision, variant)
+        self.one = scalar_type(precision)(1)   # typed: a Python 1.0 would promote float32 to float64
 
     def run(self) -> None:
         self.fn(self.x, self.one, self.out)
-
-    def outputs(self) -> dict[str, np.ndarray]:
-        out = self.out.copy_to_host() if self.device == "cuda" else self.out.copy()
-        return {"out": out}
 
     def info(self) -> dict[str, Any]:
         return kernel_info(self.device, self.fastmath)
