@@ -5,8 +5,9 @@ maintained fork of Taichi that Genesis uses; Taichi itself has had no release si
 language is Taichi's with ``ti`` renamed ``qd`` (``qd.kernel``, ``qd.func``, ``qd.field``,
 ``qd.template()``, ``qd.static``, ``qd.select``, ``kernel.grad``). So saxpy, sdf, particles, copy
 and launch are the Taichi kernels themselves, built with ``quadrants`` by the factory ``build`` of
-backends/taichi/<scenario>.py; projectile.py is a port of its own (it drops the Taichi 1.7 autodiff
-guards) and says what differs and why. The differences that matter here:
+backends/taichi/<scenario>.py; projectile.py has a step and rollout of its own (it drops the
+Taichi 1.7 autodiff guards), says what differs and why, and builds the rest with ``quadrants`` from
+backends/taichi/projectile_common.py. The differences that matter here:
 
 * ``qd.init`` keeps Taichi's defaults where it matters: ``fast_math=True`` (we turn it off for the
   default variant, as for Taichi) and an on-disk cache (``offline_cache``), plus a second,

@@ -37,20 +37,20 @@ evaluation. Storage: fields, allocated once in the constructor: 4 state fields o
 with gradients, about 64 (steps + 1) B bytes in float64. The adstacks come on top, on the device
 for CUDA: per thread, (steps + 1) slots of 8 (f32) or 16 (f64) bytes per loop-carried value,
 allocated by Quadrants at launch (not measured on a GPU here).
+What does not differ from the Taichi port (init, loss, reset and update kernels, the Kernel's
+bookkeeping) is one definition shared with it, backends/taichi/projectile_common.py, built here
+with ``quadrants``; this file keeps the step, the fused rollout and the per-step kernel.
 """
 # (no "from __future__ import annotations": Quadrants (like Taichi) reads kernel annotations as objects)
 
 from typing import Any
 
-import numpy as np
 import quadrants as qd
 from quadrants.lang import impl
 
-from . import config_info
-from ..base import ScenarioKernel
+from ..taichi.projectile_common import HARD, SOFT, build
 
-NONE, HARD, SOFT = 0, 1, 2
-CONTACT = {"none": NONE, "hard": HARD, "soft": SOFT}
+_init, _loss, _init_k, _loss_k, _reset, _update, FieldKernel = build(qd)
 
 
 @qd.func
@@ -86,23 +86,6 @@ def _step(s, b, contact: qd.template(), dt, gravity, bounce, damping, stiffness,
     vys[s + 1, b] = vy
 
 
-@qd.func
-def _init(b, v: qd.template(), xs: qd.template(), ys: qd.template(), vxs: qd.template(),
-          vys: qd.template()):
-    xs[0, b] = 0.0
-    ys[0, b] = 0.0
-    vxs[0, b] = v[b, 0]
-    vys[0, b] = v[b, 1]
-
-
-@qd.func
-def _loss(b, steps, target: qd.template(), xs: qd.template(), ys: qd.template(),
-          loss: qd.template()):
-    dx = xs[steps, b] - target[b, 0]
-    dy = ys[steps, b] - target[b, 1]
-    loss[b] = dx * dx + dy * dy
-
-
 @qd.kernel
 def _rollout(nsteps: qd.template(), contact: qd.template(), dt: float, gravity: float,
              bounce: float, damping: float, stiffness: float, softness: float,
@@ -117,13 +100,6 @@ def _rollout(nsteps: qd.template(), contact: qd.template(), dt: float, gravity: 
 
 
 @qd.kernel
-def _init_k(v: qd.template(), xs: qd.template(), ys: qd.template(), vxs: qd.template(),
-            vys: qd.template()):
-    for b in range(xs.shape[1]):
-        _init(b, v, xs, ys, vxs, vys)
-
-
-@qd.kernel
 def _step_k(s: qd.i32, contact: qd.template(), dt: float, gravity: float, bounce: float,
             damping: float, stiffness: float, softness: float, xs: qd.template(),
             ys: qd.template(), vxs: qd.template(), vys: qd.template()):
@@ -131,120 +107,28 @@ def _step_k(s: qd.i32, contact: qd.template(), dt: float, gravity: float, bounce
         _step(s, b, contact, dt, gravity, bounce, damping, stiffness, softness, xs, ys, vxs, vys)
 
 
-@qd.kernel
-def _loss_k(steps: qd.i32, target: qd.template(), xs: qd.template(), ys: qd.template(),
-            loss: qd.template()):
-    for b in range(loss.shape[0]):
-        _loss(b, steps, target, xs, ys, loss)
-
-
-@qd.func
-def _zero_grads(v: qd.template(), loss: qd.template(), xs: qd.template(), ys: qd.template(),
-                vxs: qd.template(), vys: qd.template()):
-    # Backward passes accumulate (+=) into every .grad: clear them and re-seed d loss_b/d loss_b = 1
-    # (independent losses: no cross terms).
-    for b in range(loss.shape[0]):
-        v.grad[b, 0] = 0.0
-        v.grad[b, 1] = 0.0
-        loss.grad[b] = 1.0
-    for s, b in xs:
-        xs.grad[s, b] = 0.0
-        ys.grad[s, b] = 0.0
-        vxs.grad[s, b] = 0.0
-        vys.grad[s, b] = 0.0
-
-
-@qd.kernel
-def _reset(v0: qd.template(), v: qd.template(), loss: qd.template(), xs: qd.template(),
-           ys: qd.template(), vxs: qd.template(), vys: qd.template()):
-    for b in range(loss.shape[0]):
-        v[b, 0] = v0[b, 0]
-        v[b, 1] = v0[b, 1]
-    _zero_grads(v, loss, xs, ys, vxs, vys)
-
-
-@qd.kernel
-def _update(k: qd.i32, iters: qd.i32, lr: float, loss: qd.template(), v: qd.template(),
-            history: qd.template(), grad0: qd.template(), xs: qd.template(), ys: qd.template(),
-            vxs: qd.template(), vys: qd.template()):
-    for b in range(loss.shape[0]):     # each trajectory descends on its own loss
-        history[k, b] = loss[b]
-        if k == 0:
-            grad0[b, 0] = v.grad[b, 0]
-            grad0[b, 1] = v.grad[b, 1]
-        if k < iters:                  # no update after the last evaluation
-            v[b, 0] = v[b, 0] - lr * v.grad[b, 0]
-            v[b, 1] = v[b, 1] - lr * v.grad[b, 1]
-    _zero_grads(v, loss, xs, ys, vxs, vys)
-
-
-class Kernel(ScenarioKernel):
+class Kernel(FieldKernel):
     fused: bool = True                 # False: one launch per step (tests compare the two)
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
-                 variant: str) -> None:
-        self.p = params
-        self.batch = nb = int(params.batch)
-        self.contact = CONTACT[params.contact]
-        self.consts = [float(inputs[k]) for k in ("dt", "gravity", "bounce", "damping",
-                                                  "stiffness", "softness")]
-        self.lr = float(inputs["lr"])
-        n = params.steps + 1
+    def _allocate(self, params: Any, device: str, variant: str) -> list:
+        n, nb = params.steps + 1, self.batch
         self.state = [qd.field(float, (n, nb), needs_grad=True) for _ in range(4)]  # xs ys vxs vys
         self.nsteps = qd.field(qd.i32, ())   # the step loop's bound, read by the adstack sizer
         self.nsteps[None] = params.steps
-        self.v = qd.field(float, (nb, 2), needs_grad=True)
-        self.loss = qd.field(float, nb, needs_grad=True)
-        self.v0 = qd.field(float, (nb, 2))
-        self.target = qd.field(float, (nb, 2))
-        self.set_input("v0", inputs["v0"])
-        self.target.from_numpy(np.ascontiguousarray(np.reshape(inputs["target"], (nb, 2))))
-        self.history = qd.field(float, (params.iters + 1, nb))
-        self.grad0 = qd.field(float, (nb, 2))
+        return self.state
 
     def _evaluate(self) -> None:
         """Losses at the current v into loss, their gradients into v.grad (grads zeroed before)."""
-        p, c, st = self.p, self.consts, self.state
         if self.fused:
-            args = (self.nsteps, self.contact, *c, self.target, self.v, *st, self.loss)
+            args = (self.nsteps, self.contact, *self.consts, self.target, self.v, *self.state,
+                    self.loss)
             _rollout(*args)
             _rollout.grad(*args)
             return
-        _init_k(self.v, *st)
-        for s in range(p.steps):
-            _step_k(s, self.contact, *c, *st)
-        _loss_k(p.steps, self.target, st[0], st[1], self.loss)
-        _loss_k.grad(p.steps, self.target, st[0], st[1], self.loss)
-        for s in reversed(range(p.steps)):
-            _step_k.grad(s, self.contact, *c, *st)
-        _init_k.grad(self.v, *st)
-
-    def run(self) -> None:
-        _reset(self.v0, self.v, self.loss, *self.state)
-        for k in range(self.p.iters + 1):
-            self._evaluate()
-            _update(k, self.p.iters, self.lr, self.loss, self.v, self.history, self.grad0,
-                    *self.state)
-
-    def set_input(self, name: str, value: np.ndarray) -> None:
-        if name != "v0":
-            super().set_input(name, value)
-        value = np.asarray(value)
-        if value.shape != ((2,) if self.batch == 1 else (self.batch, 2)):
-            raise ValueError(f"v0 must keep its shape, got {value.shape}")
-        self.v0.from_numpy(np.ascontiguousarray(value.reshape(self.batch, 2)))
-
-    def outputs(self) -> dict[str, np.ndarray]:
-        hist, grad, v = self.history.to_numpy(), self.grad0.to_numpy(), self.v.to_numpy()
-        if self.batch == 1:            # the unbatched shapes: loss (), grad (2,), history (iters+1,)
-            return {"loss": hist[0, 0], "grad": grad[0],
-                    "loss_history": np.ascontiguousarray(hist[:, 0]), "v_final": v[0]}
-        return {"loss": hist[0], "grad": grad, "loss_history": hist, "v_final": v}
+        self._evaluate_per_step(_step_k, *self.state)
 
     def info(self) -> dict[str, Any]:
         cfg = impl.current_cfg()
-        return {"storage": "field", **config_info(), "fused_rollout": self.fused,
-                "launches_per_iteration": 3 if self.fused else 2 * self.p.steps + 5,
-                "batch": self.batch, "state_layout": "(steps+1, batch)",
+        return {**super().info(), "state_layout": "(steps+1, batch)",
                 "ad_stack": "launch-time sized" if cfg.ad_stack_size == 0 else cfg.ad_stack_size,
                 "ad_stack_experimental_enabled": bool(cfg.ad_stack_experimental_enabled)}

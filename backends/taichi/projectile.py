@@ -52,22 +52,22 @@ Storage: fields (Taichi 1.7's autodiff is built around fields), allocated once i
 constructor: 4 state fields of (steps + 1) x B with gradients, plus es/ws of steps x B for soft
 contact only: 64 (steps + 1) B bytes in float64 (12 GiB at 180 steps, B = 2^20), + 16 steps B
 for soft; halve for float32. A field holds < 2^31 elements (Taichi's 32-bit index; refused).
+What does not differ from the Quadrants port (init, loss, reset and update kernels, the Kernel's
+bookkeeping) is one definition shared with it, projectile_common.py, built here with ``taichi``.
 """
 # (no "from __future__ import annotations": Taichi reads kernel annotations as objects)
 
 import math
 from typing import Any
 
-import numpy as np
 import taichi as ti
 from taichi.lang import impl
 
-from . import config_info
-from ..base import ScenarioKernel
+from .projectile_common import HARD, SOFT, build
 
-NONE, HARD, SOFT = 0, 1, 2
-CONTACT = {"none": NONE, "hard": HARD, "soft": SOFT}
 ADSTACK_MARGIN = 2     # the deepest adstack holds steps + 1 entries (measured); one spare
+
+_init, _loss, _init_k, _loss_k, _reset, _update, FieldKernel = build(ti)
 
 
 @ti.func
@@ -117,23 +117,6 @@ def _step(s, b, contact: ti.template(), linearised: ti.template(), dt, gravity, 
         vys[s + 1, b] = vy1
 
 
-@ti.func
-def _init(b, v: ti.template(), xs: ti.template(), ys: ti.template(), vxs: ti.template(),
-          vys: ti.template()):
-    xs[0, b] = 0.0
-    ys[0, b] = 0.0
-    vxs[0, b] = v[b, 0]
-    vys[0, b] = v[b, 1]
-
-
-@ti.func
-def _loss(b, steps, target: ti.template(), xs: ti.template(), ys: ti.template(),
-          loss: ti.template()):
-    dx = xs[steps, b] - target[b, 0]
-    dy = ys[steps, b] - target[b, 1]
-    loss[b] = dx * dx + dy * dy
-
-
 @ti.kernel
 def _rollout(steps: ti.i32, contact: ti.template(), linearised: ti.template(), dt: float,
              gravity: float, bounce: float, damping: float, stiffness: float, softness: float,
@@ -149,13 +132,6 @@ def _rollout(steps: ti.i32, contact: ti.template(), linearised: ti.template(), d
 
 
 @ti.kernel
-def _init_k(v: ti.template(), xs: ti.template(), ys: ti.template(), vxs: ti.template(),
-            vys: ti.template()):
-    for b in range(xs.shape[1]):
-        _init(b, v, xs, ys, vxs, vys)
-
-
-@ti.kernel
 def _step_k(s: ti.i32, contact: ti.template(), dt: float, gravity: float, bounce: float,
             damping: float, stiffness: float, softness: float, xs: ti.template(),
             ys: ti.template(), vxs: ti.template(), vys: ti.template(), es: ti.template(),
@@ -163,13 +139,6 @@ def _step_k(s: ti.i32, contact: ti.template(), dt: float, gravity: float, bounce
     for b in range(xs.shape[1]):
         _step(s, b, contact, False, dt, gravity, bounce, damping, stiffness, softness,
               xs, ys, vxs, vys, es, ws)
-
-
-@ti.kernel
-def _loss_k(steps: ti.i32, target: ti.template(), xs: ti.template(), ys: ti.template(),
-            loss: ti.template()):
-    for b in range(loss.shape[0]):
-        _loss(b, steps, target, xs, ys, loss)
 
 
 @ti.kernel
@@ -203,46 +172,6 @@ def _zero_scratch(xs: ti.template(), ys: ti.template(), vxs: ti.template(), vys:
         vys.grad[s, b] = 0.0
 
 
-@ti.func
-def _zero_grads(v: ti.template(), loss: ti.template(), xs: ti.template(), ys: ti.template(),
-                vxs: ti.template(), vys: ti.template()):
-    # Backward passes accumulate (+=) into every .grad: clear them and re-seed d loss_b/d loss_b = 1
-    # (independent losses: no cross terms).
-    for b in range(loss.shape[0]):
-        v.grad[b, 0] = 0.0
-        v.grad[b, 1] = 0.0
-        loss.grad[b] = 1.0
-    for s, b in xs:
-        xs.grad[s, b] = 0.0
-        ys.grad[s, b] = 0.0
-        vxs.grad[s, b] = 0.0
-        vys.grad[s, b] = 0.0
-
-
-@ti.kernel
-def _reset(v0: ti.template(), v: ti.template(), loss: ti.template(), xs: ti.template(),
-           ys: ti.template(), vxs: ti.template(), vys: ti.template()):
-    for b in range(loss.shape[0]):
-        v[b, 0] = v0[b, 0]
-        v[b, 1] = v0[b, 1]
-    _zero_grads(v, loss, xs, ys, vxs, vys)
-
-
-@ti.kernel
-def _update(k: ti.i32, iters: ti.i32, lr: float, loss: ti.template(), v: ti.template(),
-            history: ti.template(), grad0: ti.template(), xs: ti.template(), ys: ti.template(),
-            vxs: ti.template(), vys: ti.template()):
-    for b in range(loss.shape[0]):     # each trajectory descends on its own loss
-        history[k, b] = loss[b]
-        if k == 0:
-            grad0[b, 0] = v.grad[b, 0]
-            grad0[b, 1] = v.grad[b, 1]
-        if k < iters:                  # no update after the last evaluation
-            v[b, 0] = v[b, 0] - lr * v.grad[b, 0]
-            v[b, 1] = v[b, 1] - lr * v.grad[b, 1]
-    _zero_grads(v, loss, xs, ys, vxs, vys)
-
-
 def _fields(count: int, n: int, nb: int, trajectory_major: bool, needs_grad: bool = True) -> list:
     """``count`` fields indexed [s, b] of shape (n, nb). Memory order: b fastest (step-major, the
     coalesced one on CUDA) or, with ``trajectory_major``, s fastest (one thread's trajectory
@@ -262,19 +191,13 @@ def fused_steps_limit() -> int:
     return impl.current_cfg().ad_stack_size - ADSTACK_MARGIN
 
 
-class Kernel(ScenarioKernel):
+class Kernel(FieldKernel):
     fused: bool | None = None          # None: fused when the rollout fits (tests force either)
     segment: int | None = None         # checkpoint variant's segment length (None: ~sqrt(steps))
     layout: str | None = None          # memory order of the [s, b] fields (None: by device)
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
-                 variant: str) -> None:
-        self.p = params
-        self.batch = nb = int(params.batch)
-        self.contact = CONTACT[params.contact]
-        self.consts = [float(inputs[k]) for k in ("dt", "gravity", "bounce", "damping",
-                                                  "stiffness", "softness")]
-        self.lr = float(inputs["lr"])
+    def _allocate(self, params: Any, device: str, variant: str) -> list:
+        nb = self.batch
         self.checkpoint = variant == "checkpoint"
         self.layout = self.layout or ("step-major" if device == "cuda" else "trajectory-major")
         tmajor = self.layout == "trajectory-major"
@@ -295,18 +218,10 @@ class Kernel(ScenarioKernel):
         # exp(w) and w per step and trajectory, read only with soft contact (a token field else)
         ew = (n - 1, nb) if self.contact == SOFT else (1, 1)
         self.exp_w = _fields(2, *ew, tmajor, needs_grad=False)  # es, ws
-        self.v = ti.field(float, (nb, 2), needs_grad=True)
-        self.loss = ti.field(float, nb, needs_grad=True)
-        self.v0 = ti.field(float, (nb, 2))
-        self.target = ti.field(float, (nb, 2))
-        self.set_input("v0", inputs["v0"])
-        self.target.from_numpy(np.ascontiguousarray(np.reshape(inputs["target"], (nb, 2))))
-        self.history = ti.field(float, (params.iters + 1, nb))
-        self.grad0 = ti.field(float, (nb, 2))
         if self.fused is None:
             self.fused = params.steps <= fused_steps_limit()
-        # the fields whose gradients the update kernel clears (the scratch is cleared per segment)
-        self.cleared = self.ck if self.checkpoint else self.state
+        # the update kernel clears the checkpoints' gradients (the scratch is cleared per segment)
+        return self.ck if self.checkpoint else self.state
 
     def _evaluate(self) -> None:
         """Losses at the current v into loss, their gradients into v.grad (grads zeroed before)."""
@@ -319,14 +234,7 @@ class Kernel(ScenarioKernel):
             _rollout(p.steps, self.contact, False, *args)
             _rollout.grad(p.steps, self.contact, True, *args)
             return
-        _init_k(self.v, *st)
-        for s in range(p.steps):
-            _step_k(s, self.contact, *c, *st, *self.exp_w)
-        _loss_k(p.steps, self.target, st[0], st[1], self.loss)
-        _loss_k.grad(p.steps, self.target, st[0], st[1], self.loss)
-        for s in reversed(range(p.steps)):
-            _step_k.grad(s, self.contact, *c, *st, *self.exp_w)
-        _init_k.grad(self.v, *st)
+        self._evaluate_per_step(_step_k, *st, *self.exp_w)
 
     def _evaluate_checkpointed(self) -> None:
         """Forward: segment by segment, keeping only the states at segment starts. Backward, last
@@ -347,32 +255,8 @@ class Kernel(ScenarioKernel):
             _segment.grad(j, n[j], self.contact, True, *args)
         _init_k.grad(self.v, *ck)
 
-    def run(self) -> None:
-        _reset(self.v0, self.v, self.loss, *self.cleared)
-        for k in range(self.p.iters + 1):
-            self._evaluate()
-            _update(k, self.p.iters, self.lr, self.loss, self.v, self.history, self.grad0,
-                    *self.cleared)
-
-    def set_input(self, name: str, value: np.ndarray) -> None:
-        if name != "v0":
-            super().set_input(name, value)
-        value = np.asarray(value)
-        if value.shape != ((2,) if self.batch == 1 else (self.batch, 2)):
-            raise ValueError(f"v0 must keep its shape, got {value.shape}")
-        self.v0.from_numpy(np.ascontiguousarray(value.reshape(self.batch, 2)))
-
-    def outputs(self) -> dict[str, np.ndarray]:
-        hist, grad, v = self.history.to_numpy(), self.grad0.to_numpy(), self.v.to_numpy()
-        if self.batch == 1:            # the unbatched shapes: loss (), grad (2,), history (iters+1,)
-            return {"loss": hist[0, 0], "grad": grad[0],
-                    "loss_history": np.ascontiguousarray(hist[:, 0]), "v_final": v[0]}
-        return {"loss": hist[0], "grad": grad, "loss_history": hist, "v_final": v}
-
     def info(self) -> dict[str, Any]:
-        out = {"storage": "field", **config_info(), "fused_rollout": self.fused,
-               "launches_per_iteration": 3 if self.fused else 2 * self.p.steps + 5,
-               "batch": self.batch, "state_layout": f"(steps+1, batch), {self.layout}",
+        out = {**super().info(), "state_layout": f"(steps+1, batch), {self.layout}",
                "ad_stack_size": impl.current_cfg().ad_stack_size}
         if self.checkpoint:
             out.update(checkpoint_segment=self.seg_len, checkpoint_segments=self.n_seg,
