@@ -186,14 +186,16 @@ class TorchBackend(Backend):
             torch.cuda.synchronize(torch_device(device))
 
     def memory(self, device: str) -> dict[str, Any]:
-        """Peak bytes of PyTorch's CUDA caching allocator (tensors, not its cached free blocks)."""
-        if device != "cuda":
-            return {}
-        import torch
-        dev = torch_device(device)
-        return {"device_peak_bytes": int(torch.cuda.max_memory_allocated(dev)),
-                "device_reserved_peak_bytes": int(torch.cuda.max_memory_reserved(dev)),
-                "device_memory_source": "torch.cuda.max_memory_allocated (caching allocator)"}
+        return allocator_memory(torch_device(device)) if device == "cuda" else {}
+
+
+def allocator_memory(dev: Any) -> dict[str, Any]:
+    """Peak bytes of PyTorch's CUDA caching allocator on ``dev`` (tensors, not its cached free
+    blocks); also Triton's, whose kernels work on PyTorch tensors."""
+    import torch
+    return {"device_peak_bytes": int(torch.cuda.max_memory_allocated(dev)),
+            "device_reserved_peak_bytes": int(torch.cuda.max_memory_reserved(dev)),
+            "device_memory_source": "torch.cuda.max_memory_allocated (caching allocator)"}
 
 
 class TorchEvents:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..base import Backend, cuda_build_hint, not_installed
+from ..torch import TorchEvents, allocator_memory   # Triton takes its tensors and stream from PyTorch
 
 CPU_REASON = ("Triton compiles for GPUs only; its CPU interpreter (TRITON_INTERPRET=1: NumPy, one "
               "program at a time) is for correctness and is not timed (tests/test_triton.py runs "
@@ -182,34 +183,8 @@ class TritonBackend(Backend):
         return TorchEvents() if device == "cuda" else None
 
     def memory(self, device: str) -> dict[str, Any]:
-        """Peak bytes of PyTorch's CUDA caching allocator: every tensor the kernels touch is its."""
-        if device != "cuda":
-            return {}
-        import torch
-        dev = torch_device(device)
-        return {"device_peak_bytes": int(torch.cuda.max_memory_allocated(dev)),
-                "device_reserved_peak_bytes": int(torch.cuda.max_memory_reserved(dev)),
-                "device_memory_source": "torch.cuda.max_memory_allocated (caching allocator)"}
-
-
-class TorchEvents:
-    description = "CUDA events (torch.cuda.Event on the current stream) around run()"
-
-    def __init__(self) -> None:
-        import torch
-        self.torch = torch
-        self.a = torch.cuda.Event(enable_timing=True)
-        self.b = torch.cuda.Event(enable_timing=True)
-
-    def start(self) -> None:
-        self.a.record(self.torch.cuda.current_stream())
-
-    def stop(self) -> None:
-        self.b.record(self.torch.cuda.current_stream())
-
-    def elapsed_s(self) -> float:
-        self.b.synchronize()
-        return self.a.elapsed_time(self.b) * 1e-3          # milliseconds
+        """PyTorch's caching allocator's peak: every tensor the kernels touch is its."""
+        return allocator_memory(torch_device(device)) if device == "cuda" else {}
 
 
 BACKEND = TritonBackend()
