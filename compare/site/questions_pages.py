@@ -245,4 +245,39 @@ def gradients(c: Ctx) -> Page:
                        Figure(rel, "Device memory and gradient agreement with float64 finite differences "
                               "against the number of steps, with each framework's memory-saving variants.",
                               c.cmd(f"sweep horizon --devices {c.device}"), rel[:-4] + ".csv")]
+        blocks += _longest_loop(hz)
     return blocks
+
+
+def _longest_loop(hz: list[dict[str, Any]]) -> Page:
+    """Which framework differentiates a long loop fastest, and at what memory: the horizon
+    sweep's hard-contact float32 cells at the most steps that two or more frameworks ran."""
+    ok = [r for r in hz if r["status"] == "ok" and r["precision"] == "float32"
+          and (r.get("params") or {}).get("contact") == "hard"]
+    steps_of = lambda r: int((r.get("params") or {}).get("steps") or 0)  # noqa: E731
+    ran = {}
+    for r in ok:
+        ran.setdefault(steps_of(r), set()).add(r["backend"])
+    shared = [n for n, fws in ran.items() if len(fws) >= 2]
+    if not shared:
+        return []
+    n = max(shared)
+    rows = []
+    for r in (r for r in ok if steps_of(r) == n):
+        t = data.per_call(r, "throughput") or data.timing(r, "latency")
+        rows.append((t.median if t else None, data.device_bytes(r), r))
+    timed = sorted((x for x in rows if x[0] is not None), key=lambda x: x[0])
+    small = sorted((x for x in rows if x[1] is not None), key=lambda x: x[1])
+    name = lambda r: r["backend"] + ("" if r.get("variant", "default") == "default" else f" {r['variant']}")  # noqa: E731
+    batch = (rows[0][2].get("params") or {}).get("batch")
+    text = f"A long loop: {n} steps, hard contact, float32, batch {batch}."
+    parts = ([f"fastest: {name(timed[0][2])} ({fmt.seconds(timed[0][0])} per loss + gradient)"] if timed else []) \
+        + ([f"least device memory: {name(small[0][2])} ({fmt.nbytes(small[0][1])})"] if small else [])
+    if parts:
+        joined = "; ".join(parts)
+        text += f" {joined[0].upper()}{joined[1:]}."
+    return [H(f"A long loop ({n} steps): time and memory"), P(f"**{text}**"),
+            Table(("framework", "variant", "time per call", "device memory", "gradients agreeing with FD"),
+                  tuple((r["backend"], r.get("variant", "default"), fmt.seconds(t), fmt.nbytes(m),
+                         fmt.pct((r.get("error") or {}).get("gradient_fd_agreement")))
+                        for t, m, r in sorted(rows, key=lambda x: (x[0] is None, x[0] or 0.0))))]
