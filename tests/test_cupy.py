@@ -31,6 +31,7 @@ import backends
 import scenarios
 from compare import cells
 from conftest import ROOT, availability
+from hand_adjoint import row0_and_replay
 
 pytestmark = pytest.mark.cupy
 
@@ -343,29 +344,7 @@ def test_gpu_saxpy_vector_is_the_elementwise_kernel_bit_for_bit() -> None:
     assert __import__("json").loads(line[6:]) == []
 
 
-GPU_SCRIPT = r"""
-import json, sys
-import numpy as np
-import backends, scenarios
-b = backends.get("cupy"); b.setup("cuda", "float32", "default"); b.ensure_context("cuda")
-sc = scenarios.get("projectile")
-def build(over, inputs=None):
-    p = sc.params(over); i = sc.inputs(p, "float32") if inputs is None else inputs
-    k = b.kernel("projectile")(p, i, "cuda", "float32", "default"); k.run(); b.synchronize("cuda", None)
-    return p, i, k
-res = {}
-for c in ("none", "hard", "soft"):
-    _, _, one = build({"contact": c}); _, _, many = build({"contact": c, "batch": 37})
-    a, m = one.outputs(), many.outputs()
-    res["row0-" + c] = all(np.array_equal(np.asarray(m[n])[:, 0] if n == "loss_history" else np.asarray(m[n])[0], a[n]) for n in a)
-p, i, k = build({"contact": "hard", "batch": 8})
-replay = b.capture("cuda", k.run)
-new = {**i, "v0": i["v0"] * 1.1}
-k.set_input("v0", new["v0"]); replay(); b.synchronize("cuda", None)
-_, _, fresh = build({"contact": "hard", "batch": 8}, new)
-res["set_input+graph"] = all(np.array_equal(k.outputs()[n], v) for n, v in fresh.outputs().items())
-print("RESULT" + json.dumps(res))
-"""
+GPU_SCRIPT = "import json, sys\nimport numpy as np\nimport backends, scenarios\n" + row0_and_replay("cupy", 37)
 
 
 def test_gpu_batch_row0_set_input_and_graph_replay() -> None:

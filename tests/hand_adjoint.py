@@ -1,0 +1,30 @@
+"""The GPU check every hand-adjoint backend's projectile shares (tests/test_cupy.py,
+tests/test_triton.py): row 0 of a batch equals the single trajectory bitwise for each contact,
+and a captured run replayed after ``set_input`` gives what a fresh kernel gives."""
+from __future__ import annotations
+
+_BODY = """b = backends.get("__BACKEND__"); b.setup("cuda", "float32", "default"); b.ensure_context("cuda")
+sc = scenarios.get("projectile")
+def build(over, inputs=None):
+    p = sc.params(over); i = sc.inputs(p, "float32") if inputs is None else inputs
+    k = b.kernel("projectile")(p, i, "cuda", "float32", "default"); k.run(); b.synchronize("cuda", None)
+    return p, i, k
+res = {}
+for c in ("none", "hard", "soft"):
+    _, _, one = build({"contact": c}); _, _, many = build({"contact": c, "batch": __BATCH__})
+    a, m = one.outputs(), many.outputs()
+    res["row0-" + c] = all(np.array_equal(np.asarray(m[n])[:, 0] if n == "loss_history" else np.asarray(m[n])[0], a[n]) for n in a)
+p, i, k = build({"contact": "hard", "batch": 8})
+replay = b.capture("cuda", k.run)
+new = {**i, "v0": i["v0"] * 1.1}
+k.set_input("v0", new["v0"]); replay(); b.synchronize("cuda", None)
+_, _, fresh = build({"contact": "hard", "batch": 8}, new)
+res["set_input+graph"] = all(np.array_equal(k.outputs()[n], v) for n, v in fresh.outputs().items())
+print("RESULT" + json.dumps(res))
+"""
+
+
+def row0_and_replay(backend: str, batch: int) -> str:
+    """The check's script for ``backend`` (its body only: the caller's runner supplies the
+    imports json, numpy as np, backends and scenarios); prints RESULT{name: bool}."""
+    return _BODY.replace("__BACKEND__", backend).replace("__BATCH__", str(batch))
