@@ -142,8 +142,9 @@ def test_references_converge():
             for r in (32, 128, 512)]
     assert errs[0] > errs[1] > errs[2] > 0
     params = {"n": 16, "seed": 0}
-    ref = converged.converged_positions(params, 0.001, 3000)
-    e = [converged.position_error(*converged.converged_positions(params, dt, round(3.0 / dt)), *ref)["error"]
+    part = scenarios.get("particles")
+    ref = converged.converged_positions(part, params, 0.001, 3000)
+    e = [converged.position_error(*converged.converged_positions(part, params, dt, round(3.0 / dt)), *ref)["error"]
          for dt in (0.02, 0.004)]
     assert e[0] > e[1] > 0
     p = {"contact": "none", "iters": 0}
@@ -152,7 +153,7 @@ def test_references_converge():
     T = 4.5
     x, y = exact.vx0 * T, exact.vy0 * T + 0.5 * exact.gravity * T * T
     dx, dy = x - exact.target_x, y - exact.target_y
-    loss, grad = converged.converged_loss_grad(p, 0.0005, 9000)
+    loss, grad = converged.converged_loss_grad(proj, p, 0.0005, 9000)
     assert abs(loss - (dx * dx + dy * dy)) / (dx * dx + dy * dy) < 1e-3
     assert np.allclose(grad, [2 * dx * T, 2 * dy * T], rtol=1e-3)
 

@@ -12,7 +12,6 @@ from typing import Any, Callable
 
 import numpy as np
 
-import scenarios
 from scenarios.particles import simulate
 from scenarios.projectile import CONSTANTS
 from scenarios.projectile_adjoint import loss_and_gradient
@@ -22,21 +21,21 @@ REF_FACTOR = 16          # converged dt references: smallest swept dt / REF_FACT
 SDF_EVAL = 2001          # points per axis of the grid the sdf reconstruction is measured on
 
 
-def dt_reference(cache: dict[Any, Any], scenario: str, params: dict[str, Any],
+def dt_reference(cache: dict[Any, Any], sc: Any, params: dict[str, Any],
                  reference: dict[str, Any] | None, default_dt: float, solve: Callable[..., Any],
                  distance: Callable[[Any, Any], float], simulated_time: float) -> tuple[Any, dict[str, Any]]:
     """A converged float64 reference over ``simulated_time`` at the sweep point's reference time
     step (``reference["dt"]``, else ``default_dt``) for ``params`` without their dt and steps,
-    memoised in ``cache``, and what it is: ``solve(base_params, dt, steps)`` computes it; its
+    memoised in ``cache``, and what it is: ``solve(sc, base_params, dt, steps)`` computes it; its
     ``self_difference`` is ``distance(coarse, reference)`` to the same at 2 dt (its own error
     scale, which must be far below the errors it measures)."""
     dt = (reference or {}).get("dt") or default_dt
     base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
-    key = (scenario, json.dumps(base, sort_keys=True), dt)
+    key = (sc.name, json.dumps(base, sort_keys=True), dt)
     if key not in cache:
         steps = round(simulated_time / dt)
-        ref = solve(base, dt, steps)
-        coarse = solve(base, 2 * dt, round(simulated_time / (2 * dt)))
+        ref = solve(sc, base, dt, steps)
+        coarse = solve(sc, base, 2 * dt, round(simulated_time / (2 * dt)))
         cache[key] = (ref, {"dt": dt, "steps": steps, "simulated_time_s": simulated_time,
                             "self_difference": distance(coarse, ref),
                             "note": "float64 NumPy rollout; self_difference: same metric "
@@ -70,10 +69,9 @@ def reconstruction_error(image: np.ndarray, cache: dict | None = None) -> dict[s
 
 
 # ---- particles: positions at the same simulated time -------------------------------------------
-def converged_positions(params: dict[str, Any], dt: float, steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Float64 positions after ``steps`` steps of ``dt`` (the scenario's one NumPy stepper,
-    ``simulate``) from the float64 initial state of ``params``."""
-    sc = scenarios.get("particles")
+def converged_positions(sc: Any, params: dict[str, Any], dt: float, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Float64 positions after ``steps`` steps of ``dt`` (the particle scenario ``sc``'s one NumPy
+    stepper, ``simulate``) from the float64 initial state of ``params``."""
     p = sc.params({**params, "dt": dt, "steps": steps})
     (x, y, _, _), _ = simulate(sc.inputs(p, "float64"), steps, np.float64)
     return x, y
@@ -86,10 +84,11 @@ def position_error(px: np.ndarray, py: np.ndarray, rx: np.ndarray, ry: np.ndarra
 
 
 # ---- projectile: loss and gradient at v0 -------------------------------------------------------
-def converged_loss_grad(params: dict[str, Any], dt: float, steps: int) -> tuple[float, np.ndarray]:
+def converged_loss_grad(sc: Any, params: dict[str, Any], dt: float, steps: int) -> tuple[float, np.ndarray]:
     """Float64 loss and discrete-adjoint gradient at v0 (``loss_and_gradient``: ``rollout`` +
-    ``adjoint``) after ``steps`` steps of ``dt``, the other parameters from ``params``."""
-    p = scenarios.get("projectile").params({**params, "dt": dt, "steps": steps})
+    ``adjoint``) after ``steps`` steps of ``dt`` of the projectile scenario ``sc``, the other
+    parameters from ``params``."""
+    p = sc.params({**params, "dt": dt, "steps": steps})
     c = {k: float(getattr(p, k)) for k in CONSTANTS}
     return loss_and_gradient(c, p.contact, steps, (p.vx0, p.vy0))
 

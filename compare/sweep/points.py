@@ -34,6 +34,7 @@ class Sweeps:
     run, e.g. steps), 'item_rate' (the work item), 'rate_work' (the ``work()`` key the rate
     counts), and for the horizon sweep 'horizon_items' and 'horizon_memory'
     (compare/sweep/horizon.py)."""
+    scenario: str = ""                     # the scenario's name: set from SWEEPS' key
     measures: ClassVar[str | None] = None
     error_metric: ClassVar[str] = ""
     labels: ClassVar[dict[str, str]] = {}
@@ -91,7 +92,7 @@ class SaxpySweeps(Sweeps):
                      "check_sample": CHECK_SAMPLE, "save_outputs": False}
                     for e in SAXPY_EXP.get((device, quick), ())]
         if kind == "error":        # knobs: precision and variant only
-            return [{"params": {"n": scenarios.get("saxpy").params(quick=quick).n},
+            return [{"params": {"n": scenarios.get(self.scenario).params(quick=quick).n},
                      "knob": {"name": "precision", "value": None}}]
         return []
 
@@ -165,7 +166,7 @@ class ParticlesSweeps(Sweeps):
         (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        ref, info = dt_reference(cache, "particles", params, reference, min(PARTICLES_DT[False]) / REF_FACTOR,
+        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference, min(PARTICLES_DT[False]) / REF_FACTOR,
                                  converged.converged_positions,
                                  lambda a, b: converged.position_error(*a, *b)["error"], PARTICLES_T)
         return {**converged.position_error(outputs["x"], outputs["y"], *ref), "metric": self.error_metric,
@@ -221,7 +222,7 @@ class ProjectileSweeps(Sweeps):
         reference dt (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        ref, info = dt_reference(cache, "projectile", params, reference, min(PROJECTILE_DT[False]) / REF_FACTOR,
+        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference, min(PROJECTILE_DT[False]) / REF_FACTOR,
                                  converged.converged_loss_grad,
                                  lambda a, b: converged.loss_grad_error(*a, *b)["error"], PROJECTILE_T)
         return {**converged.loss_grad_error(outputs["loss"], outputs["grad"], *ref),
@@ -262,4 +263,5 @@ NONE = Sweeps()
 def sweeps(scenario: str) -> Sweeps:
     """``scenario``'s part in the sweeps (none for a scenario not registered)."""
     return SWEEPS.get(scenario, NONE)
-
+for _name, _sweeps in SWEEPS.items():       # the registry's key is the one place a scenario is named
+    _sweeps.scenario = _name
