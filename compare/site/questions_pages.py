@@ -75,6 +75,11 @@ def timing_table(recs: list[dict[str, Any]], regimes: tuple[str, ...] = data.REG
     return Table(tuple(heads + list(extra_headers) + ["status"]), tuple(rows))
 
 
+def _label(backend: str, variant: str | None) -> str:
+    """A framework and its variant as the figures and verdicts name them."""
+    return backend if variant in (None, "default") else f"{backend} {variant}"
+
+
 def _variants(recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [r for r in recs if r.get("variant") != "graph"]
 
@@ -109,7 +114,7 @@ def bandwidth(c: Ctx) -> Page:
             pts = sorted((data.size(r), (r.get("work") or {}).get("bytes", 0) / t.median / 1e9, t)
                          for r in rs if (t := data.per_call(r, "throughput") or data.timing(r, "latency")))
             if pts:
-                series.append(charts.Series(f"{fw} {var}" if var != "default" else fw, fw,
+                series.append(charts.Series(_label(fw, var), fw,
                                             [p[0] for p in pts], [p[1] for p in pts]))
         png, rel, csv = c.fig("bandwidth-vs-n")
         charts.curves(png, f"SAXPY achieved bandwidth against n ({c.device}, float32, throughput regime "
@@ -205,7 +210,7 @@ def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = Fal
         for (fw, var), rs in sorted(_group(ok).items()):
             pts = sorted((data.size(r), v) for r in rs if (v := fig(r)) is not None)
             if pts:
-                series.append(charts.Series(fw if var == "default" else f"{fw} {var}", fw,
+                series.append(charts.Series(_label(fw, var), fw,
                                             [p[0] for p in pts], [p[1] for p in pts]))
         if not series:
             continue
@@ -268,7 +273,7 @@ def _longest_loop(hz: list[dict[str, Any]]) -> Page:
         rows.append((t.median if t else None, data.device_bytes(r), r))
     timed = sorted((x for x in rows if x[0] is not None), key=lambda x: x[0])
     small = sorted((x for x in rows if x[1] is not None), key=lambda x: x[1])
-    name = lambda r: r["backend"] + ("" if r.get("variant", "default") == "default" else f" {r['variant']}")  # noqa: E731
+    name = lambda r: _label(r["backend"], r.get("variant"))  # noqa: E731
     batch = (rows[0][2].get("params") or {}).get("batch")
     text = f"A long loop: {n} steps, hard contact, float32, batch {batch}."
     parts = ([f"fastest: {name(timed[0][2])} ({fmt.seconds(timed[0][0])} per loss + gradient)"] if timed else []) \
