@@ -128,7 +128,8 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
     parts, left = [], []
     for dev in devices:
         # each scenario's sizes (compare/sweep/points.py; --quick shrinks them), in registry order
-        for name, exp in ((n, e) for n, sw in SWEEPS.items() for e in (sw.large_quick if quick else sw.large.get(dev, ()))):
+        sizes = [(n, e) for n, sw in SWEEPS.items() for e in (sw.large_quick if quick else sw.large.get(dev, ()))]
+        for name, exp in sizes:
             sc, sw = scenarios.get(name), SWEEPS[name]
             p = sc.params({"n": 2**exp}, quick=quick)
             host = WORKER_BASELINE_BYTES[dev] + sc.footprint(p, "float32", dev)

@@ -50,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--save-arrays", action="store_true", help="write inputs/outputs per cell (npz)")
     p.add_argument("--check-sample", type=options.nonnegative_int, default=0, metavar="K",
                    help="check K items of per-item scenarios against the oracle (row 0, the last, the "
-                        "inputs' extremes, the rest a seeded random draw) "
+                        "extremes of the inputs and outputs, the rest a seeded random draw) "
                         "(large n: the float64 oracle of every item can take minutes; 0: all)")
     p.add_argument("--host-profile", type=options.nonnegative_int, default=0, metavar="TOP",
                    help="also profile the host side of the throughput regime (cProfile) and keep "

@@ -166,7 +166,8 @@ class ParticlesSweeps(Sweeps):
         (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference, min(PARTICLES_DT[False]) / REF_FACTOR,
+        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference,
+                                 min(PARTICLES_DT[False]) / REF_FACTOR,
                                  converged.converged_positions,
                                  lambda a, b: converged.position_error(*a, *b)["error"], PARTICLES_T)
         return {**converged.position_error(outputs["x"], outputs["y"], *ref), "metric": self.error_metric,
@@ -222,7 +223,8 @@ class ProjectileSweeps(Sweeps):
         reference dt (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference, min(PROJECTILE_DT[False]) / REF_FACTOR,
+        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference,
+                                 min(PROJECTILE_DT[False]) / REF_FACTOR,
                                  converged.converged_loss_grad,
                                  lambda a, b: converged.loss_grad_error(*a, *b)["error"], PROJECTILE_T)
         return {**converged.loss_grad_error(outputs["loss"], outputs["grad"], *ref),
@@ -257,11 +259,11 @@ class CopySweeps(Sweeps):
 
 SWEEPS: dict[str, Sweeps] = {"saxpy": SaxpySweeps(), "sdf": SdfSweeps(), "particles": ParticlesSweeps(),
                              "projectile": ProjectileSweeps(), "launch": LaunchSweeps(), "copy": CopySweeps()}
+for _name, _sweeps in SWEEPS.items():       # the registry's key is the one place a scenario is named
+    _sweeps.scenario = _name
 NONE = Sweeps()
 
 
 def sweeps(scenario: str) -> Sweeps:
     """``scenario``'s part in the sweeps (none for a scenario not registered)."""
     return SWEEPS.get(scenario, NONE)
-for _name, _sweeps in SWEEPS.items():       # the registry's key is the one place a scenario is named
-    _sweeps.scenario = _name
