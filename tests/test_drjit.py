@@ -205,3 +205,18 @@ def test_libllvm_defect_behind_the_gate_is_still_there(major):
                           timeout=120, env={"DRJIT_LIBLLVM_PATH": str(lib), "PATH": "/usr/bin:/bin"})
     assert f"LLVM ({major}," in proc.stdout, proc.stdout + proc.stderr[-500:]
     assert proc.returncode != 0 and "Cannot select" in proc.stderr, proc.stdout + proc.stderr[-500:]
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+def test_float64_cells_trace_without_fast_math(precision):
+    """FastMath makes CUDA's float64 reciprocal approximate (docs/findings.md, entry 9): the
+    worker's setup turns it off for float64 cells, and each kernel's info says which it ran."""
+    import drjit as dr
+    before = dr.flag(dr.JitFlag.FastMath)
+    try:
+        BACKEND.setup("cpu", precision, "default")
+        for scenario, over in {"saxpy": {"n": 17}, "projectile": {"steps": 5, "iters": 1}}.items():
+            k = build(scenario, scenarios.get(scenario).params(over, quick=True), precision)
+            assert k.info()["fast_math"] is (precision == "float32"), scenario
+    finally:
+        dr.set_flag(dr.JitFlag.FastMath, before)

@@ -5,12 +5,15 @@ kernel per evaluation (kernels are cached by their IR, in memory and on disk, so
 traces again but compiles nothing). Its types carry device and precision: ``drjit.llvm`` (CPU,
 vectorised through the system's libLLVM, over a thread pool) or ``drjit.cuda``, ``Float`` (float32)
 or ``Float64``, and the ``.ad`` submodules for arrays that take part in reverse-mode AD. So nothing
-is process-global here: each kernel picks its types from the cell's device and precision.
+is process-global here but one flag: each kernel picks its types from the cell's device and precision.
 
 Scalars (SAXPY's ``a``, the physical constants) go in as ``dr.opaque`` arrays of one element:
 Dr.Jit folds Python scalars into the kernel as literals, which would compile one kernel per value
-and let the simplifier fold them with each other. Dr.Jit's defaults are kept, FastMath included
-(on CUDA it makes float32 division and square root the approximate PTX instructions).
+and let the simplifier fold them with each other. Dr.Jit's defaults are kept, but for one:
+FastMath (on by default) is off in float64 cells. On CUDA it makes the reciprocal an approximate
+PTX instruction in float64 too (about 20 bits), and with it the reverse-mode derivatives of log,
+division and sqrt: float64 gradients come out float32-accurate (docs/findings.md, entry 9).
+float32 cells keep it, as Dr.Jit's users do.
 
 The CPU needs a libLLVM at run time (found on the default path or through DRJIT_LIBLLVM_PATH), of
 version 17 or newer: Dr.Jit 1.5 compiles ``dr.maximum``/``dr.minimum`` of floats to LLVM's
@@ -42,6 +45,12 @@ def jit_module(device: str, ad: bool = False) -> Any:
 def real_type(device: str, precision: str, ad: bool = False) -> Any:
     """The cell's floating-point array type: ``Float`` (float32) or ``Float64``."""
     return getattr(jit_module(device, ad), "Float" if precision == "float32" else "Float64")
+
+
+def fast_math() -> dict[str, bool]:
+    """The FastMath flag the cell's kernels were traced under (for the record's info)."""
+    import drjit as dr
+    return {"fast_math": bool(dr.flag(dr.JitFlag.FastMath))}
 
 
 def upload(array: np.ndarray, cls: Any) -> Any:
@@ -111,6 +120,10 @@ class DrJitBackend(Backend):
         # Dr.Jit's own on-disk cache (LLVM kernels) and the CUDA driver's PTX cache
         return {"DRJIT_CACHE_DIR": str(cache_dir / "drjit"),
                 "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
+
+    def setup(self, device: str, precision: str, variant: str) -> None:
+        import drjit as dr
+        dr.set_flag(dr.JitFlag.FastMath, precision == "float32")
 
     def ensure_context(self, device: str) -> None:
         import drjit as dr

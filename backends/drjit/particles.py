@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from . import download, jit_module, real_type, scalar, upload
+from . import download, fast_math, jit_module, real_type, scalar, upload
 from ..base import ScenarioKernel
 
 STATE = ("x0", "y0", "vx0", "vy0")
@@ -101,4 +101,4 @@ class Kernel(ScenarioKernel):
 
     def info(self) -> dict[str, Any]:
         return {"loop": "symbolic dr.while_loop over steps (the rollout is one kernel)",
-                "trajectory": "masked dr.scatter inside the loop" if self.traj else "none"}
+                "trajectory": "masked dr.scatter inside the loop" if self.traj else "none", **fast_math()}

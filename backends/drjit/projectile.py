@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from . import download, jit_module, real_type, scalar, upload
+from . import download, fast_math, jit_module, real_type, scalar, upload
 from ..base import ScenarioKernel
 
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
@@ -191,4 +191,4 @@ class Kernel(ScenarioKernel):
                          "evaluated" if self.variant == "evaluated" else "symbolic"),
                 "segment_steps": k if ckpt else steps, "states_kept_per_trajectory": kept,
                 "tape": where, "launches_per_iteration": self.launches, "batch": self.params.batch,
-                "jit_peak_bytes": int(dr.detail.malloc_watermark(self.backend))}
+                "jit_peak_bytes": int(dr.detail.malloc_watermark(self.backend)), **fast_math()}

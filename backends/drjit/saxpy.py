@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from . import download, real_type, scalar, upload
+from . import download, fast_math, real_type, scalar, upload
 from ..base import ScenarioKernel
 
 
@@ -35,4 +35,4 @@ class Kernel(ScenarioKernel):
         return {"out": download(self.out, self.dtype, (self.n,))}
 
     def info(self) -> dict[str, Any]:
-        return {"kernel": "dr.eval(a * x + y)"}
+        return {"kernel": "dr.eval(a * x + y)", **fast_math()}

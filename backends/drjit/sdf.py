@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from . import download, jit_module, real_type, scalar
+from . import download, fast_math, jit_module, real_type, scalar
 from ..base import ScenarioKernel
 
 
@@ -52,4 +52,4 @@ class Kernel(ScenarioKernel):
         return {"image": download(self.image, self.dtype, (self.h, self.w))}
 
     def info(self) -> dict[str, Any]:
-        return {"kernel": "one dr.eval over width*height pixels"}
+        return {"kernel": "one dr.eval over width*height pixels", **fast_math()}
