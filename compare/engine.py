@@ -102,7 +102,8 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
               runner: Callable[[dict[str, Any]], Result] | None = None,
               store: Store | None = None, resume: bool = False,
-              share_process: bool = False) -> list[Result]:
+              share_process: bool = False,
+              refuse: Callable[[dict[str, Any]], tuple[str, str] | None] | None = None) -> list[Result]:
     """Run every cell spec in a worker process; returns (record, outputs) per spec, in order.
 
     A record always carries the cell's identity (scenario, backend, device, precision, variant,
@@ -113,6 +114,8 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
     client). With a ``store``, every record is put and saved as it arrives (a killed run keeps
     what finished), and with ``resume`` a cell the store holds as ok/mismatch/skipped is not run
     again (its record is returned, outputs None, without ``on_record``); error records are retried.
+    ``refuse``: the caller's own reason not to start a cell (e.g. the memory it needs), as
+    ``not_runnable``'s.
     """
     specs = [prepare(s) for s in specs]
     probes = probes if probes is not None else availability({s["backend"] for s in specs})
@@ -154,7 +157,7 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
         if store is not None and resume and store.done(key(idents[i])):
             finish(i, dict(store.get(key(idents[i])) or {}), None, save=False)
             continue
-        blocked = not_runnable(spec, probes)
+        blocked = not_runnable(spec, probes) or (refuse(spec) if refuse is not None else None)
         if blocked:
             finish(i, {"status": blocked[0], "reason": blocked[1]}, None)
             continue

@@ -13,7 +13,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -105,6 +105,21 @@ def check_memory(specs: list[dict[str, Any]], driver: bool = True, worker: bool 
                          f"{options.gib(have)} is available")
 
 
+def memory_refusal() -> Callable[[dict[str, Any]], tuple[str, str] | None]:
+    """A cell whose worker the memory available now cannot hold is skipped, saying so, while
+    the plan's other cells run (a plan none of whose cells fits is refused by ``plan``)."""
+    import psutil
+    have = float(psutil.virtual_memory().available)
+
+    def refuse(spec: dict[str, Any]) -> tuple[str, str] | None:
+        need = cell_bytes(spec)[0]
+        if need <= have:
+            return None
+        return "skipped", (f"needs about {options.gib(need)} of host memory for its worker; "
+                           f"{options.gib(have)} is available on this machine")
+    return refuse
+
+
 def disk_need(specs: list[dict[str, Any]], save_arrays: bool, existing: Path | None = None) -> float:
     """Bytes the run writes at most: results.json (rewritten through a temporary beside it, so
     twice), tables and plots, and with --save-arrays every cell's inputs and outputs."""
@@ -133,8 +148,8 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
     if not specs:
         raise UsageError(f"nothing to run: no chosen backend ({', '.join(sel['backends'])}) has "
                          f"variant(s) {', '.join(sel['variants'])}")
-    if args.scheduler in (None, "local"):      # the worker runs here
-        check_memory(specs, driver=False)
+    if args.scheduler in (None, "local"):      # the worker runs here: refused when no cell fits
+        check_memory([min(specs, key=lambda s: cell_bytes(s)[0])], driver=False)
     return specs
 
 
@@ -199,10 +214,12 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     Store.open(args.out, "run", keep=args.resume)     # and a bad results.json to resume (read only)
     sel_backends = sorted({s["backend"] for s in specs})
     probes = engine.availability(sel_backends)
-    blocked = [engine.not_runnable(engine.prepare(s), probes) for s in specs]
+    local = args.scheduler in (None, "local")
+    refuse = memory_refusal() if local else None
+    blocked = [engine.not_runnable(engine.prepare(s), probes) or (refuse(s) if refuse else None) for s in specs]
     runnable = [s for s, b in zip(specs, blocked) if not b]
     nothing_to_run(specs, blocked)
-    check_memory(runnable, worker=args.scheduler in (None, "local"))
+    check_memory(runnable, worker=local)
     need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
     client = scaleout.client(args.scheduler) if args.scheduler else None
     try:
@@ -278,7 +295,8 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
             save_arrays(out, rec, outs)                  # write leaves the cell to be run again
         show(i, rec, outs)
     results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
-                               store=store, resume=args.resume, on_record=on_record)
+                               store=store, resume=args.resume, on_record=on_record,
+                               refuse=memory_refusal() if client is None else None)
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]
     outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}

@@ -2,7 +2,7 @@
 
 1. first call: compile + one run, synchronised, on the wall clock (``first_call_s``, never mixed
    into the steady state); the worker runs it against empty framework caches (``cache`` policy);
-2. ``warmup`` more calls, untimed;
+2. ``warmup`` more calls, untimed (fewer when they take more than ``max_time``);
 3. timed calls, each ``run(); synchronize()``, until at least ``repeat`` calls *and* ``min_time``
    seconds (wall clock) have been measured, stopping early only when ``max_time`` is exceeded with
    at least 3 calls;
@@ -66,9 +66,13 @@ def timed_call(run: Callable[[], Any], sync: Callable[[Any], None],
 def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: int = 10,
                  warmup: int = 2, min_time: float = 0.2, max_time: float = 10.0,
                  max_calls: int = 100_000, timer: EventTimer | None = None) -> dict[str, Any]:
-    """Median/IQR/min of the primary clock (events if ``timer``, else wall), plus ``wall``."""
-    for _ in range(warmup):
-        call(run, sync)
+    """Median/IQR/min of the primary clock (events if ``timer``, else wall), plus ``wall``.
+    Warm-up stops early once its calls took ``max_time`` (a cell whose one call takes minutes
+    warms up with one call); ``warmup`` in the result is the number made."""
+    warm_s, made = 0.0, 0
+    while made < warmup and warm_s < max_time:
+        warm_s += call(run, sync)
+        made += 1
     walls: list[float] = []
     events: list[float] = []
     total = 0.0
@@ -92,7 +96,7 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
             break
     wall_stats = summarise(walls)
     out = summarise(events) if timer is not None else dict(wall_stats)
-    out.update({"warmup": warmup, "timed_total_s": total,
+    out.update({"warmup": made, "timed_total_s": total,
                 "wall": {k: wall_stats[k] for k in ("median_s", "iqr_s", "min_s")}})
     if events_error:
         out["events_error"] = events_error

@@ -6,6 +6,7 @@ import json
 import math
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -78,6 +79,20 @@ def test_steady_state_reports_events_as_primary_and_wall_beside():
     assert set(t["wall"]) == {"median_s", "iqr_s", "min_s"} and t["wall"]["median_s"] > 0
     w = timing.steady_state(lambda: None, lambda r: None, repeat=3, min_time=0.0)
     assert w["median_s"] == w["wall"]["median_s"]
+
+
+def test_a_call_longer_than_max_time_warms_up_once_and_times_three():
+    """A cell whose one call takes longer than max_time (2^24 particles on one CPU core) is not
+    made to pay the full warm-up and repeat count: one warm-up call, then at least three timed."""
+    calls = []
+
+    def slow():
+        calls.append(1)
+        time.sleep(0.02)
+    t = timing.steady_state(slow, lambda r: None, repeat=10, warmup=2, min_time=0.0, max_time=0.01)
+    assert t["warmup"] == 1 and t["repeats"] == 3 and len(calls) == 4
+    quick = timing.steady_state(lambda: None, lambda r: None, repeat=10, warmup=2, min_time=0.0)
+    assert quick["warmup"] == 2 and quick["repeats"] == 10
 
 
 class BrokenEvents(FakeEvents):

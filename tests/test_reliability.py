@@ -302,6 +302,30 @@ def test_memory_is_compared_with_available_not_total(monkeypatch):
         run_suite.check_memory([spec])
 
 
+def test_cells_over_the_available_memory_are_skipped_and_the_rest_run(work, monkeypatch, capsys):
+    """A plan some of whose cells fit runs those and records the others as skipped with the
+    memory they need (the plain `compare projectile --set batch=2^20` on a GPU machine: its CPU
+    cells' tapes do not fit, its CUDA cells do)."""
+    import psutil
+    sc = run_suite.scenarios.get("saxpy")
+    spec = lambda prec: {"scenario": "saxpy", "backend": "numpy", "device": "cpu",  # noqa: E731
+                         "precision": prec, "params": {"n": 1 << 16}}
+    small, big = run_suite.cell_bytes(spec("float32"))[0], run_suite.cell_bytes(spec("float64"))[0]
+    assert small < big
+
+    class Mem:
+        total, available = 1 << 50, int((small + big) / 2)
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: Mem())
+    out = work / "out"
+    code = cli.main(["saxpy", "--set", "n=65536", "--backends", "numpy", "--devices", "cpu",
+                     "--precision", "float32,float64", "--repeat", "3", "--out", str(out), "--no-plots"])
+    assert code == 0, capsys.readouterr()
+    recs = {r["precision"]: r for r in json.loads((out / "results.json").read_text())["records"]}
+    assert recs["float32"]["status"] == "ok"
+    assert recs["float64"]["status"] == "skipped"
+    assert "host memory" in recs["float64"]["reason"] and "available" in recs["float64"]["reason"]
+
+
 def test_malformed_scheduler_address(work):
     pytest.importorskip("distributed")
     assert_refused(["saxpy", *QUICK, "--scheduler", "tcp://::::1", "--out", str(work / "out")], work,
