@@ -266,3 +266,30 @@ def test_findings_reproducer_still_needs_the_workaround():
     assert all(lines[k].endswith("OK") for k in ("pow(e,", "2t/(1+t*t)")), proc.stdout
     fixed = [k for k in ("mx.exp", "mx.sin", "mx.cos") if lines[k].endswith("OK")]
     assert not fixed, f"MLX now computes float64 {fixed} in float64: drop backends.mlx.exp/sin"
+
+
+@pytest.mark.parametrize("contact", ["hard", "soft"])
+def test_step_variant_computes_the_defaults_results(contact):
+    """Variant ``step`` (mx.compile of one step, the loop traced per call) runs the same
+    operations as the whole-iteration compile: the same outputs bit for bit on the CPU, batched
+    through vmap too. Its step runs in Python for every step of every evaluation (the loop is
+    traced per call: the variant's cost), where the whole-iteration compile traces once or twice."""
+    res = run_script("mlx", """
+        import numpy as np
+        from backends.mlx.projectile import Kernel
+        be = backends.get("mlx"); be.setup(DEVICE, "float64", "default")
+        sc = scenarios.get("projectile")
+        p = sc.params({"contact": "CONTACT", "batch": 5, "iters": 3, "steps": 40})
+        i = sc.inputs(p, "float64")
+        out, traces = {}, []
+        for variant in ("default", "step"):
+            k = Kernel(p, i, DEVICE, "float64", variant)
+            be.synchronize(DEVICE, k.run()); be.synchronize(DEVICE, k.run())
+            out[variant] = k.outputs()
+            traces.append(k.info()["traces"])
+        print("RESULT" + json.dumps({
+            "same": all(out["step"][n].tobytes() == a.tobytes() for n, a in out["default"].items()),
+            "step_traces": traces[1]}))
+    """.replace("CONTACT", contact))
+    assert res["same"]
+    assert res["step_traces"] == 40 * (3 + 1) * 2      # steps x evaluations x runs

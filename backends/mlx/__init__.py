@@ -142,6 +142,7 @@ class MlxBackend(Backend):
     package = "mlx"
     gradient_method = "ad"
     display_order, color = 8, "#393b79"     # tab10 is taken by the others: a dark indigo
+    scenario_variants = {"projectile": ("step",)}    # mx.compile of one step, not the iteration
     related_packages = ("mlx-cpu", "mlx-cuda-12", "mlx-cuda-13", "mlx-metal")
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:

@@ -9,6 +9,11 @@ every call. ``run()`` calls it iters + 1 times (iteration k records loss(v_k), k
 of iteration 0 and updates v only while k < iters, so v_final = v_iters), handing each
 iteration to ``mx.async_eval`` so that the stream computes while Python issues the next.
 
+Variant ``step``: ``mx.compile`` of one step instead of the whole iteration, the loop traced in
+Python on every call (value_and_grad and vmap compose with the compiled step). Compiling the
+unrolled loop makes the first call compile-bound (many fused kernels; NVRTC on CUDA), so this
+variant trades per-call tracing for a first call that compiles one step's kernels.
+
 Batch (B > 1 trajectories, each with its own v0 and target): ``mx.vmap`` of the one-trajectory
 value_and_grad, so each trajectory runs the batch = 1 arithmetic unchanged (row 0 equals
 batch = 1 bit for bit on the CPU) and descends on its own loss.
@@ -28,28 +33,41 @@ from ..base import ScenarioKernel
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
 
 
-def make_loss(steps: int, contact: str) -> Callable[..., Any]:
-    """loss(v, target, c) of one trajectory, v and target of shape (2,), c the 0-d constants."""
+def make_step(contact: str) -> Callable[..., Any]:
+    """One scenario step (its exact operation order): (x, y, vx, vy, c) -> (x, y, vx, vy)."""
     import mlx.core as mx
 
-    def loss(v: Any, target: Any, c: dict[str, Any]) -> Any:
+    def step(x: Any, y: Any, vx: Any, vy: Any, c: dict[str, Any]) -> tuple[Any, Any, Any, Any]:
         dt, g = c["dt"], c["gravity"]
+        acc = g
+        if contact == "soft":
+            z = -y / c["softness"]
+            sp = mx.maximum(z, 0.0) + mx.log(1.0 + exp(-mx.abs(z)))
+            acc = g + c["stiffness"] * (c["softness"] * sp)
+        vy = vy + acc * dt
+        x = x + vx * dt
+        y = y + vy * dt
+        if contact == "hard":
+            hit = y < 0.0
+            y = mx.where(hit, 0.0, y)
+            vy = mx.where(hit, -c["bounce"] * vy, vy)
+            vx = mx.where(hit, c["damping"] * vx, vx)
+        return x, y, vx, vy
+
+    return step
+
+
+def make_loss(steps: int, contact: str, step: Callable[..., Any] | None = None) -> Callable[..., Any]:
+    """loss(v, target, c) of one trajectory, v and target of shape (2,), c the 0-d constants;
+    ``step``: the step function the loop calls (default: ``make_step(contact)``, traced inline)."""
+    import mlx.core as mx
+    step = step or make_step(contact)
+
+    def loss(v: Any, target: Any, c: dict[str, Any]) -> Any:
         x = y = mx.zeros((), dtype=v.dtype)
         vx, vy = v[0], v[1]
         for _ in range(steps):
-            acc = g
-            if contact == "soft":
-                z = -y / c["softness"]
-                sp = mx.maximum(z, 0.0) + mx.log(1.0 + exp(-mx.abs(z)))
-                acc = g + c["stiffness"] * (c["softness"] * sp)
-            vy = vy + acc * dt
-            x = x + vx * dt
-            y = y + vy * dt
-            if contact == "hard":
-                hit = y < 0.0
-                y = mx.where(hit, 0.0, y)
-                vy = mx.where(hit, -c["bounce"] * vy, vy)
-                vx = mx.where(hit, c["damping"] * vx, vx)
+            x, y, vx, vy = step(x, y, vx, vy, c)
         dx = x - target[0]
         dy = y - target[1]
         return dx * dx + dy * dy
@@ -57,10 +75,11 @@ def make_loss(steps: int, contact: str) -> Callable[..., Any]:
     return loss
 
 
-def make_iteration(steps: int, contact: str, batched: bool) -> Callable[..., Any]:
+def make_iteration(steps: int, contact: str, batched: bool,
+                   step: Callable[..., Any] | None = None) -> Callable[..., Any]:
     """(v, target, c) -> (loss, grad, v - lr*grad); vmapped over the leading axis when batched."""
     import mlx.core as mx
-    value_and_grad = mx.value_and_grad(make_loss(steps, contact))
+    value_and_grad = mx.value_and_grad(make_loss(steps, contact, step))
     if batched:
         value_and_grad = mx.vmap(value_and_grad, in_axes=(0, 0, None))
 
@@ -78,7 +97,14 @@ class Kernel(ScenarioKernel):
         self.c = {k: put(inputs[k], precision) for k in CONSTANTS}
         self.v0 = put(inputs["v0"], precision)
         self.target = put(inputs["target"], precision)
-        self.program = Program(make_iteration(params.steps, params.contact, params.batch > 1))
+        batched = params.batch > 1
+        if variant == "step":               # compile one step; the iteration traces its loop per call
+            self.step = Program(make_step(params.contact))
+            self.program: Any = make_iteration(params.steps, params.contact, batched, self.step)
+        else:                               # compile the whole iteration: the loop unrolled in one trace
+            self.step = None
+            self.program = Program(make_iteration(params.steps, params.contact, batched))
+        self.variant = variant
         self.out: tuple[Any, ...] = ()
 
     def run(self) -> Any:
@@ -113,5 +139,8 @@ class Kernel(ScenarioKernel):
         b = self.params.batch
         how = "mx.value_and_grad through the unrolled steps"
         how += "" if b == 1 else ", mx.vmap over trajectories"
+        if self.step is not None:
+            return kernel_info(self.device, self.precision, self.step, gradient=how, batch=b,
+                               compiled_unit="one step (the iteration's loop is traced in Python per call)")
         return kernel_info(self.device, self.precision, self.program, gradient=how, batch=b,
                            compiled_unit="one gradient-descent iteration")
