@@ -132,25 +132,6 @@ class Record:
         return ident
 
 
-    # TRANSITIONAL (removed once every reader uses attributes): dict-style reads
-    def _value(self, k: str) -> Any:
-        return getattr(self, k) if k in NAMED else self.extra[k]
-
-    def __getitem__(self, k: str) -> Any:
-        if k not in self.layout:
-            raise KeyError(k)
-        return self._value(k)
-
-    def get(self, k: str, default: Any = None) -> Any:
-        return self._value(k) if k in self.layout else default
-
-    def __contains__(self, k: str) -> bool:
-        return k in self.layout
-
-    def keys(self) -> tuple[str, ...]:
-        return self.layout
-
-
 NAMED = tuple(f.name for f in dataclasses.fields(Record) if f.name not in ("extra", "layout"))
 
 __all__ = ["Block", "FORMAT_VERSION", "Record", "RecordError", "plain"]
