@@ -28,7 +28,7 @@ import types
 from typing import Any, Callable, Mapping
 
 from compare import records
-from compare.spec import key
+from compare.spec import key as cell_key
 
 FORMAT_VERSION = 2
 Block = Mapping[str, Any]      # a read-only JSON object; its lists are tuples
@@ -121,7 +121,7 @@ class Record:
     @property
     def key(self) -> str:
         """The cell's identity as a string (``compare.spec.key``)."""
-        return key(self.identity)
+        return cell_key(self.identity)
 
     @property
     def identity(self) -> dict[str, Any]:
