@@ -9,8 +9,8 @@ version below and saves the newest; users load these files with pandas, so keys 
       the backend and ``error.vs_reference_device`` its device (was ``error.vs_warp``,
       ``error.vs_warp_device``); a sweep record's ``sweep``, ``role`` and ``knob`` moved under
       ``tags`` (the bandwidth sweep's role became its scenario's ``measures``, was the scenario's
-      name). Fields added since without a new version, absent from older files (read as null):
-      ``hardware``, ``host_cores``, ``converged`` outside the stress suite.
+      name). Fields added since without a new version (absent from older files, read as null):
+      ``hardware``, ``host_cores``.
   1 - no ``format_version``: ``results.json`` is ``{"environment", "records"}``, ``sweep.json``
       ``{"runs", "records"}``, ``stress.json`` ``{"environment", "provenance", "rows", "series"}``.
       Each suite's module registers its record upgrade (``compare.store.UPGRADES``).
