@@ -144,7 +144,7 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
             if on_record is not None and save:    # first: it may add to the record (a sweep's
                 on_record(i, rec, out)            # converged error) before the store keeps it
             try:
-                record = Record.from_json(rec)
+                record = Record.from_json(jsonable(rec))      # the hooks' figures may be NumPy scalars
             except RecordError as exc:            # one that no reader could load fails its cell,
                 record = Record.from_json({**idents[i], "status": "error",   # not the whole file
                                            "reason": f"malformed record: {exc}", "time": None, "error": None})

@@ -192,7 +192,7 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
             missing = {r.scenario for r in recs} - {r.scenario for r in mine}
             v = None if bad or missing else AGGREGATES[rule.key](mine)
             cells[fw] = Cell(fw, v, status="ok" if v is not None else (bad.status if bad else "absent"),
-                             reason="" if v is not None else ((bad.reason if bad else "") or "not every scenario measured"),
+                             reason="" if v is not None else (bad.reason if bad else "") or "not every scenario measured",
                              variant="default")
         return cells
     for r in recs:
