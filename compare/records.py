@@ -168,6 +168,7 @@ RECORD = Obj({
     "host": OPT_TEXT, "host_load_1m": OPT_NUMBER, "host_cores": OPT_COUNT, "machine": OPT_TEXT,
     "traceback": TEXT})
 
+
 def shape_problem(rec: Any) -> str | None:
     """The first way ``rec`` is not a record at all (an object with string names, a known status,
     objects where objects belong), or None: what an older format's upgrade may rely on."""
