@@ -29,7 +29,6 @@ SUITES = ("run", "sweep")
 COMMAND = "python -m compare site MINE --out REPORT --against REFERENCE"
 
 
-
 # ---- the environments -------------------------------------------------------------------------
 def _distinct(values: Iterable[Any]) -> str:
     """Every distinct value, in first-seen order ('-' when none): several runs may differ."""
