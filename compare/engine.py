@@ -20,11 +20,12 @@ import numpy as np
 import backends
 import scenarios
 from compare import cells
+from compare.record import Record, RecordError
 from compare.spec import IDENTITY, CellSpec, key
 from compare.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
-Result = tuple[dict[str, Any], Outputs | None]
+Result = tuple[Record, Outputs | None]
 
 
 def gpu_lane(spec: dict[str, Any]) -> Any:
@@ -100,7 +101,7 @@ def not_runnable(spec: dict[str, Any], probes: dict[str, dict[str, Any]]) -> tup
 def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
               probes: dict[str, dict[str, Any]] | None = None,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
-              runner: Callable[[dict[str, Any]], Result] | None = None,
+              runner: Callable[[dict[str, Any]], tuple[dict[str, Any], Outputs | None]] | None = None,
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
               refuse: Callable[[dict[str, Any]], tuple[str, str] | None] | None = None) -> list[Result]:
@@ -116,6 +117,8 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
     again (its record is returned, outputs None, without ``on_record``); error records are retried.
     ``refuse``: the caller's own reason not to start a cell (e.g. the memory it needs), as
     ``not_runnable``'s.
+    ``on_record`` sees a record's JSON object before ``Record.from_json`` checks it (it may add
+    to it); a record that fails the check becomes an ``error`` record of its cell.
     """
     specs = [prepare(s) for s in specs]
     probes = probes if probes is not None else availability({s["backend"] for s in specs})
@@ -143,19 +146,24 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
                 raise failed[0]                   # other cell's record may pretend to be kept
             if on_record is not None and save:    # first: it may add to the record (a sweep's
                 on_record(i, rec, out)            # converged error) before the store keeps it
+            try:
+                record = Record.from_json(jsonable(rec))      # the hooks' figures may be NumPy scalars
+            except RecordError as exc:            # one that no reader could load fails its cell,
+                record = Record.from_json({**idents[i], "status": "error",   # not the whole file
+                                           "reason": f"malformed record: {exc}", "time": None, "error": None})
             if store is not None and save:
-                store.put(rec)
+                store.put(record)
                 try:
                     store.save()
                 except BaseException as exc:
                     failed.append(exc)
                     raise
-        done[i] = (rec, out)
+        done[i] = (record, out)
 
     groups: dict[Any, list[int]] = {}
     for i, spec in enumerate(specs):
         if store is not None and resume and store.done(key(idents[i])):
-            finish(i, dict(store.get(key(idents[i])) or {}), None, save=False)
+            finish(i, store.get(key(idents[i])).to_json(), None, save=False)
             continue
         blocked = not_runnable(spec, probes) or (refuse(spec) if refuse is not None else None)
         if blocked:

@@ -18,7 +18,9 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any
+from typing import Any, Mapping
+
+from compare.record import Record
 
 MARK = "~"            # beside a figure whose cell is noisy, in every table and page
 SPREAD = 0.10
@@ -30,7 +32,7 @@ REGIMES = ("latency", "throughput", "graph")
 
 def regime_reasons(part: Any) -> list[str]:
     """Spread and repeat count of one regime's timings ({median_s, iqr_s, repeats})."""
-    if not isinstance(part, dict):
+    if not isinstance(part, Mapping):
         return []
     med, iqr, reps = part.get("median_s"), part.get("iqr_s"), part.get("repeats")
     why = []
@@ -103,9 +105,9 @@ def verdict(t: dict[str, Any], host: dict[str, Any]) -> dict[str, Any]:
     return {"noisy": bool(reasons), "reasons": reasons, **host}
 
 
-def reasons_for(rec: dict[str, Any], regime: str | None = None) -> list[str]:
+def reasons_for(rec: Record, regime: str | None = None) -> list[str]:
     """The record's stored noise reasons that concern ``regime`` (all when None), as text."""
-    noise = ((rec.get("time") or {}).get("noise") or {}) if isinstance(rec, dict) else {}
+    noise = (rec.time or {}).get("noise") or {}
     out = []
     for r in noise.get("reasons") or []:
         if regime is None or r.get("regime") in ("", regime):

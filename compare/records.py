@@ -1,12 +1,13 @@
 """What a results file must hold for every later step to read it: one validation, at load time.
 
-``compare.store.Store.read`` (every reader goes through it: ``report``, ``sweep report``, ``stress
---merge``, ``--resume`` of every suite, stress's own file and ``site``) calls ``store_problem``
-after a file is parsed and upgraded, before anything is written; the first problem becomes one
-line naming the file, the record (or run, or finding) and the field. Every field that a reader
-formats, compares, sorts, divides or indexes is checked here for type and range; fields no reader
-looks at (``info``, ``versions``, a run's ``backends``) pass through untouched. The stored format
-does not change: this module only refuses.
+Every record a reader gets (``report``, ``sweep report``, ``stress --merge``, ``--resume`` of every
+suite, stress's own file and ``site``) and every record the engine stores is built by
+``compare.record.Record.from_json``, which calls ``shape_problem`` and ``record_problem``;
+``compare.store.Store.read`` adds ``store_problem`` for a file's runs and findings, before anything
+is written. The first problem becomes one line naming the file, the record (or run, or finding)
+and the field. Every field that a reader formats, compares, sorts, divides or indexes is checked
+here for type and range; fields no reader looks at (``info``, ``versions``, a run's ``backends``)
+pass through untouched. The stored format does not change: this module only refuses.
 
 A record's parameters are checked by its scenario (``Scenario.params``: the types and ranges a
 run accepts), so a size no run could have used never reaches a reader. ``arrays_problem`` guards the
@@ -20,6 +21,8 @@ import dataclasses
 import math
 import re
 from typing import Any, Callable, Mapping
+
+from compare.spec import STATUSES
 
 # ---- the schema language ----------------------------------------------------------------------
 Check = Callable[[Any], bool]
@@ -165,13 +168,49 @@ RECORD = Obj({
     "host": OPT_TEXT, "host_load_1m": OPT_NUMBER, "host_cores": OPT_COUNT, "machine": OPT_TEXT,
     "traceback": TEXT})
 
+
+def shape_problem(rec: Any) -> str | None:
+    """The first way ``rec`` is not a record at all (an object with string names, a known status,
+    objects where objects belong), or None: what an older format's upgrade may rely on."""
+    if not isinstance(rec, dict):
+        return f"a record must be an object, got {type(rec).__name__}"
+    for f in ("scenario", "backend", "device", "precision"):
+        if not isinstance(rec.get(f), str):
+            return f"record field {f!r} must be a string, got {rec.get(f)!r}"
+    if rec.get("status") not in STATUSES:
+        return f"record status must be one of {', '.join(STATUSES)}, got {rec.get('status')!r}"
+    for f in OBJECT_FIELDS:
+        if rec.get(f) is not None and not isinstance(rec[f], dict):
+            return f"record field {f!r} must be an object or null, got {type(rec[f]).__name__}"
+    if not isinstance(rec.get("variant", "default"), str) or not isinstance(rec.get("reason", ""), str):
+        return "record fields 'variant' and 'reason' must be strings"
+    for f, keys in NUMBER_FIELDS.items():
+        for k in keys:
+            v = (rec.get(f) or {}).get(k)
+            if v is not None and not _number(v):
+                return f"record field {f}.{k} must be a number or null, got {v!r}"
+    return None
+
+
+# Record fields that are objects (or null), and the figures inside them that are numbers (or
+# null, or the strings 'nan', 'inf', '-inf' that jsonable writes for non-finite floats).
+OBJECT_FIELDS = ("params", "time", "error", "tags", "work", "throughput", "memory", "info", "versions",
+                 "gradient", "converged")
+NUMBER_FIELDS = {"time": ("first_call_s", "median_s", "iqr_s", "min_s"),
+                 "error": ("vs_oracle", "tolerance", "vs_reference")}
+
+
+def _number(v: Any) -> bool:
+    return (isinstance(v, (int, float)) and not isinstance(v, bool)) or v in ("nan", "inf", "-inf")
+
+
 # identity: names that go into paths, keys and colours; the scenario and precision by registry
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
 
 
 def record_problem(rec: dict[str, Any]) -> str | None:
-    """The first field of a record (already of the basic schema, ``spec.record_problem``) that a
-    later step could not read, as 'FIELD must be ...', or None."""
+    """The first field of a record (already of the basic shape, ``shape_problem``) that a later
+    step could not read, as 'FIELD must be ...', or None."""
     import scenarios
     from scenarios.base import PRECISIONS, ParamError
     for f in ("backend", "device", "variant"):
@@ -254,14 +293,12 @@ ANALYSIS = Obj({"rows": Seq(ROW, null=False), "series": Obj(null=False),
 
 
 def store_problem(data: dict[str, Any]) -> str | None:
-    """The first problem of a parsed, upgraded file (``records``, ``runs``, ``analysis``), as
-    'record 3: time.latency must be an object, got 5', or None."""
+    """The first problem of a parsed file's ``runs`` and ``analysis`` (its records are checked one
+    by one as they load, ``compare.record.Record.from_json``), as 'runs[0].cores must be ...', or
+    None."""
     for i, env in enumerate(data["runs"]):
         if (p := problem(RUN, env, f"runs[{i}]")) is not None:
             return p
-    for i, rec in enumerate(data["records"]):
-        if (p := record_problem(rec)) is not None:
-            return f"record {i}: {p}"
     if (p := problem(ANALYSIS, data["analysis"], "analysis")) is not None:
         return p
     return _rows_problem(data["analysis"].get("rows") or [])
@@ -309,4 +346,4 @@ def arrays_problem(rec: dict[str, Any], headers: dict[str, tuple[tuple[int, ...]
     return None
 
 
-__all__ = ["arrays_problem", "problem", "record_problem", "show", "store_problem"]
+__all__ = ["arrays_problem", "problem", "record_problem", "shape_problem", "show", "store_problem"]

@@ -7,11 +7,12 @@ import math
 import os
 import textwrap
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
 from tabulate import tabulate
 
 from compare import noise
+from compare.record import Record, plain
 from compare.store import atomic_write
 
 NOISY_MARK = noise.MARK
@@ -44,8 +45,8 @@ def fmt_num(x: Any) -> str:
     return "0" if x == 0 else f"{x:.3g}"
 
 
-def fmt_gradient(rec: dict[str, Any]) -> str:
-    g = rec.get("gradient")
+def fmt_gradient(rec: Record) -> str:
+    g = rec.gradient
     if not g:
         return "-"
     rel = g.get("vs_oracle_rel")
@@ -64,58 +65,58 @@ def fmt_bytes(b: Any) -> str:
     return f"{int(b)} B"
 
 
-def row(rec: dict[str, Any]) -> list[str]:
-    t = rec.get("time") or {}
+def row(rec: Record) -> list[str]:
+    t = rec.time or {}
     # the same clock for every backend: wall clock around run() + synchronize (latency), k calls
     # and one synchronize (throughput); where the framework offers device events their median is
     # shown in its own column
     lat = t.get("latency") or t.get("wall") or t
     thr, graph = t.get("throughput") or {}, t.get("graph") or {}
-    e = rec.get("error") or {}
-    note = rec.get("reason", "") or ""
-    if rec.get("status") == "ok" and e.get("ill_conditioned"):
+    e = rec.error or {}
+    note = rec.reason
+    if rec.status == "ok" and e.get("ill_conditioned"):
         note = f"{e['ill_conditioned']} ill-conditioned particles not checked"
     checked = e.get("checked_items")
-    if rec.get("status") in ("ok", "mismatch") and isinstance(checked, str) and checked != "all":
+    if rec.status in ("ok", "mismatch") and isinstance(checked, str) and checked != "all":
         note = "; ".join(filter(None, [note, f"oracle checked {checked}"]))
-    if rec.get("status") == "ok" and noise.reasons_for(rec):
+    if rec.status == "ok" and noise.reasons_for(rec):
         note = "; ".join(filter(None, [note, "noisy: " + "; ".join(noise.reasons_for(rec))]))
-    device = rec["device"] + (f" ({rec['machine']})" if rec.get("machine") else "")
-    hw = (rec.get("throughput") or {}).get("hw_fraction")
-    kind = (rec.get("throughput") or {}).get("floor_kind", "")
+    device = rec.device + (f" ({rec.machine})" if rec.machine else "")
+    hw = (rec.throughput or {}).get("hw_fraction")
+    kind = (rec.throughput or {}).get("floor_kind", "")
 
     def mark(regime: str) -> str:
         return NOISY_MARK if noise.reasons_for(rec, regime) else ""
-    return [rec["backend"], device, rec["precision"], rec.get("variant", "default"),
-            rec["status"], fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")) + mark("latency"),
+    return [rec.backend, device, rec.precision, rec.variant,
+            rec.status, fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")) + mark("latency"),
             fmt_time(lat.get("iqr_s")), fmt_time(lat.get("min_s")),
             fmt_time(t.get("median_s")) if t.get("timer") == "events" else "-",
             fmt_time(thr.get("median_s")) + mark("throughput"), fmt_time(thr.get("host_s")),
             fmt_time(graph.get("median_s")) + mark("graph"),
             f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",
-            fmt_bytes((rec.get("memory") or {}).get("device_bytes")),
+            fmt_bytes((rec.memory or {}).get("device_bytes")),
             fmt_num(e.get("vs_oracle")), fmt_num(e.get("tolerance")), fmt_num(e.get("vs_reference")),
             fmt_gradient(rec), note]
 
 
-def summary_lines(records: list[dict[str, Any]]) -> list[str]:
+def summary_lines(records: list[Record]) -> list[str]:
     """The end of a run in a few lines: cells by status (and noisy); per scenario, device and
     precision the fastest framework (its best variant, throughput regime) and its lead over the
     next; on the CPU each framework's speed-up against the baseline (NumPy)."""
     import backends
     counts: dict[str, int] = {}
     for r in records:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
-    noisy = sum(1 for r in records if r["status"] == "ok" and noise.reasons_for(r))
+        counts[r.status] = counts.get(r.status, 0) + 1
+    noisy = sum(1 for r in records if r.status == "ok" and noise.reasons_for(r))
     out = [f"{len(records)} cells: " + ", ".join(f"{n} {st}" + (f" ({noisy} noisy {NOISY_MARK})" if st == "ok" and noisy
                                                                  else "") for st, n in counts.items())]
     base = backends.cpu_baseline()
     groups: dict[tuple, dict[str, float]] = {}
     for r in records:
-        med = call_time(r)[0] if r["status"] == "ok" else None
+        med = call_time(r)[0] if r.status == "ok" else None
         if med:
-            best = groups.setdefault((r["scenario"], r["device"], r["precision"], params_text(r)), {})
-            best[r["backend"]] = min(best.get(r["backend"], med), med)
+            best = groups.setdefault((r.scenario, r.device, r.precision, params_text(r)), {})
+            best[r.backend] = min(best.get(r.backend, med), med)
     for (scenario, device, precision, _), best in groups.items():
         if len(best) < 2:
             continue
@@ -129,19 +130,19 @@ def summary_lines(records: list[dict[str, Any]]) -> list[str]:
     return out
 
 
-def params_text(rec: dict[str, Any]) -> str:
-    return json.dumps(rec.get("params"), sort_keys=True)
+def params_text(rec: Record) -> str:
+    return json.dumps(plain(rec.params), sort_keys=True)
 
 
-def noise_lines(records: list[dict[str, Any]]) -> list[str]:
+def noise_lines(records: list[Record]) -> list[str]:
     """The closing lines: which timed cells are noisy (``~`` in the tables), why, what to do."""
-    noisy = [r for r in records if r.get("status") == "ok" and noise.reasons_for(r)]
+    noisy = [r for r in records if r.status == "ok" and noise.reasons_for(r)]
     if not noisy:
         return []
     busy = any("host busy" in why or "taken between calls" in why for r in noisy for why in noise.reasons_for(r))
-    out = [f"{NOISY_MARK} {len(noisy)} of {sum(r.get('status') == 'ok' for r in records)} timed cells are noisy "
+    out = [f"{NOISY_MARK} {len(noisy)} of {sum(r.status == 'ok' for r in records)} timed cells are noisy "
            "(their figures are not to be trusted as they stand):"]
-    out += [f"  {r['scenario']}/{r['backend']}/{r['device']}/{r['precision']}/{r.get('variant', 'default')}: "
+    out += [f"  {r.scenario}/{r.backend}/{r.device}/{r.precision}/{r.variant}: "
             + "; ".join(noise.reasons_for(r)) for r in noisy]
     out.append("  what to do: " + ("stop the other work on this machine, then " if busy else "")
                + "rerun these cells (more repeats: --repeat, --min-time) into a new --out and compare")
@@ -151,44 +152,44 @@ def noise_lines(records: list[dict[str, Any]]) -> list[str]:
 SHORT_KIND = {"bandwidth": "bw", "serial latency": "lat", "launch": "launch", "flops": "flops"}
 
 
-def compact(records: list[dict[str, Any]]) -> list[list[str]]:
+def compact(records: list[Record]) -> list[list[str]]:
     """The terminal view (COMPACT columns, at most 120 wide): backend, device, precision and
     variant in one column, the hardware fraction with its floor's short name, and one line per
     backend and device whose cells were all skipped for the same reason."""
     idx = [COLUMNS.index(c) for c in COMPACT[1:]]
     out, seen = [], set()
     for r in records:
-        if r["status"] == "skipped":
-            same = [q for q in records if q["backend"] == r["backend"] and q["device"] == r["device"]]
-            if all(q["status"] == "skipped" and q.get("reason") == r.get("reason") for q in same):
-                if (r["backend"], r["device"]) in seen:
+        if r.status == "skipped":
+            same = [q for q in records if q.backend == r.backend and q.device == r.device]
+            if all(q.status == "skipped" and q.reason == r.reason for q in same):
+                if (r.backend, r.device) in seen:
                     continue
-                seen.add((r["backend"], r["device"]))
-                out.append([f"{r['backend']} {r['device']}", "skipped", "-", "-", "-", "-", "-", r.get("reason") or ""])
+                seen.add((r.backend, r.device))
+                out.append([f"{r.backend} {r.device}", "skipped", "-", "-", "-", "-", "-", r.reason])
                 continue
         full = row(r)
-        hw = (r.get("throughput") or {}).get("hw_fraction")
-        kind = (r.get("throughput") or {}).get("floor_kind", "")
+        hw = (r.throughput or {}).get("hw_fraction")
+        kind = (r.throughput or {}).get("floor_kind", "")
         cells = [full[i] for i in idx]
         cells[COMPACT.index("hw fraction") - 1] = (f"{hw:.2g} {SHORT_KIND.get(kind, kind)}"
                                                    if isinstance(hw, (int, float)) else "-")
-        out.append([" ".join([r["backend"], full[1], r["precision"].replace("float", "f"), full[3]])] + cells)
+        out.append([" ".join([r.backend, full[1], r.precision.replace("float", "f"), full[3]])] + cells)
     return out
 
 
-def by_scenario(records: Iterable[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    groups: dict[str, list[dict[str, Any]]] = {}
+def by_scenario(records: Iterable[Record]) -> dict[str, list[Record]]:
+    groups: dict[str, list[Record]] = {}
     for r in records:
-        groups.setdefault(r["scenario"], []).append(r)
+        groups.setdefault(r.scenario, []).append(r)
     return groups
 
 
-def params_line(recs: list[dict[str, Any]]) -> str:
-    p = next((r["params"] for r in recs if r.get("params")), {})
+def params_line(recs: list[Record]) -> str:
+    p = next((r.params for r in recs if r.params), {})
     return ", ".join(f"{k}={v}" for k, v in p.items())
 
 
-def tables(records: list[dict[str, Any]], fmt: str = "simple", images: dict[str, str] | None = None,
+def tables(records: list[Record], fmt: str = "simple", images: dict[str, str] | None = None,
            wide: bool = True) -> str:
     """One table per scenario; in Markdown, each followed by its picture when ``images`` has one.
     ``wide=False``: the terminal's compact view (``compact``)."""
@@ -242,7 +243,7 @@ def yardstick_lines(env: dict[str, Any]) -> list[str]:
     return out
 
 
-def page(title: str, envs: list[dict[str, Any]], records: list[dict[str, Any]], images: dict[str, str],
+def page(title: str, envs: list[dict[str, Any]], records: list[Record], images: dict[str, str],
          notes: str = "", rebuild: str = "") -> str:
     """A results page: title, hand-written notes, environments, time against error, then each
     scenario's table and picture. Every number comes from ``records``."""
@@ -264,7 +265,7 @@ def page(title: str, envs: list[dict[str, Any]], records: list[dict[str, Any]], 
     return "\n".join(out) + "\n" + tables(records, "github", images)
 
 
-def write_tables(out: Path, environment: dict[str, Any], records: list[dict[str, Any]],
+def write_tables(out: Path, environment: dict[str, Any], records: list[Record],
                  images: dict[str, str] | None = None) -> None:
     """results.csv and results.md beside results.json (which the store writes), atomically."""
     import io
@@ -308,32 +309,32 @@ CSV_COLUMNS = {
 }
 
 
-def tidy(rec: dict[str, Any]) -> dict[str, Any]:
+def tidy(rec: Record) -> dict[str, Any]:
     """One results.csv row: every CSV_COLUMNS quantity of the record, or '' where it has none."""
     out: dict[str, Any] = {}
     for col, path in CSV_COLUMNS.items():
         if col == "params":
-            out[col] = json.dumps(rec.get("params"), sort_keys=True)
+            out[col] = params_text(rec)
             continue
         if col == "noise_reasons":
             out[col] = "; ".join(noise.reasons_for(rec))
             continue
         if col == "events_median_s":
-            t = rec.get("time") or {}
+            t = rec.time or {}
             out[col] = t.get("median_s") if t.get("timer") == "events" else ""
             continue
-        v: Any = rec
-        for k in path:
-            v = v.get(k) if isinstance(v, dict) else None
-        out[col] = "" if v is None or isinstance(v, (dict, list)) else v
+        v: Any = getattr(rec, path[0])
+        for k in path[1:]:
+            v = v.get(k) if isinstance(v, Mapping) else None
+        out[col] = "" if v is None or isinstance(v, (Mapping, tuple)) else v
     return out
 
 
-def call_time(rec: dict[str, Any]) -> tuple[float | None, float | None, str]:
+def call_time(rec: Record) -> tuple[float | None, float | None, str]:
     """(median, IQR, regime) of one call: the throughput regime (k calls, one synchronize), or
     the cell's own clock where it has no throughput regime."""
-    t = rec.get("time") or {}
-    thr = t.get("throughput") if isinstance(t.get("throughput"), dict) else {}
+    t = rec.time or {}
+    thr = t.get("throughput") if isinstance(t.get("throughput"), Mapping) else {}
     if isinstance(thr.get("median_s"), (int, float)):
         return thr["median_s"], thr.get("iqr_s"), "throughput"
     med = t.get("median_s")

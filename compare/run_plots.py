@@ -7,10 +7,11 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
+from compare.record import Record, plain
 from compare.report import by_scenario, call_time, fmt_time
 from compare.store import save_figure
 
@@ -19,10 +20,10 @@ def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
     """Latency-regime time against error, one panel per scenario (two columns)."""
     from compare import charts
     plt = charts.pyplot()
-    groups = by_scenario(r for r in records if r["status"] in ("ok", "mismatch") and r.get("time"))
+    groups = by_scenario(r for r in records if r.status in ("ok", "mismatch") and r.time)
     if not groups:
         return
-    cmap = charts.colors(r["backend"] for rs in groups.values() for r in rs)
+    cmap = charts.colors(r.backend for rs in groups.values() for r in rs)
     cols, rows = min(2, len(groups)), -(-len(groups) // 2)
     import matplotlib
     with matplotlib.rc_context(charts.RC):
@@ -30,14 +31,14 @@ def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
                                  layout="constrained")
         for ax, (scenario, recs) in zip(axes.flat, groups.items()):
             for r in recs:
-                c, err = cmap[r["backend"]], (r.get("error") or {}).get("vs_oracle")
-                lat = r["time"].get("latency") or r["time"].get("wall") or r["time"]
-                x = lat.get("median_s") if isinstance(lat, dict) else None
+                c, err = cmap[r.backend], (r.error or {}).get("vs_oracle")
+                lat = r.time.get("latency") or r.time.get("wall") or r.time
+                x = lat.get("median_s") if isinstance(lat, Mapping) else None
                 if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (err, x)) or x <= 0:
                     continue
                 ax.scatter(x, max(err, 1e-17), color=c,
-                           marker="o" if r["device"] == "cpu" else "^",
-                           facecolors=c if r["precision"] == "float64" else "none", s=44)
+                           marker="o" if r.device == "cpu" else "^",
+                           facecolors=c if r.precision == "float64" else "none", s=44)
             ax.set_xscale("log"); ax.set_yscale("log")
             ax.set_xlabel("median time per call, latency regime [s]")
             ax.set_ylabel("error vs float64 oracle (0 drawn at 1e-17)", fontsize=8)
@@ -62,26 +63,26 @@ def _spread(med: float, iqr: Any) -> tuple[float | None, float | None]:
     return max(med - iqr / 2, med * 1e-3), med + iqr / 2
 
 
-def speed_bar(rec: dict[str, Any], base: dict[str, Any] | None = None) -> Any:
+def speed_bar(rec: Record, base: Record | None = None) -> Any:
     """A cell's ``charts.Bar``: its time per call, or with ``base`` base's time over its own
     (a speed-up, the spread of both cells combined); a failed or skipped cell has no value."""
     from compare import charts
-    t, i, regime = call_time(rec) if rec["status"] in ("ok", "mismatch") else (None, None, "")
+    t, i, regime = call_time(rec) if rec.status in ("ok", "mismatch") else (None, None, "")
     lo, hi = _spread(t, i) if t else (None, None)
-    marks = ([rec["status"]] if rec["status"] != "ok" else []) + (["latency regime"] if regime == "latency" else [])
+    marks = ([rec.status] if rec.status != "ok" else []) + (["latency regime"] if regime == "latency" else [])
     if base is not None and t:
         bt, bi, _ = call_time(base)
         blo, bhi = _spread(bt, bi)
         t, lo, hi = bt / t, (blo or bt) / hi if hi else None, (bhi or bt) / lo if lo else None
-    return charts.Bar(rec["backend"], rec.get("variant", "default"), t or None, lo, hi, ", ".join(marks))
+    return charts.Bar(rec.backend, rec.variant, t or None, lo, hi, ", ".join(marks))
 
 
-def speed_panels(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
+def speed_panels(records: list[Record]) -> dict[str, list[Record]]:
     """Panel title -> records of one scenario measured together (machine, device, precision,
     parameters); the title names the parameters and machines only where panels differ in them."""
-    groups: dict[tuple[str, ...], list[dict[str, Any]]] = {}
+    groups: dict[tuple[str, ...], list[Record]] = {}
     for r in records:
-        k = (r.get("machine", ""), r["device"], r["precision"], json.dumps(r.get("params"), sort_keys=True))
+        k = (r.machine or "", r.device, r.precision, json.dumps(plain(r.params), sort_keys=True))
         groups.setdefault(k, []).append(r)
     params = [json.loads(k[3]) or {} for k in groups]
     differ = {p for q in params for p in q if len({json.dumps(o.get(p)) for o in params}) > 1}
@@ -91,7 +92,7 @@ def speed_panels(records: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]
             for k, rs in groups.items()}
 
 
-def plot_speed(records: list[dict[str, Any]], out: Path) -> list[Path]:
+def plot_speed(records: list[Record], out: Path) -> list[Path]:
     """speed_<scenario>.png: time per call in the throughput regime per framework and variant,
     one panel per device, precision and size; a failed or skipped cell is an empty slot."""
     from compare import charts
@@ -108,7 +109,7 @@ def plot_speed(records: list[dict[str, Any]], out: Path) -> list[Path]:
     return written
 
 
-def plot_speedup_vs_baseline(records: list[dict[str, Any]], path: Path, baseline: str) -> bool:
+def plot_speedup_vs_baseline(records: list[Record], path: Path, baseline: str) -> bool:
     """speedup_vs_<baseline>_cpu.png: per scenario, precision and size on the CPU, the baseline's
     (NumPy's) time per call over each framework's (same run, same regime); groups without an ok
     baseline cell left out."""
@@ -116,10 +117,10 @@ def plot_speedup_vs_baseline(records: list[dict[str, Any]], path: Path, baseline
     import backends
     who = backends.display_name(baseline)
     panels = []
-    for scenario, recs in by_scenario(r for r in records if r["device"] == "cpu").items():
+    for scenario, recs in by_scenario(r for r in records if r.device == "cpu").items():
         for title, rs in speed_panels(recs).items():
-            base = next((r for r in rs if r["backend"] == baseline and r["status"] == "ok"
-                         and r.get("variant", "default") == "default" and call_time(r)[0]), None)
+            base = next((r for r in rs if r.backend == baseline and r.status == "ok"
+                         and r.variant == "default" and call_time(r)[0]), None)
             bars = [speed_bar(r, base) for r in rs if r is not base]
             if base is not None and bars:
                 panels.append(charts.Panel(f"{scenario}: {title}", bars))
@@ -132,7 +133,7 @@ def plot_speedup_vs_baseline(records: list[dict[str, Any]], path: Path, baseline
     return True
 
 
-def plot_outputs(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], out: Path) -> list[Path]:
+def plot_outputs(records: list[Record], outputs: dict[int, dict[str, np.ndarray]], out: Path) -> list[Path]:
     """One picture per scenario (``compare.figures``) from the runs whose outputs are at hand,
     reference backend first."""
     import matplotlib
@@ -143,8 +144,8 @@ def plot_outputs(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.
     ref = backends.reference()
     written = []
     for scenario in by_scenario(records):
-        runs = [(r, outputs[i]) for i, r in enumerate(records) if r["scenario"] == scenario and i in outputs]
-        runs.sort(key=lambda ro: ro[0]["backend"] != ref)
+        runs = [(r, outputs[i]) for i, r in enumerate(records) if r.scenario == scenario and i in outputs]
+        runs.sort(key=lambda ro: ro[0].backend != ref)
         fig = figures.figure(scenario, runs)
         if fig is None:
             continue
@@ -166,7 +167,7 @@ def remove_pictures(plots: Path) -> None:
                 old.unlink()
 
 
-def write_plots(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], plots: Path) -> None:
+def write_plots(records: list[Record], outputs: dict[int, dict[str, np.ndarray]], plots: Path) -> None:
     """Every picture of a run in ``plots``: speed per scenario, the CPU speed-up against NumPy,
     time against error, and each scenario's own picture of its outputs."""
     plots.mkdir(parents=True, exist_ok=True)

@@ -20,6 +20,7 @@ import numpy as np
 import backends
 import scenarios
 from compare import engine, environment, hardware, options, report, run_plots, scaleout
+from compare.record import Record, plain
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
@@ -153,41 +154,42 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
     return specs
 
 
-def fill_vs_reference(records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]]) -> None:
+def fill_vs_reference(records: list[Record], outputs: dict[int, dict[str, np.ndarray]]) -> None:
     """Distance of every port's outputs to the reference backend's, same device and precision
-    (or, if the reference did not run there, the reference on another device)."""
+    (or, if the reference did not run there, the reference on another device): each such record
+    in ``records`` is replaced by one whose ``error`` says it."""
     ref = backends.reference()
     made: dict[str, dict[str, np.ndarray]] = {}     # inputs once per scenario, size and precision
     for i, r in enumerate(records):
-        if i not in outputs or r.get("error") is None:
+        if i not in outputs or r.error is None:
             continue
-        cands = [j for j, q in enumerate(records) if j in outputs and q["backend"] == ref
-                 and q["scenario"] == r["scenario"] and q["precision"] == r["precision"]
-                 and q.get("variant", "default") == "default" and q.get("params") == r.get("params")]
-        cands.sort(key=lambda j: records[j]["device"] != r["device"])
+        cands = [j for j, q in enumerate(records) if j in outputs and q.backend == ref
+                 and q.scenario == r.scenario and q.precision == r.precision
+                 and q.variant == "default" and q.params == r.params]
+        cands.sort(key=lambda j: records[j].device != r.device)
         if not cands:
             continue
-        sc = scenarios.get(r["scenario"])
-        p = sc.params(r["params"])
-        made_key = json.dumps([r["scenario"], r["params"], r["precision"]], sort_keys=True)
+        sc = scenarios.get(r.scenario)
+        p = sc.params(plain(r.params))
+        made_key = json.dumps([r.scenario, plain(r.params), r.precision], sort_keys=True)
         if made_key not in made:
-            made[made_key] = sc.inputs(p, r["precision"])
-        r["error"]["vs_reference"] = sc.distance(p, made[made_key], outputs[i], outputs[cands[0]])
-        r["error"]["reference"] = ref
-        r["error"]["vs_reference_device"] = records[cands[0]]["device"]
+            made[made_key] = sc.inputs(p, r.precision)
+        records[i] = r.replace(error={**r.error, "reference": ref,
+                                      "vs_reference": sc.distance(p, made[made_key], outputs[i], outputs[cands[0]]),
+                                      "vs_reference_device": records[cands[0]].device})
 
 
-def saved_outputs(directory: Path, records: list[dict[str, Any]],
+def saved_outputs(directory: Path, records: list[Record],
                   outputs: dict[int, dict[str, np.ndarray]]) -> None:
     """Outputs of cells not run now (resumed, or a report) from --save-arrays files, where kept."""
     for i, r in enumerate(records):
-        if i not in outputs and r.get("status") in ("ok", "mismatch"):
-            got = load_arrays(directory, r, scenarios.get(r["scenario"]).outputs)
+        if i not in outputs and r.status in ("ok", "mismatch"):
+            got = load_arrays(directory, r.identity, scenarios.get(r.scenario).outputs)
             if got:
                 outputs[i] = got
 
 
-def render(out: Path, env: dict[str, Any], records: list[dict[str, Any]],
+def render(out: Path, env: dict[str, Any], records: list[Record],
            outputs: dict[int, dict[str, np.ndarray]], plots: bool, clean: bool = False) -> None:
     """Plots (``run_plots.write_plots``: speed, time against error, each scenario's picture; an
     earlier run's removed first when ``clean``) and results.csv/.md in ``out``."""
@@ -257,9 +259,9 @@ class RunStore(Store):
         return cell_key not in self.rerun and super().done(cell_key)
 
 
-def arrays_saved(out: Path, rec: dict[str, Any]) -> bool:
+def arrays_saved(out: Path, rec: Record) -> bool:
     try:
-        return array_file(out, rec).is_file()
+        return array_file(out, rec.identity).is_file()
     except StoreError:
         return False
 
@@ -277,11 +279,13 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     store.runs = [*store.runs, env] if args.resume else [env]
     if args.resume:
         # kept cells a killed run finished before judging them get this machine's yardstick
-        hardware.annotate([r for r in store.records if "hardware" not in r and r.get("host") == platform.node()],
-                          env["hardware"])
+        unjudged = [r.to_json() for r in store.records if r.hardware is None and r.host == platform.node()]
+        hardware.annotate(unjudged, env["hardware"])
+        for r in unjudged:
+            store.put(Record.from_json(r))
         if args.save_arrays:        # a kept cell whose arrays were never written runs again
-            store.rerun = frozenset(engine.key(r) for r in store.records
-                                    if r["status"] in ("ok", "mismatch") and not arrays_saved(out, r))
+            store.rerun = frozenset(r.key for r in store.records
+                                    if r.status in ("ok", "mismatch") and not arrays_saved(out, r))
         if store.records:
             store.save()            # tables rebuilt from the kept records before any cell runs
     runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
@@ -300,8 +304,8 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]
     outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
-    mine = {engine.key(r) for r in records}
-    records += [r for r in store.records if engine.key(r) not in mine]
+    mine = {r.key for r in records}
+    records += [r for r in store.records if r.key not in mine]
     if args.save_arrays or args.resume:
         saved_outputs(out, records, outputs)
     fill_vs_reference(records, outputs)
@@ -312,19 +316,19 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     print(report.tables(records, wide=args.wide))
     print("\n".join(report.summary_lines(records) + report.noise_lines(records) + [""]), end="")
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
-    missing = [r for r, _ in results if args.save_arrays and r["status"] in ("ok", "mismatch")
+    missing = [r for r, _ in results if args.save_arrays and r.status in ("ok", "mismatch")
                and not arrays_saved(out, r)]
     if missing:
-        print(f"error: the arrays of {len(missing)} cells are missing (first: {array_file(out, missing[0])}); "
+        print(f"error: the arrays of {len(missing)} cells are missing (first: {array_file(out, missing[0].identity)}); "
               "rerun with --resume --save-arrays", file=sys.stderr)
-    bad = missing or any(r["status"] in ("mismatch", "error") for r in records)
+    bad = missing or any(r.status in ("mismatch", "error") for r in records)
     return options.EXIT_FAIL if bad else options.EXIT_OK
 
 
 def report_command(args: argparse.Namespace) -> int:
     """Rebuild tables and plots from saved results.json files (merged), without running anything.
     Records from different machines are told apart by a 'machine' field (GPU model or host)."""
-    records: list[dict[str, Any]] = []
+    records: list[Record] = []
     envs: list[dict[str, Any]] = []
     outputs: dict[int, dict[str, np.ndarray]] = {}
     options.no_duplicates(args.files, "report")
@@ -336,9 +340,7 @@ def report_command(args: argparse.Namespace) -> int:
         for env in store.runs:
             envs.append(env)
         machine = next(((e.get("gpus") or [{}])[0].get("name") or e.get("hostname") for e in store.runs), "?")
-        recs = store.records
-        for r in recs:
-            r.setdefault("machine", machine)
+        recs = [r if r.machine is not None else r.replace(machine=machine) for r in store.records]
         mine: dict[int, dict[str, np.ndarray]] = {}
         saved_outputs(Path(f).parent, recs, mine)     # --save-arrays outputs redraw the pictures
         outputs.update({len(records) + i: o for i, o in mine.items()})
@@ -354,7 +356,7 @@ def report_command(args: argparse.Namespace) -> int:
 
 
 def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any]],
-                   records: list[dict[str, Any]], outputs: dict[int, dict[str, np.ndarray]], notes: str) -> int:
+                   records: list[Record], outputs: dict[int, dict[str, np.ndarray]], notes: str) -> int:
     if args.page:
         page = Path(args.page)
         if not args.no_plots:

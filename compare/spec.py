@@ -5,17 +5,7 @@ says what to run and how to time it; its record says what happened. ``tags`` car
 own identity of the cell (a sweep's kind, role and knob; a stress experiment), so two suites can
 run the same cell for different reasons and keep both records.
 
-Record (``format_version`` 2; users load these with pandas, so the keys are stable; docs/commands.md
-"What each column means" documents them):
-    scenario, backend, device, precision, variant, params, tags   identity
-    status        ok | mismatch | error | skipped
-    reason        why not ok ('' when ok)
-    time          {first_call_s, median_s, iqr_s, min_s, repeats, wall: {...}, setup_s, ...} | None
-    error         {vs_oracle, tolerance, vs_reference, reference, ...} | None
-    work, throughput, memory, info, versions, host, gradient        when the cell ran
-
-``record_problem`` checks this shape; compare/records.py then checks, when a file is read, every
-field inside it that a later step reads (types, ranges, the params by their scenario).
+Its record is ``compare.record.Record`` (the fields, their checks and the format's history).
 """
 from __future__ import annotations
 
@@ -24,7 +14,6 @@ import json
 import math
 from typing import Any
 
-FORMAT_VERSION = 2
 STATUSES = ("ok", "mismatch", "error", "skipped")
 IDENTITY = ("scenario", "backend", "device", "precision", "variant")
 # a rerun (--resume) keeps these and retries the rest (a crash, timeout or kill is not a result)
@@ -96,37 +85,3 @@ def key(rec_or_spec: dict[str, Any]) -> str:
     return json.dumps([rec_or_spec.get(f, "default" if f == "variant" else None) for f in IDENTITY]
                       + [rec_or_spec.get("params"), rec_or_spec.get("tags") or {}],
                       sort_keys=True, default=str)
-
-
-def record_problem(rec: Any) -> str | None:
-    """The first way ``rec`` is not a record of this schema, or None."""
-    if not isinstance(rec, dict):
-        return f"a record must be an object, got {type(rec).__name__}"
-    for f in ("scenario", "backend", "device", "precision"):
-        if not isinstance(rec.get(f), str):
-            return f"record field {f!r} must be a string, got {rec.get(f)!r}"
-    if rec.get("status") not in STATUSES:
-        return f"record status must be one of {', '.join(STATUSES)}, got {rec.get('status')!r}"
-    for f in OBJECT_FIELDS:
-        if rec.get(f) is not None and not isinstance(rec[f], dict):
-            return f"record field {f!r} must be an object or null, got {type(rec[f]).__name__}"
-    if not isinstance(rec.get("variant", "default"), str) or not isinstance(rec.get("reason", ""), str):
-        return "record fields 'variant' and 'reason' must be strings"
-    for f, keys in NUMBER_FIELDS.items():
-        for k in keys:
-            v = (rec.get(f) or {}).get(k)
-            if v is not None and not _number(v):
-                return f"record field {f}.{k} must be a number or null, got {v!r}"
-    return None
-
-
-# Record fields that are objects (or null), and the figures inside them that are numbers (or
-# null, or the strings 'nan', 'inf', '-inf' that jsonable writes for non-finite floats).
-OBJECT_FIELDS = ("params", "time", "error", "tags", "work", "throughput", "memory", "info", "versions",
-                 "gradient", "converged")
-NUMBER_FIELDS = {"time": ("first_call_s", "median_s", "iqr_s", "min_s"),
-                 "error": ("vs_oracle", "tolerance", "vs_reference")}
-
-
-def _number(v: Any) -> bool:
-    return (isinstance(v, (int, float)) and not isinstance(v, bool)) or v in ("nan", "inf", "-inf")

@@ -5,13 +5,12 @@ shape (pyperf-style: versioned, and a merge of different suites or versions is r
 
     {"format_version": 2, "suite": "run" | "sweep" | "stress",
      "runs": [environment, ...],          one per invocation that added records (provenance)
-     "records": [record, ...],            compare.spec's record schema, one per cell key
+     "records": [record, ...],            compare.record.Record, one per cell key
      "analysis": {...}}                   what a suite derives from its records (stress findings)
 
-Files written before format 2 (no ``format_version``) are read and upgraded in memory: old
-results.json ``{environment, records}``, sweep.json ``{runs, records}``, stress.json
-``{environment, provenance, rows, series}``; saving writes format 2. Every write is atomic
-(temporary file + rename in the same directory, removed on failure).
+Files of an older format (compare.record says what changed) are read and upgraded in memory;
+saving writes the newest. Every write is atomic (temporary file + rename in the same directory,
+removed on failure).
 """
 from __future__ import annotations
 
@@ -23,13 +22,14 @@ import re
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Mapping
 
 import numpy as np
 
+from compare.record import FORMAT_VERSION, Record, RecordError
 from compare.records import arrays_problem, store_problem
 from compare.records import show as _show
-from compare.spec import FORMAT_VERSION, KEPT_ON_RESUME, key, record_problem
+from compare.spec import KEPT_ON_RESUME
 
 SUITES = {"run": "results.json", "sweep": "sweep.json", "stress": "stress.json"}
 # per suite: turn a record of an older format into today's (registered by the suite's module)
@@ -162,7 +162,7 @@ def remove_stale_temps(directory: Path) -> list[Path]:
 
 
 def _upgrade(data: Any, path: Path) -> dict[str, Any]:
-    """Any supported layout -> format 2 (in memory)."""
+    """Any supported layout -> format 2 (in memory), its records loaded (``Record.from_json``)."""
     if not isinstance(data, dict):
         raise StoreError(f"{path}: not a results file (top level is {type(data).__name__}, not an object)")
     version = data.get("format_version")
@@ -192,13 +192,12 @@ def _upgrade(data: Any, path: Path) -> dict[str, Any]:
     if data["suite"] not in UPGRADES and data["suite"] in UPGRADE_MODULES:
         import importlib   # the suite's module registers its upgrade when imported
         importlib.import_module(UPGRADE_MODULES[data["suite"]])
-    upgrade = UPGRADES.get(data["suite"])
+    upgrade = UPGRADES.get(data["suite"]) if data["format_version"] == 1 else None
     for i, rec in enumerate(data["records"]):
-        problem = record_problem(rec)
-        if problem:
-            raise StoreError(f"{path}: record {i}: {problem}")
-        if data["format_version"] == 1 and upgrade:
-            data["records"][i] = upgrade(rec)
+        try:
+            data["records"][i] = Record.from_json(rec, upgrade)
+        except RecordError as exc:
+            raise StoreError(f"{path}: record {i}: {exc}") from None
     # every field a later step reads, typed and in range, before any reader writes anything
     if (problem := store_problem(data)) is not None:
         raise StoreError(f"{path}: {problem}")
@@ -212,7 +211,7 @@ class Store:
     the earlier one); ``analysis`` is the suite's derived data."""
 
     def __init__(self, path: Path, suite: str, runs: list[dict[str, Any]] | None = None,
-                 records: Iterable[dict[str, Any]] = (), analysis: dict[str, Any] | None = None,
+                 records: Iterable[Record] = (), analysis: dict[str, Any] | None = None,
                  upgraded_from: int | None = None) -> None:
         if suite not in SUITES:
             raise ValueError(f"unknown suite {suite!r}")
@@ -220,7 +219,7 @@ class Store:
         self.runs: list[dict[str, Any]] = list(runs or [])
         self.analysis: dict[str, Any] = dict(analysis or {})
         self.upgraded_from = upgraded_from
-        self._records: dict[str, dict[str, Any]] = {}
+        self._records: dict[str, Record] = {}
         for r in records:
             self.put(r)
 
@@ -259,19 +258,19 @@ class Store:
 
     # ---- records --------------------------------------------------------------------------
     @property
-    def records(self) -> list[dict[str, Any]]:
+    def records(self) -> list[Record]:
         return list(self._records.values())
 
-    def put(self, record: dict[str, Any]) -> None:
-        self._records[key(record)] = record
+    def put(self, record: Record) -> None:
+        self._records[record.key] = record
 
-    def get(self, cell_key: str) -> dict[str, Any] | None:
+    def get(self, cell_key: str) -> Record | None:
         return self._records.get(cell_key)
 
     def done(self, cell_key: str) -> bool:
         """True when a rerun (--resume) keeps this cell's record instead of running it again."""
         r = self._records.get(cell_key)
-        return r is not None and r.get("status") in KEPT_ON_RESUME
+        return r is not None and r.status in KEPT_ON_RESUME
 
     def merge(self, other: "Store") -> None:
         """Add ``other``'s runs and records (a later record of a cell wins)."""
@@ -284,7 +283,7 @@ class Store:
     # ---- writing --------------------------------------------------------------------------
     def to_json(self) -> str:
         data = {"format_version": FORMAT_VERSION, "suite": self.suite, "runs": self.runs,
-                "records": self.records, "analysis": self.analysis}
+                "records": [r.to_json() for r in self.records], "analysis": self.analysis}
         if self.upgraded_from is not None:      # a file converted from an older format says so
             data["upgraded_from"] = self.upgraded_from
         return json.dumps(jsonable(data), indent=1)
@@ -297,11 +296,12 @@ class Store:
 _NAME = re.compile(r"[A-Za-z0-9_]+")
 
 
-def array_file(directory: Path, rec: dict[str, Any]) -> Path:
-    """``DIR/arrays/<scenario>-<backend>-<device>-<precision>[-<variant>].npz``; the parts come
-    from a record, so each must be a plain name (letters, digits, '_'): no path can leave arrays/."""
-    parts = [rec.get(f) for f in ("scenario", "backend", "device", "precision")]
-    variant = rec.get("variant", "default")
+def array_file(directory: Path, cell: Mapping[str, Any]) -> Path:
+    """``DIR/arrays/<scenario>-<backend>-<device>-<precision>[-<variant>].npz`` of a cell (a loaded
+    record's ``identity``, or the JSON of one being written); the parts come from a record, so each
+    must be a plain name (letters, digits, '_'): no path can leave arrays/."""
+    parts = [cell.get(f) for f in ("scenario", "backend", "device", "precision")]
+    variant = cell.get("variant", "default")
     if variant != "default":
         parts.append(variant)
     bad = [p for p in parts if not isinstance(p, str) or not _NAME.fullmatch(p)]
@@ -310,18 +310,18 @@ def array_file(directory: Path, rec: dict[str, Any]) -> Path:
     return Path(directory) / "arrays" / ("-".join(parts) + ".npz")
 
 
-def save_arrays(directory: Path, rec: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+def save_arrays(directory: Path, cell: Mapping[str, Any], arrays: dict[str, np.ndarray]) -> None:
     import io
     buf = io.BytesIO()
     np.savez(buf, **arrays)
-    atomic_write(array_file(directory, rec), buf.getvalue())
+    atomic_write(array_file(directory, cell), buf.getvalue())
 
 
-def load_arrays(directory: Path, rec: dict[str, Any], names: Iterable[str]) -> dict[str, np.ndarray] | None:
+def load_arrays(directory: Path, cell: Mapping[str, Any], names: Iterable[str]) -> dict[str, np.ndarray] | None:
     """The named arrays of a cell saved beside a results file, or None (absent or unreadable:
     a truncated file must not take a report down)."""
     try:
-        f = array_file(directory, rec)
+        f = array_file(directory, cell)
     except StoreError:
         return None
     if not f.is_file() or f.is_symlink():
@@ -330,7 +330,7 @@ def load_arrays(directory: Path, rec: dict[str, Any], names: Iterable[str]) -> d
         with np.load(f) as z:
             names = [k for k in names if k in z.files]
             # shapes from the headers first: a record's sizes must not decide what is allocated
-            if arrays_problem(rec, {k: _npy_header(z.zip, k) for k in names}) is not None:
+            if arrays_problem(cell, {k: _npy_header(z.zip, k) for k in names}) is not None:
                 return None
             return {k: z[k] for k in names}
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):

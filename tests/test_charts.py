@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from compare import charts, colors, report, run_plots, run_suite
+from compare.record import Record
 
 pytestmark = pytest.mark.cli
 
@@ -82,20 +83,20 @@ def test_write_csv_formats_floats_stably(tmp_path):
 
 
 def record(scenario: str, backend: str, device: str, precision: str, t: float | None,
-           variant: str = "default", status: str = "ok", throughput: bool = True) -> dict:
+           variant: str = "default", status: str = "ok", throughput: bool = True) -> Record:
     time = {}
     if t is not None:
         time = {"median_s": t * 1.3, "iqr_s": t * 0.1, "latency": {"median_s": t * 1.3, "iqr_s": t * 0.1}}
         time["wall"] = time["latency"]
         if throughput:
             time["throughput"] = {"median_s": t, "iqr_s": t * 0.05, "k": 10}
-    return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
-            "variant": variant, "params": {"n": 1000}, "status": status,
-            "reason": "" if status == "ok" else "injected", "time": time,
-            "error": {"vs_oracle": 1e-7 if precision == "float32" else 0.0} if t else None}
+    return Record(scenario=scenario, backend=backend, device=device, precision=precision,
+                  variant=variant, params={"n": 1000}, status=status,
+                  reason="" if status == "ok" else "injected", time=time,
+                  error={"vs_oracle": 1e-7 if precision == "float32" else 0.0} if t else None)
 
 
-def synthetic_records() -> list[dict]:
+def synthetic_records() -> list[Record]:
     recs = []
     for scenario in ("saxpy", "sdf"):
         for prec in ("float32", "float64"):
@@ -129,7 +130,7 @@ def test_run_writes_speed_pictures_and_the_cpu_speedup(tmp_path):
 
 
 def test_no_numpy_no_speedup_and_no_plots_no_png(tmp_path):
-    recs = [r for r in synthetic_records() if r["backend"] != "numpy"]
+    recs = [r for r in synthetic_records() if r.backend != "numpy"]
     assert not run_plots.plot_speedup_vs_baseline(recs, tmp_path / "up.png", "numpy")
     assert not (tmp_path / "up.png").exists()
     run_suite.render(tmp_path / "run", {}, recs, {}, plots=False)

@@ -225,7 +225,7 @@ def test_timeout_covers_a_worker_that_saved_its_record_but_never_exits(work: Pat
     took = time.monotonic() - t0
     assert rc == 0, err.getvalue()
     assert "did not exit within --timeout 5 s" in err.getvalue() and "Traceback" not in err.getvalue()
-    assert [r["status"] for r in Store.read(work / "out" / "results.json").records] == ["ok"]
+    assert [r.status for r in Store.read(work / "out" / "results.json").records] == ["ok"]
     assert took < 5 + 20, took                   # probes and yardstick, then at most the timeout
     assert not running(marker)
 
@@ -263,7 +263,7 @@ print(hardware.measure("cpu"))
 def _tables(out: Path) -> tuple[list[tuple], list[tuple], str]:
     """(cells in results.json, cells in results.csv, results.md)."""
     cell = ("scenario", "backend", "device", "precision", "status")
-    js = sorted(tuple(r[k] for k in cell) for r in Store.read(out / "results.json").records)
+    js = sorted(tuple(getattr(r, k) for k in cell) for r in Store.read(out / "results.json").records)
     with open(out / "results.csv", newline="") as f:
         rows = sorted(tuple(r[k] for k in cell) for r in csv.DictReader(f))
     return js, rows, (out / "results.md").read_text()
@@ -299,7 +299,7 @@ def test_full_disk_while_saving_arrays_then_resume_recreates_them_and_fills_the_
     rc, err = finished(compare_proc(*args, env={"COMPARE_FAULT_DISK": "4"}))
     assert rc == 1 and err.strip().splitlines()[-1].startswith(
         f"error: cannot write {arrays / 'saxpy-numpy-cpu-float64.npz'}: No space left on device"), err
-    assert [r["precision"] for r in Store.read(out / "results.json").records] == ["float32"]
+    assert [r.precision for r in Store.read(out / "results.json").records] == ["float32"]
     assert sorted(p.name for p in arrays.iterdir()) == ["saxpy-numpy-cpu-float32.npz"]
     assert not list(out.rglob(".*.tmp")) and not (out / ".compare.lock").exists()
     js, rows, _ = _tables(out)
@@ -318,7 +318,7 @@ def test_full_disk_while_saving_arrays_then_resume_recreates_them_and_fills_the_
     (out / "results.json").write_text(json.dumps(data))
     rc, err = finished(compare_proc(*args, "--resume"))
     assert rc == 0, err
-    recs = {r["precision"]: r for r in Store.read(out / "results.json").records}
+    recs = {r.precision: r.to_json() for r in Store.read(out / "results.json").records}
     assert recs["float32"]["time"] == rec["time"]                  # kept, not rerun
     assert all("hardware" in r and r["throughput"]["hw_fraction"] > 0 for r in recs.values())
     assert sorted(p.name for p in arrays.iterdir()) == ["saxpy-numpy-cpu-float32.npz", "saxpy-numpy-cpu-float64.npz"]

@@ -243,7 +243,7 @@ def test_saved_arrays_are_used_only_when_they_match_the_record(tmp_path: Path, n
                                                                extra: dict[str, Any], used: bool) -> None:
     """A parameter the scenario lacks loads (no reader resolves it) but keeps the arrays unused."""
     f, rec = saxpy_store(tmp_path, n, saved, **extra)
-    got = load_arrays(tmp_path, Store.read(f).records[0], ["out"])
+    got = load_arrays(tmp_path, Store.read(f).records[0].identity, ["out"])
     assert (got is not None) == used
     t0 = time.perf_counter()
     rc, lines = run_main(["report", str(f), "--out", str(tmp_path / "rep")])
@@ -262,7 +262,7 @@ def test_an_array_header_claiming_a_huge_shape_is_not_read(tmp_path: Path) -> No
     np.lib.format.write_array_header_1_0(hdr, {"descr": "<f4", "fortran_order": False, "shape": (2**31 - 1,)})
     with zipfile.ZipFile(npz, "w") as z:
         z.writestr("out.npy", np.lib.format.magic(1, 0) + hdr.getvalue() + b"\0" * 16)
-    assert load_arrays(tmp_path, Store.read(f).records[0], ["out"]) is None
+    assert load_arrays(tmp_path, Store.read(f).records[0].identity, ["out"]) is None
 
 
 # ---- property: mutated valid files and random bytes ----------------------------------------

@@ -14,6 +14,7 @@ import pytest
 import backends
 import scenarios
 from compare import cells, timing
+from compare.record import Record
 from compare.store import Store
 from compare.sweep import converged
 from compare.sweep import metrics as sweep_metrics
@@ -116,12 +117,12 @@ def test_event_timer_choice():
 # ---- roofline and Pareto math ---------------------------------------------------------------
 def _rec(role, backend, n, median, nbytes, wall=None, timer="wall", device="cuda"):
     scenario = {"bandwidth": "saxpy"}.get(role, role)
-    return {"tags": {"sweep": "bandwidth", "role": role, "knob": {"name": "n", "value": n}},
-            "scenario": scenario, "backend": backend,
-            "device": device, "precision": "float32", "status": "ok", "params": {"n": n},
-            "work": {"bytes": nbytes},
-            "time": {"median_s": median, "timer": timer,
-                     "wall": {"median_s": wall or median, "iqr_s": 0.0, "min_s": wall or median}}}
+    return Record(tags={"sweep": "bandwidth", "role": role, "knob": {"name": "n", "value": n}},
+                  scenario=scenario, backend=backend,
+                  device=device, precision="float32", status="ok", params={"n": n},
+                  work={"bytes": nbytes},
+                  time={"median_s": median, "timer": timer,
+                        "wall": {"median_s": wall or median, "iqr_s": 0.0, "min_s": wall or median}})
 
 
 def test_roofline_and_bandwidth_rows():
@@ -306,7 +307,8 @@ def test_old_records_are_upgraded_to_tags():
     assert sweep.upgrade_record(new) is new
     err = sweep.upgrade_record({**old, "scenario": "sdf", "sweep": "error", "role": "sdf", "knob": {}})
     assert err["tags"] == {"sweep": "error", "role": "sdf", "knob": {}}
-    store = Store(ROOT / "unused.json", "sweep", records=[new, sweep.upgrade_record(dict(old))])
+    store = Store(ROOT / "unused.json", "sweep",
+                  records=[Record.from_json(new), Record.from_json(sweep.upgrade_record(dict(old)))])
     assert len(store.records) == 1                 # the same cell, old or new shape: one key
 
 
@@ -314,7 +316,7 @@ def test_old_files_upgrade_without_importing_the_suite():
     """The store upgrades a format-1 file's records itself (no import side effect needed), so
     saving it never writes old-shape records under format 2."""
     code = ("from compare.store import Store; s = Store.read('tests/data/format1-sweep.json', 'sweep'); "
-            "assert s.upgraded_from == 1 and s.records and all('tags' in r for r in s.records), 'not upgraded'")
+            "assert s.upgraded_from == 1 and s.records and all(r.tags is not None for r in s.records), 'not upgraded'")
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
 
@@ -326,7 +328,7 @@ def test_published_sweep_file_still_renders(tmp_path, published, device, old_for
     store = Store.read(ROOT / published, "sweep")
     assert store.upgraded_from == old_format
     data = sweep.contents(store)
-    assert all("tags" in r for r in data["records"])
+    assert all(r.tags is not None for r in data["records"])
     text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
     for heading in (f"## {device}: launch overhead", f"## {device}: copy bandwidth (roofline)",
                     f"## {device}: SAXPY bandwidth against size", "### projectile",
@@ -337,7 +339,8 @@ def test_published_sweep_file_still_renders(tmp_path, published, device, old_for
 
 
 def test_plot_colours_belong_to_the_backend():
-    recs = [{"backend": "numba"}, {"backend": "warp"}, {"backend": "elsewhere"}]
+    recs = [Record(scenario="saxpy", backend=b, device="cpu", precision="float32", status="ok")
+            for b in ("numba", "warp", "elsewhere")]
     c = sweep_plots.colors(recs)
     assert c["numba"] == backends.get("numba").color and c["warp"] == backends.get("warp").color
     assert list(c)[:2] == ["warp", "numba"] and c["elsewhere"] not in (c["warp"], c["numba"])

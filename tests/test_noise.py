@@ -13,6 +13,7 @@ import time
 import pytest
 
 from compare import cells, noise, report
+from compare.record import Record
 from compare.site import data
 
 IDLE = {"cores": 2, "measured_s": 1.0, "own_cores": 1.0, "others_cores": 0.05}
@@ -52,18 +53,19 @@ def test_host_busy_means_others_working_on_a_saturated_host(host: dict, busy: bo
     assert (noise.host_reason(host) is not None) == busy
 
 
-def _cell(repeat: int = 30) -> dict:
+def _cell(repeat: int = 30) -> Record:
     spec = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
             "params": {"n": 200_000}, "quick": True, "repeat": repeat, "min_time": 0.5, "variant": "default"}
     record, _ = cells.run(spec, timeout=300)
     assert record["status"] == "ok", record.get("reason")
-    return {**{k: spec[k] for k in ("scenario", "backend", "device", "precision", "variant")}, **record}
+    return Record.from_json({**{k: spec[k] for k in ("scenario", "backend", "device", "precision", "variant")},
+                             **record})
 
 
 @pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the host meter reads /proc/stat (Linux)")
 def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not() -> None:
     idle = _cell()
-    assert not any("host busy" in r["why"] for r in idle["time"]["noise"]["reasons"]), idle["time"]["noise"]
+    assert not any("host busy" in r["why"] for r in idle.time["noise"]["reasons"]), idle.time["noise"]
     spin = "import time\nt = time.time() + 120\nwhile time.time() < t: pass\n"
     hogs = [subprocess.Popen([sys.executable, "-c", spin]) for _ in range(os.cpu_count() or 1)]
     try:
@@ -73,7 +75,7 @@ def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not
         for h in hogs:
             h.kill()
             h.wait()
-    v = busy["time"]["noise"]
+    v = busy.time["noise"]
     assert v["noisy"] and v["others_cores"] > 0.5 * (os.cpu_count() or 1), v
     why = noise.reasons_for(busy)
     assert any("host busy" in w for w in why), why

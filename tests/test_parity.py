@@ -70,14 +70,14 @@ def run_case(backend, device, precision, scenario, overrides):
 def test_parity(backend, device, precision, scenario, overrides):
     require_device(backend, device)
     record, outputs = run_case(backend, device, precision, scenario, overrides)
-    assert record["status"] == "ok", f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
-    err = record["error"]
+    assert record.status == "ok", f"{record.status}: {record.reason}\n{record.traceback or ''}"
+    err = record.error
     assert math.isfinite(err["vs_oracle"]) and err["vs_oracle"] <= err["tolerance"]
-    assert record["time"]["first_call_s"] > 0 and record["time"]["median_s"] > 0
+    assert record.time["first_call_s"] > 0 and record.time["median_s"] > 0
     if precision == "float64" and backend != backends.reference():
         require_device(backends.reference(), device)
         ref_rec, ref_out = run_case(backends.reference(), device, "float64", scenario, overrides)
-        assert ref_rec["status"] == "ok", ref_rec.get("reason")
+        assert ref_rec.status == "ok", ref_rec.reason
         import scenarios
         sc = scenarios.get(scenario)
         p = sc.params(overrides, quick=True)
@@ -94,7 +94,7 @@ def test_batch_row0_is_the_single_trajectory(backend, device, precision, scenari
     single = BATCH_ROW0[overrides["contact"]][1]
     (rec_b, out_b), (rec_1, out_1) = (run_case(backend, device, precision, s, o)
                                       for s, o in ((scenario, overrides), single))
-    assert rec_b["status"] == "ok" and rec_1["status"] == "ok", (rec_b.get("reason"), rec_1.get("reason"))
+    assert rec_b.status == "ok" and rec_1.status == "ok", (rec_b.reason, rec_1.reason)
     for name, a in out_1.items():
         row0 = out_b[name][:, 0] if name == "loss_history" else out_b[name][0]
         assert row0.tobytes() == a.tobytes(), f"{name}: batch row 0 {row0} != single {a}"

@@ -557,8 +557,8 @@ def test_memory_estimate_bounds_measured_peaks():
     results = engine.run_cells(specs, timeout=600, probes=probes, jobs=2)     # a process each: own peak
     ratios = []
     for spec, (rec, _) in zip(specs, results):
-        assert rec["status"] == "ok", rec["reason"]
-        peak = rec["memory"]["peak_host_rss_bytes"]
+        assert rec.status == "ok", rec.reason
+        peak = rec.memory["peak_host_rss_bytes"]
         estimate = run_suite.cell_bytes(spec)[0]
         assert estimate >= peak, (spec["scenario"], spec["params"], peak / 2**20, estimate / 2**20)
         ratios.append(estimate / peak)
@@ -613,7 +613,7 @@ def test_sigkilled_driver_leaves_no_worker_no_temp_dir_and_a_stale_lock(tmp_path
     again = compare_proc(*args, "--resume", env={"TMPDIR": str(tmp)})
     _, err = again.communicate(timeout=300)
     assert again.returncode == 0, err
-    assert [r["status"] for r in Store.read(out / "results.json").records] == ["ok"]
+    assert [r.status for r in Store.read(out / "results.json").records] == ["ok"]
     deadline = time.monotonic() + 10          # the reaper removes the root as the driver exits
     while list(tmp.iterdir()) and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -638,7 +638,7 @@ def test_full_disk_mid_run_keeps_every_saved_record_and_resume_finishes(tmp_path
         "--resume" in last, err
     assert "Traceback" not in err
     kept = Store.read(out / "results.json").records
-    assert [r["scenario"] for r in kept] == ["saxpy", "sdf"] and all(r["status"] == "ok" for r in kept)
+    assert [r.scenario for r in kept] == ["saxpy", "sdf"] and all(r.status == "ok" for r in kept)
     assert sorted(p.name for p in out.iterdir()) == ["results.csv", "results.json", "results.md"]
     p = compare_proc(*args, "--resume", env={"CI": "1"})
     _, err = p.communicate(timeout=600)
@@ -646,10 +646,10 @@ def test_full_disk_mid_run_keeps_every_saved_record_and_resume_finishes(tmp_path
     ran = [ln for ln in err.splitlines() if ln.startswith("  ") and ": ok" in ln]
     assert len(ran) == 1 and "projectile/numba" in ran[0], err
     recs = Store.read(out / "results.json").records
-    FIGURES["records_lost"] += sum(1 for r in kept if r["scenario"] not in {q["scenario"] for q in recs})
-    assert [r["scenario"] for r in recs] == ["saxpy", "sdf", "projectile"]
-    assert [{k: r[k] for k in ("time", "params")} for r in recs[:2]] == \
-        [{k: r[k] for k in ("time", "params")} for r in kept]
+    FIGURES["records_lost"] += sum(1 for r in kept if r.scenario not in {q.scenario for q in recs})
+    assert [r.scenario for r in recs] == ["saxpy", "sdf", "projectile"]
+    assert [{k: getattr(r, k) for k in ("time", "params")} for r in recs[:2]] == \
+        [{k: getattr(r, k) for k in ("time", "params")} for r in kept]
     assert not [q for q in out.rglob(".*.tmp")]
     FIGURES["faults"].append("a full disk mid-run (then --resume)")
 

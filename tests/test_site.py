@@ -36,7 +36,7 @@ def store_frameworks(store: Path = STORE) -> list[str]:
     names: set[str] = set()
     for file in SUITES.values():
         if (store / file).exists():
-            names |= {r["backend"] for r in Store.read(store / file).records}
+            names |= {r.backend for r in Store.read(store / file).records}
     return sorted(names)
 
 

@@ -53,12 +53,12 @@ def _torch():
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_outputs_have_the_cells_precision_and_tf32_is_recorded_off(precision):
     for scenario, (record, outputs) in cells(precision, "default").items():
-        assert record["status"] == "ok", (scenario, record.get("reason"), record.get("traceback", ""))
+        assert record.status == "ok", (scenario, record.reason, record.traceback or "")
         assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
-        info = record["info"]
+        info = record.info
         assert info["tf32_matmul"] is False and info["tf32_cudnn"] is False, info
         assert info["float32_matmul_precision"] == "highest"
-        assert record["versions"]["torch"].startswith("2.13")
+        assert record.versions["torch"].startswith("2.13")
 
 
 @pytest.mark.parametrize("default", ["float64", "float32"])
@@ -90,10 +90,10 @@ def test_global_default_dtype_does_not_leak_into_a_cell(default):
 def test_compile_variant_equals_eager():
     eager, comp = cells("float64", "default"), cells("float64", "compile")
     for scenario, (record, outputs) in comp.items():
-        assert record["status"] == "ok", (scenario, record.get("reason"), record.get("traceback", ""))
-        assert record["info"]["execution"].startswith("torch.compile(mode='default'")
-        assert record["info"]["inductor_division_rounding"] is True     # IEEE division in Triton
-        assert record["info"]["dynamo_fail_on_recompile_limit_hit"] is True   # no silent eager
+        assert record.status == "ok", (scenario, record.reason, record.traceback or "")
+        assert record.info["execution"].startswith("torch.compile(mode='default'")
+        assert record.info["inductor_division_rounding"] is True     # IEEE division in Triton
+        assert record.info["dynamo_fail_on_recompile_limit_hit"] is True   # no silent eager
         sc = scenarios.get(scenario)
         p = sc.params(SMALL[scenario], quick=True)
         ref = eager[scenario][1]

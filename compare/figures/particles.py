@@ -19,13 +19,13 @@ def figure(runs: Runs) -> Any:
     import matplotlib.pyplot as plt
     runs = pick_runs(runs, 6)
     rec0, out0 = runs[0]
-    p = SC.params(rec0["params"])
+    p = SC.params(rec0.params)
     if p.n * (p.steps + 1) > 5e7:              # the oracle would be too big for a picture
         return None
     # one float64 oracle per precision (with every frame), for the trajectories and the errors
     refs = {prec: SC.oracle(dataclasses.replace(p, record_every=1), SC.inputs(p, prec))
-            for prec in {r["precision"] for r, _ in runs}}
-    ref = refs[rec0["precision"]]
+            for prec in {r.precision for r, _ in runs}}
+    ref = refs[rec0.precision]
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.6))
     shown = np.unique(np.linspace(0, p.n - 1, min(p.n, 48)).astype(int))
     own = "traj_x" in out0
@@ -42,9 +42,9 @@ def figure(runs: Runs) -> Any:
     ax.legend(fontsize=6, loc="upper right")
     idx = np.arange(p.n)
     for (r, o), m in zip(runs, markers):
-        err = SC.state_error(o, refs[r["precision"]])
+        err = SC.state_error(o, refs[r.precision])
         ax2.scatter(idx, np.maximum(err, 1e-18), s=6, marker=m, label=run_label(r), alpha=0.7)
-    ax2.plot(idx, ref["error_bound"], "r-", lw=1, label=f"derived bound ({rec0['precision']})")
+    ax2.plot(idx, ref["error_bound"], "r-", lw=1, label=f"derived bound ({rec0.precision})")
     ill = ref["ill_conditioned"]
     if ill.any():
         ax2.scatter(idx[ill], ref["error_bound"][ill], marker="x", color="r", s=14,

@@ -18,12 +18,12 @@ def figure(runs: Runs) -> Any:
     rounded inputs) and the derived bound for its precision."""
     import matplotlib.pyplot as plt
     rec0 = runs[0][0]
-    p = SC.params(rec0["params"])
+    p = SC.params(rec0.params)
     if p.batch > 1:        # draw row 0 of every batch: the seed case
         p = dataclasses.replace(p, batch=1)
         runs = [(r, {k: np.asarray(v)[:, 0] if k == "loss_history" else np.asarray(v)[0]
                      for k, v in o.items()}) for r, o in runs]
-    refs = {prec: SC.oracle(p, SC.inputs(p, prec)) for prec in {r["precision"] for r, _ in runs}}
+    refs = {prec: SC.oracle(p, SC.inputs(p, prec)) for prec in {r.precision for r, _ in runs}}
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
     ref = refs.get("float64", next(iter(refs.values())))["loss_history"]
     ax.plot(np.arange(ref.size), np.maximum(ref, 1e-30), "k--", lw=2, alpha=0.5, label="float64 oracle")
@@ -35,7 +35,7 @@ def figure(runs: Runs) -> Any:
     for r, o in runs:
         h = np.asarray(o["loss_history"], np.float64)
         line, = ax.plot(np.arange(h.size), np.maximum(h, 1e-30), lw=1, label=run_label(r))
-        ho = refs[r["precision"]]["loss_history"]
+        ho = refs[r.precision]["loss_history"]
         if h.shape == ho.shape:
             with np.errstate(invalid="ignore", divide="ignore"):
                 rel = np.abs(h - ho) / np.maximum(np.abs(ho), 1e-300)

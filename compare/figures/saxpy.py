@@ -18,12 +18,12 @@ def figure(runs: Runs) -> Any:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     edges = np.linspace(0.0, 1.5, 31)
-    p = SC.params(runs[0][0]["params"])
-    runs = [(r, o) for r, o in runs if r["precision"] == "float32"]
+    p = SC.params(runs[0][0].params)
+    runs = [(r, o) for r, o in runs if r.precision == "float32"]
     if not runs:
         return None
     for r, o in runs:
-        inputs = SC.inputs(p, r["precision"])
+        inputs = SC.inputs(p, r.precision)
         ref = SC.oracle(p, inputs)["out"]
         out = np.asarray(o["out"], np.float64)
         if out.shape != ref.shape:

@@ -21,7 +21,7 @@ def figure(runs: Runs) -> Any:
     runs = [(r, o) for r, o in pick_runs(runs, 8) if np.ndim(o.get("image")) == 2]
     if not runs:
         return None
-    p = SC.params(runs[0][0]["params"])
+    p = SC.params(runs[0][0].params)
     ref = SC.oracle(p, {})["image"]
     diffs = []
     for r, o in runs:
@@ -42,7 +42,7 @@ def figure(runs: Runs) -> Any:
             ax.set_title(f"{run_label(r)}: shape differs", fontsize=8); continue
         im = ax.imshow(np.maximum(d, norm.vmin), origin="lower", cmap="viridis", norm=norm)
         fig.colorbar(im, ax=ax, label="|image - oracle|", shrink=0.85)
-        tol = TOLERANCE_ULPS * (UNIT_ROUNDOFF[r["precision"]] + UNIT_ROUNDOFF["float64"])
+        tol = TOLERANCE_ULPS * (UNIT_ROUNDOFF[r.precision] + UNIT_ROUNDOFF["float64"])
         ax.set_title(f"{run_label(r)}\nmax {d.max():.2g} = {d.max() / tol:.2g} x derived tolerance",
                      fontsize=8)
     for ax in axes.flat:

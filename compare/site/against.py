@@ -14,9 +14,10 @@ import math
 import os
 import statistics
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
-from compare import charts, spec
+from compare import charts
+from compare.record import Record
 from compare.site import data, fmt
 from compare.site.data import Machine, Timing
 from compare.site.questions_pages import Ctx
@@ -26,8 +27,6 @@ DIFF_MARK = "≠"
 WITHIN, FASTER, SLOWER = "within spread", "faster", "slower"
 SUITES = ("run", "sweep")
 COMMAND = "python -m compare site MINE --out REPORT --against REFERENCE"
-
-Record = dict[str, Any]
 
 
 # ---- the environments -------------------------------------------------------------------------
@@ -75,7 +74,7 @@ def _env_rows(m: Machine) -> dict[str, str]:
 
 def _load(m: Machine) -> float | None:
     # a busy host slows every cell alike: the first thing to rule out when all ratios move together
-    load = [v for r in m.records if (v := data.num(r.get("host_load_1m"))) is not None]
+    load = [v for r in m.records if (v := data.num(r.host_load_1m)) is not None]
     return statistics.median(load) if load else None
 
 
@@ -150,7 +149,7 @@ def _cells(m: Machine) -> dict[tuple[str, str], Record]:
     out: dict[tuple[str, str], Record] = {}
     for suite, recs in (("run", m.run), ("sweep", m.sweep)):
         for r in recs:
-            out[(suite, spec.key(r))] = r
+            out[(suite, r.key)] = r
     return out
 
 
@@ -174,7 +173,7 @@ def match(m: Machine, ref: Machine) -> Matching:
         if b is None:
             continue
         res.matched += 1
-        ok_a, ok_b = a.get("status") == "ok", b.get("status") == "ok"
+        ok_a, ok_b = a.status == "ok", b.status == "ok"
         if ok_a != ok_b:
             res.changed.append((k[0], a, b))
             continue
@@ -191,13 +190,13 @@ def match(m: Machine, ref: Machine) -> Matching:
 
 
 def _order(r: Record) -> tuple[Any, ...]:
-    return (r["device"] != "cuda", r["device"], r["scenario"], SUITES.index("sweep" if r.get("tags") else "run"),
-            _tags_text(r), data.size(r), r["backend"], r.get("variant", "default"), r["precision"])
+    return (r.device != "cuda", r.device, r.scenario, SUITES.index("sweep" if r.tags else "run"),
+            _tags_text(r), data.size(r), r.backend, r.variant, r.precision)
 
 
 def _tags_text(r: Record) -> str:
-    t = r.get("tags") or {}
-    knob = t.get("knob") if isinstance(t.get("knob"), dict) else None
+    t = r.tags or {}
+    knob = t.get("knob") if isinstance(t.get("knob"), Mapping) else None
     if "sweep" in t:
         return f"{t['sweep']} sweep" + (f", {knob.get('name')}={knob.get('value')}" if knob else "")
     return ", ".join(f"{k}={v}" for k, v in sorted(t.items())) if t else ""
@@ -205,12 +204,12 @@ def _tags_text(r: Record) -> str:
 
 def _where(r: Record) -> str:
     """The cell's parameters (those off the defaults) and, for a sweep record, its sweep."""
-    p = fmt.params_text(r.get("params") or {}, data.defaults(r["scenario"]))
-    return p + (f"; {_tags_text(r)}" if r.get("tags") else "")
+    p = fmt.params_text(r.params or {}, data.defaults(r.scenario))
+    return p + (f"; {_tags_text(r)}" if r.tags else "")
 
 
 def _scenarios(recs: list[Record]) -> str:
-    return ", ".join(sorted({r["scenario"] for r in recs})) or "-"
+    return ", ".join(sorted({r.scenario for r in recs})) or "-"
 
 
 # ---- the page ---------------------------------------------------------------------------------
@@ -246,8 +245,8 @@ def summary(mm: Matching) -> list[Block]:
     lines = [f"**{mm.matched} cells matched** ({len({id(c.rec) for c in cs})} compared in {n} "
              f"cell-regime pairs): **{count[WITHIN]} within spread**, {count[FASTER]} faster here, "
              f"{count[SLOWER]} slower here."]
-    for dev in sorted({c.rec["device"] for c in cs}, key=lambda d: (d != "cuda", d)):
-        on = [c for c in cs if c.rec["device"] == dev]
+    for dev in sorted({c.rec.device for c in cs}, key=lambda d: (d != "cuda", d)):
+        on = [c for c in cs if c.rec.device == dev]
         per = [f"{g} {fmt.ratio(statistics.median(c.ratio for c in on if c.regime == g))}"
                for g in data.REGIMES if any(c.regime == g for c in on)]
         lines.append(f"Median ratio on {dev}: **{fmt.ratio(statistics.median(c.ratio for c in on))}** "
@@ -276,15 +275,15 @@ def figure(c: Ctx, mm: Matching) -> list[Block]:
     """Per framework and variant, the geometric mean of its ratios over the default-size cells
     (float32 and float64, every scenario), one panel per device and regime."""
     default = [x for x in mm.compared if data.at_defaults(x.rec) and x.suite == "run"]
-    f32 = [x for x in default if x.rec["precision"] == "float32"]
+    f32 = [x for x in default if x.rec.precision == "float32"]
     # float32 alone where it ran: one bar mixing precisions would hide which one moved
     cs, scope = f32, "the default-size float32 cells"
     if not cs:
         cs, scope = (default, "the default-size cells") if default else (mm.compared, "every matched cell")
     groups: dict[tuple[str, str], dict[tuple[str, str], list[Compared]]] = {}
     for x in cs:
-        groups.setdefault((x.rec["device"], x.regime), {}).setdefault(
-            (x.rec["backend"], x.rec.get("variant", "default")), []).append(x)
+        groups.setdefault((x.rec.device, x.regime), {}).setdefault(
+            (x.rec.backend, x.rec.variant), []).append(x)
     panels = []
     for (dev, g), by_fw in sorted(groups.items(), key=lambda kv: (kv[0][0] != "cuda", kv[0][0],
                                                                   data.REGIMES.index(kv[0][1]))):
@@ -306,11 +305,11 @@ def figure(c: Ctx, mm: Matching) -> list[Block]:
 
 
 def _status_text(r: Record) -> str:
-    return r["status"] if r["status"] == "ok" else f"{r['status']}: {r.get('reason', '')[:120]}"
+    return r.status if r.status == "ok" else f"{r.status}: {r.reason[:120]}"
 
 
 def _cell_words(r: Record) -> tuple[str, ...]:
-    return (r["device"], r["scenario"], r["backend"], r.get("variant", "default"), r["precision"], _where(r))
+    return (r.device, r.scenario, r.backend, r.variant, r.precision, _where(r))
 
 
 def tables(mm: Matching) -> list[Block]:
@@ -365,7 +364,7 @@ def page(c: Ctx, ref: Machine) -> list[Block]:
                      "variant and parameters. Rerun the reference's cells here (its commands are on its "
                      "machine page) to compare them. The environments are still compared below.")]
     else:
-        yard = yardstick_line(c.m, ref, sorted({x.rec["device"] for x in mm.compared}))
+        yard = yardstick_line(c.m, ref, sorted({x.rec.device for x in mm.compared}))
         blocks += [H("Summary", "summary"), *summary(mm), *([P(yard)] if yard else [])]
         if mm.compared:
             blocks += figure(c, mm)

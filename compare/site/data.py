@@ -11,10 +11,11 @@ import dataclasses
 import json
 import math
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
 import scenarios
 from compare import noise
+from compare.record import Record
 from compare.store import SUITES, Store, StoreError
 from compare.sweep.points import sweeps
 
@@ -25,14 +26,14 @@ PUBLISH_LOG = "publish.json"
 class Machine:
     """The records of one machine, by suite, with the runs (environments) that made them."""
     sources: tuple[Path, ...]
-    run: tuple[dict[str, Any], ...]
-    sweep: tuple[dict[str, Any], ...]
+    run: tuple[Record, ...]
+    sweep: tuple[Record, ...]
     stress: Store | None
     runs: tuple[dict[str, Any], ...]
     publish: dict[str, Any] | None
 
     @property
-    def records(self) -> list[dict[str, Any]]:
+    def records(self) -> list[Record]:
         """Sweep records first, so that where both suites measured a cell the run suite's record
         (the dedicated measurement) is the later one, which the rows keep."""
         return [*self.sweep, *self.run]
@@ -41,15 +42,15 @@ class Machine:
     def frameworks(self) -> list[str]:
         """Every backend named by a record, in the backend registry's order."""
         import backends
-        seen = {r["backend"] for r in self.records}
+        seen = {r.backend for r in self.records}
         if self.stress is not None:
-            seen |= {r["backend"] for r in self.stress.records}
+            seen |= {r.backend for r in self.stress.records}
         order = list(backends.BACKENDS)
         return [b for b in order if b in seen] + sorted(seen - set(order))
 
     def devices(self) -> list[str]:
         """Devices with at least one ok timed record, CUDA first."""
-        have = {r["device"] for r in self.records if r.get("status") == "ok" and r.get("time")}
+        have = {r.device for r in self.records if r.status == "ok" and r.time}
         return [d for d in ("cuda", "cpu") if d in have] + sorted(have - {"cuda", "cpu"})
 
     @property
@@ -113,8 +114,8 @@ def load(paths: Iterable[Path]) -> Machine:
 
 
 # ---- figures of one record --------------------------------------------------------------------
-def tag(rec: dict[str, Any], name: str) -> Any:
-    return (rec.get("tags") or {}).get(name)
+def tag(rec: Record, name: str) -> Any:
+    return (rec.tags or {}).get(name)
 
 
 def num(x: Any) -> float | None:
@@ -138,15 +139,15 @@ class Timing:
 REGIMES = ("latency", "throughput", "graph")
 
 
-def timing(rec: dict[str, Any], regime: str) -> Timing | None:
+def timing(rec: Record, regime: str) -> Timing | None:
     """``regime``: 'latency' (one synchronised call), 'throughput' (k calls, one synchronise,
     per call), 'graph' (a captured call replayed), or 'first' (the first call, cold caches)."""
-    t = rec.get("time") or {}
+    t = rec.time or {}
     if regime == "first":
         v = num(t.get("first_call_s"))
         return Timing(v, v, v, 1) if v is not None else None
     part = t.get(regime) if regime != "latency" else (t.get("latency") or t)
-    if not isinstance(part, dict):
+    if not isinstance(part, Mapping):
         return None
     med, iqr = num(part.get("median_s")), num(part.get("iqr_s"))
     if med is None or med <= 0:
@@ -160,11 +161,11 @@ def timing(rec: dict[str, Any], regime: str) -> Timing | None:
     return Timing(med, max(med - iqr / 2, 0.0), med + iqr / 2, reps, "; ".join(why))
 
 
-def per_call(rec: dict[str, Any], regime: str) -> Timing | None:
+def per_call(rec: Record, regime: str) -> Timing | None:
     """Per-call time in ``regime``; a framework's own graph variant counts as its graph regime."""
-    if regime == "graph" and rec.get("variant") == "graph":
+    if regime == "graph" and rec.variant == "graph":
         return timing(rec, "throughput")
-    if regime != "graph" and rec.get("variant") == "graph":
+    if regime != "graph" and rec.variant == "graph":
         return None
     return timing(rec, regime)
 
@@ -174,16 +175,16 @@ def defaults(scenario: str) -> dict[str, Any]:
     return dataclasses.asdict(sc.params()) if sc is not None else {}
 
 
-def at_defaults(rec: dict[str, Any]) -> bool:
+def at_defaults(rec: Record) -> bool:
     """The record ran the scenario at its default parameters (the README's default sizes)."""
-    d = defaults(rec["scenario"])
-    p = rec.get("params") or {}
+    d = defaults(rec.scenario)
+    p = rec.params or {}
     return all(p.get(k, v) == v for k, v in d.items())
 
 
-def size(rec: dict[str, Any]) -> float:
+def size(rec: Record) -> float:
     """The record's problem size: n, batch or pixels, whichever the scenario has."""
-    p = rec.get("params") or {}
+    p = rec.params or {}
     for k in ("n", "batch"):
         if isinstance(p.get(k), (int, float)):
             return float(p[k])
@@ -192,19 +193,19 @@ def size(rec: dict[str, Any]) -> float:
     return 0.0
 
 
-def device_bytes(rec: dict[str, Any]) -> float | None:
+def device_bytes(rec: Record) -> float | None:
     """Device memory above the framework's context (NVML), the one metric every backend shares."""
-    return num((rec.get("memory") or {}).get("device_bytes"))
+    return num((rec.memory or {}).get("device_bytes"))
 
 
-def item_rate(rec: dict[str, Any], regime: str = "throughput") -> float | None:
+def item_rate(rec: Record, regime: str = "throughput") -> float | None:
     """Work items per second in ``regime`` (particle-steps, trajectory-gradients, elements)."""
-    words = sweeps(rec["scenario"]).labels
-    work = (rec.get("work") or {}).get(words.get("rate_work", "items"))
+    words = sweeps(rec.scenario).labels
+    work = (rec.work or {}).get(words.get("rate_work", "items"))
     t = per_call(rec, regime) or timing(rec, "latency")
     w = num(work)
     return w / t.median if w is not None and t is not None else None
 
 
-def hw_fraction(rec: dict[str, Any]) -> float | None:
-    return num((rec.get("throughput") or {}).get("hw_fraction"))
+def hw_fraction(rec: Record) -> float | None:
+    return num((rec.throughput or {}).get("hw_fraction"))

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Mapping
 
 from compare.noise import MARK as NOISY_MARK
 from compare.site.matrix import Cell
@@ -82,7 +82,7 @@ def cell_title(c: Cell, unit: str) -> str:
     return "; ".join(parts)
 
 
-def params_text(p: dict[str, Any], defaults: dict[str, Any]) -> str:
+def params_text(p: Mapping[str, Any], defaults: dict[str, Any]) -> str:
     """The parameters that differ from the scenario's defaults, as ``k=v`` (or 'defaults')."""
     diff = [f"{k}={v}" for k, v in (p or {}).items() if defaults.get(k, v) != v]
     return ", ".join(diff) if diff else "defaults"

@@ -15,6 +15,7 @@ import math
 from typing import Any, Callable
 
 import scenarios
+from compare.record import Record
 from compare.site import data
 from compare.site.data import Machine, Timing
 
@@ -51,8 +52,8 @@ class Rule:
     unit: str                     # 's', 'B', '1/s', 'x' (a plain ratio)
     better: str                   # 'lower' | 'higher'
     text: str                     # the rule in words, printed on the pages
-    pick: Callable[[Machine, str], list[dict[str, Any]]]     # the records the row reads
-    figure: Callable[[dict[str, Any]], Timing | float | None]  # one record's figure
+    pick: Callable[[Machine, str], list[Record]]     # the records the row reads
+    figure: Callable[[Record], Timing | float | None]  # one record's figure
     device: str = ""              # '' the report's device; else this one
 
 
@@ -67,28 +68,28 @@ class Row:
 
 
 # ---- record selection -------------------------------------------------------------------------
-def latest(recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def latest(recs: list[Record]) -> list[Record]:
     """One record per framework, variant and size: the last stored (stores merge oldest first)."""
-    seen: dict[tuple[Any, ...], dict[str, Any]] = {}
+    seen: dict[tuple[Any, ...], Record] = {}
     for r in recs:
-        seen[(r["backend"], r["scenario"], r["device"], r["precision"], r.get("variant", "default"),
+        seen[(r.backend, r.scenario, r.device, r.precision, r.variant,
               data.size(r), data.at_defaults(r))] = r
     return list(seen.values())
 
 
 def _pool(m: Machine, device: str, scenario: str, precision: str = "float32",
-          sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling")) -> list[dict[str, Any]]:
-    return latest([r for r in m.records if r["device"] == device and r["scenario"] == scenario
-                   and r["precision"] == precision and data.tag(r, "sweep") in sweep
-                   and r.get("variant", "default") not in NOT_SAME_WORK])
+          sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling")) -> list[Record]:
+    return latest([r for r in m.records if r.device == device and r.scenario == scenario
+                   and r.precision == precision and data.tag(r, "sweep") in sweep
+                   and r.variant not in NOT_SAME_WORK])
 
 
-def _largest(recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def _largest(recs: list[Record]) -> list[Record]:
     """The records at the largest size that at least two frameworks ran ok (else any)."""
     sizes: dict[float, set[str]] = {}
     for r in recs:
-        if r["status"] == "ok":
-            sizes.setdefault(data.size(r), set()).add(r["backend"])
+        if r.status == "ok":
+            sizes.setdefault(data.size(r), set()).add(r.backend)
     good = [s for s, bs in sizes.items() if len(bs) >= 2] or list(sizes)
     if not good:
         return []
@@ -96,58 +97,58 @@ def _largest(recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [r for r in recs if data.size(r) == top]
 
 
-def defaults_of(scenario: str, precision: str = "float32") -> Callable[[Machine, str], list[dict[str, Any]]]:
-    def pick(m: Machine, device: str) -> list[dict[str, Any]]:
+def defaults_of(scenario: str, precision: str = "float32") -> Callable[[Machine, str], list[Record]]:
+    def pick(m: Machine, device: str) -> list[Record]:
         return [r for r in _pool(m, device, scenario, precision, (None,)) if data.at_defaults(r)]
     return pick
 
 
 def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling")
-               ) -> Callable[[Machine, str], list[dict[str, Any]]]:
-    def pick(m: Machine, device: str) -> list[dict[str, Any]]:
+               ) -> Callable[[Machine, str], list[Record]]:
+    def pick(m: Machine, device: str) -> list[Record]:
         return _largest(_pool(m, device, scenario, "float32", sweep))
     return pick
 
 
-def all_defaults(m: Machine, device: str) -> list[dict[str, Any]]:
-    return latest([r for r in m.run if r["device"] == device and r["precision"] == "float32"
-                   and r.get("variant", "default") == "default" and data.at_defaults(r)
+def all_defaults(m: Machine, device: str) -> list[Record]:
+    return latest([r for r in m.run if r.device == device and r.precision == "float32"
+                   and r.variant == "default" and data.at_defaults(r)
                    and data.tag(r, "sweep") is None])
 
 
 # ---- row figures ------------------------------------------------------------------------------
-def regime(name: str) -> Callable[[dict[str, Any]], Timing | None]:
+def regime(name: str) -> Callable[[Record], Timing | None]:
     return lambda r: data.per_call(r, name)
 
 
-def rate(r: dict[str, Any]) -> float | None:
+def rate(r: Record) -> float | None:
     return data.item_rate(r)
 
 
 ERROR_FLOOR = 1e-3                # a share of the bound below this counts as this (exact results)
 
 
-def error_share(r: dict[str, Any]) -> float | None:
+def error_share(r: Record) -> float | None:
     """A record's error against the float64 oracle as a share of its derived tolerance."""
-    e = r.get("error") or {}
+    e = r.error or {}
     err, tol = data.num(e.get("vs_oracle")), data.num(e.get("tolerance"))
     return err / tol if err is not None and tol else None
 
 
-def _error_geomean(recs: list[dict[str, Any]]) -> float | None:
+def _error_geomean(recs: list[Record]) -> float | None:
     shares = [error_share(r) for r in recs]
     if not shares or any(s is None for s in shares):
         return None
     return math.exp(sum(math.log(max(s, ERROR_FLOOR)) for s in shares) / len(shares))
 
 
-def _sum_first(recs: list[dict[str, Any]]) -> float | None:
+def _sum_first(recs: list[Record]) -> float | None:
     ts = [data.timing(r, "first") for r in recs]
     return sum(t.median for t in ts) if ts and all(ts) else None
 
 
 # Per-framework aggregates over several scenarios: (records of one framework) -> figure.
-AGGREGATES: dict[str, Callable[[list[dict[str, Any]]], float | None]] = {
+AGGREGATES: dict[str, Callable[[list[Record]], float | None]] = {
     "accuracy": _error_geomean, "compile": _sum_first}
 IN_ALL = tuple(n for n, sc in scenarios.SCENARIOS.items() if sc.in_all)   # the scenarios of `all`
 
@@ -159,17 +160,17 @@ def _geomean_vs_best(m: Machine, device: str) -> dict[str, Cell]:
     best: dict[str, float] = {}
     times: dict[tuple[str, str], float] = {}
     for r in recs:
-        t = data.per_call(r, "throughput") if r["status"] == "ok" else None
+        t = data.per_call(r, "throughput") if r.status == "ok" else None
         if t is not None:
-            times[(r["backend"], r["scenario"])] = t.median
-            best[r["scenario"]] = min(best.get(r["scenario"], math.inf), t.median)
+            times[(r.backend, r.scenario)] = t.median
+            best[r.scenario] = min(best.get(r.scenario, math.inf), t.median)
     cells = {}
-    for fw in sorted({r["backend"] for r in recs}):
-        mine = {r["scenario"]: r for r in recs if r["backend"] == fw}
-        bad = next((r for r in mine.values() if r["status"] != "ok"), None)
+    for fw in sorted({r.backend for r in recs}):
+        mine = {r.scenario: r for r in recs if r.backend == fw}
+        bad = next((r for r in mine.values() if r.status != "ok"), None)
         if bad is not None or any(s not in mine for s in best):
-            cells[fw] = Cell(fw, None, status=bad["status"] if bad else "absent",
-                             reason=(bad or {}).get("reason", "") or "not every scenario measured")
+            cells[fw] = Cell(fw, None, status=bad.status if bad else "absent",
+                             reason=(bad.reason if bad else "") or "not every scenario measured")
             continue
         logs = [math.log(times[(fw, s)] / best[s]) for s in best if (fw, s) in times]
         if len(logs) != len(best):
@@ -185,30 +186,30 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
     recs = rule.pick(m, device)
     cells: dict[str, Cell] = {}
     if rule.key in AGGREGATES:
-        for fw in sorted({r["backend"] for r in recs}):
-            mine = [r for r in recs if r["backend"] == fw]
-            bad = next((r for r in mine if r["status"] != "ok"), None)
-            missing = {r["scenario"] for r in recs} - {r["scenario"] for r in mine}
+        for fw in sorted({r.backend for r in recs}):
+            mine = [r for r in recs if r.backend == fw]
+            bad = next((r for r in mine if r.status != "ok"), None)
+            missing = {r.scenario for r in recs} - {r.scenario for r in mine}
             v = None if bad or missing else AGGREGATES[rule.key](mine)
-            cells[fw] = Cell(fw, v, status="ok" if v is not None else (bad or {}).get("status", "absent"),
-                             reason="" if v is not None else ((bad or {}).get("reason") or "not every scenario measured"),
+            cells[fw] = Cell(fw, v, status="ok" if v is not None else (bad.status if bad else "absent"),
+                             reason="" if v is not None else (bad.reason if bad else "") or "not every scenario measured",
                              variant="default")
         return cells
     for r in recs:
-        fw = r["backend"]
-        fig = rule.figure(r) if r["status"] == "ok" else None
+        fw = r.backend
+        fig = rule.figure(r) if r.status == "ok" else None
         val = fig.median if isinstance(fig, Timing) else fig
         if val is None:
             if fw not in cells:      # keep why a framework has no figure, unless it has one
-                cells[fw] = Cell(fw, None, status=r["status"] if r["status"] != "ok" else "absent",
-                                 reason=r.get("reason", "") or "no figure of this kind in its record")
+                cells[fw] = Cell(fw, None, status=r.status if r.status != "ok" else "absent",
+                                 reason=r.reason or "no figure of this kind in its record")
             continue
         cur = cells.get(fw)
         better = cur is None or cur.value is None or (
             val < cur.value if rule.better == "lower" else val > cur.value)
         if better:
             lo, hi, noisy = (fig.lo, fig.hi, fig.noisy) if isinstance(fig, Timing) else (None, None, "")
-            cells[fw] = Cell(fw, val, lo, hi, r.get("variant", "default"), "ok", "", noisy)
+            cells[fw] = Cell(fw, val, lo, hi, r.variant, "ok", "", noisy)
     return cells
 
 
@@ -242,11 +243,11 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
     return Row(rule, device, cells, best, _verdict(rule, cells, best, fmt), scope(recs))
 
 
-def scope(recs: list[dict[str, Any]]) -> str:
+def scope(recs: list[Record]) -> str:
     """The sizes a row read, in words (``n = 268435456``)."""
     seen = []
     for r in recs:
-        sc = r["scenario"]
+        sc = r.scenario
         s = data.size(r)
         words = f"{sc} at defaults" if data.at_defaults(r) else f"{sc} {_size_words(r, s)}"
         if words not in seen:
@@ -254,8 +255,8 @@ def scope(recs: list[dict[str, Any]]) -> str:
     return "; ".join(seen)
 
 
-def _size_words(r: dict[str, Any], s: float) -> str:
-    p = r.get("params") or {}
+def _size_words(r: Record, s: float) -> str:
+    p = r.params or {}
     k = "n" if "n" in p else "batch" if "batch" in p else "size"
     e = math.log2(s) if s > 0 else 0
     return f"{k} = 2^{e:.0f}" if s > 0 and e == int(e) else f"{k} = {s:g}"

@@ -112,29 +112,29 @@ def accuracy(c: qp.Ctx) -> list[Any]:
                            + "). The share is the error divided by that tolerance.")]
     blocks += qp.verdicts(c.rows_of("accuracy"))
     rows = []
-    for r in sorted(matrix.all_defaults(c.m, c.device), key=lambda r: (r["scenario"], r["backend"])):
-        if r["scenario"] not in matrix.IN_ALL:
+    for r in sorted(matrix.all_defaults(c.m, c.device), key=lambda r: (r.scenario, r.backend)):
+        if r.scenario not in matrix.IN_ALL:
             continue
-        e = r.get("error") or {}
+        e = r.error or {}
         share = matrix.error_share(r)
         err, tol = data.num(e.get("vs_oracle")), data.num(e.get("tolerance"))
-        rows.append((r["scenario"], r["backend"], r["status"], "-" if err is None else f"{err:.3g}",
+        rows.append((r.scenario, r.backend, r.status, "-" if err is None else f"{err:.3g}",
                      "-" if tol is None else f"{tol:.3g}", "-" if share is None else f"{share:.3g}",
-                     str(e.get("metric", "")) or r.get("reason", "")))
+                     str(e.get("metric", "")) or r.reason))
     blocks += [H("float32 error per scenario (default sizes)"),
                Table(("scenario", "framework", "status", "error", "tolerance", "share", "metric"), tuple(rows))]
-    err = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r["device"] == c.device]
+    err = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r.device == c.device]
     if err:
         from compare.sweep import plots as sweep_plots
         png, rel, csv = c.fig("accuracy-time-vs-error")
         if sweep_plots.plot_time_vs_error(list(err), c.device, png):
             charts.write_csv(png.with_suffix(".csv"), ("scenario", "framework", "variant", "precision", "params",
                                                        "wall median s", "error"),
-                             [(r["scenario"], r["backend"], r.get("variant", "default"), r["precision"],
-                               fmt.params_text(r.get("params") or {}, data.defaults(r["scenario"])),
-                               (r.get("time") or {}).get("median_s"), (r.get("error") or {}).get("converged"))
-                              for r in err if r["status"] == "ok"])
-            fws = ", ".join(f for f in c.m.frameworks if any(r["backend"] == f for r in err))
+                             [(r.scenario, r.backend, r.variant, r.precision,
+                               fmt.params_text(r.params or {}, data.defaults(r.scenario)),
+                               (r.time or {}).get("median_s"), (r.error or {}).get("converged"))
+                              for r in err if r.status == "ok"])
+            fws = ", ".join(f for f in c.m.frameworks if any(r.backend == f for r in err))
             blocks += [H("Run time against error"),
                        Figure(rel, "Time against error against a converged float64 reference, both "
                               "precisions and fast-math variants; the Pareto front is the fastest "
@@ -147,8 +147,8 @@ def compile_cost(c: qp.Ctx) -> list[Any]:
     blocks: list[Any] = [P("The first call of a cell with its kernel caches emptied: compilation or tracing "
                            "plus the call. Later calls in the same process reuse the compiled kernel.")]
     blocks += qp.verdicts(c.rows_of("compile"))
-    recs = [r for r in matrix.all_defaults(c.m, c.device) if r["scenario"] in matrix.IN_ALL]
-    panels = [charts.Panel(sc, [qp._bar(r, lambda r: data.timing(r, "first")) for r in recs if r["scenario"] == sc])
+    recs = [r for r in matrix.all_defaults(c.m, c.device) if r.scenario in matrix.IN_ALL]
+    panels = [charts.Panel(sc, [qp._bar(r, lambda r: data.timing(r, "first")) for r in recs if r.scenario == sc])
               for sc in matrix.IN_ALL]
     png, rel, csv = c.fig("compile-first-call")
     charts.bar_panels(png, f"First call, cold caches ({c.device}, float32, default variant)",
@@ -160,22 +160,22 @@ def compile_cost(c: qp.Ctx) -> list[Any]:
 
 def cpu(c: qp.Ctx) -> list[Any]:
     blocks: list[Any] = qp.verdicts(c.rows_of("cpu"))
-    recs = [r for r in matrix.all_defaults(c.m, "cpu") if r["scenario"] in matrix.IN_ALL]
+    recs = [r for r in matrix.all_defaults(c.m, "cpu") if r.scenario in matrix.IN_ALL]
     if not recs:
         return blocks + [P("This machine's records hold no CPU cells: see the CPU report.")]
     baseline = backends.cpu_baseline()
     who = backends.display_name(baseline or "")
     panels = []
     for sc in matrix.IN_ALL if baseline else ():
-        mine = [r for r in recs if r["scenario"] == sc]
-        base = next((data.per_call(r, "throughput") for r in mine if r["backend"] == baseline and r["status"] == "ok"), None)
+        mine = [r for r in recs if r.scenario == sc]
+        base = next((data.per_call(r, "throughput") for r in mine if r.backend == baseline and r.status == "ok"), None)
         if base is None:
             continue
         bars = []
         for r in mine:
-            t = data.per_call(r, "throughput") if r["status"] == "ok" else None
-            bars.append(charts.Bar(r["backend"], "default", base.median / t.median if t else None,
-                                   mark="" if t else r["status"]))
+            t = data.per_call(r, "throughput") if r.status == "ok" else None
+            bars.append(charts.Bar(r.backend, "default", base.median / t.median if t else None,
+                                   mark="" if t else r.status))
         panels.append(charts.Panel(sc, bars))
     if panels:
         png, rel, csv = c.fig(f"cpu-speedup-vs-{baseline}")

@@ -5,18 +5,17 @@ its ``text`` is printed on the overview and on its page, so a reader can check e
 """
 from __future__ import annotations
 
-from typing import Any
-
+from compare.record import Record
 from compare.site import data
 from compare.site.matrix import (IN_ALL, Rule, all_defaults, defaults_of, largest_of, rate,
                                  regime)
 
 
-def _defaults_of_all(m: data.Machine, device: str) -> list[dict[str, Any]]:
-    return [r for r in all_defaults(m, device) if r["scenario"] in IN_ALL]
+def _defaults_of_all(m: data.Machine, device: str) -> list[Record]:
+    return [r for r in all_defaults(m, device) if r.scenario in IN_ALL]
 
 
-def _first_call(r: dict[str, Any]) -> float | None:
+def _first_call(r: Record) -> float | None:
     t = data.timing(r, "first")
     return t.median if t else None
 

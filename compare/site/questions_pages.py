@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from compare import charts
+from compare.record import Record
 from compare.site import data, fmt, matrix
 from compare.site.data import Machine
 from compare.site.matrix import Row
@@ -45,29 +46,29 @@ def verdicts(rows: list[Row]) -> list[Block]:
     return out
 
 
-def _bar(r: dict[str, Any], fig: Callable[[dict[str, Any]], Any], note: str = "") -> charts.Bar:
-    v = fig(r) if r["status"] == "ok" else None
+def _bar(r: Record, fig: Callable[[Record], Any], note: str = "") -> charts.Bar:
+    v = fig(r) if r.status == "ok" else None
     if isinstance(v, data.Timing):
-        return charts.Bar(r["backend"], r.get("variant", "default"), v.median, v.lo, v.hi,
+        return charts.Bar(r.backend, r.variant, v.median, v.lo, v.hi,
                           "~ noisy" if v.noisy else note)
-    return charts.Bar(r["backend"], r.get("variant", "default"), v,
-                      mark=note if v is not None else (r["status"] if r["status"] != "ok" else "not measured"))
+    return charts.Bar(r.backend, r.variant, v,
+                      mark=note if v is not None else (r.status if r.status != "ok" else "not measured"))
 
 
-def timing_table(recs: list[dict[str, Any]], regimes: tuple[str, ...] = data.REGIMES,
-                 extra: Callable[[dict[str, Any]], list[str]] | None = None,
+def timing_table(recs: list[Record], regimes: tuple[str, ...] = data.REGIMES,
+                 extra: Callable[[Record], list[str]] | None = None,
                  extra_headers: tuple[str, ...] = ()) -> Table:
     rows = []
-    for r in sorted(recs, key=lambda r: (r["scenario"], data.size(r), r["backend"], r.get("variant", ""))):
-        cells = [r["backend"], r.get("variant", "default"), r["scenario"],
-                 fmt.params_text(r.get("params") or {}, data.defaults(r["scenario"])), r["precision"]]
+    for r in sorted(recs, key=lambda r: (r.scenario, data.size(r), r.backend, r.variant)):
+        cells = [r.backend, r.variant, r.scenario,
+                 fmt.params_text(r.params or {}, data.defaults(r.scenario)), r.precision]
         for g in regimes:
-            t = data.per_call(r, g) if r["status"] == "ok" else None
+            t = data.per_call(r, g) if r.status == "ok" else None
             cells.append("-" if t is None else fmt.seconds(t.median) + (fmt.NOISY_MARK if t.noisy else ""))
             if g != "graph":
                 cells.append("-" if t is None else fmt.seconds(t.hi - t.lo))
         cells += extra(r) if extra else []
-        cells.append(r["status"] if r["status"] == "ok" else f"{r['status']}: {r.get('reason', '')[:160]}")
+        cells.append(r.status if r.status == "ok" else f"{r.status}: {r.reason[:160]}")
         rows.append(tuple(cells))
     heads = ["framework", "variant", "scenario", "parameters", "precision"]
     for g in regimes:
@@ -80,8 +81,8 @@ def _label(backend: str, variant: str | None) -> str:
     return backend if variant in (None, "default") else f"{backend} {variant}"
 
 
-def _variants(recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    return [r for r in recs if r.get("variant") != "graph"]
+def _variants(recs: list[Record]) -> list[Record]:
+    return [r for r in recs if r.variant != "graph"]
 
 
 # ---- pages ------------------------------------------------------------------------------------
@@ -92,8 +93,8 @@ def bandwidth(c: Ctx) -> Page:
                       "the scenario's floor (its bytes at the same-run copy yardstick, no framework "
                       "involved) divided by the time.")] + verdicts(rows)
     big = matrix.largest_of("saxpy", (None, "bandwidth"))(c.m, c.device)
-    allvar = [r for r in c.m.records if r["device"] == c.device and r["scenario"] == "saxpy"
-              and r["precision"] == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
+    allvar = [r for r in c.m.records if r.device == c.device and r.scenario == "saxpy"
+              and r.precision == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
               and data.tag(r, "sweep") in (None, "bandwidth")]
     allvar = matrix.latest(_variants(allvar))
     if allvar:
@@ -106,12 +107,12 @@ def bandwidth(c: Ctx) -> Page:
                           c.cmd(f"run saxpy --devices {c.device} --precision float32 --variants all --set n={n}"), csv),
                    timing_table(allvar, ("latency", "throughput"), lambda r: [fmt.pct(data.hw_fraction(r))],
                                 ("hw fraction",))]
-    sweep = [r for r in c.m.sweep if data.tag(r, "sweep") == "bandwidth" and r["scenario"] == "saxpy"
-             and r["device"] == c.device and r["status"] == "ok"]
+    sweep = [r for r in c.m.sweep if data.tag(r, "sweep") == "bandwidth" and r.scenario == "saxpy"
+             and r.device == c.device and r.status == "ok"]
     if sweep:
         series = []
         for (fw, var), rs in sorted(_group(sweep).items()):
-            pts = sorted((data.size(r), (r.get("work") or {}).get("bytes", 0) / t.median / 1e9, t)
+            pts = sorted((data.size(r), (r.work or {}).get("bytes", 0) / t.median / 1e9, t)
                          for r in rs if (t := data.per_call(r, "throughput") or data.timing(r, "latency")))
             if pts:
                 series.append(charts.Series(_label(fw, var), fw,
@@ -125,10 +126,10 @@ def bandwidth(c: Ctx) -> Page:
     return blocks
 
 
-def _group(recs: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
-    out: dict[tuple[str, str], list[dict[str, Any]]] = {}
+def _group(recs: list[Record]) -> dict[tuple[str, str], list[Record]]:
+    out: dict[tuple[str, str], list[Record]] = {}
     for r in recs:
-        out.setdefault((r["backend"], r.get("variant", "default")), []).append(r)
+        out.setdefault((r.backend, r.variant), []).append(r)
     return out
 
 
@@ -138,9 +139,9 @@ def per_call(c: Ctx) -> Page:
                       "interactive loop); pipelined is k calls and one synchronise (a simulation "
                       "loop); graph replay is a captured call replayed.")] + verdicts(c.rows_of("per-call"))
     recs = [r for sc in ("saxpy", "sdf", "particles") for r in matrix.defaults_of(sc)(c.m, c.device)]
-    sax = [r for r in recs if r["scenario"] == "saxpy"]
+    sax = [r for r in recs if r.scenario == "saxpy"]
     panels = [charts.Panel(g, [_bar(r, matrix.regime(g)) for r in sax
-                               if r["status"] != "ok" or data.per_call(r, g) is not None])
+                               if r.status != "ok" or data.per_call(r, g) is not None])
               for g in data.REGIMES]
     panels = [p for p in panels if any(b.value is not None for b in p.bars)]
     png, rel, csv = c.fig("per-call-saxpy")
@@ -154,8 +155,8 @@ def per_call(c: Ctx) -> Page:
     return blocks
 
 
-def _host_share(r: dict[str, Any]) -> list[str]:
-    thr = (r.get("time") or {}).get("throughput") or {}
+def _host_share(r: Record) -> list[str]:
+    thr = (r.time or {}).get("throughput") or {}
     h, t = data.num(thr.get("host_s")), data.num(thr.get("median_s"))
     return [fmt.pct(h / t) if h is not None and t else "-"]
 
@@ -196,9 +197,9 @@ def particles(c: Ctx) -> Page:
 
 
 def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False) -> Page:
-    recs = [r for r in c.m.sweep if data.tag(r, "sweep") == "scaling" and r["scenario"] == scenario
-            and r["device"] == c.device and r["precision"] == "float32"]
-    ok = [r for r in recs if r["status"] == "ok"]
+    recs = [r for r in c.m.sweep if data.tag(r, "sweep") == "scaling" and r.scenario == scenario
+            and r.device == c.device and r.precision == "float32"]
+    ok = [r for r in recs if r.status == "ok"]
     if not ok:
         return []
     blocks: Page = [H(f"{scenario.capitalize()}: scaling")]
@@ -220,11 +221,11 @@ def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = Fal
         blocks.append(Figure(rel, f"{lab.capitalize()} against size, one line per framework.",
                              c.cmd(f"sweep scaling --scenarios {scenario} --devices {c.device}"), csv))
     rows = []
-    for r in sorted(recs, key=lambda r: (r["backend"], data.size(r))):
-        rows.append((r["backend"], r.get("variant", "default"), f"{data.size(r):.0f}",
-                     fmt.rate(data.item_rate(r)) if r["status"] == "ok" else "-",
-                     fmt.nbytes(data.device_bytes(r)) if r["status"] == "ok" else "-",
-                     r["status"] if r["status"] == "ok" else f"{r['status']}: {r.get('reason', '')[:120]}"))
+    for r in sorted(recs, key=lambda r: (r.backend, data.size(r))):
+        rows.append((r.backend, r.variant, f"{data.size(r):.0f}",
+                     fmt.rate(data.item_rate(r)) if r.status == "ok" else "-",
+                     fmt.nbytes(data.device_bytes(r)) if r.status == "ok" else "-",
+                     r.status if r.status == "ok" else f"{r.status}: {r.reason[:120]}"))
     blocks.append(Table(("framework", "variant", "size", ylabel, "device memory", "status"), tuple(rows)))
     return blocks
 
@@ -236,16 +237,16 @@ def gradients(c: Ctx) -> Page:
                       "or the one value and flag per step of a hand adjoint).")]
     blocks += verdicts(c.rows_of("gradients"))
     blocks += _scaling(c, "projectile", "trajectory-gradients per second", "batch (trajectories)", memory=True)
-    hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r["device"] == c.device]
+    hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r.device == c.device]
     if hz:
         from compare.sweep import plots as sweep_plots
         png, rel, _ = c.fig("gradients-horizon")
         if sweep_plots.plot_horizon(list(hz), c.device, png, "projectile"):
             charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "steps", "device bytes",
                                                        "gradient fd agreement"),
-                             [(r["backend"], r.get("variant", "default"), r["precision"],
-                               (r.get("params") or {}).get("steps"), data.device_bytes(r),
-                               (r.get("error") or {}).get("gradient_fd_agreement")) for r in hz if r["status"] == "ok"])
+                             [(r.backend, r.variant, r.precision,
+                               (r.params or {}).get("steps"), data.device_bytes(r),
+                               (r.error or {}).get("gradient_fd_agreement")) for r in hz if r.status == "ok"])
             blocks += [H("Memory and gradient quality against the horizon"),
                        Figure(rel, "Device memory and gradient agreement with float64 finite differences "
                               "against the number of steps, with each framework's memory-saving variants.",
@@ -254,15 +255,15 @@ def gradients(c: Ctx) -> Page:
     return blocks
 
 
-def _longest_loop(hz: list[dict[str, Any]]) -> Page:
+def _longest_loop(hz: list[Record]) -> Page:
     """Which framework differentiates a long loop fastest, and at what memory: the horizon
     sweep's hard-contact float32 cells at the most steps that two or more frameworks ran."""
-    ok = [r for r in hz if r["status"] == "ok" and r["precision"] == "float32"
-          and (r.get("params") or {}).get("contact") == "hard"]
-    steps_of = lambda r: int((r.get("params") or {}).get("steps") or 0)  # noqa: E731
+    ok = [r for r in hz if r.status == "ok" and r.precision == "float32"
+          and (r.params or {}).get("contact") == "hard"]
+    steps_of = lambda r: int((r.params or {}).get("steps") or 0)  # noqa: E731
     ran = {}
     for r in ok:
-        ran.setdefault(steps_of(r), set()).add(r["backend"])
+        ran.setdefault(steps_of(r), set()).add(r.backend)
     shared = [n for n, fws in ran.items() if len(fws) >= 2]
     if not shared:
         return []
@@ -273,8 +274,8 @@ def _longest_loop(hz: list[dict[str, Any]]) -> Page:
         rows.append((t.median if t else None, data.device_bytes(r), r))
     timed = sorted((x for x in rows if x[0] is not None), key=lambda x: x[0])
     small = sorted((x for x in rows if x[1] is not None), key=lambda x: x[1])
-    name = lambda r: _label(r["backend"], r.get("variant"))  # noqa: E731
-    batch = (rows[0][2].get("params") or {}).get("batch")
+    name = lambda r: _label(r.backend, r.variant)  # noqa: E731
+    batch = (rows[0][2].params or {}).get("batch")
     text = f"A long loop: {n} steps, hard contact, float32, batch {batch}."
     parts = ([f"fastest: {name(timed[0][2])} ({fmt.seconds(timed[0][0])} per loss + gradient)"] if timed else []) \
         + ([f"least device memory: {name(small[0][2])} ({fmt.nbytes(small[0][1])})"] if small else [])
@@ -283,6 +284,6 @@ def _longest_loop(hz: list[dict[str, Any]]) -> Page:
         text += f" {joined[0].upper()}{joined[1:]}."
     return [H(f"A long loop ({n} steps): time and memory"), P(f"**{text}**"),
             Table(("framework", "variant", "time per call", "device memory", "gradients agreeing with FD"),
-                  tuple((r["backend"], r.get("variant", "default"), fmt.seconds(t), fmt.nbytes(m),
-                         fmt.pct((r.get("error") or {}).get("gradient_fd_agreement")))
+                  tuple((r.backend, r.variant, fmt.seconds(t), fmt.nbytes(m),
+                         fmt.pct((r.error or {}).get("gradient_fd_agreement")))
                         for t, m, r in sorted(rows, key=lambda x: (x[0] is None, x[0] or 0.0))))]

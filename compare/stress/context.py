@@ -15,6 +15,7 @@ import numpy as np
 
 import backends
 from compare import engine
+from compare.record import Record
 from compare.report import fmt_num
 from compare.store import Store
 from compare.stress import host_loop
@@ -107,16 +108,16 @@ class Ctx:
         v = s.get("variant", "default")
         return f"{s['backend']}/{s['device']}" + ("" if v == "default" else f"/{v}")
 
-    def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: dict[str, Any]) -> dict[str, Any]:
+    def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: Record) -> dict[str, Any]:
         return self.row(experiment, self.label(s).split("/", 1)[0], s["device"], s["precision"], setting,
-                        "cell", None, "error", rec.get("reason", "?"))
+                        "cell", None, "error", rec.reason)
 
     @staticmethod
     def fmt(x: Any) -> str:
         return fmt_num(x)
 
     def run_cells(self, specs: list[dict[str, Any]], fresh_process: bool = False
-                  ) -> list[tuple[dict[str, Any], dict[str, np.ndarray] | None]]:
+                  ) -> list[tuple[Record, dict[str, np.ndarray] | None]]:
         """(record, outputs) per spec, in order. Stress figures are not timings, so cells of one
         backend, device, precision and variant share a worker process (the framework starts once),
         unless ``fresh_process`` (run-to-run comparisons want two separate processes). Every

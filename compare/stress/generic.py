@@ -49,18 +49,18 @@ def exp_ulps(ctx: StressContext) -> Result:
             defaults[(s["backend"], s["device"], s["scenario"], json.dumps(s["params"]))] = out
     for ((scn, prm, key, case_setting), s), (rec, out) in zip(planned, results):
         setting = f"{case_setting}, variant={s['variant']}"
-        if rec["status"] == "error" or out is None:
+        if rec.status == "error" or out is None:
             rows.append(ctx.error_row(name, s, setting, rec)); continue
         e = ulps(out[key], refs[(scn, json.dumps(prm))]).ravel()
         finite = np.isfinite(e)
-        ok = rec["status"] == "ok"
+        ok = rec.status == "ok"
         q = np.percentile(e[finite], [50, 99]) if finite.any() else [math.nan, math.nan]
         rows.append(ctx.row(name, s["backend"], s["device"], "float32", setting, "max error [ulps of the result]",
                             float(np.max(e)) if finite.all() else math.inf,
                             "within derived bound" if ok else "EXCEEDS derived bound",
                             f"median {q[0]:.3g}, p99 {q[1]:.3g} ulps; {100 * np.mean(e > 0.5):.3g}% not correctly "
-                            f"rounded; scenario metric {ctx.fmt(rec['error']['vs_oracle'])} "
-                            f"(bound {ctx.fmt(rec['error']['tolerance'])})"))
+                            f"rounded; scenario metric {ctx.fmt(rec.error['vs_oracle'])} "
+                            f"(bound {ctx.fmt(rec.error['tolerance'])})"))
         if np.ndim(out[key]) == 2:        # an image: its per-pixel distribution is plotted
             srt = np.sort(e[finite])
             idx = np.unique(np.geomspace(1, srt.size, 200).astype(int)) - 1
@@ -117,11 +117,11 @@ def exp_races(ctx: StressContext) -> Result:
         diff = bitwise_differences(oa, ob)
         why = wrong.get((s["backend"], s["scenario"], s["variant"]))
         if why is not None:
-            verdict = race_verdict(s["device"], diff, (ra["status"] == "ok", rb["status"] == "ok"))
+            verdict = race_verdict(s["device"], diff, (ra.status == "ok", rb.status == "ok"))
             rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
                                 "elements differing between two runs", diff, verdict,
-                                f"error vs oracle {ctx.fmt(ra['error']['vs_oracle'])} and "
-                                f"{ctx.fmt(rb['error']['vs_oracle'])} (bound {ctx.fmt(ra['error']['tolerance'])}); "
+                                f"error vs oracle {ctx.fmt(ra.error['vs_oracle'])} and "
+                                f"{ctx.fmt(rb.error['vs_oracle'])} (bound {ctx.fmt(ra.error['tolerance'])}); "
                                 f"control: {why}"))
             continue
         first_run[(s["scenario"], s["backend"], s["device"], s["precision"])] = (ra, oa)
@@ -136,9 +136,9 @@ def exp_races(ctx: StressContext) -> Result:
             rg, og = first_run[(scn, b, "cuda", prec)]
             diff = bitwise_differences(oa, og)
             sc = scenarios.get(scn)
-            p = sc.params(ra["params"])
+            p = sc.params(ra.params)
             dist = sc.distance(p, sc.inputs(p, prec), og, oa)
-            both = ra["status"] == "ok" and rg["status"] == "ok"
+            both = ra.status == "ok" and rg.status == "ok"
             rows.append(ctx.row(name, b, "cpu vs cuda", prec, f"{scn} (quick sizes)", "scenario distance cpu vs cuda",
                                 dist, "bitwise identical" if diff == 0 else
                                 ("differ, both within derived bound" if both else "DIFFER, one outside its bound"),

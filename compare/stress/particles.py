@@ -85,10 +85,10 @@ def exp_particles_dt(ctx: StressContext) -> Result:
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         dt = s["params"]["dt"]
         setting = f"dt={dt:g}, steps={steps[dt]}, T={T:g} s"
-        if rec["status"] == "error" or out is None:
+        if rec.status == "error" or out is None:
             rows.append(ctx.error_row(name, s, setting, rec)); continue
-        e = rec["error"]
-        ok = rec["status"] == "ok"
+        e = rec.error
+        ok = rec.status == "ok"
         rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
                             "max error / derived bound (well-conditioned particles)",
                             e.get("worst_error_over_bound"), "within derived bound" if ok else "EXCEEDS derived bound",
@@ -124,9 +124,9 @@ def exp_particles_long(ctx: StressContext) -> Result:
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         prm = s["params"]
         setting = f"bounce={prm['bounce']}, steps={prm['steps']}"
-        if rec["status"] == "error" or out is None:
+        if rec.status == "error" or out is None:
             rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting, "cell", None,
-                                "CRASHED" if prm["bounce"] > 1 else "error", rec.get("reason")))
+                                "CRASHED" if prm["bounce"] > 1 else "error", rec.reason))
             continue
         _, inp = particle_inputs(prm, s["precision"])
         g, r = float(inp["gravity"]), float(inp["radius"])
@@ -171,8 +171,8 @@ def exp_particles_inf(ctx: StressContext) -> Result:
                 return False
             (rec, out), = ctx.run_cells([ctx.spec(SC.name, b, d, prec, {**base, "steps": steps}, var)])
             calls.append(steps)
-            if rec["status"] == "error" or out is None:
-                raise RuntimeError(rec.get("reason", "?"))
+            if rec.status == "error" or out is None:
+                raise RuntimeError(rec.reason)
             return not finite_state(out)
         try:
             s_star = predicted[prec] or smax
@@ -240,8 +240,8 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
     setting = f"bounce={prm['bounce']:g}, n={n}, steps={steps}"
     flags: dict[tuple[str, str, str], np.ndarray] = {}
     for (b, d, prec), (rec, out) in res.items():
-        if rec["status"] == "error" or out is None or "traj_x" not in out:
-            rows.append(ctx.row(name, b, d, prec, setting, "cell", None, "error", rec.get("reason", "no trajectory")))
+        if rec.status == "error" or out is None or "traj_x" not in out:
+            rows.append(ctx.row(name, b, d, prec, setting, "cell", None, "error", rec.reason))
             continue
         ref, cref, radius = refs[prec]
         flags[(b, d, prec)] = c = contacts(out["traj_x"][1:], out["traj_y"][1:], radius, dtype_of(prec))

@@ -60,7 +60,7 @@ def exp_projectile_lr(ctx: StressContext) -> Result:
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         h = None if out is None else np.asarray(out["loss_history"], np.float64).tolist()
         runs.append((s["backend"], s["device"], "float32", "gd", s["params"]["contact"], s["params"]["lr"], h,
-                     "" if h is not None else rec.get("reason", "?")))
+                     "" if h is not None else rec.reason))
     # clipping and Adam: host loop; the float64 oracle runs all three
     tasks = [T.task("optimise", backend=b, device=d, precision="float32", contacts=list(CONTACTS),
                     lrs=list(lrs), methods=["clip", "adam"], iters=iters, budget_s=budget)
@@ -129,13 +129,13 @@ def exp_projectile_gradient(ctx: StressContext) -> Result:
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         c, prec = s["params"]["contact"], s["precision"]
         setting = f"contact={c}, v0=(2, 6.5)"
-        if rec["status"] == "error" or out is None:
+        if rec.status == "error" or out is None:
             rows.append(ctx.error_row(name, s, setting, rec)); continue
         g = np.asarray(out["grad"], np.float64)
-        gr = rec.get("gradient") or {}
+        gr = rec.gradient or {}
         rows.append(ctx.row(name, s["backend"], s["device"], prec, setting,
                             f"gradient rel. error vs {gr.get('reference', 'oracle')}", gr.get("vs_oracle_rel"),
-                            "within derived bound" if rec["status"] == "ok" else "EXCEEDS derived bound",
+                            "within derived bound" if rec.status == "ok" else "EXCEEDS derived bound",
                             f"gradient {np.array2string(g, precision=5)}"))
         rel = [float(np.max(np.abs(g - f)) / max(float(np.max(np.abs(g))), 1e-300)) for f in fd[(prec, c)]]
         series["lines"][f"{ctx.label(s)}/{prec}/{c}"] = rel
@@ -206,14 +206,14 @@ def exp_projectile_horizon(ctx: StressContext) -> Result:
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         c, n = s["params"]["contact"], s["params"]["steps"]
         setting = f"contact={c}, steps={n}"
-        if rec["status"] == "error" or out is None:
+        if rec.status == "error" or out is None:
             rows.append(ctx.error_row(name, s, setting, rec)); continue
-        gr = rec.get("gradient") or {}
+        gr = rec.gradient or {}
         g = float(np.linalg.norm(np.asarray(out["grad"], np.float64)))
-        ok = rec["status"] == "ok"
+        ok = rec.status == "ok"
         rows.append(ctx.row(name, s["backend"], s["device"], "float32", setting, "gradient rel. error vs float64",
                             gr.get("vs_oracle_rel"), "within derived bound" if ok else "EXCEEDS derived bound",
-                            f"|grad| = {g:.4g}; error/bound = {ctx.fmt(rec['error']['vs_oracle'])}"))
+                            f"|grad| = {g:.4g}; error/bound = {ctx.fmt(rec.error['vs_oracle'])}"))
         acc.setdefault((s["backend"], s["device"], c), []).append((n, g, gr.get("vs_oracle_rel"), ok))
     for (b, d, c), pts in acc.items():
         pts.sort()

@@ -19,39 +19,40 @@ import math
 from pathlib import Path
 from typing import Any
 
+from compare.record import Record
 from compare.report import fmt_bytes, fmt_time
 from compare.store import save_figure
 from compare.sweep.points import sweeps
 from compare.sweep.rows import knob, label, ok, throughput_s, wall_s
 
 
-def memory(rec: dict[str, Any]) -> tuple[float | None, str]:
+def memory(rec: Record) -> tuple[float | None, str]:
     """The cell's own memory and what it is: device bytes on CUDA, host bytes on the CPU."""
-    m = rec.get("memory") or {}
-    key, what = ("host_bytes", "host") if rec["device"] == "cpu" else ("device_bytes", "device")
+    m = rec.memory or {}
+    key, what = ("host_bytes", "host") if rec.device == "cpu" else ("device_bytes", "device")
     v = m.get(key)
     return (float(v), what) if isinstance(v, (int, float)) else (None, what)
 
 
-def items(rec: dict[str, Any]) -> int:
-    return int(rec["params"].get(label(rec["scenario"], "horizon_items"), 1) or 1)
+def items(rec: Record) -> int:
+    return int(rec.params.get(label(rec.scenario, "horizon_items"), 1) or 1)
 
 
-def group_key(rec: dict[str, Any]) -> tuple:
+def group_key(rec: Record) -> tuple:
     """Cells that differ only in the horizon: same backend, variant, precision, other params."""
     name = knob(rec).get("name")
-    other = {k: v for k, v in rec["params"].items() if k != name}
-    return rec["backend"], rec["variant"], rec["precision"], json.dumps(other, sort_keys=True)
+    other = {k: v for k, v in rec.params.items() if k != name}
+    return rec.backend, rec.variant, rec.precision, json.dumps(other, sort_keys=True)
 
 
-def series(records: list[dict[str, Any]], device: str, scenario: str) -> dict[tuple, list[dict[str, Any]]]:
-    out: dict[tuple, list[dict[str, Any]]] = {}
+def series(records: list[Record], device: str, scenario: str) -> dict[tuple, list[Record]]:
+    out: dict[tuple, list[Record]] = {}
     for r in ok(records, sweep="horizon", device=device, scenario=scenario):
         out.setdefault(group_key(r), []).append(r)
     return {k: sorted(v, key=lambda r: knob(r)["value"]) for k, v in sorted(out.items())}
 
 
-def slopes(rows: list[dict[str, Any]]) -> list[float | None]:
+def slopes(rows: list[Record]) -> list[float | None]:
     """Bytes per item-step between consecutive horizons of one group (None for the first)."""
     out: list[float | None] = [None]
     for a, b in zip(rows, rows[1:]):
@@ -61,13 +62,13 @@ def slopes(rows: list[dict[str, Any]]) -> list[float | None]:
     return out
 
 
-def varying(rows: list[dict[str, Any]], knob_name: str) -> list[str]:
+def varying(rows: list[Record], knob_name: str) -> list[str]:
     """Parameters other than the knob that differ between the sweep's cells (e.g. contact)."""
-    keys = {k for r in rows for k in r["params"] if k != knob_name}
-    return sorted(k for k in keys if len({json.dumps(r["params"].get(k)) for r in rows}) > 1)
+    keys = {k for r in rows for k in r.params if k != knob_name}
+    return sorted(k for k in keys if len({json.dumps(r.params.get(k)) for r in rows}) > 1)
 
 
-def table(records: list[dict[str, Any]], device: str, scenario: str) -> str:
+def table(records: list[Record], device: str, scenario: str) -> str:
     from tabulate import tabulate
     groups = series(records, device, scenario)
     if not groups:
@@ -79,21 +80,21 @@ def table(records: list[dict[str, Any]], device: str, scenario: str) -> str:
     for rows in groups.values():
         for r, slope in zip(rows, slopes(rows)):
             mem, what = memory(r)
-            g = r.get("gradient") or {}
+            g = r.gradient or {}
             share = g.get("fd_agreement")
-            out.append([r["backend"], r["variant"], r["precision"], *(r["params"].get(k) for k in extra),
+            out.append([r.backend, r.variant, r.precision, *(r.params.get(k) for k in extra),
                         knob(r)["value"], fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
                         f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
                         f"{slope:.3g}" if slope is not None else "-",
                         f"{100 * share:.0f} %" if isinstance(share, (int, float)) else "-",
-                        r["error"].get("checked_items", "all")])
+                        r.error.get("checked_items", "all")])
     unit = label(scenario, "horizon_items", "item")
     return tabulate(out, headers=["backend", "variant", "precision", *extra, kname, "latency median",
                                   "throughput: per call", "memory", f"bytes per {unit}-step (slope)",
                                   "FD agreement", "checked vs oracle"], tablefmt="github") + "\n"
 
 
-def plot(records: list[dict[str, Any]], device: str, path: Path, scenario: str, colors: dict[str, str],
+def plot(records: list[Record], device: str, path: Path, scenario: str, colors: dict[str, str],
          plt: Any) -> bool:
     """Memory and time against the horizon (the scenario's 'horizon_memory' points), per backend
     and variant, with the tape floor; FD agreement against the horizon per contact and precision."""
@@ -107,7 +108,7 @@ def plot(records: list[dict[str, Any]], device: str, path: Path, scenario: str, 
     every = [r for rows in groups.values() for r in rows]
     kname = knob(every[0]).get("name", "size")
     for (backend, variant, prec, _), rows in groups.items():
-        if any(rows[0]["params"].get(k) != v for k, v in want.items()):
+        if any(rows[0].params.get(k) != v for k, v in want.items()):
             continue
         style = "-" if variant == "default" else ":"
         mark = "^" if prec == "float32" else "o"
@@ -127,9 +128,9 @@ def plot(records: list[dict[str, Any]], device: str, path: Path, scenario: str, 
     extra = [k for k in varying(every, kname) if k not in ("batch",)]
     for rows in groups.values():
         for r in rows:
-            s = (r.get("gradient") or {}).get("fd_agreement")
+            s = (r.gradient or {}).get("fd_agreement")
             if isinstance(s, (int, float)):
-                key = (", ".join(f"{k}={r['params'].get(k)}" for k in extra), r["precision"])
+                key = (", ".join(f"{k}={r.params.get(k)}" for k in extra), r.precision)
                 shares.setdefault(key, {}).setdefault(knob(r)["value"], []).append(s)
     for (what, prec), pts in sorted(shares.items()):
         n = sorted(pts)

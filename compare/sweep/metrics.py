@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from compare.record import Record
 from compare.report import fmt_bytes
 from compare.sweep.rows import ok, wall_s
 
@@ -25,25 +26,25 @@ def gbps(nbytes: float, seconds: float) -> float:
     return nbytes / seconds / 1e9 if seconds > 0 else math.nan
 
 
-def roofline(records: list[dict[str, Any]], device: str) -> dict[str, Any] | None:
+def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
     """The copy roofline of ``device``: the same-run hardware yardstick (a driver memcpy that no
     contestant controls; ``compare/hardware.py``) where the records carry it; for files made
     before it existed, the best copy bandwidth of any backend (primary clock), so labelled."""
-    hw = next((r["hardware"] for r in records if r.get("device") == device
-               and (r.get("hardware") or {}).get("copy_bytes_per_s")), None)
+    hw = next((r.hardware for r in records if r.device == device
+               and (r.hardware or {}).get("copy_bytes_per_s")), None)
     if hw:
         return {"gbps": hw["copy_bytes_per_s"] / 1e9, "backend": "hardware yardstick",
                 "precision": "bytes", "n": hw.get("copy_how", ""), "clock": "same-run"}
     best = None
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        bw = gbps(r["work"]["bytes"], r["time"]["median_s"])
+        bw = gbps(r.work["bytes"], r.time["median_s"])
         if best is None or bw > best["gbps"]:
-            best = {"gbps": bw, "backend": r["backend"], "precision": r["precision"],
-                    "n": r["params"]["n"], "clock": r["time"].get("timer", "wall")}
+            best = {"gbps": bw, "backend": r.backend, "precision": r.precision,
+                    "n": r.params["n"], "clock": r.time.get("timer", "wall")}
     return best
 
 
-def launch_wall(records: list[dict[str, Any]], backend: str, device: str, precision: str) -> float | None:
+def launch_wall(records: list[Record], backend: str, device: str, precision: str) -> float | None:
     hits = ok(records, sweep="bandwidth", role="launch", backend=backend, device=device, precision=precision)
     return wall_s(hits[-1]) if hits else None
 
@@ -58,12 +59,12 @@ def regime(launch_share: float | None, roof_share: float | None) -> str:
     return "mixed" if launch_share is not None and roof_share is not None else "-"
 
 
-def bandwidth_row(rec: dict[str, Any], records: list[dict[str, Any]]) -> dict[str, Any]:
+def bandwidth_row(rec: Record, records: list[Record]) -> dict[str, Any]:
     """Achieved GB/s, % of the copy roofline, launch share and regime of one bandwidth cell."""
-    nbytes = rec["work"]["bytes"]
-    bw = gbps(nbytes, rec["time"]["median_s"])
-    roof = roofline(records, rec["device"])
-    lw = launch_wall(records, rec["backend"], rec["device"], rec["precision"])
+    nbytes = rec.work["bytes"]
+    bw = gbps(nbytes, rec.time["median_s"])
+    roof = roofline(records, rec.device)
+    lw = launch_wall(records, rec.backend, rec.device, rec.precision)
     share = lw / wall_s(rec) if lw else None
     frac = bw / roof["gbps"] if roof else None
     return {"gbps": bw, "wall_gbps": gbps(nbytes, wall_s(rec)), "roof_share": frac,
@@ -80,16 +81,16 @@ def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
     return flags
 
 
-def error_points(records: list[dict[str, Any]], device: str, scenario: str) -> list[dict[str, Any]]:
+def error_points(records: list[Record], device: str, scenario: str) -> list[dict[str, Any]]:
     """Time-against-error points (ok cells with a finite error), with Pareto flags."""
     pts = []
     for r in ok(records, sweep="error", device=device, scenario=scenario):
-        e = (r.get("converged") or {}).get("error")
+        e = (r.converged or {}).get("error")
         if isinstance(e, (int, float)) and math.isfinite(e):
             pts.append({"rec": r, "time": wall_s(r), "error": max(float(e), ERROR_FLOOR)})
     overall = pareto_front([(p["time"], p["error"]) for p in pts])
-    for backend in {p["rec"]["backend"] for p in pts}:
-        mine = [p for p in pts if p["rec"]["backend"] == backend]
+    for backend in {p["rec"].backend for p in pts}:
+        mine = [p for p in pts if p["rec"].backend == backend]
         for p, f in zip(mine, pareto_front([(p["time"], p["error"]) for p in mine])):
             p["front_backend"] = f
     for p, f in zip(pts, overall):
@@ -97,8 +98,8 @@ def error_points(records: list[dict[str, Any]], device: str, scenario: str) -> l
     return pts
 
 
-def device_bytes(rec: dict[str, Any]) -> tuple[int | None, str]:
-    m = rec.get("memory") or {}
+def device_bytes(rec: Record) -> tuple[int | None, str]:
+    m = rec.memory or {}
     if isinstance(m.get("device_bytes"), (int, float)):   # the one metric every backend shares
         own = m.get("device_peak_bytes")
         return int(m["device_bytes"]), "NVML above the context" + (
@@ -108,4 +109,4 @@ def device_bytes(rec: dict[str, Any]) -> tuple[int | None, str]:
                    ("nvml_device_delta_peak_bytes", "nvml device delta")):
         if isinstance(m.get(k), (int, float)):
             return int(m[k]), src
-    return None, m.get("nvml_note", "-") if rec["device"] != "cpu" else "-"
+    return None, m.get("nvml_note", "-") if rec.device != "cpu" else "-"

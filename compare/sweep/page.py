@@ -1,7 +1,7 @@
 """The tables and the Markdown page of the measurement sweeps (compare/sweep).
 
 Pure functions of saved records: ``python -m compare sweep report sweep.json`` rebuilds everything
-without rerunning. Rows are found by the suite's tags (``rec["tags"]``: sweep kind, role, knob),
+without rerunning. Rows are found by the suite's tags (``rec.tags``: sweep kind, role, knob),
 never by scenario name; the words for a scenario come from its sweeps (``points.Sweeps.labels``);
 the derived figures (bandwidth, roofline, regime, Pareto fronts) from compare/sweep/metrics.py.
 Cross-backend plots use the wall-clock median (what a caller waits, the same clock for every
@@ -19,6 +19,7 @@ from tabulate import tabulate
 
 import backends
 import scenarios
+from compare.record import Record
 from compare.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
 from compare.sweep.metrics import bandwidth_row, device_bytes, error_points, gbps, roofline
@@ -36,14 +37,14 @@ def in_registry_order(names: Iterable[str]) -> list[str]:
     return [n for n in scenarios.SCENARIOS if n in names] + sorted(names - set(scenarios.SCENARIOS))
 
 
-def swept(records: list[dict[str, Any]], kind: str, device: str) -> list[str]:
+def swept(records: list[Record], kind: str, device: str) -> list[str]:
     """Scenarios with records of sweep ``kind`` on ``device`` (a sweep not run has no section)."""
-    return in_registry_order(r["scenario"] for r in records if tag(r, "sweep") == kind and r["device"] == device)
+    return in_registry_order(r.scenario for r in records if tag(r, "sweep") == kind and r.device == device)
 
 
-def error_scenarios(records: list[dict[str, Any]], device: str) -> list[str]:
+def error_scenarios(records: list[Record], device: str) -> list[str]:
     """Scenarios with time-against-error points on ``device``, in registry order."""
-    return [s for s in in_registry_order(r["scenario"] for r in records if tag(r, "sweep") == "error")
+    return [s for s in in_registry_order(r.scenario for r in records if tag(r, "sweep") == "error")
             if error_points(records, device, s)]
 
 
@@ -60,7 +61,7 @@ def pct(x: float | None) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{100 * x:.0f}%"
 
 
-def knob_text(rec: dict[str, Any]) -> str:
+def knob_text(rec: Record) -> str:
     k = knob(rec)
     return "-" if k.get("value") is None else f"{k['name']}={k['value']}"
 
@@ -80,9 +81,9 @@ def _img(written: dict[str, Path], name: str, page: Path, alt: str) -> str:
 def launch_table(records, device) -> str:
     rows = []
     for r in ok(records, sweep="bandwidth", role="launch", device=device):
-        t = r["time"]
+        t = r.time
         ev = event_s(r)
-        rows.append([r["backend"], r["precision"], fmt_time(wall_s(r)), fmt_time(t["wall"]["iqr_s"]
+        rows.append([r.backend, r.precision, fmt_time(wall_s(r)), fmt_time(t["wall"]["iqr_s"]
                      if t.get("wall") else t["iqr_s"]), fmt_time(t["wall"]["min_s"] if t.get("wall")
                      else t["min_s"]), fmt_time(ev), fmt_time(t["first_call_s"]), t["repeats"]])
     return _table(rows, ["backend", "precision", "wall median", "wall IQR", "wall min",
@@ -92,10 +93,10 @@ def launch_table(records, device) -> str:
 def copy_table(records, device) -> str:
     rows = []
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        rows.append([r["backend"], r["precision"], r["params"]["n"], fmt_bytes(r["work"]["bytes"]),
+        rows.append([r.backend, r.precision, r.params["n"], fmt_bytes(r.work["bytes"]),
                      fmt_time(wall_s(r)), fmt_time(event_s(r)),
-                     f"{gbps(r['work']['bytes'], r['time']['median_s']):.3g}",
-                     r["time"].get("timer", "wall")])
+                     f"{gbps(r.work['bytes'], r.time['median_s']):.3g}",
+                     r.time.get("timer", "wall")])
     return _table(rows, ["backend", "precision", "n", "bytes/call (read + write)", "wall median",
                          "CUDA-event median", "GB/s", "clock of GB/s"]) if rows else ""
 
@@ -104,17 +105,17 @@ def size_table(records, device, scenario) -> str:
     """The size sweep (role 'bandwidth') of one scenario: GB/s, roofline and launch shares."""
     rows = []
     mine = sorted(ok(records, sweep="bandwidth", role="bandwidth", device=device, scenario=scenario),
-                  key=lambda r: (r["backend"], r.get("variant", "default") != "default",
-                                 r.get("variant", ""), r["precision"], knob(r).get("value") or 0))
+                  key=lambda r: (r.backend, r.variant != "default",
+                                 r.variant, r.precision, knob(r).get("value") or 0))
     for r in mine:
         b = bandwidth_row(r, records)
         thr = throughput_s(r)
-        rows.append([r["backend"], r.get("variant", "default"), r["precision"],
+        rows.append([r.backend, r.variant, r.precision,
                      f"2^{int(math.log2(knob(r)['value']))}",
-                     fmt_bytes(r["work"]["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
+                     fmt_bytes(r.work["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
                      f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"],
-                     fmt_time(thr), f"{gbps(r['work']['bytes'], thr):.3g}" if thr else "-",
-                     pct((r.get("throughput") or {}).get("hw_fraction"))])
+                     fmt_time(thr), f"{gbps(r.work['bytes'], thr):.3g}" if thr else "-",
+                     pct((r.throughput or {}).get("hw_fraction"))])
     return _table(rows, ["backend", "variant", "precision", knob(mine[0]).get("name", "size"), "bytes/call",
                          "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
                          "launch share", "regime", "throughput: per call", "throughput: GB/s",
@@ -124,11 +125,11 @@ def size_table(records, device, scenario) -> str:
 def error_table(records, device, scenario) -> str:
     pts = error_points(records, device, scenario)
     rows = []
-    for p in sorted(pts, key=lambda p: (p["rec"]["backend"], p["rec"].get("variant", ""),
-                                        p["rec"]["precision"], knob(p["rec"]).get("value") or 0)):
+    for p in sorted(pts, key=lambda p: (p["rec"].backend, p["rec"].variant,
+                                        p["rec"].precision, knob(p["rec"]).get("value") or 0)):
         r = p["rec"]
-        rows.append([r["backend"], r.get("variant", "default"), r["precision"], knob_text(r),
-                     fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(r["converged"]["error"]),
+        rows.append([r.backend, r.variant, r.precision, knob_text(r),
+                     fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(r.converged["error"]),
                      "yes" if p["front_backend"] else "", "yes" if p["front_all"] else ""])
     return _table(rows, ["backend", "variant", "precision", "knob", "wall median",
                          "CUDA-event median", "error", "on backend's front",
@@ -142,9 +143,9 @@ def front_table(records, device, scenario) -> str:
     for p in sorted((p for p in error_points(records, device, scenario) if p["front_all"]),
                     key=lambda p: p["time"]):
         r = p["rec"]
-        iqr = ((r.get("time") or {}).get("wall") or {}).get("iqr_s")
-        rows.append([fmt_num(r["converged"]["error"]), fmt_time(p["time"]), fmt_time(iqr),
-                     r["backend"], r.get("variant", "default"), r["precision"], knob_text(r)])
+        iqr = ((r.time or {}).get("wall") or {}).get("iqr_s")
+        rows.append([fmt_num(r.converged["error"]), fmt_time(p["time"]), fmt_time(iqr),
+                     r.backend, r.variant, r.precision, knob_text(r)])
     return _table(rows, ["error reached", "wall median", "wall IQR", "backend", "variant",
                          "precision", "knob"]) if rows else ""
 
@@ -156,17 +157,17 @@ def scaling_table(records, device, scenario) -> str:
     work = label(scenario, "rate_work", "items")       # the work() key the rate counts
     rows = []
     mine = sorted(ok(records, sweep="scaling", device=device, scenario=scenario),
-                  key=lambda r: (r["backend"], r["precision"], knob(r).get("value") or 0))
+                  key=lambda r: (r.backend, r.precision, knob(r).get("value") or 0))
     for r in mine:
         t = wall_s(r)
         db, src = device_bytes(r)
-        rates = [fmt_rate(r["params"][per_run] / t, f"{per_run}/s")] if per_run else []
+        rates = [fmt_rate(r.params[per_run] / t, f"{per_run}/s")] if per_run else []
         thr = throughput_s(r)
-        rows.append([r["backend"], r["precision"], knob(r).get("value"), fmt_time(t),
-                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(r["work"][work] / (thr or t), "/s"),
-                     fmt_bytes(r["memory"]["peak_host_rss_bytes"]),
+        rows.append([r.backend, r.precision, knob(r).get("value"), fmt_time(t),
+                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(r.work[work] / (thr or t), "/s"),
+                     fmt_bytes(r.memory["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
-                     r["error"].get("checked_items", "all")])
+                     r.error.get("checked_items", "all")])
     return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "wall median",
                          "CUDA-event median", "throughput: per call", *([f"{per_run}/s"] if per_run else []),
                          f"{items}/s (throughput regime where measured)",
@@ -174,9 +175,9 @@ def scaling_table(records, device, scenario) -> str:
 
 
 def problems(records) -> str:
-    bad = [r for r in records if r.get("status") != "ok"]
-    lines = [f"- {tag(r, 'sweep')} {r['scenario']}/{r['backend']}/{r['device']}/{r['precision']}/"
-             f"{r.get('variant', 'default')} {_knob(r)}: **{r['status']}**: {r.get('reason', '')}"
+    bad = [r for r in records if r.status != "ok"]
+    lines = [f"- {tag(r, 'sweep')} {r.scenario}/{r.backend}/{r.device}/{r.precision}/"
+             f"{r.variant} {_knob(r)}: **{r.status}**: {r.reason}"
              for r in bad]
     return "\n".join(lines) + "\n" if lines else "None: every cell ran and passed its check.\n"
 
@@ -186,13 +187,13 @@ def _knob(r) -> str:
     return f"({k['name']}={k['value']})" if k.get("name") and k.get("value") is not None else ""
 
 
-def environment(runs: list[dict[str, Any]], records: list[dict[str, Any]]) -> str:
+def environment(runs: list[dict[str, Any]], records: list[Record]) -> str:
     if not runs:
         return ""
     env = runs[-1]
     gpus = "; ".join(f"{g['name']} ({g['memory']}, driver {g['driver']})" for g in env.get("gpus", []))
     pk = ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items())
-    loads = [r["host_load_1m"] for r in records if isinstance(r.get("host_load_1m"), (int, float))]
+    loads = [r.host_load_1m for r in records if isinstance(r.host_load_1m, (int, float))]
     lines = [f"- CPU: {env.get('cpu')}, {env.get('cores')} cores available, {env.get('memory_gib')} GiB",
              f"- GPU: {gpus or 'none visible'}" + (f"; CUDA toolkit: {env['cuda_toolkit']}"
                                                    if env.get("cuda_toolkit") else ""),
@@ -227,9 +228,9 @@ def _launch_section(records, d) -> list[str]:
 
 def _error_section(records, d, s) -> str:
     rec = error_points(records, d, s)[0]["rec"]
-    ref = rec["converged"].get("reference", {})
+    ref = rec.converged.get("reference", {})
     refline = "; ".join(f"{k} = {fmt_num(v) if not isinstance(v, str) else v}" for k, v in ref.items())
-    return (f"### {s}\n\nError: {rec['converged']['metric']}. Reference: {refline}.\n\n"
+    return (f"### {s}\n\nError: {rec.converged['metric']}. Reference: {refline}.\n\n"
             "Fastest at each accuracy (the Pareto front over all backends; rows whose "
             "times differ by less than their IQRs are ties):\n\n"
             f"{front_table(records, d, s)}\nAll cells:\n\n{error_table(records, d, s)}")
@@ -241,7 +242,7 @@ def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title:
     device (launch, copy roofline, size sweep, time against error, scaling, horizon) and the
     problems."""
     records, runs = data["records"], data["runs"]
-    devices = [d for d in backends.DEVICES if any(r["device"] == d and r["status"] != "skipped"
+    devices = [d for d in backends.DEVICES if any(r.device == d and r.status != "skipped"
                                                   for r in records)]
     proto = os.path.relpath(Path(__file__).resolve().parents[2] / "docs" / "measurement.md",
                             page_path.resolve().parent)
@@ -297,10 +298,10 @@ def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title:
     return "\n".join(out)
 
 
-def summary(records: list[dict[str, Any]]) -> str:
+def summary(records: list[Record]) -> str:
     counts: dict[str, int] = {}
     for r in records:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
+        counts[r.status] = counts.get(r.status, 0) + 1
     parts = [", ".join(f"{v} {k}" for k, v in sorted(counts.items()))]
     for d in backends.DEVICES:
         roof = roofline(records, d)

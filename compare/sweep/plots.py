@@ -11,6 +11,7 @@ from typing import Any
 
 import backends
 from compare.colors import backend_color
+from compare.record import Record
 from compare.store import save_figure
 from compare.sweep import horizon
 from compare.sweep.metrics import ERROR_FLOOR, device_bytes, error_points, gbps, launch_wall, roofline
@@ -49,10 +50,10 @@ def _tidy_log(ax) -> None:
             axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:.3g}"))
 
 
-def colors(records: list[dict[str, Any]]) -> dict[str, str]:
+def colors(records: list[Record]) -> dict[str, str]:
     """backend -> its fixed colour (``Backend.color``), in display order; a backend without one
     (or unknown here) gets a colour no registered backend uses."""
-    present = {r["backend"] for r in records}
+    present = {r.backend for r in records}
     known = {n: b for n, b in backends.BACKENDS.items() if n in present}
     names = sorted(known, key=lambda n: (known[n].display_order, n)) + sorted(present - set(known))
     taken = {b.color for b in backends.BACKENDS.values() if b.color}
@@ -66,7 +67,7 @@ def colors(records: list[dict[str, Any]]) -> dict[str, str]:
     return out
 
 
-def plot_bandwidth(records: list[dict[str, Any]], device: str, path: Path, scenario: str) -> bool:
+def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str) -> bool:
     rows = ok(records, sweep="bandwidth", role="bandwidth", device=device, scenario=scenario)
     if not rows:
         return False
@@ -74,25 +75,25 @@ def plot_bandwidth(records: list[dict[str, Any]], device: str, path: Path, scena
     fig, ax = plt.subplots(figsize=(8, 5))
     for backend, c in colors(records).items():
         for prec in ("float32", "float64"):
-            mine = sorted((r for r in rows if r["backend"] == backend and r["precision"] == prec),
-                          key=lambda r: r["work"]["bytes"])
+            mine = sorted((r for r in rows if r.backend == backend and r.precision == prec),
+                          key=lambda r: r.work["bytes"])
             if not mine:
                 continue
             tag = "" if prec == "float32" else " f64"
             # a scenario's own variants (e.g. vector loads): their wall-clock curve, dashed
-            for v in dict.fromkeys(r.get("variant", "default") for r in mine):
+            for v in dict.fromkeys(r.variant for r in mine):
                 if v != "default":
-                    vs = [r for r in mine if r.get("variant") == v]
-                    ax.plot([r["work"]["bytes"] for r in vs], [gbps(r["work"]["bytes"], wall_s(r)) for r in vs],
+                    vs = [r for r in mine if r.variant == v]
+                    ax.plot([r.work["bytes"] for r in vs], [gbps(r.work["bytes"], wall_s(r)) for r in vs],
                             "--s", color=c, ms=4, label=f"{backend}{tag} {v} (wall clock)")
-            mine = [r for r in mine if r.get("variant", "default") == "default"]
+            mine = [r for r in mine if r.variant == "default"]
             if not mine:
                 continue
-            x = [r["work"]["bytes"] for r in mine]
-            ax.plot(x, [gbps(r["work"]["bytes"], wall_s(r)) for r in mine], "-o", color=c, ms=4,
+            x = [r.work["bytes"] for r in mine]
+            ax.plot(x, [gbps(r.work["bytes"], wall_s(r)) for r in mine], "-o", color=c, ms=4,
                     label=f"{backend}{tag} (wall clock)")
             if any(event_s(r) for r in mine):
-                ax.plot(x, [gbps(r["work"]["bytes"], event_s(r) or math.nan) for r in mine], "-.x",
+                ax.plot(x, [gbps(r.work["bytes"], event_s(r) or math.nan) for r in mine], "-.x",
                         color=c, ms=5, label=f"{backend}{tag} (CUDA events)")
             lw = launch_wall(records, backend, device, prec)
             if lw:
@@ -109,7 +110,7 @@ def plot_bandwidth(records: list[dict[str, Any]], device: str, path: Path, scena
     ax.set_ylabel("achieved bandwidth [GB/s] (log)")
     ax.set_title(f"{label(scenario, 'name')} achieved bandwidth against size ({device})")
     ax.grid(True, which="both", alpha=0.3)
-    seen = [gbps(r["work"]["bytes"], wall_s(r)) for r in rows]
+    seen = [gbps(r.work["bytes"], wall_s(r)) for r in rows]
     ax.set_ylim(bottom=max(min(seen) / 3, 1e-6), top=max(roof["gbps"] * 3 if roof else 0, max(seen) * 2))
     ax.legend(fontsize=7, ncol=2, loc="lower right")
     _tidy_log(ax)
@@ -125,7 +126,7 @@ def _knobs(pts: list[dict[str, Any]]) -> str:
     return "".join(f"{n}, " for n in names if n)
 
 
-def plot_time_vs_error(records: list[dict[str, Any]], device: str, path: Path) -> bool:
+def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
     scen = error_scenarios(records, device)
     if not scen:
         return False
@@ -138,13 +139,13 @@ def plot_time_vs_error(records: list[dict[str, Any]], device: str, path: Path) -
         pts = error_points(records, device, s)
         for p in pts:
             r = p["rec"]
-            c = cmap[r["backend"]]
-            hollow = r.get("variant", "default") != "default"
-            ax.scatter(p["time"], p["error"], marker=MARKERS.get(r["precision"], "s"), s=36,
+            c = cmap[r.backend]
+            hollow = r.variant != "default"
+            ax.scatter(p["time"], p["error"], marker=MARKERS.get(r.precision, "s"), s=36,
                        color=c, facecolors="none" if hollow else c, linewidths=1.2)
         for backend, c in cmap.items():
             front = sorted((p["time"], p["error"]) for p in pts
-                           if p["rec"]["backend"] == backend and p.get("front_backend"))
+                           if p["rec"].backend == backend and p.get("front_backend"))
             if front:
                 ax.step(*zip(*front), where="post", color=c, lw=1, alpha=0.8)
         front = sorted((p["time"], p["error"]) for p in pts if p["front_all"])
@@ -164,14 +165,14 @@ def plot_time_vs_error(records: list[dict[str, Any]], device: str, path: Path) -
                 ax.annotate(f"{k['name']}={k['value']}", (p["time"], p["error"]), fontsize=6,
                             color="0.25", xytext=(4, 3), textcoords="offset points")
         ax.set_xlabel("median wall time per run [s] (log)")
-        metric = pts[0]["rec"]["converged"].get("metric", "error")
+        metric = pts[0]["rec"].converged.get("metric", "error")
         ax.set_ylabel(label(s, "error_axis", metric).format(floor=ERROR_FLOOR), fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
         _tidy_log(ax)
     for ax in list(axes.flat)[len(scen):]:
         ax.axis("off")
     handles = [plt.Line2D([], [], color=c, marker="o", ls="-", label=b) for b, c in cmap.items()
-               if any(p["rec"]["backend"] == b for s in scen for p in error_points(records, device, s))]
+               if any(p["rec"].backend == b for s in scen for p in error_points(records, device, s))]
     handles += [plt.Line2D([], [], color="k", marker="o", ls="", label="float64"),
                 plt.Line2D([], [], color="k", marker="^", ls="", label="float32"),
                 plt.Line2D([], [], color="k", marker="o", ls="", mfc="none", label="fastmath (hollow)"),
@@ -185,7 +186,7 @@ def plot_time_vs_error(records: list[dict[str, Any]], device: str, path: Path) -
     return True
 
 
-def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenario: str) -> bool:
+def plot_scaling(records: list[Record], device: str, path: Path, scenario: str) -> bool:
     """Throughput (work items per second) and memory against the swept size of one scenario."""
     rows = ok(records, sweep="scaling", device=device, scenario=scenario)
     if not rows:
@@ -195,15 +196,15 @@ def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenari
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6))
     for backend, c in colors(records).items():
         for prec in ("float32", "float64"):
-            mine = sorted((r for r in rows if r["backend"] == backend and r["precision"] == prec),
+            mine = sorted((r for r in rows if r.backend == backend and r.precision == prec),
                           key=lambda r: knob(r)["value"])
             if not mine:
                 continue
             tag = "" if prec == "float32" else " f64"
             n = [knob(r)["value"] for r in mine]
-            a1.plot(n, [r["work"][label(scenario, "rate_work", "items")] / wall_s(r) for r in mine], "-o",
+            a1.plot(n, [r.work[label(scenario, "rate_work", "items")] / wall_s(r) for r in mine], "-o",
                     color=c, ms=4, label=f"{backend}{tag}")
-            a2.plot(n, [r["memory"]["peak_host_rss_bytes"] / 2**20 for r in mine], "-o", color=c,
+            a2.plot(n, [r.memory["peak_host_rss_bytes"] / 2**20 for r in mine], "-o", color=c,
                     ms=4, label=f"{backend}{tag}: peak host RSS")
             dev = [device_bytes(r)[0] for r in mine]
             if any(d is not None for d in dev):
@@ -217,7 +218,7 @@ def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenari
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
         _tidy_log(ax)
-    per = f"{rows[0]['params'][per_run]} {per_run} per run, " if per_run else ""
+    per = f"{rows[0].params[per_run]} {per_run} per run, " if per_run else ""
     a1.set_ylabel(f"{label(scenario, 'item_rate', 'items')} per second [1/s] (log)")
     a1.set_title(f"{name} throughput, {per}wall clock ({device})", fontsize=10)
     a2.set_ylabel("memory [MiB] (log)")
@@ -228,16 +229,16 @@ def plot_scaling(records: list[dict[str, Any]], device: str, path: Path, scenari
     return True
 
 
-def plot_horizon(records: list[dict[str, Any]], device: str, path: Path, scenario: str) -> bool:
+def plot_horizon(records: list[Record], device: str, path: Path, scenario: str) -> bool:
     return horizon.plot(records, device, path, scenario, colors(records), _plt())
 
 
-def write_plots(records: list[dict[str, Any]], out: Path) -> dict[str, Path]:
+def write_plots(records: list[Record], out: Path) -> dict[str, Path]:
     """Every plot the records allow, per device: {'bandwidth-cpu': path, ...} (file names as the
     keys, '-' -> '_': bandwidth_cpu.png; with several scenarios of a kind, one file each)."""
     out.mkdir(parents=True, exist_ok=True)
     written = {}
-    for device in sorted({r["device"] for r in records}):
+    for device in sorted({r.device for r in records}):
         sized = with_role("bandwidth")
         scaled = swept(records, "scaling", device)
         jobs = [(plot_key("bandwidth", device, s, sized), plot_bandwidth, (s,)) for s in sized]

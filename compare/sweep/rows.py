@@ -1,27 +1,28 @@
-"""A sweep's records found by their tags (``rec["tags"]``: sweep kind, role, knob) and read: the
+"""A sweep's records found by their tags (``rec.tags``: sweep kind, role, knob) and read: the
 helpers the page, the horizon section and the plots share (compare/sweep/page.py, horizon.py,
 plots.py), kept apart so that none of those imports another only for these."""
 from __future__ import annotations
 
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
+from compare.record import Record
 from compare.sweep.points import sweeps
 
 
-def tag(rec: dict[str, Any], name: str) -> Any:
-    return (rec.get("tags") or {}).get(name)
+def tag(rec: Record, name: str) -> Any:
+    return (rec.tags or {}).get(name)
 
 
-def knob(rec: dict[str, Any]) -> dict[str, Any]:
+def knob(rec: Record) -> Mapping[str, Any]:
     return tag(rec, "knob") or {}
 
 
-def ok(records: Iterable[dict[str, Any]], sweep: str | None = None, role: str | None = None,
-       **match: Any) -> list[dict[str, Any]]:
+def ok(records: Iterable[Record], sweep: str | None = None, role: str | None = None,
+       **match: Any) -> list[Record]:
     """ok records with timings, of one sweep kind / role (tags) and matching fields."""
-    return [r for r in records if r.get("status") == "ok" and r.get("time")
+    return [r for r in records if r.status == "ok" and r.time
             and (sweep is None or tag(r, "sweep") == sweep) and (role is None or tag(r, "role") == role)
-            and all(r.get(k) == v for k, v in match.items())]
+            and all(getattr(r, k) == v for k, v in match.items())]
 
 
 def label(scenario: str, what: str, default: str = "") -> str:
@@ -29,17 +30,17 @@ def label(scenario: str, what: str, default: str = "") -> str:
     return sweeps(scenario).labels.get(what, scenario if what == "name" else default)
 
 
-def wall_s(rec: dict[str, Any]) -> float:
-    t = rec["time"]
+def wall_s(rec: Record) -> float:
+    t = rec.time
     return float((t.get("wall") or {}).get("median_s", t["median_s"]))
 
 
-def event_s(rec: dict[str, Any]) -> float | None:
-    t = rec["time"]
+def event_s(rec: Record) -> float | None:
+    t = rec.time
     return float(t["median_s"]) if t.get("timer") == "events" else None
 
 
-def throughput_s(rec: dict[str, Any]) -> float | None:
+def throughput_s(rec: Record) -> float | None:
     """Per-call time in the throughput regime (k calls, one synchronise), where measured."""
-    thr = (rec.get("time") or {}).get("throughput") or {}
+    thr = (rec.time or {}).get("throughput") or {}
     return float(thr["median_s"]) if thr.get("median_s") else None

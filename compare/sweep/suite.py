@@ -36,7 +36,6 @@ from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
 from compare.sweep.points import sweeps
-from compare.sweep.rows import tag
 from scenarios.base import PRECISIONS, ParamError
 
 KINDS = ("bandwidth", "error", "scaling", "horizon")
@@ -204,8 +203,8 @@ def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None
     show = engine.progress(len(specs), label)
     count = iter(range(len(specs)))
 
-    def on_record(j: int, rec: dict[str, Any], outputs) -> None:
-        if tag(rec, "sweep") == "error" and rec["status"] in ("ok", "mismatch"):
+    def on_record(j: int, rec: dict[str, Any], outputs) -> None:      # the record's JSON, not yet stored
+        if (rec.get("tags") or {}).get("sweep") == "error" and rec["status"] in ("ok", "mismatch"):
             conv = sweeps(rec["scenario"]).converged_error(rec["params"], outputs, rec, cache,
                                                            reference=references[j])
             if conv is not None:
@@ -296,7 +295,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, 
     page = rebuild(contents(store), args, [str(store.path)], notes)
     print(pages.summary(store.records))
     print(f"wrote {store.path} and {page}")
-    bad = [r for r in store.records if r["status"] in ("mismatch", "error")]
+    bad = [r for r in store.records if r.status in ("mismatch", "error")]
     return EXIT_FAIL if bad else EXIT_OK
 
 
