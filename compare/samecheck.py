@@ -110,7 +110,8 @@ def diff_arrays(pa: Path, pb: Path) -> Iterator[str]:
             if x.dtype != y.dtype or x.shape != y.shape:
                 yield f"array {n!r}: {x.dtype}{list(x.shape)} in A, {y.dtype}{list(y.shape)} in B"
             elif x.tobytes() != y.tobytes():
-                bad = int(np.count_nonzero(np.frombuffer(x.tobytes(), np.uint8) != np.frombuffer(y.tobytes(), np.uint8)))
+                bad = int(np.count_nonzero(np.frombuffer(x.tobytes(), np.uint8)
+                                           != np.frombuffer(y.tobytes(), np.uint8)))
                 yield f"array {n!r}: bits differ ({bad} bytes of {x.nbytes})"
 
 

@@ -196,7 +196,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         raise ContractError(violation)
     sampled = sc.sample(params, inputs, outputs, spec.check_sample)
     c_in, c_out = (sampled.inputs, sampled.outputs) if sampled else (inputs, outputs)
-    reference = sc.oracle(params, c_in)
+    reference = sc.oracle(params, c_in, precision)
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
     times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,

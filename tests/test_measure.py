@@ -138,7 +138,7 @@ def test_pareto_front():
 def test_references_converge():
     import scenarios
     sdf = scenarios.get("sdf")
-    errs = [converged.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {})["image"])["error"]
+    errs = [converged.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {}, "float64")["image"])["error"]
             for r in (32, 128, 512)]
     assert errs[0] > errs[1] > errs[2] > 0
     params = {"n": 16, "seed": 0}
