@@ -31,7 +31,8 @@ class Device(enum.StrEnum):
     CUDA = "cuda"
 
 
-DEVICES: tuple[Device, ...] = tuple(Device)
+# the names, as plain strings (what a command line, a record and a message show)
+DEVICES: tuple[str, ...] = tuple(d.value for d in Device)
 
 
 class ScenarioKernel:

@@ -145,7 +145,6 @@ def run(spec: Cell | dict[str, Any], timeout: float | None = 600.0) -> Result:
 PROBE = """
 import json, sys
 import backends
-devices = [str(d) for d in backends.DEVICES]      # the names, as the messages show them
 out = {}
 for name in sys.argv[1:]:
     b = backends.get(name)
@@ -156,12 +155,12 @@ for name in sys.argv[1:]:
         vers = b.versions() if any(v is None for v in avail.values()) else {}
     except Exception as exc:
         why = f"probe failed: {type(exc).__name__}: {exc}"
-        avail, vers = {d: why for d in devices}, {}
+        avail, vers = {d: why for d in backends.DEVICES}, {}
     # a device the backend does not report is unavailable, never run on whatever it does
     avail = {d: (avail[d] if d in avail and (avail[d] is None or isinstance(avail[d], str)) else
                  f"{name}'s available() does not report {d!r}" if d not in avail else
                  f"{name}'s available() gives {avail[d]!r} for {d!r}, not None or a reason")
-             for d in devices}
+             for d in backends.DEVICES}
     out[name] = {"available": avail, "versions": vers}
 print("PROBE" + json.dumps(out))
 """

@@ -44,6 +44,8 @@ class SpecError(ValueError):
 
 @dataclasses.dataclass(frozen=True)
 class Cell:
+    """One cell: what to run (identity, typed; ``params`` the scenario's resolved Params) and how
+    to time it. Build it with the resolved parameters, or with ``make`` from overrides."""
     scenario: str
     backend: str
     device: Device

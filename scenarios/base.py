@@ -35,7 +35,8 @@ class Precision(enum.StrEnum):
         return np.dtype(self.scalar).itemsize
 
 
-PRECISIONS: tuple[Precision, ...] = tuple(Precision)
+# the names, as plain strings (what a command line, a record and a message show)
+PRECISIONS: tuple[str, ...] = tuple(p.value for p in Precision)
 
 # Unit roundoff u = 2^-p (p = significand bits incl. the hidden one): |fl(x) - x| <= u |x|.
 UNIT_ROUNDOFF: dict[Precision, float] = {Precision.FLOAT32: 2.0**-24, Precision.FLOAT64: 2.0**-53}
