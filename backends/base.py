@@ -14,6 +14,7 @@ host<->device transfers and no allocations where the framework lets us avoid the
 """
 from __future__ import annotations
 
+import enum
 import importlib
 import importlib.util
 from pathlib import Path
@@ -21,13 +22,23 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-DEVICES: tuple[str, ...] = ("cpu", "cuda")
+from scenarios.base import Precision
+
+
+class Device(enum.StrEnum):
+    """Where a cell runs. A ``StrEnum``: it equals, prints and serialises as its name ("cpu")."""
+    CPU = "cpu"
+    CUDA = "cuda"
+
+
+# the names, as plain strings (what a command line, a record and a message show)
+DEVICES: tuple[str, ...] = tuple(d.value for d in Device)
 
 
 class ScenarioKernel:
     """One scenario in one framework. Subclasses are named ``Kernel`` in backends/<fw>/<scenario>.py."""
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         raise NotImplementedError
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from backends.base import DEVICES
 from compare import lifeline
+from compare.spec import Cell, as_cell
 
 ROOT = Path(__file__).resolve().parent.parent
 Result = tuple[dict[str, Any], "dict[str, np.ndarray] | None"]
@@ -49,19 +50,19 @@ def _died(proc: subprocess.Popen, err: str) -> str:
     return f"worker died ({how}): {_tail(err)}"
 
 
-def _collect(cell_dir: Path, spec: dict[str, Any]) -> Result:
+def _collect(cell_dir: Path, cell: Cell) -> Result:
     record = json.loads((cell_dir / "record.json").read_text())
     outputs = None
     if (cell_dir / "outputs.npz").exists():
         with np.load(cell_dir / "outputs.npz") as z:
             outputs = {k: z[k] for k in z.files}
-    if spec.get("save_inputs") and (cell_dir / "inputs.npz").exists():
+    if cell.save_inputs and (cell_dir / "inputs.npz").exists():
         with np.load(cell_dir / "inputs.npz") as z:
             record["_inputs"] = {k: z[k] for k in z.files}
     return record, outputs
 
 
-def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
+def run_batch(specs: list[Cell | dict[str, Any]], timeout: float | None = 600.0,
               on_result: Callable[[int, Result], None] | None = None) -> list[Result]:
     """Run cells one after another in ONE fresh interpreter; returns (record, outputs) per spec.
 
@@ -79,23 +80,24 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
 
     if not specs:
         return []
+    batch = [as_cell(s) for s in specs]
     results: list[Result] = []
     # under this driver's temporary root: deleted even if the driver is killed (compare.lifeline)
     with lifeline.temp_dir("cells-") as tmp:
         tmp_path = Path(tmp)
-        (tmp_path / "specs.json").write_text(json.dumps(specs))
-        cmd = lifeline.command("compare.worker", str(tmp_path / "specs.json"), str(tmp_path))
+        (tmp_path / "cells.json").write_text(json.dumps([c.to_dict() for c in batch]))
+        cmd = lifeline.command("compare.worker", str(tmp_path / "cells.json"), str(tmp_path))
         with tempfile.TemporaryFile("w+") as err:
-            env = lifeline.child_environment(worker_env(specs[0]["backend"], specs[0].get("variant", "default")), tmp_path)
+            env = lifeline.child_environment(worker_env(batch[0].backend, batch[0].variant), tmp_path)
             proc = subprocess.Popen(cmd, cwd=ROOT, env=env,
                                     stdout=subprocess.DEVNULL, stderr=err, text=True, stdin=subprocess.DEVNULL)
             started, done = time.monotonic(), 0
             began = started             # when the cell now running (or the last one) started
             reason = None
             try:
-                while done < len(specs):
+                while done < len(batch):
                     if (tmp_path / f"cell-{done}" / "record.json").exists():
-                        got(_collect(tmp_path / f"cell-{done}", specs[done]))
+                        got(_collect(tmp_path / f"cell-{done}", batch[done]))
                         done, began, started = done + 1, started, time.monotonic()
                         continue
                     if proc.poll() is not None:
@@ -119,7 +121,7 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
                     except subprocess.TimeoutExpired:
                         proc.kill()
                         proc.wait()
-                        print(f"warning: a worker of {specs[-1]['scenario']}/{specs[-1]['backend']} did not "
+                        print(f"warning: a worker of {batch[-1].scenario}/{batch[-1].backend} did not "
                               f"exit within --timeout {timeout:g} s of its last cell's start; killed "
                               "(its records are kept)", file=sys.stderr)
             finally:        # the driver gives up (a full disk, Ctrl-C): no worker runs on
@@ -129,13 +131,14 @@ def run_batch(specs: list[dict[str, Any]], timeout: float | None = 600.0,
     if reason is not None:
         got(({"status": "error", "reason": reason}, None))
         start = len(results)
-        results += run_batch(specs[start:], timeout,
+        results += run_batch(batch[start:], timeout,
                              None if on_result is None else lambda k, r: on_result(start + k, r))
     return results
 
 
-def run(spec: dict[str, Any], timeout: float | None = 600.0) -> Result:
-    """Run one cell in a fresh interpreter; returns (record, outputs or None)."""
+def run(spec: Cell | dict[str, Any], timeout: float | None = 600.0) -> Result:
+    """Run one cell in a fresh interpreter; returns (record, outputs or None). ``spec``: a Cell
+    or its ``to_dict`` (a Dask task ships that)."""
     return run_batch([spec], timeout)[0]
 
 

@@ -1,8 +1,8 @@
 """The one engine every suite runs on: plan -> run cells in processes -> store records -> render.
 
 A suite (``compare.run_suite`` for all/<scenario>, ``compare.sweep``, ``compare.stress``) makes a
-list of cell specs (``compare.spec.CellSpec``), hands them to ``run_cells``, and renders what
-comes back. ``run_cells`` is the only place that starts worker processes: it skips cells whose
+list of cells (``compare.spec.Cell``: parameters resolved, typed), hands them to ``run_cells``, and
+renders what comes back. ``run_cells`` is the only place that starts worker processes: it skips cells whose
 backend cannot use the device (a ``skipped`` record with the reason, never a run), runs the rest
 one at a time (timed suites) or ``jobs`` at a time with one lane per backend and GPU (the stress
 suite, whose figures are not timings), and hands every record to ``on_record`` as it finishes, so
@@ -11,7 +11,6 @@ a store can save it before the next cell starts.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import threading
 from typing import Any, Callable, Iterable
 
@@ -21,21 +20,24 @@ import backends
 import scenarios
 from compare import cells
 from compare.record import Record, RecordError
-from compare.spec import IDENTITY, CellSpec, key
+from compare.spec import IDENTITY, Cell, as_cell, key
 from compare.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
 Result = tuple[Record, Outputs | None]
 
 
-def gpu_lane(spec: dict[str, Any]) -> Any:
-    """Cells that must not overlap: those of one backend on one GPU (None: no constraint).
+def gpu_lane(item: Cell | dict[str, Any]) -> Any:
+    """Cells (or a suite's tasks: dicts with 'backend' and 'device') that must not overlap:
+    those of one backend on one GPU (None: no constraint).
 
     Frameworks reserve device memory per process (some size local memory for every thread the GPU
     can hold resident: docs/stress.md, "Running it on a GPU"), so several processes of one framework on one GPU can run
     out of memory at launch. One process per backend per GPU still lets different backends overlap.
     """
-    return None if spec.get("device") in ("cpu", "host") else (spec.get("backend"), spec.get("device"))
+    backend, device = ((item.backend, str(item.device)) if isinstance(item, Cell)
+                       else (item.get("backend"), item.get("device")))
+    return None if device in ("cpu", "host") else (backend, device)
 
 
 def pool_map(fn: Callable[[Any], Any], items: list[Any], jobs: int = 1,
@@ -69,43 +71,34 @@ def availability(names: Iterable[str]) -> dict[str, dict[str, Any]]:
         return dict(zip(names, pool.map(cells.probe, names)))
 
 
-def prepare(spec: dict[str, Any]) -> dict[str, Any]:
-    """A checked ``CellSpec`` as a dict, with the scenario's parameters resolved (defaults, quick
-    overrides, the spec's own), so a cell has one identity however it was asked for."""
-    cs = CellSpec.from_dict(spec)
-    params = dataclasses.asdict(scenarios.get(cs.scenario).params(cs.params, quick=cs.quick))
-    return dataclasses.replace(cs, params=params, quick=False).to_dict()
-
-
-def not_runnable(spec: dict[str, Any], probes: dict[str, dict[str, Any]]) -> tuple[str, str] | None:
+def not_runnable(cell: Cell, probes: dict[str, dict[str, Any]]) -> tuple[str, str] | None:
     """(status, reason) of a cell that must not start: its backend cannot use the device, or has
     no kernel file for the scenario (an error for a scenario every backend must have, a skip for
     a measurement-only one)."""
-    why = probes.get(spec["backend"], {}).get("available", {}).get(spec["device"],
-                                                                   "device not probed")
+    why = probes.get(cell.backend, {}).get("available", {}).get(cell.device, "device not probed")
     if why:
         return "skipped", why
-    be = backends.get(spec["backend"])
-    why = (be.variant_unavailable(spec.get("variant", "default"), spec["device"])
-           or be.precision_unavailable(spec["precision"], spec["device"]))
+    be = backends.get(cell.backend)
+    why = be.variant_unavailable(cell.variant, cell.device) or be.precision_unavailable(cell.precision, cell.device)
     if why:
         return "skipped", why
-    if not be.has_kernel(spec["scenario"]):
-        where = f"{type(be).__module__.replace('.', '/')}/{spec['scenario']}.py"
-        if scenarios.get(spec["scenario"]).in_all:
+    if not be.has_kernel(cell.scenario):
+        where = f"{type(be).__module__.replace('.', '/')}/{cell.scenario}.py"
+        if scenarios.get(cell.scenario).in_all:
             return "error", f"contract: no {where} (every backend needs one per scenario in 'all')"
         return "skipped", f"no {where} (optional: measurement-only scenario)"
     return None
 
 
-def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
+def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
               probes: dict[str, dict[str, Any]] | None = None,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
-              runner: Callable[[dict[str, Any]], tuple[dict[str, Any], Outputs | None]] | None = None,
+              runner: Callable[[Cell], Result] | None = None,
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
-              refuse: Callable[[dict[str, Any]], tuple[str, str] | None] | None = None) -> list[Result]:
-    """Run every cell spec in a worker process; returns (record, outputs) per spec, in order.
+              refuse: Callable[[Cell], tuple[str, str] | None] | None = None) -> list[Result]:
+    """Run every cell in a worker process; returns (record, outputs) per cell, in order. A dict
+    is decoded into its Cell (``Cell.from_dict``) first.
 
     A record always carries the cell's identity (scenario, backend, device, precision, variant,
     resolved params, tags). A cell that must not start (``not_runnable``) gets its record without
@@ -120,17 +113,12 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
     ``on_record`` sees a record's JSON object before ``Record.from_json`` checks it (it may add
     to it); a record that fails the check becomes an ``error`` record of its cell.
     """
-    specs = [prepare(s) for s in specs]
-    probes = probes if probes is not None else availability({s["backend"] for s in specs})
+    plan = [as_cell(s) for s in specs]
+    probes = probes if probes is not None else availability({c.backend for c in plan})
     lock = threading.Lock()
-    done: list[Result | None] = [None] * len(specs)
+    done: list[Result | None] = [None] * len(plan)
     failed: list[BaseException] = []
-    idents = []
-    for spec in specs:
-        ident = {k: spec[k] for k in (*IDENTITY, "params")}
-        if spec.get("tags"):
-            ident["tags"] = spec["tags"]
-        idents.append(ident)
+    idents = [c.identity() for c in plan]
 
     def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True) -> None:
         inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
@@ -161,27 +149,27 @@ def run_cells(specs: list[dict[str, Any]], *, timeout: float, jobs: int = 1,
         done[i] = (record, out)
 
     groups: dict[Any, list[int]] = {}
-    for i, spec in enumerate(specs):
+    for i, cell in enumerate(plan):
         if store is not None and resume and store.done(key(idents[i])):
             finish(i, store.get(key(idents[i])).to_json(), None, save=False)
             continue
-        blocked = not_runnable(spec, probes) or (refuse(spec) if refuse is not None else None)
+        blocked = not_runnable(cell, probes) or (refuse(cell) if refuse is not None else None)
         if blocked:
             finish(i, {"status": blocked[0], "reason": blocked[1]}, None)
             continue
-        shared = share_process and runner is None and spec["cache"] == "warm"
-        group = (spec["backend"], spec["device"], spec["precision"], spec["variant"]) if shared else ("solo", i)
+        shared = share_process and runner is None and cell.cache == "warm"
+        group = (cell.backend, cell.device, cell.precision, cell.variant) if shared else ("solo", i)
         groups.setdefault(group, []).append(i)
 
     def run_group(idx: list[int]) -> None:
         if runner is not None:
             for i in idx:
-                finish(i, *runner(specs[i]))
+                finish(i, *runner(plan[i]))
         else:
-            cells.run_batch([specs[i] for i in idx], timeout,
+            cells.run_batch([plan[i] for i in idx], timeout,
                             on_result=lambda k, result: finish(idx[k], *result))
 
-    pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(specs[g[0]]))
+    pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
     return [r for r in done if r is not None]
 
 

@@ -13,7 +13,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -21,6 +21,7 @@ import backends
 import scenarios
 from compare import engine, environment, hardware, options, report, run_plots, scaleout
 from compare.record import Record, plain
+from compare.spec import Cell, as_cell
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
@@ -72,18 +73,18 @@ RECORD_BYTES = 64 * 2**10          # one record in results.json, generously (par
 PAGE_BYTES = 32 * 2**20            # results.csv, results.md and the plots of one run
 
 
-def cell_bytes(spec: dict[str, Any]) -> tuple[float, float, float]:
+def cell_bytes(spec: Cell | dict[str, Any]) -> tuple[float, float, float]:
     """(worker peak, bytes handed back to the driver, bytes --save-arrays writes) of one cell."""
-    sc = scenarios.get(spec["scenario"])
-    p = sc.params(spec.get("params"), quick=spec.get("quick", False))
-    prec = spec["precision"]
+    cell = as_cell(spec)
+    sc, p, prec = scenarios.get(cell.scenario), cell.params, cell.precision
     outputs = sc.output_bytes(p, prec)
     arrays = outputs + sc.input_bytes(p, prec)
-    worker = WORKER_BASELINE_BYTES.get(spec["device"], max(WORKER_BASELINE_BYTES.values())) + sc.footprint(p, prec, spec["device"])
-    return worker, (arrays if spec.get("save_inputs") else outputs), arrays
+    worker = (WORKER_BASELINE_BYTES.get(cell.device, max(WORKER_BASELINE_BYTES.values()))
+              + sc.footprint(p, prec, cell.device))
+    return worker, (arrays if cell.save_inputs else outputs), arrays
 
 
-def check_memory(specs: list[dict[str, Any]], driver: bool = True, worker: bool = True) -> None:
+def check_memory(specs: list[Cell | dict[str, Any]], driver: bool = True, worker: bool = True) -> None:
     """Refuse a plan this machine's AVAILABLE memory cannot hold, before any worker starts: the
     largest cell's worker (interpreter and framework + Scenario.footprint, a bound checked
     against measured peaks by tests/test_reliability.py) plus, with ``driver``, the outputs the
@@ -96,24 +97,24 @@ def check_memory(specs: list[dict[str, Any]], driver: bool = True, worker: bool 
     need = (sizes[big][0] if worker else 0.0) + (sum(b for _, b, _ in sizes) if driver else 0.0)
     have = psutil.virtual_memory().available
     if need > have:
-        s = specs[big]
-        sc = scenarios.get(s["scenario"])
-        what = f"{sc.name} with {sc.size_text(sc.params(s.get('params'), quick=s.get('quick', False)))}"
-        parts = ([f"one {s['precision']} cell's worker {options.gib(sizes[big][0])}"] if worker else []) + \
+        s = as_cell(specs[big])
+        sc = scenarios.get(s.scenario)
+        what = f"{sc.name} with {sc.size_text(s.params)}"
+        parts = ([f"one {s.precision} cell's worker {options.gib(sizes[big][0])}"] if worker else []) + \
                 ([f"outputs of {len(specs)} cells kept by the driver {options.gib(sum(b for _, b, _ in sizes))}"]
                  if driver else [])
         raise ParamError(f"{what} needs about {options.gib(need)} of memory ({' + '.join(parts)}); "
                          f"{options.gib(have)} is available")
 
 
-def memory_refusal() -> Callable[[dict[str, Any]], tuple[str, str] | None]:
+def memory_refusal() -> Callable[[Cell], tuple[str, str] | None]:
     """A cell whose worker the memory available now cannot hold is skipped, saying so, while
     the plan's other cells run (a plan none of whose cells fits is refused by ``plan``)."""
     import psutil
     have = float(psutil.virtual_memory().available)
 
-    def refuse(spec: dict[str, Any]) -> tuple[str, str] | None:
-        need = cell_bytes(spec)[0]
+    def refuse(cell: Cell) -> tuple[str, str] | None:
+        need = cell_bytes(cell)[0]
         if need <= have:
             return None
         return "skipped", (f"needs about {options.gib(need)} of host memory for its worker; "
@@ -121,7 +122,7 @@ def memory_refusal() -> Callable[[dict[str, Any]], tuple[str, str] | None]:
     return refuse
 
 
-def disk_need(specs: list[dict[str, Any]], save_arrays: bool, existing: Path | None = None) -> float:
+def disk_need(specs: list[Cell], save_arrays: bool, existing: Path | None = None) -> float:
     """Bytes the run writes at most: results.json (rewritten through a temporary beside it, so
     twice), tables and plots, and with --save-arrays every cell's inputs and outputs."""
     old = existing.stat().st_size if existing is not None and existing.exists() else 0
@@ -131,19 +132,19 @@ def disk_need(specs: list[dict[str, Any]], save_arrays: bool, existing: Path | N
     return need
 
 
-def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dict[str, Any]]:
-    """Every cell of the run, validated: bad input never reaches a worker or the output directory."""
+def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[Cell]:
+    """Every cell of the run, validated: bad input never reaches a worker or the output directory.
+    Each scenario's parameters are resolved here, once (defaults, --quick, --set), and every cell
+    carries that one object."""
     sel = options.selection(args)
     sets = options.scenario_sets(options.parse_sets(args.set), chosen)
     options.check_scheduler(args)
+    params = {sc.name: sc.params(sets[sc.name], quick=args.quick) for sc in chosen}
     for sc in chosen:
-        params = sc.params(sets[sc.name], quick=args.quick)
         for prec in sel["precisions"]:
-            options.check_precision(sc, params, prec)
-    specs = [{"scenario": sc.name, "backend": b, "device": d, "precision": p, "variant": v,
-              "params": sets[sc.name], "quick": args.quick, "repeat": args.repeat,
-              "min_time": args.min_time, "save_inputs": args.save_arrays,
-              "check_sample": args.check_sample, "host_profile": args.host_profile}
+            options.check_precision(sc, params[sc.name], prec)
+    specs = [Cell(sc.name, b, d, p, v, params[sc.name], repeat=args.repeat, min_time=args.min_time,
+                  save_inputs=args.save_arrays, check_sample=args.check_sample, host_profile=args.host_profile)
              for sc in chosen for b in sel["backends"] for d in sel["devices"]
              for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants_for(sc.name)]
     if not specs:
@@ -154,11 +155,14 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[dic
     return specs
 
 
-def fill_vs_reference(records: list[Record], outputs: dict[int, dict[str, np.ndarray]]) -> None:
+def fill_vs_reference(records: list[Record], outputs: dict[int, dict[str, np.ndarray]],
+                      plan: Sequence[Cell] = ()) -> None:
     """Distance of every port's outputs to the reference backend's, same device and precision
     (or, if the reference did not run there, the reference on another device): each such record
-    in ``records`` is replaced by one whose ``error`` says it."""
+    in ``records`` is replaced by one whose ``error`` says it. Parameters come from the
+    ``plan``'s cells; a record of no cell of it (kept by --resume, or a report) gives its own."""
     ref = backends.reference()
+    planned = {c.key(): c.params for c in plan}
     made: dict[str, dict[str, np.ndarray]] = {}     # inputs once per scenario, size and precision
     for i, r in enumerate(records):
         if i not in outputs or r.error is None:
@@ -170,7 +174,7 @@ def fill_vs_reference(records: list[Record], outputs: dict[int, dict[str, np.nda
         if not cands:
             continue
         sc = scenarios.get(r.scenario)
-        p = sc.params(plain(r.params))
+        p = planned.get(r.key) or sc.params(plain(r.params))
         made_key = json.dumps([r.scenario, plain(r.params), r.precision], sort_keys=True)
         if made_key not in made:
             made[made_key] = sc.inputs(p, r.precision)
@@ -210,17 +214,16 @@ def refuse_overwrite(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
-    specs = plan(args, chosen)
+    cells = plan(args, chosen)
     options.check_output(args.out)                    # a bad --out is refused before the probes
     refuse_overwrite(args)
     Store.open(args.out, "run", keep=args.resume)     # and a bad results.json to resume (read only)
-    sel_backends = sorted({s["backend"] for s in specs})
-    probes = engine.availability(sel_backends)
+    probes = engine.availability(sorted({c.backend for c in cells}))
     local = args.scheduler in (None, "local")
     refuse = memory_refusal() if local else None
-    blocked = [engine.not_runnable(engine.prepare(s), probes) or (refuse(s) if refuse else None) for s in specs]
-    runnable = [s for s, b in zip(specs, blocked) if not b]
-    nothing_to_run(specs, blocked)
+    blocked = [engine.not_runnable(c, probes) or (refuse(c) if refuse else None) for c in cells]
+    runnable = [c for c, b in zip(cells, blocked) if not b]
+    nothing_to_run(cells, blocked)
     check_memory(runnable, worker=local)
     need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
     client = scaleout.client(args.scheduler) if args.scheduler else None
@@ -231,16 +234,16 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
             client.close()
         raise
     with lock:
-        return run_claimed(args, argv, specs, out, probes, client)
+        return run_claimed(args, argv, cells, out, probes, client)
 
 
-def nothing_to_run(specs: list[dict[str, Any]], blocked: list[tuple[str, str] | None]) -> None:
+def nothing_to_run(cells: list[Cell], blocked: list[tuple[str, str] | None]) -> None:
     """Refuse a plan whose every cell would be skipped (no chosen backend can use a chosen
     device): exit 2 with the first reason, before anything is written."""
-    if specs and all(b is not None and b[0] == "skipped" for b in blocked):
-        s, why = specs[0], blocked[0][1]         # type: ignore[index]
-        raise UsageError(f"nothing to run: every one of the {len(specs)} cells would be skipped "
-                         f"(first: {s['backend']} on {s['device']}: {why})")
+    if cells and all(b is not None and b[0] == "skipped" for b in blocked):
+        c, why = cells[0], blocked[0][1]         # type: ignore[index]
+        raise UsageError(f"nothing to run: every one of the {len(cells)} cells would be skipped "
+                         f"(first: {c.backend} on {c.device}: {why})")
 
 
 class RunStore(Store):
@@ -266,7 +269,7 @@ def arrays_saved(out: Path, rec: Record) -> bool:
         return False
 
 
-def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str, Any]], out: Path,
+def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], out: Path,
                 probes: dict[str, dict[str, Any]], client: Any = None) -> int:
     """The run, once its output directory is checked, has room and is locked by this driver."""
     import platform
@@ -274,7 +277,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     env = store.env = environment.collect(argv)
     env["backends"] = probes
     # the framework-neutral yardstick of every device some backend can use, in this same run
-    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s in specs)
+    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in cells)
                        if any(p["available"].get(d) is None for p in probes.values())}
     store.runs = [*store.runs, env] if args.resume else [env]
     if args.resume:
@@ -288,17 +291,17 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
                                     if r.status in ("ok", "mismatch") and not arrays_saved(out, r))
         if store.records:
             store.save()            # tables rebuilt from the kept records before any cell runs
-    runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
+    runner = scaleout.runner(client, args.timeout, cells, probes) if client is not None else None
     if client is not None:
         env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
-    show = engine.progress(len(specs))
+    show = engine.progress(len(cells))
 
     def on_record(i: int, rec: dict[str, Any], outs: dict[str, np.ndarray] | None) -> None:
         hardware.annotate([rec], env["hardware"])        # judged against this run's yardstick
         if args.save_arrays and outs is not None:        # before its record is saved: a failed
             save_arrays(out, rec, outs)                  # write leaves the cell to be run again
         show(i, rec, outs)
-    results = engine.run_cells(specs, timeout=args.timeout, probes=probes, runner=runner,
+    results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=on_record,
                                refuse=memory_refusal() if client is None else None)
     # the records of this plan, in plan order; with --resume also the kept records of other plans
@@ -308,7 +311,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], specs: list[dict[str,
     records += [r for r in store.records if r.key not in mine]
     if args.save_arrays or args.resume:
         saved_outputs(out, records, outputs)
-    fill_vs_reference(records, outputs)
+    fill_vs_reference(records, outputs, cells)
     for r in records:
         store.put(r)
     store.save()

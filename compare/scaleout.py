@@ -20,6 +20,7 @@ import os
 from typing import Any, Callable
 
 from backends.base import visible_gpus
+from compare.spec import Cell
 from scenarios.base import ParamError
 
 CPU_SET_ENV = "COMPARE_CPU_SET"
@@ -93,15 +94,17 @@ def placement(c: Any) -> dict[str, Any]:
             "worker_names": sorted(str(w.get("name", "")) for w in info.values())}
 
 
-def runner(c: Any, timeout: float, specs: list[dict[str, Any]],
-           probes: dict[str, dict[str, Any]]) -> Callable[[dict[str, Any]], Any]:
+def runner(c: Any, timeout: float, plan: list[Cell],
+           probes: dict[str, dict[str, Any]]) -> Callable[[Cell], Any]:
     """A ``run_cells`` runner: each cell a task that starts its own worker process (the same
-    isolation and timeout as locally), collected in plan order."""
+    isolation and timeout as locally), collected in plan order. A task ships the cell's
+    ``to_dict`` (the one encoding a cell crosses a process boundary in)."""
     from compare import cells, engine
-    prepared = [s for s in map(engine.prepare, specs) if not engine.not_runnable(s, probes)]
+    runnable = [cell for cell in plan if not engine.not_runnable(cell, probes)]
     if not gpu_workers(c):      # nothing declares a device: never overlap two timed cells
-        return lambda spec: c.submit(cells.run, spec, timeout, pure=False).result()
-    futures = {json.dumps(s, sort_keys=True): c.submit(cells.run, s, timeout, pure=False,
-                                                       resources={"GPU": 1} if s["device"] != "cpu" else None)
-               for s in prepared}
-    return lambda spec: futures[json.dumps(spec, sort_keys=True)].result()
+        return lambda cell: c.submit(cells.run, cell.to_dict(), timeout, pure=False).result()
+    futures = {json.dumps(cell.to_dict(), sort_keys=True):
+               c.submit(cells.run, cell.to_dict(), timeout, pure=False,
+                        resources={"GPU": 1} if cell.device != "cpu" else None)
+               for cell in runnable}
+    return lambda cell: futures[json.dumps(cell.to_dict(), sort_keys=True)].result()

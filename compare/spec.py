@@ -1,9 +1,12 @@
-"""One typed cell spec and one record schema for every suite (all, sweep, stress).
+"""One typed cell for every suite (all, sweep, stress), and one record schema.
 
-A *cell* is one scenario x backend x device x precision x variant at given parameters. Its spec
-says what to run and how to time it; its record says what happened. ``tags`` carries a suite's
-own identity of the cell (a sweep's kind, role and knob; a stress experiment), so two suites can
-run the same cell for different reasons and keep both records.
+A *cell* is one scenario x backend x device x precision x variant at given parameters: a frozen
+``Cell`` built once when a suite plans its run (its parameters resolved into the scenario's own
+dataclass, its device and precision enums) and handed unchanged to the engine, the worker and the
+kernel. It crosses the process boundary (a worker, a Dask task) through one pair,
+``Cell.to_dict`` / ``Cell.from_dict``. Besides what to run it says how to time it. ``tags``
+carries a suite's own identity of the cell (a sweep's kind, role and knob; a stress experiment),
+so two suites can run the same cell for different reasons and keep both records.
 
 Its record is ``compare.record.Record`` (the fields, their checks and the format's history).
 """
@@ -14,6 +17,10 @@ import json
 import math
 from typing import Any
 
+import scenarios
+from backends.base import Device
+from scenarios.base import ParamError, Precision
+
 STATUSES = ("ok", "mismatch", "error", "skipped")
 IDENTITY = ("scenario", "backend", "device", "precision", "variant")
 # a rerun (--resume) keeps these and retries the rest (a crash, timeout or kill is not a result)
@@ -21,18 +28,19 @@ KEPT_ON_RESUME = ("ok", "mismatch", "skipped")
 
 
 class SpecError(ValueError):
-    """A malformed spec or record; one line naming the first problem."""
+    """A malformed cell or record; one line naming the first problem."""
 
 
 @dataclasses.dataclass(frozen=True)
-class CellSpec:
+class Cell:
+    """One cell: what to run (identity, typed; ``params`` the scenario's resolved Params) and how
+    to time it. Build it with the resolved parameters, or with ``make`` from overrides."""
     scenario: str
     backend: str
-    device: str
-    precision: str
+    device: Device
+    precision: Precision
     variant: str = "default"
-    params: dict[str, Any] = dataclasses.field(default_factory=dict)   # overrides or resolved
-    quick: bool = False                 # apply the scenario's quick overrides first
+    params: Any = None                  # the scenario's Params dataclass, resolved (None: defaults)
     tags: dict[str, Any] = dataclasses.field(default_factory=dict)
     warmup: int = 2                     # timing.steady_state: untimed calls after the first
     repeat: int = 10                    # ... then at least this many timed calls
@@ -50,8 +58,23 @@ class CellSpec:
         for f in IDENTITY:
             if not isinstance(getattr(self, f), str) or not getattr(self, f):
                 raise SpecError(f"cell spec: {f} must be a non-empty string, got {getattr(self, f)!r}")
-        if not isinstance(self.params, dict) or not isinstance(self.tags, dict):
-            raise SpecError("cell spec: params and tags must be mappings")
+        for f, kind in (("device", Device), ("precision", Precision)):
+            try:
+                object.__setattr__(self, f, kind(getattr(self, f)))
+            except ValueError:
+                raise SpecError(f"cell spec: {f} must be one of {', '.join(kind)}, "
+                                f"got {str(getattr(self, f))!r}") from None
+        try:
+            sc = scenarios.get(self.scenario)
+        except ParamError as exc:
+            raise SpecError(f"cell spec: {exc}") from None
+        if self.params is None:
+            object.__setattr__(self, "params", sc.params())
+        if not isinstance(self.params, sc.Params):
+            raise SpecError(f"cell spec: params must be a resolved {sc.Params.__name__}, "
+                            f"got {type(self.params).__name__} (Cell.make resolves overrides)")
+        if not isinstance(self.tags, dict):
+            raise SpecError("cell spec: tags must be a mapping")
         if not (isinstance(self.repeat, int) and self.repeat >= 1):
             raise SpecError(f"cell spec: repeat must be an integer >= 1, got {self.repeat!r}")
         for f in ("min_time", "max_time"):
@@ -66,18 +89,59 @@ class CellSpec:
             raise SpecError(f"cell spec: timer must be auto|wall and cache cold|warm, got {self.timer!r}, {self.cache!r}")
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "CellSpec":
-        fields = {f.name for f in dataclasses.fields(cls)}
+    def make(cls, scenario: str, backend: str, device: str, precision: str, variant: str = "default",
+             params: Any = None, quick: bool = False, **settings: Any) -> "Cell":
+        """A cell whose ``params`` may be overrides (a mapping: the scenario's defaults, then its
+        quick overrides with ``quick``, then these; coerced and validated) or already resolved."""
+        if not isinstance(params, (dict, type(None))) and not quick:
+            return cls(scenario, backend, device, precision, variant, params, **settings)
+        try:
+            sc = scenarios.get(scenario)
+        except ParamError as exc:
+            raise SpecError(f"cell spec: {exc}") from None
+        if params is not None and not isinstance(params, dict):
+            params = dataclasses.asdict(params)
+        return cls(scenario, backend, device, precision, variant, sc.params(params, quick=quick), **settings)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "Cell":
+        """The decode of ``to_dict`` (in a worker, a Dask task). A hand-written dict may also
+        give ``params`` as overrides and ``quick`` (see ``make``)."""
+        if not isinstance(d, dict):
+            raise SpecError(f"cell spec: must be an object, got {type(d).__name__}")
+        fields = {f.name for f in dataclasses.fields(cls)} | {"quick"}
         unknown = sorted(set(d) - fields)
         if unknown:
             raise SpecError(f"cell spec: unknown key {unknown[0]!r}")
+        if not isinstance(d.get("params", {}), (dict, type(None))):
+            raise SpecError("cell spec: params and tags must be mappings")
         try:
-            return cls(**d)
+            return cls.make(**d)
         except TypeError as exc:
             raise SpecError(f"cell spec: {exc}") from None
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """Plain JSON types: the parameters as a mapping, device and precision as their names."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out.update(device=str(self.device), precision=str(self.precision),
+                   params=dataclasses.asdict(self.params), tags=dict(self.tags))
+        return out
+
+    def identity(self) -> dict[str, Any]:
+        """What every record of this cell carries to say which cell it is (``key`` of it), in
+        plain JSON types as a record holds it."""
+        ident = {f: str(getattr(self, f)) for f in IDENTITY} | {"params": dataclasses.asdict(self.params)}
+        if self.tags:
+            ident["tags"] = self.tags
+        return ident
+
+    def key(self) -> str:
+        return key(self.identity())
+
+
+def as_cell(spec: Cell | dict[str, Any]) -> Cell:
+    """A Cell, or the decode of one given as a dict (``Cell.from_dict``)."""
+    return spec if isinstance(spec, Cell) else Cell.from_dict(spec)
 
 
 def key(rec_or_spec: dict[str, Any]) -> str:

@@ -2,7 +2,8 @@
 
 Process-global framework state (ti.init's precision, JAX's x64 flag, CUDA contexts) lives and dies
 with this process, and a crash here becomes an ``error`` record in the parent, not a lost run.
-Reads a ``compare.spec.CellSpec``; writes OUT_DIR/record.json and OUT_DIR/outputs.npz.
+Decodes each ``compare.spec.Cell`` (``Cell.from_dict``); writes OUT_DIR/record.json and
+OUT_DIR/outputs.npz.
 
 The kernel is not trusted: its outputs must be exactly the scenario's declared outputs
 (``Scenario.output_shapes``: names and shapes) with the cell's precision as dtype, or the cell is
@@ -27,9 +28,9 @@ import scenarios
 from backends.base import Backend
 from compare import noise, scaleout, timing
 from compare.nvml import open_nvml
-from compare.spec import CellSpec
+from compare.spec import Cell
 from compare.store import jsonable
-from scenarios.base import dtype_of
+from scenarios.base import Precision
 
 
 def current_rss_bytes() -> int:
@@ -61,14 +62,14 @@ def peak_rss_bytes() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * scale
 
 
-def injected_fault(spec: CellSpec) -> str | None:
+def injected_fault(cell: Cell) -> str | None:
     """Test hook: COMPARE_FAULT="<scenario>/<backend>:<kind>" (kind: crash, hang, raise, mismatch, oom)
     makes matching cells misbehave, so the driver's handling of each failure can be tested."""
     rule = os.environ.get("COMPARE_FAULT", "")
     if ":" not in rule:
         return None
     target, kind = rule.rsplit(":", 1)
-    return kind if target == f"{spec.scenario}/{spec.backend}" else None
+    return kind if target == f"{cell.scenario}/{cell.backend}" else None
 
 
 
@@ -100,7 +101,7 @@ def graph_regime(be: Backend, device: str, kernel: Any, sync: Any, max_time: flo
         return {"failed": f"{type(exc).__name__}: {first}"}
 
 
-def contract_violation(sc: Any, params: Any, precision: str, outputs: dict[str, Any]) -> str | None:
+def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, Any]) -> str | None:
     """The first way the kernel's outputs break the scenario's declared contract, or None."""
     want = sc.output_shapes(params)
     missing = [k for k in want if k not in outputs]
@@ -109,7 +110,7 @@ def contract_violation(sc: Any, params: Any, precision: str, outputs: dict[str, 
     extra = [k for k in outputs if k not in want]
     if extra:
         return f"contract: kernel returned undeclared output {extra[0]!r} (declared: {', '.join(want)})"
-    dtype = np.dtype(dtype_of(precision))
+    dtype = np.dtype(precision.scalar)
     for k, shape in want.items():
         a = outputs[k]
         if a.dtype != dtype:
@@ -127,12 +128,11 @@ def device_memory(be: Any, device: str) -> dict[str, Any]:
         return {"device_memory_error": f"{type(exc).__name__}: {exc}"}
 
 
-def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool = False) -> dict[str, Any]:
+def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = False) -> dict[str, Any]:
     """Build, time, download and check one cell. Exceptions propagate (the parent records them)."""
-    sc = scenarios.get(spec.scenario)
-    be = backends.get(spec.backend)
-    device, precision, variant = spec.device, spec.precision, spec.variant
-    params = sc.params(spec.params, quick=spec.quick)
+    sc = scenarios.get(cell.scenario)
+    be = backends.get(cell.backend)
+    device, precision, variant, params = cell.device, cell.precision, cell.variant, cell.params
     inputs = sc.inputs(params, precision)
 
     nvml, nvml_note = open_nvml(device)       # baseline before the framework touches the GPU
@@ -152,15 +152,15 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     first_call_s = timing.call(kernel.run, sync)
     if nvml:
         nvml.sample()
-    timer, clock = timing.event_timer(be, device, spec.timer)
+    timer, clock = timing.event_timer(be, device, cell.timer)
     meter = noise.HostMeter()
-    t = timing.steady_state(kernel.run, sync, warmup=spec.warmup, repeat=spec.repeat, min_time=spec.min_time,
-                            max_time=spec.max_time, timer=timer)
+    t = timing.steady_state(kernel.run, sync, warmup=cell.warmup, repeat=cell.repeat, min_time=cell.min_time,
+                            max_time=cell.max_time, timer=timer)
     if nvml:
         nvml.sample()
     regimes = {"latency": {k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")} | {"repeats": t["repeats"]}}
-    if spec.throughput:
-        regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=spec.max_time)
+    if cell.throughput:
+        regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=cell.max_time)
         if nvml:
             nvml.sample()
     host = meter.stop()
@@ -172,7 +172,7 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
         raise ContractError(f"contract: outputs() returned {type(got).__name__}, not a dict of arrays")
     outputs = {k: np.asarray(v) for k, v in got.items()}
 
-    fault = injected_fault(spec)
+    fault = injected_fault(cell)
     if fault == "crash":
         os.abort()
     if fault == "hang":
@@ -186,17 +186,17 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
     if fault == "mismatch":
         outputs = {k: v + np.asarray(1, v.dtype) if v.dtype.kind == "f" else v for k, v in outputs.items()}
 
-    if spec.throughput:     # after the download: a failed capture cannot touch the outputs
-        regimes["graph"] = graph_regime(be, device, kernel, sync, spec.max_time)
-    if spec.host_profile and "throughput" in regimes:   # after the peaks and the download too
+    if cell.throughput:     # after the download: a failed capture cannot touch the outputs
+        regimes["graph"] = graph_regime(be, device, kernel, sync, cell.max_time)
+    if cell.host_profile and "throughput" in regimes:   # after the peaks and the download too
         calls = max(20, min(regimes["throughput"]["k"], 2000))
-        regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, spec.host_profile)
+        regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, cell.host_profile)
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
-    sampled = sc.sample(params, inputs, outputs, spec.check_sample)
+    sampled = sc.sample(params, inputs, outputs, cell.check_sample)
     c_in, c_out = (sampled.inputs, sampled.outputs) if sampled else (inputs, outputs)
-    reference = sc.oracle(params, c_in)
+    reference = sc.oracle(params, c_in, precision)
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
     times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
@@ -239,9 +239,9 @@ def run_cell(spec: CellSpec, out_dir: Path, cache_note: str = "", set_up: bool =
             **{k: check.details[f"gradient_{k}"] for k in ("fd_agreement", "fd_resolved")
                if f"gradient_{k}" in check.details},
         }
-    if spec.save_outputs:
+    if cell.save_outputs:
         np.savez(out_dir / "outputs.npz", **outputs)
-    if spec.save_inputs:
+    if cell.save_inputs:
         np.savez(out_dir / "inputs.npz", **inputs)
     return record
 
@@ -257,18 +257,18 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
     """One cell of the batch: its record (and outputs) in ``cell_dir``, whatever happens."""
     cell_dir.mkdir(parents=True, exist_ok=True)
     try:
-        spec = CellSpec.from_dict(raw)
-        be = backends.get(spec.backend)
+        cell = Cell.from_dict(raw)
+        be = backends.get(cell.backend)
         if not _SET_UP:       # the first cell of the process sets the caches, then the framework
-            cache_note = apply_cache_policy(spec.cache, be, cell_dir)
+            cache_note = apply_cache_policy(cell.cache, be, cell_dir)
         else:
-            if spec.cache != "warm":
+            if cell.cache != "warm":
                 raise ValueError("only warm-cache cells may share a worker process")
             cache_note = "warm: shares a worker process with earlier cells of the same set-up"
-        ident = (spec.backend, spec.device, spec.precision, spec.variant)
+        ident = (cell.backend, str(cell.device), str(cell.precision), cell.variant)
         if _SET_UP and ident not in _SET_UP:
             raise ValueError(f"cells sharing a worker must share backend, device, precision and variant; got {ident}")
-        record = run_cell(spec, cell_dir, cache_note, set_up=ident in _SET_UP)
+        record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP)
         _SET_UP.add(ident)
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
         record = {"status": "error", "reason": str(exc)}
@@ -281,7 +281,7 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
 
 
 def main(argv: list[str]) -> int:
-    """argv: SPECS.json (a list of cell specs) and OUT_DIR; cell i writes OUT_DIR/cell-i/."""
+    """argv: CELLS.json (a list of ``Cell.to_dict``) and OUT_DIR; cell i writes OUT_DIR/cell-i/."""
     scaleout.apply_cpu_set()          # a Dask worker's core set, before any framework starts
     specs = json.loads(Path(argv[0]).read_text())
     for i, raw in enumerate(specs if isinstance(specs, list) else [specs]):

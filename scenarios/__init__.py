@@ -1,7 +1,7 @@
 """Scenario registry: every module here defines one Scenario subclass; the driver looks them up by name."""
 from __future__ import annotations
 
-from .base import PRECISIONS, Check, ParamError, Scenario
+from .base import PRECISIONS, Check, ParamError, Precision, Scenario
 from .copy import Copy
 from .launch import Launch
 from .particles import Particles
@@ -19,4 +19,4 @@ def get(name: str) -> Scenario:
     return SCENARIOS[name]
 
 
-__all__ = ["SCENARIOS", "PRECISIONS", "Check", "ParamError", "Scenario", "get"]
+__all__ = ["SCENARIOS", "PRECISIONS", "Check", "ParamError", "Precision", "Scenario", "get"]

@@ -12,30 +12,51 @@ in compare/figures/). tests/test_layout.py checks that nothing here imports ``ba
 from __future__ import annotations
 
 import dataclasses
+import enum
 import typing
 from typing import Any, ClassVar
 
 import numpy as np
 
-PRECISIONS: tuple[str, ...] = ("float32", "float64")
+
+class Precision(enum.StrEnum):
+    """A cell's floating-point precision. A ``StrEnum``: it equals, prints and serialises as its
+    name ("float32"), so records, keys and file names keep the same strings."""
+    FLOAT32 = "float32"
+    FLOAT64 = "float64"
+
+    @property
+    def scalar(self) -> type[np.floating]:
+        """The NumPy scalar type (np.float32 or np.float64): inputs, outputs and checks."""
+        return np.float32 if self is Precision.FLOAT32 else np.float64
+
+    @property
+    def itemsize(self) -> int:
+        return np.dtype(self.scalar).itemsize
+
+
+# the names, as plain strings (what a command line, a record and a message show)
+PRECISIONS: tuple[str, ...] = tuple(p.value for p in Precision)
 
 # Unit roundoff u = 2^-p (p = significand bits incl. the hidden one): |fl(x) - x| <= u |x|.
-UNIT_ROUNDOFF: dict[str, float] = {"float32": 2.0**-24, "float64": 2.0**-53}
+UNIT_ROUNDOFF: dict[Precision, float] = {Precision.FLOAT32: 2.0**-24, Precision.FLOAT64: 2.0**-53}
 
 
 class ParamError(ValueError):
     """Bad scenario parameter; its message is one line naming the parameter and the allowed range."""
 
 
-def dtype_of(precision: str) -> type[np.floating]:
-    if precision not in PRECISIONS:
-        raise ParamError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
-    return np.float32 if precision == "float32" else np.float64
+def as_precision(value: str) -> Precision:
+    """``value`` as a Precision, or a one-line ParamError naming the allowed ones."""
+    try:
+        return Precision(value)
+    except ValueError:
+        raise ParamError(f"precision must be one of {', '.join(PRECISIONS)}, got {value!r}") from None
 
 
-def precision_of(array: np.ndarray) -> str:
-    """The precision name of an input array (inputs arrive already rounded)."""
-    return "float32" if np.asarray(array).dtype == np.float32 else "float64"
+def dtype_of(value: str) -> type[np.floating]:
+    """The NumPy scalar type of a precision (a Precision or its name)."""
+    return as_precision(value).scalar
 
 
 @dataclasses.dataclass
@@ -210,8 +231,9 @@ class Scenario:
         """Deterministic inputs, already rounded to ``precision``."""
         raise NotImplementedError
 
-    def oracle(self, params, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Float64 NumPy reference computed from the (rounded) inputs."""
+    def oracle(self, params, inputs: dict[str, np.ndarray], precision: Precision) -> dict[str, np.ndarray]:
+        """Float64 NumPy reference computed from the (rounded) inputs; ``precision``: the one they
+        were rounded to (the cell's), which sets any error bound the reference carries."""
         raise NotImplementedError
 
     def check(self, params, inputs: dict[str, np.ndarray], outputs: dict[str, np.ndarray],

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from .base import Check, Scenario, dtype_of, require
+from .base import Check, Precision, Scenario, dtype_of, require
 
 @dataclasses.dataclass(frozen=True)
 class CopyParams:
@@ -38,7 +38,7 @@ class Copy(Scenario):
     def output_shapes(self, params: CopyParams) -> dict[str, tuple[int, ...]]:
         return {"out": (params.n,)}
 
-    def oracle(self, params: CopyParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def oracle(self, params: CopyParams, inputs: dict[str, np.ndarray], precision: Precision) -> dict[str, np.ndarray]:
         return {"out": inputs["x"]}
 
     @staticmethod

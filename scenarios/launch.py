@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from .base import Check, Scenario, dtype_of, require
+from .base import Check, Precision, Scenario, dtype_of, require
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,7 +39,8 @@ class Launch(Scenario):
     def output_shapes(self, params: LaunchParams) -> dict[str, tuple[int, ...]]:
         return {"out": (params.n,)}
 
-    def oracle(self, params: LaunchParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def oracle(self, params: LaunchParams, inputs: dict[str, np.ndarray],
+               precision: Precision) -> dict[str, np.ndarray]:
         return {"out": inputs["x"].astype(np.float64) + 1.0}
 
     @staticmethod

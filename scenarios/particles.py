@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require
+from .base import Check, Precision, Scenario, UNIT_ROUNDOFF, dtype_of, require
 
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
 
@@ -168,10 +168,10 @@ class Particles(Scenario):
             shapes.update(traj_x=(n_frames(params), params.n), traj_y=(n_frames(params), params.n))
         return shapes
 
-    def oracle(self, params: ParticlesParams, inputs):
-        """Float64 rollout, plus the running error bound for the inputs' precision and margins."""
+    def oracle(self, params: ParticlesParams, inputs, precision: Precision):
+        """Float64 rollout, plus the running error bound for the cell's precision and margins."""
         # the port's rounding (u) plus the float64 oracle's own (u64): the bound is linear in u
-        u = UNIT_ROUNDOFF[precision_of(inputs["x0"])] + UNIT_ROUNDOFF["float64"]
+        u = UNIT_ROUNDOFF[precision] + UNIT_ROUNDOFF[Precision.FLOAT64]
         c = constants(inputs, np.float64)
         dt, gdt, damp, bounce, rad, lo, hi = (c[k] for k in ("dt", "gdt", "damping", "bounce", "radius", "lo", "hi"))
         x, y = inputs["x0"].astype(np.float64), inputs["y0"].astype(np.float64)

@@ -30,7 +30,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .base import (Check, Sample, Scenario, UNIT_ROUNDOFF, dtype_of, precision_of, require, sample_rows,
+from .base import (Check, Precision, Sample, Scenario, UNIT_ROUNDOFF, dtype_of, require, sample_rows,
                    sample_seed)
 from .projectile_adjoint import closed_form, evaluate, finite_difference_gradient, hessian, spectral_norm_sym
 
@@ -159,10 +159,10 @@ class Projectile(Scenario):
         c["target_x"], c["target_y"] = target[..., 0], target[..., 1]
         return c
 
-    def oracle(self, params: ProjectileParams, inputs) -> dict[str, np.ndarray]:
+    def oracle(self, params: ProjectileParams, inputs, precision: Precision) -> dict[str, np.ndarray]:
         """Vectorised over the trajectories of ``inputs`` (one, or a batch)."""
         # the port's rounding (u) plus the float64 oracle's own (u64): the bounds are linear in u
-        u = UNIT_ROUNDOFF[precision_of(inputs["v0"])] + UNIT_ROUNDOFF["float64"]
+        u = UNIT_ROUNDOFF[precision] + UNIT_ROUNDOFF[Precision.FLOAT64]
         c = self.constants(inputs)
         lr = c["lr"]
         v = inputs["v0"].astype(np.float64)

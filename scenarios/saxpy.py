@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from .base import Check, Scenario, UNIT_ROUNDOFF, dtype_of, require
+from .base import Check, Precision, Scenario, UNIT_ROUNDOFF, dtype_of, require
 
 @dataclasses.dataclass(frozen=True)
 class SaxpyParams:
@@ -53,7 +53,7 @@ class Saxpy(Scenario):
     def output_shapes(self, params: SaxpyParams) -> dict[str, tuple[int, ...]]:
         return {"out": (params.n,)}
 
-    def oracle(self, params: SaxpyParams, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def oracle(self, params: SaxpyParams, inputs: dict[str, np.ndarray], precision: Precision) -> dict[str, np.ndarray]:
         a = np.float64(inputs["a"])
         return {"out": a * inputs["x"].astype(np.float64) + inputs["y"].astype(np.float64)}
 

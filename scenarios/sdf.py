@@ -22,7 +22,7 @@ import dataclasses
 
 import numpy as np
 
-from .base import UNIT_ROUNDOFF, Check, Scenario, require
+from .base import UNIT_ROUNDOFF, Check, Precision, Scenario, require
 
 TOLERANCE_ULPS = 300.0
 
@@ -58,7 +58,7 @@ class Sdf(Scenario):
     def output_shapes(self, params: SdfParams) -> dict[str, tuple[int, ...]]:
         return {"image": (params.height, params.width)}
 
-    def oracle(self, params: SdfParams, inputs) -> dict[str, np.ndarray]:
+    def oracle(self, params: SdfParams, inputs, precision: Precision) -> dict[str, np.ndarray]:
         i = np.arange(params.width, dtype=np.float64)
         j = np.arange(params.height, dtype=np.float64)
         fx = 2.0 * (i / (params.width - 1)) - 1.0

@@ -245,7 +245,7 @@ def test_cuda_sources_on_the_host_match_the_oracle(host_cupy, scenario, override
     out = {n: np.asarray(a) for n, a in k.outputs().items()}
     shapes = sc.output_shapes(p)
     assert {n: (a.shape, a.dtype) for n, a in out.items()} == {n: (tuple(s), np.dtype(precision)) for n, s in shapes.items()}
-    check = sc.check(p, inputs, out, sc.oracle(p, inputs), precision)
+    check = sc.check(p, inputs, out, sc.oracle(p, inputs, precision), precision)
     assert check.ok, (check.error, check.tolerance, check.details)
 
 

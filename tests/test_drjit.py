@@ -149,7 +149,7 @@ def test_particle_rollout_is_one_kernel_and_frames_match_the_oracle():
     k.run()
     BACKEND.synchronize("cpu", None)
     assert dr.detail.launch_stats()[0] - launches == 1
-    out, ref = k.outputs(), sc.oracle(p, inputs)
+    out, ref = k.outputs(), sc.oracle(p, inputs, "float64")
     for name in ("traj_x", "traj_y"):
         assert out[name].shape == ref[name].shape == (57 // 7 + 1, 33)
         np.testing.assert_allclose(out[name], ref[name], rtol=0, atol=1e-13)

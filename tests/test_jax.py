@@ -73,7 +73,7 @@ def test_particle_trajectory_frames_match_the_oracle():
     _, outputs = _run("particles", "float64", params)
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)
-    ref = sc.oracle(p, sc.inputs(p, "float64"))
+    ref = sc.oracle(p, sc.inputs(p, "float64"), "float64")
     for k in ("traj_x", "traj_y"):
         assert outputs[k].shape == ref[k].shape == (57 // 7 + 1, 33)
         np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)
@@ -101,7 +101,7 @@ for seg, unroll in ((0, 1), (63, 1), (64, 8)):
     b.synchronize("cpu", k.run())
     o = k.outputs()
     res[f"{seg}/{unroll}"] = {"temp": k.info()["temp_bytes"], "grad": o["grad"].tolist(),
-                "hist": o["loss_history"].tolist(), "ok": sc.check(p, i, o, sc.oracle(p, i), "float64").ok}
+                "hist": o["loss_history"].tolist(), "ok": sc.check(p, i, o, sc.oracle(p, i, "float64"), "float64").ok}
 print("REMAT" + json.dumps(res))
 """
 
@@ -132,7 +132,7 @@ b = backends.get("jax"); b.setup("cpu", "float64", "default")
 sc = scenarios.get("projectile")
 p = sc.params({"contact": "soft", "batch": 37}, quick=True)
 i = sc.inputs(p, "float64")
-ref = sc.oracle(p, i)
+ref = sc.oracle(p, i, "float64")
 res = {"segment": checkpoint_segment(p.steps)}
 kernels = {}
 for variant in ("default", "checkpoint"):

@@ -154,7 +154,7 @@ def test_pareto_front():
 def test_references_converge():
     import scenarios
     sdf = scenarios.get("sdf")
-    errs = [converged.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {})["image"])["error"]
+    errs = [converged.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {}, "float64")["image"])["error"]
             for r in (32, 128, 512)]
     assert errs[0] > errs[1] > errs[2] > 0
     params = {"n": 16, "seed": 0}
@@ -266,35 +266,35 @@ def plan_of(*argv):
 def test_plan_comes_from_the_scenarios_sweeps():
     import scenarios
     specs = [s for s, _ in plan_of("bandwidth", "--quick", "--backends", "warp", "--devices", "cpu")]
-    assert [s["tags"]["role"] for s in specs[:2]] == ["launch", "copy"]      # yardsticks first
-    assert {s["scenario"] for s in specs if s["tags"]["role"] == "bandwidth"} == {
+    assert [s.tags["role"] for s in specs[:2]] == ["launch", "copy"]      # yardsticks first
+    assert {s.scenario for s in specs if s.tags["role"] == "bandwidth"} == {
         name for name in scenarios.SCENARIOS if sweeps(name).measures == "bandwidth"}
-    assert all(s["check_sample"] for s in specs if s["tags"]["role"] != "launch")
+    assert all(s.check_sample for s in specs if s.tags["role"] != "launch")
     # a scenario's own variants join the size sweep of that scenario only (Warp's tiled SAXPY; its
     # recorded launches of SAXPY and of the copy and launch yardsticks), never another's
     own = backends.get("warp").scenario_variants
-    assert {(s["scenario"], s["variant"]) for s in specs if s["variant"] != "default"} == {
-        (sc, v) for sc in {s["scenario"] for s in specs} for v in own.get(sc, ())}
-    assert {s["variant"] for s in specs if s["scenario"] == "saxpy"} == {"default", "tile", "record_cmd"}
-    assert "tile" not in {s["variant"] for s in specs if s["scenario"] == "copy"}
+    assert {(s.scenario, s.variant) for s in specs if s.variant != "default"} == {
+        (sc, v) for sc in {s.scenario for s in specs} for v in own.get(sc, ())}
+    assert {s.variant for s in specs if s.scenario == "saxpy"} == {"default", "tile", "record_cmd"}
+    assert "tile" not in {s.variant for s in specs if s.scenario == "copy"}
     err = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--precision", "float32")
-    assert {s["scenario"] for s, _ in err} == set(sweep.error_scenarios()) == {
+    assert {s.scenario for s, _ in err} == set(sweep.error_scenarios()) == {
         "saxpy", "sdf", "particles", "projectile"}
-    proj = [(s, ref) for s, ref in err if s["scenario"] == "projectile"]
-    assert {s["params"]["contact"] for s, _ in proj} == {"soft"}             # the sweep's default
-    assert all(ref["dt"] == min(s["params"]["dt"] for s, _ in proj) / 16 for _, ref in proj)
-    assert all("reference" not in s["tags"] for s, _ in err)                 # not the cell's identity
+    proj = [(s, ref) for s, ref in err if s.scenario == "projectile"]
+    assert {s.params.contact for s, _ in proj} == {"soft"}             # the sweep's default
+    assert all(ref["dt"] == min(s.params.dt for s, _ in proj) / 16 for _, ref in proj)
+    assert all("reference" not in s.tags for s, _ in err)                 # not the cell's identity
     hard = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--set", "contact=hard",
                    "--scenarios", "projectile,saxpy")
-    assert {s["params"]["contact"] for s, _ in hard if s["scenario"] == "projectile"} == {"hard"}
-    assert [s["scenario"] for s, _ in hard][:4] == ["projectile"] * 3 + ["saxpy"]   # the given order
+    assert {s.params.contact for s, _ in hard if s.scenario == "projectile"} == {"hard"}
+    assert [s.scenario for s, _ in hard][:4] == ["projectile"] * 3 + ["saxpy"]   # the given order
     scal = plan_of("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--record-every", "50")
-    assert {s["params"]["record_every"] for s, _ in scal if s["scenario"] == "particles"} == {50}
-    assert [s["params"]["batch"] for s, _ in scal if s["scenario"] == "projectile"] == [1, 16, 256]
+    assert {s.params.record_every for s, _ in scal if s.scenario == "particles"} == {50}
+    assert [s.params.batch for s, _ in scal if s.scenario == "projectile"] == [1, 16, 256]
     hz = plan_of("horizon", "--quick", "--backends", "warp,numba", "--devices", "cpu")
-    assert {(s["backend"], s["variant"]) for s, _ in hz} == {("warp", "default"), ("warp", "checkpoint"),
+    assert {(s.backend, s.variant) for s, _ in hz} == {("warp", "default"), ("warp", "checkpoint"),
                                                              ("numba", "default")}
-    assert {s["params"]["iters"] for s, _ in hz} == {0} and {s["precision"] for s, _ in hz} == {"float32", "float64"}
+    assert {s.params.iters for s, _ in hz} == {0} and {s.precision for s, _ in hz} == {"float32", "float64"}
 
 
 def test_old_records_are_upgraded_to_tags():

@@ -112,7 +112,7 @@ def test_particle_trajectory_frames_match_the_oracle():
     _, outputs = _run("particles", "float64", params)
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)
-    ref = sc.oracle(p, sc.inputs(p, "float64"))
+    ref = sc.oracle(p, sc.inputs(p, "float64"), "float64")
     for k in ("traj_x", "traj_y"):
         assert outputs[k].shape == ref[k].shape == (57 // 7 + 1, 33)
         np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)

@@ -155,7 +155,7 @@ def test_adjoint_matches_central_differences(contact: str, v0: tuple[float, floa
                    for e in np.eye(2)])
     np.testing.assert_allclose(grad, fd, rtol=1e-6, atol=1e-6 * np.abs(grad).max())
     # and the scenario's float64 reference (closed form / python adjoint), to rounding
-    np.testing.assert_allclose(grad, sc.oracle(p, inputs)["grad"], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(grad, sc.oracle(p, inputs, "float64")["grad"], rtol=1e-12, atol=1e-12)
 
 
 BATCH = {"batch": 6, "steps": 80, "iters": 3}
@@ -225,7 +225,7 @@ SIMULATED = textwrap.dedent("""
             b.synchronize("cuda", k.run())
             b.synchronize("cuda", k.run())          # repeatable
             o = k.outputs()
-            c = sc.check(p, inputs, o, sc.oracle(p, inputs), precision)
+            c = sc.check(p, inputs, o, sc.oracle(p, inputs, precision), precision)
             batch = getattr(p, "batch", 1)
             rows = []    # a batch: does each row equal the single-trajectory kernel bit for bit?
             for r in range(batch if batch > 1 else 0):

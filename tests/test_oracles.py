@@ -48,7 +48,7 @@ def test_seed_learning_rate_diverges_and_default_converges():
     sc = scenarios.get("projectile")
     for lr, converges in ((0.01, True), (0.08, False)):
         p = sc.params({"lr": lr, "iters": 30})
-        h = sc.oracle(p, sc.inputs(p, "float64"))["loss_history"]
+        h = sc.oracle(p, sc.inputs(p, "float64"), "float64")["loss_history"]
         assert (h[-1] < 1e-6 * h[0]) == converges
 
 
@@ -56,8 +56,8 @@ def test_error_bounds_scale_with_unit_roundoff():
     sc = scenarios.get("projectile")
     for contact in ("none", "hard", "soft"):
         p = sc.params({"contact": contact, "iters": 0})
-        b32 = sc.oracle(p, sc.inputs(p, "float32"))["tol_loss"][0]
-        b64 = sc.oracle(p, sc.inputs(p, "float64"))["tol_loss"][0]
+        b32 = sc.oracle(p, sc.inputs(p, "float32"), "float32")["tol_loss"][0]
+        b64 = sc.oracle(p, sc.inputs(p, "float64"), "float64")["tol_loss"][0]
         # bounds are linear in the unit roundoff: (u32 + u64) vs (u64 + u64)
         assert 0 < b64 < b32 and b32 / b64 == pytest.approx((2.0**-24 + 2.0**-53) / 2.0**-52, rel=0.05)
 
@@ -66,7 +66,7 @@ def test_particles_oracle_stays_in_the_box_and_flags_ill_conditioned():
     sc = scenarios.get("particles")
     p = sc.params()
     inputs = sc.inputs(p, "float32")
-    ref = sc.oracle(p, inputs)
+    ref = sc.oracle(p, inputs, "float32")
     r = float(inputs["radius"])          # the radius the float32 problem uses
     assert np.all(np.abs(ref["x"]) <= 1 - r) and np.all(ref["y"] >= r)
     assert np.all(ref["error_bound"] > 0)
@@ -83,7 +83,7 @@ def test_saxpy_and_sdf_checks_fail_on_one_bad_value():
         sc = scenarios.get(name)
         p = sc.params(quick=True)
         inputs = sc.inputs(p, "float32")
-        ref = sc.oracle(p, inputs)
+        ref = sc.oracle(p, inputs, "float32")
         out = {key: ref[key].astype(np.float32)}
         assert sc.check(p, inputs, out, ref, "float32").ok
         out[key].flat[7] += 1e-3
@@ -94,7 +94,7 @@ def test_particle_trajectory_values_are_checked():
     sc = scenarios.get("particles")
     p = sc.params({"n": 20, "steps": 30, "record_every": 5})
     inputs = sc.inputs(p, "float64")
-    ref = sc.oracle(p, inputs)
+    ref = sc.oracle(p, inputs, "float64")
     out = {k: ref[k].copy() for k in ("x", "y", "vx", "vy", "traj_x", "traj_y")}
     assert sc.check(p, inputs, out, ref, "float64").ok
     out["traj_y"][3, 4] += 1e-6
@@ -106,7 +106,7 @@ def test_projectile_zero_bound_component_is_not_nan():
     sc = scenarios.get("projectile")
     p = sc.params({"steps": 38, "dt": 4.5 / 38, "contact": "hard", "iters": 2})
     inputs = sc.inputs(p, "float64")
-    ref = sc.oracle(p, inputs)
+    ref = sc.oracle(p, inputs, "float64")
     assert ref["tol_grad"][0][1] == 0
     out = {k: np.copy(ref[k]) for k in sc.outputs}
     assert sc.check(p, inputs, out, ref, "float64").ok

@@ -119,7 +119,7 @@ for contact in ("none", "hard", "soft"):
             k = Kernel(p, i, DEVICE, PRECISION, "default")
             b.synchronize(DEVICE, k.run())
             o = k.outputs()
-            res[fused] = (o, bool(sc.check(p, i, o, sc.oracle(p, i), PRECISION).ok), k.info())
+            res[fused] = (o, bool(sc.check(p, i, o, sc.oracle(p, i, PRECISION), PRECISION).ok), k.info())
         Kernel.fused = True
         (o, ok, info), (o_step, ok_step, info_step) = res[True], res[False]
         out[f"{contact}-{batch}"] = {

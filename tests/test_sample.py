@@ -24,7 +24,7 @@ def checked(sc, params, inputs, outputs, k):
     """What compare/worker.py does with a cell's outputs: sample, oracle of the sample, check."""
     s = sc.sample(params, inputs, outputs, k)
     c_in, c_out = (s.inputs, s.outputs) if s else (inputs, outputs)
-    return s, sc.check(params, c_in, c_out, sc.oracle(params, c_in), "float64")
+    return s, sc.check(params, c_in, c_out, sc.oracle(params, c_in, "float64"), "float64")
 
 
 # ---- the helper ---------------------------------------------------------------------------
@@ -98,13 +98,13 @@ def test_particles_sample_oracle_is_the_oracle_sample_and_catches_a_planted_erro
     sc = scenarios.get("particles")
     p = sc.params({"n": 3001, "steps": 40})
     inp = sc.inputs(p, "float64")
-    full = sc.oracle(p, inp)
+    full = sc.oracle(p, inp, "float64")
     port = {k: full[k].copy() for k in sc.outputs}       # a port that agrees with the oracle
     s, chk = checked(sc, p, inp, port, 64)
     assert chk.ok and s.checked == 64
     rows = s.rows
     assert forced_rows(p.n, inp["x0"], inp["y0"], inp["vx0"], inp["vy0"]) <= set(rows.tolist())
-    sub = sc.oracle(p, s.inputs)
+    sub = sc.oracle(p, s.inputs, "float64")
     for k in ("x", "y", "vx", "vy", "error_bound", "ill_conditioned"):
         assert np.array_equal(sub[k], full[k][rows]), k
     # an error in a drawn (not forced) well-conditioned row inside the sample is caught ...
@@ -129,7 +129,7 @@ def test_projectile_batch_sample_oracle_is_the_oracle_sample_and_catches_a_plant
     sc = scenarios.get("projectile")
     p = sc.params({"batch": 150, "steps": 30, "iters": 2, "contact": "hard", "seed": 4})
     inp = sc.inputs(p, "float64")
-    full = sc.oracle(p, inp)
+    full = sc.oracle(p, inp, "float64")
     port = {k: np.array(full[k]) for k in sc.outputs}
     s, chk = checked(sc, p, inp, port, 16)
     assert chk.ok and (s.checked, s.total, s.item, s.seed) == (16, 150, "trajectories", 4)
@@ -138,7 +138,7 @@ def test_projectile_batch_sample_oracle_is_the_oracle_sample_and_catches_a_plant
     assert forced <= set(rows.tolist()) and len(forced) > 2
     assert np.array_equal(s.inputs["v0"], inp["v0"][rows])
     assert np.array_equal(s.outputs["loss_history"], port["loss_history"][:, rows])
-    sub = sc.oracle(p, s.inputs)
+    sub = sc.oracle(p, s.inputs, "float64")
     for k in ("loss", "grad", "v_final"):              # per-trajectory arithmetic: bitwise
         assert np.array_equal(sub[k], full[k][rows]), k
     assert np.array_equal(sub["loss_history"], full["loss_history"][:, rows])

@@ -7,6 +7,7 @@ import os
 import pytest
 
 from compare import scaleout
+from compare.spec import Cell
 
 pytestmark = pytest.mark.cli
 
@@ -50,8 +51,7 @@ class FakeClient:
 
 
 def _spec(device):
-    return {"scenario": "saxpy", "backend": "numpy", "device": device, "precision": "float32",
-            "params": {}, "quick": True}
+    return Cell.make("saxpy", "numpy", device, "float32", quick=True)
 
 
 def test_cuda_cells_ask_for_a_gpu_and_cpu_cells_do_not():

@@ -123,7 +123,7 @@ def test_energy_bound_holds_for_the_float64_oracle():
     sc = scenarios.get("particles")
     p = sc.params({"n": 64, "steps": 2000, "bounce": 0.95})
     inp = sc.inputs(p, "float64")
-    ref = sc.oracle(p, inp)
+    ref = sc.oracle(p, inp, "float64")
     g, r = float(inp["gravity"]), float(inp["radius"])
     e = particles.energy(ref["x"], ref["y"], ref["vx"], ref["vy"], g, r)
     assert np.all(e <= particles.energy_bound(inp))

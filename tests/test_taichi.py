@@ -144,7 +144,7 @@ for precision in ("float64", "float32"):
                 k = Kernel(p, i, DEVICE, precision, "default")
                 b.synchronize(DEVICE, k.run())
                 o = k.outputs()
-                res[fused] = (o, bool(sc.check(p, i, o, sc.oracle(p, i), precision).ok), k.info())
+                res[fused] = (o, bool(sc.check(p, i, o, sc.oracle(p, i, precision), precision).ok), k.info())
             Kernel.fused = None
             (o, ok, info), (o_step, ok_step, info_step) = res[True], res[False]
             out[f"{precision}-{contact}-{batch}"] = {
@@ -290,7 +290,7 @@ for precision in ("float64", "float32"):
             o = k.outputs()
             info = kc.info()
             out[f"{precision}-{contact}-{steps}-{seg}"] = {
-                "ok": bool(sc.check(p, i, oc, sc.oracle(p, i), precision).ok),
+                "ok": bool(sc.check(p, i, oc, sc.oracle(p, i, precision), precision).ok),
                 "reference_fused": k.info()["fused_rollout"],
                 "segment": [info["checkpoint_segment"], info["checkpoint_segments"]],
                 "scratch_rows": kc.state[0].shape[0], "checkpoint_rows": kc.ck[0].shape[0],
@@ -352,7 +352,7 @@ for steps in (fused_steps_limit(), fused_steps_limit() + 1):
         (o, fused), (o_step, _) = res
         out[f"{steps}-{contact}-{vy0}"] = {
             "fused": fused, "identical": all(np.array_equal(o[n], o_step[n]) for n in o),
-            "ok": bool(sc.check(p, i, o, sc.oracle(p, i), "float64").ok)}
+            "ok": bool(sc.check(p, i, o, sc.oracle(p, i, "float64"), "float64").ok)}
 print("RESULT" + json.dumps(out))
 """
 
@@ -424,7 +424,7 @@ def test_particle_trajectory_frames_match_the_oracle():
     _, outputs = _run("particles", "float64", params)
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)
-    ref = sc.oracle(p, sc.inputs(p, "float64"))
+    ref = sc.oracle(p, sc.inputs(p, "float64"), "float64")
     for k in ("traj_x", "traj_y"):
         assert outputs[k].shape == ref[k].shape == (57 // 7 + 1, 33)
         np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)

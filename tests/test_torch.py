@@ -84,7 +84,7 @@ def test_global_default_dtype_does_not_leak_into_a_cell(default):
     assert all(a.dtype == np.dtype(precision) for a in out.values())
     if precision == "float64":        # computed in float64, not float32 widened afterwards
         assert np.any(out["grad"] != out["grad"].astype(np.float32).astype(np.float64))
-    assert sc.check(p, sc.inputs(p, precision), out, sc.oracle(p, sc.inputs(p, precision)), precision).ok
+    assert sc.check(p, sc.inputs(p, precision), out, sc.oracle(p, sc.inputs(p, precision), precision), precision).ok
 
 
 def test_compile_variant_equals_eager():

@@ -258,7 +258,7 @@ for contact in ("none", "hard", "soft"):
         loss = kb.outputs()["loss"]
         fd = [(loss[1] - loss[2]) / (2 * h), (loss[3] - loss[4]) / (2 * h)]
         res["fd"].append({"case": [contact, v0], "grad": grad.tolist(), "fd": fd,
-                          "oracle": sc.oracle(p, inputs)["grad"].tolist(), "row0": kb.outputs()["grad"][0].tolist(),
+                          "oracle": sc.oracle(p, inputs, "float64")["grad"].tolist(), "row0": kb.outputs()["grad"][0].tolist(),
                           "fired": bool(k.arrays["hit"].numpy().any()), "below": bool((k.arrays["ys"].numpy() < 0).any())})
 for precision in ("float64", "float32"):
     for contact in ("hard", "soft"):

@@ -27,7 +27,7 @@ import numpy as np
 
 from scenarios.base import dtype_of
 
-from ..base import Backend, not_installed
+from ..base import Backend, Precision, not_installed
 
 # One CUDA 12 wheel; on a CUDA 13 driver/toolkit install cupy-cuda13x instead (same import name,
 # same code here): pick the wheel whose major version matches `nvidia-smi`'s "CUDA Version".
@@ -36,12 +36,17 @@ THREADS_PER_BLOCK = 256
 CPU_REASON = "CuPy runs on CUDA devices only"
 
 
-def scalar_type(precision: str) -> type[np.floating]:
+def scalar_type(precision: Precision) -> type[np.floating]:
     return dtype_of(precision)
 
 
-def ctype(precision: str) -> str:
-    return "float" if precision == "float32" else "double"
+# CUDA C's type of each precision and the suffix of its math functions (sqrtf in float32): this
+# backend's one map from Precision
+CTYPES = {Precision.FLOAT32: ("float", "f"), Precision.FLOAT64: ("double", "")}
+
+
+def ctype(precision: Precision) -> str:
+    return CTYPES[precision][0]
 
 
 def blocks(n: int, per_block: int = THREADS_PER_BLOCK) -> int:
@@ -52,10 +57,10 @@ def blocks(n: int, per_block: int = THREADS_PER_BLOCK) -> int:
 _MATH = ("sqrt", "exp", "log", "sin", "fabs", "fmax", "fmin")
 
 
-def prelude(precision: str) -> str:
+def prelude(precision: Precision) -> str:
     """CUDA C lines that fix the precision of a kernel source: ``real``, ``R(x)`` for constants and
     upper-case math functions of that precision (sqrtf ... in float32: no double promotion)."""
-    suffix = "f" if precision == "float32" else ""
+    suffix = CTYPES[precision][1]
     lines = [f"typedef {ctype(precision)} real;", "#define R(x) ((real)(x))"]
     lines += [f"#define {f.upper()} {f}{suffix}" for f in _MATH]
     return "\n".join(lines) + "\n"

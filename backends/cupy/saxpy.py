@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from . import THREADS_PER_BLOCK, blocks, kernel_info, prelude, raw_kernel, scalar_type, upload
-from ..base import ScenarioKernel
+from ..base import Precision, ScenarioKernel
 
 # 16-byte CUDA vector type and its lanes, per precision
-VECTOR = {"float32": ("float4", "xyzw"), "float64": ("double2", "xy")}
+VECTOR = {Precision.FLOAT32: ("float4", "xyzw"), Precision.FLOAT64: ("double2", "xy")}
 
 VECTOR_BODY = r"""
 extern "C" __global__ void saxpy_vector(const real a,

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..base import Backend, cuda_build_hint, not_installed
+from ..base import Backend, Precision, cuda_build_hint, not_installed
 
 # x86 instruction selection of llvm.maximum/llvm.minimum arrived in LLVM 17 (llvm-project #53353)
 MIN_LLVM = 17
@@ -42,9 +42,10 @@ def jit_module(device: str, ad: bool = False) -> Any:
     return importlib.import_module(name + (".ad" if ad else ""))
 
 
-def real_type(device: str, precision: str, ad: bool = False) -> Any:
-    """The cell's floating-point array type: ``Float`` (float32) or ``Float64``."""
-    return getattr(jit_module(device, ad), "Float" if precision == "float32" else "Float64")
+def real_type(device: str, precision: Precision, ad: bool = False) -> Any:
+    """The cell's floating-point array type: ``Float`` (float32) or ``Float64`` (this backend's
+    one map from Precision)."""
+    return getattr(jit_module(device, ad), {Precision.FLOAT32: "Float", Precision.FLOAT64: "Float64"}[precision])
 
 
 def fast_math() -> dict[str, bool]:
@@ -127,7 +128,7 @@ class DrJitBackend(Backend):
 
     def ensure_context(self, device: str) -> None:
         import drjit as dr
-        x = real_type(device, "float32")(0.0) + 1.0     # initialises the backend, its context
+        x = real_type(device, Precision.FLOAT32)(0.0) + 1.0     # initialises the backend, its context
         dr.eval(x)
         dr.sync_thread()
 

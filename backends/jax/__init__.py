@@ -10,7 +10,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from ..base import Backend, cuda_build_hint, not_installed
+from ..base import Backend, Precision, cuda_build_hint, not_installed
 
 # Platform names JAX may register a CUDA GPU under (newer jaxlib: "cuda"; older: "gpu").
 _GPU_PLATFORMS = ("cuda", "gpu")
@@ -30,12 +30,13 @@ def jax_device(device: str) -> Any:
     raise RuntimeError(f"no CUDA device visible to JAX ({errors[-1]})")
 
 
-def jax_dtype(precision: str) -> Any:
+def jax_dtype(precision: Precision) -> Any:
+    """JAX's dtype of the cell's precision (this backend's one map from Precision)."""
     import jax.numpy as jnp
-    return jnp.float32 if precision == "float32" else jnp.float64
+    return {Precision.FLOAT32: jnp.float32, Precision.FLOAT64: jnp.float64}[precision]
 
 
-def put(array: Any, precision: str, device: Any) -> Any:
+def put(array: Any, precision: Precision, device: Any) -> Any:
     """Upload a host array (or scalar) as a committed device array of the cell's dtype."""
     import jax
     import numpy as np
@@ -151,7 +152,7 @@ class JaxBackend(Backend):
         import jax
         # Per process (each cell is its own worker) and before any array is created: arrays made
         # under the other setting would keep their dtype.
-        jax.config.update("jax_enable_x64", precision == "float64")
+        jax.config.update("jax_enable_x64", precision == Precision.FLOAT64)
         jax.config.update("jax_default_device", jax_device(device))
 
     def synchronize(self, device: str, result: Any) -> None:

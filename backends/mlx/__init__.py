@@ -34,7 +34,7 @@ import numpy as np
 
 from scenarios.base import dtype_of
 
-from ..base import Backend, not_installed, visible_gpus
+from ..base import Backend, Precision, not_installed, visible_gpus
 
 CUDA_INSTALL = "pip uninstall -y mlx-cpu && pip install 'mlx[cuda12]' (CUDA 13: 'mlx[cuda13]')"
 NO_FLOAT64_GPU = ("MLX has no float64 on a GPU (its documentation: float64 arrays only work with "
@@ -46,12 +46,13 @@ def mlx_device(device: str) -> Any:
     return mx.cpu if device == "cpu" else mx.gpu
 
 
-def mlx_dtype(precision: str) -> Any:
+def mlx_dtype(precision: Precision) -> Any:
+    """MLX's dtype of the cell's precision (this backend's one map from Precision)."""
     import mlx.core as mx
-    return mx.float32 if precision == "float32" else mx.float64
+    return {Precision.FLOAT32: mx.float32, Precision.FLOAT64: mx.float64}[precision]
 
 
-def put(array: Any, precision: str) -> Any:
+def put(array: Any, precision: Precision) -> Any:
     """A host array (or scalar) as an evaluated MLX array of the cell's dtype, on the default
     device (``setup`` sets it)."""
     import mlx.core as mx
@@ -60,7 +61,7 @@ def put(array: Any, precision: str) -> Any:
     return out
 
 
-def download(array: Any, precision: str) -> np.ndarray:
+def download(array: Any, precision: Precision) -> np.ndarray:
     """A host copy of an MLX array, of the cell's dtype."""
     return np.array(array, dtype=dtype_of(precision), copy=True)
 
@@ -84,9 +85,9 @@ def sin(x: Any) -> Any:
     return mx.sin(x)
 
 
-def transcendentals(precision: str) -> str:
+def transcendentals(precision: Precision) -> str:
     """How exp and sin are evaluated in this precision (for info())."""
-    if precision == "float64":
+    if precision == Precision.FLOAT64:
         return ("float64: exp as pow(e, x), sin as 2t/(1+t^2), t = tan(x/2) "
                 "(mx.exp/mx.sin round through float32)")
     return "mx.exp, mx.sin"
@@ -174,7 +175,7 @@ class MlxBackend(Backend):
 
     def precision_unavailable(self, precision: str, device: str) -> str | None:
         """Why ``precision`` cannot run on ``device`` (decided without importing MLX), or None."""
-        return NO_FLOAT64_GPU if precision == "float64" and device != "cpu" else None
+        return NO_FLOAT64_GPU if precision == Precision.FLOAT64 and device != "cpu" else None
 
     def versions(self) -> dict[str, str]:
         out = {}

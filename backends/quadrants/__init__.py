@@ -31,9 +31,9 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..base import Backend, not_installed
+from ..base import Backend, Precision, not_installed
 # Taichi's helpers, for either module name (the package's __init__ does not import Taichi)
-from ..taichi import cuda_unavailable, framework_arch, framework_config_info
+from ..taichi import cuda_unavailable, framework_arch, framework_config_info, real_type
 
 
 def _quiet() -> None:
@@ -50,11 +50,11 @@ def qd_arch(device: str):
     return framework_arch("quadrants", device)
 
 
-def init_options(device: str, precision: str, variant: str) -> dict[str, Any]:
+def init_options(device: str, precision: Precision, variant: str) -> dict[str, Any]:
     """The qd.init keywords of a cell (tests use them to start Quadrants the same way)."""
     import quadrants as qd
     return dict(arch=qd_arch(device), enable_fallback=False,
-                default_fp=qd.f32 if precision == "float32" else qd.f64, default_ip=qd.i32,
+                default_fp=real_type(qd, precision), default_ip=qd.i32,
                 # Quadrants defaults to fast_math=True, like Taichi; IEEE unless the variant says
                 fast_math=(variant == "fastmath"),
                 # no on-disk caches: first_call_s includes compilation, workers never share one

@@ -18,7 +18,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from ..base import Backend, not_installed
+from ..base import Backend, Precision, not_installed
 
 
 # Depth of Taichi's autodiff stacks, process-global and fixed at ti.init. The projectile's fused
@@ -84,6 +84,12 @@ def config_info() -> dict[str, Any]:
     return framework_config_info("taichi")
 
 
+def real_type(fw: ModuleType, precision: Precision) -> Any:
+    """The default float type of the cell's precision, for Taichi or Quadrants (``fw``: the
+    framework module): these two backends' one map from Precision."""
+    return {Precision.FLOAT32: fw.f32, Precision.FLOAT64: fw.f64}[precision]
+
+
 def ti_arch(device: str):
     return framework_arch("taichi", device)
 
@@ -113,14 +119,14 @@ class TaichiBackend(Backend):
         import taichi as ti
         return {"taichi": ".".join(map(str, ti.__version__))}
 
-    def setup(self, device: str, precision: str, variant: str) -> None:
+    def setup(self, device: str, precision: Precision, variant: str) -> None:
         known = self.variants + tuple(v for vs in self.scenario_variants.values() for v in vs)
         if variant not in known:
             raise ValueError(f"taichi variant must be one of {', '.join(known)}, got {variant!r}")
         _quiet()
         import taichi as ti
         ti.init(arch=ti_arch(device), enable_fallback=False,
-                default_fp=ti.f32 if precision == "float32" else ti.f64, default_ip=ti.i32,
+                default_fp=real_type(ti, precision), default_ip=ti.i32,
                 # Taichi defaults to fast_math=True; the comparison uses IEEE arithmetic and reports
                 # fast math as its own variant.
                 fast_math=(variant == "fastmath"),

@@ -24,7 +24,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..base import Backend, not_installed, visible_gpus
+from ..base import Backend, Precision, not_installed, visible_gpus
 
 CPU_WHEEL = "pip install torch --index-url https://download.pytorch.org/whl/cpu"
 
@@ -37,9 +37,10 @@ def torch_device(device: str) -> Any:
     return torch.device("cuda", 0) if device == "cuda" else torch.device("cpu")
 
 
-def torch_dtype(precision: str) -> Any:
+def torch_dtype(precision: Precision) -> Any:
+    """PyTorch's dtype of the cell's precision (this backend's one map from Precision)."""
     import torch
-    return {"float32": torch.float32, "float64": torch.float64}[precision]
+    return {Precision.FLOAT32: torch.float32, Precision.FLOAT64: torch.float64}[precision]
 
 
 def put(array: Any, precision: str, device: str) -> Any:

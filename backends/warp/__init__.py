@@ -5,16 +5,17 @@ import functools
 from pathlib import Path
 from typing import Any, Callable
 
-from ..base import Backend, not_installed
+from ..base import Backend, Precision, not_installed
 
 
 def wp_device(device: str) -> str:
     return "cuda:0" if device == "cuda" else "cpu"
 
 
-def wp_scalar(precision: str):
+def wp_scalar(precision: Precision) -> Any:
+    """Warp's scalar type of the cell's precision (this backend's one map from Precision)."""
     import warp as wp
-    return wp.float32 if precision == "float32" else wp.float64
+    return {Precision.FLOAT32: wp.float32, Precision.FLOAT64: wp.float64}[precision]
 
 
 # Scenarios whose run() is one fixed launch, so Warp's recorded launch command can replay it.

@@ -23,7 +23,7 @@ def figure(runs: Runs) -> Any:
     if p.n * (p.steps + 1) > 5e7:              # the oracle would be too big for a picture
         return None
     # one float64 oracle per precision (with every frame), for the trajectories and the errors
-    refs = {prec: SC.oracle(dataclasses.replace(p, record_every=1), SC.inputs(p, prec))
+    refs = {prec: SC.oracle(dataclasses.replace(p, record_every=1), SC.inputs(p, prec), prec)
             for prec in {r.precision for r, _ in runs}}
     ref = refs[rec0.precision]
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.6))

@@ -24,7 +24,7 @@ def figure(runs: Runs) -> Any:
         return None
     for r, o in runs:
         inputs = SC.inputs(p, r.precision)
-        ref = SC.oracle(p, inputs)["out"]
+        ref = SC.oracle(p, inputs, r.precision)["out"]
         out = np.asarray(o["out"], np.float64)
         if out.shape != ref.shape:
             continue

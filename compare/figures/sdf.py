@@ -22,7 +22,7 @@ def figure(runs: Runs) -> Any:
     if not runs:
         return None
     p = SC.params(runs[0][0].params)
-    ref = SC.oracle(p, {})["image"]
+    ref = SC.oracle(p, {}, runs[0][0].precision)["image"]
     diffs = []
     for r, o in runs:
         img = np.asarray(o["image"], np.float64)

@@ -40,7 +40,7 @@ def exp_ulps(ctx: StressContext) -> Result:
     for scn, prm, key, _ in cases:
         sc = scenarios.get(scn)
         p = sc.params(prm)
-        refs[(scn, json.dumps(prm))] = sc.oracle(p, sc.inputs(p, "float32"))[key]
+        refs[(scn, json.dumps(prm))] = sc.oracle(p, sc.inputs(p, "float32"), "float32")[key]
     results = ctx.run_cells([s for _, s in planned])
     rows, series = ctx.skip_rows(name, variants=True), {}
     defaults = {}

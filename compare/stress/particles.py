@@ -72,13 +72,13 @@ def exp_particles_dt(ctx: StressContext) -> Result:
     steps = {dt: int(round(T / dt)) for dt in dts}
     # discretisation error: float64 oracle at dt against one at dt_min/4 (median over particles)
     pf, inf = particle_inputs({"n": n, "steps": 4 * steps[dts[-1]], "dt": dts[-1] / 4}, "float64")
-    fine = SC.oracle(pf, inf)
+    fine = SC.oracle(pf, inf, "float64")
     disc, ref32 = {}, {}
     for dt in dts:
         p, i64 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, "float64")
-        disc[dt] = float(np.median(state_error(SC.oracle(p, i64), fine)))
+        disc[dt] = float(np.median(state_error(SC.oracle(p, i64, "float64"), fine)))
         p, i32 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, "float32")
-        ref32[dt] = SC.oracle(p, i32)
+        ref32[dt] = SC.oracle(p, i32, "float32")
     specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": steps[dt], "dt": dt})
              for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions) for dt in dts]
     rows, lines = ctx.skip_rows(name, precisions=precisions), {}
@@ -230,7 +230,7 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
     refs = {}
     for prec in ("float32", "float64"):
         p, inp = particle_inputs(prm, prec)
-        ref = SC.oracle(p, inp)
+        ref = SC.oracle(p, inp, prec)
         refs[prec] = (ref, contacts(ref["traj_x"][1:], ref["traj_y"][1:], float(inp["radius"]), np.float64),
                       float(inp["radius"]))
     specs = [ctx.spec(SC.name, b, d, prec, prm) for b, d, _ in ctx.targets()

@@ -159,7 +159,7 @@ def exp_projectile_gradient(ctx: StressContext) -> Result:
     for prec in ("float32", "float64"):
         for c in ("hard", "soft"):
             p = SC.params({"contact": c, "iters": 0})
-            ref = SC.oracle(p, SC.inputs(p, prec))
+            ref = SC.oracle(p, SC.inputs(p, prec), prec)
             loss_noise[(prec, c)] = float(ref["tol_loss"][0] / abs(ref["loss"]))
     npts = 41 if ctx.quick else 81
     scans = {"coarse": np.linspace(6.3, 6.7, npts).tolist(), "fine": np.linspace(6.48, 6.52, npts).tolist()}

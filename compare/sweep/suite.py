@@ -22,7 +22,6 @@ file (compare/sweep/page.py, compare/sweep/plots.py).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import shlex
 from pathlib import Path
@@ -32,6 +31,7 @@ import backends
 import scenarios
 from compare import engine, environment, hardware, options, run_suite, scaleout
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
+from compare.spec import Cell
 from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
@@ -94,7 +94,8 @@ def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scena
 
 def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str, Any]) -> list[dict[str, Any]]:
     """The scenario's points with --set (and, for scaling, --record-every) applied and the
-    parameters resolved: each {'params', 'knob', 'options', 'reference'}."""
+    parameters resolved (the scenario's Params, once): each {'params', 'knob', 'options',
+    'reference'}."""
     raw = sweeps(sc.name).points(kind, device, args.quick)
     over = dict(sets)
     if kind == "scaling" and args.record_every and "record_every" in sc.Params.__dataclass_fields__:
@@ -102,13 +103,13 @@ def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str,
     for k in over:
         if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
             raise ParamError(f"--set {k}: the {kind} sweep of {sc.name} varies it")
-    return [{"params": dataclasses.asdict(sc.params({**pt["params"], **over})),
+    return [{"params": sc.params({**pt["params"], **over}),
              "knob": pt.get("knob") or {}, "reference": pt.get("reference"),
              "options": {k: pt[k] for k in SPEC_OPTIONS if k in pt}} for pt in raw]
 
 
-def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] | None]]:
-    """Every cell of the requested sweeps as (spec, the point's converged-error reference), in
+def plan(args: argparse.Namespace) -> list[tuple[Cell, dict[str, Any] | None]]:
+    """Every cell of the requested sweeps as (cell, the point's converged-error reference), in
     run order: kind, device, backend, variant (error sweep only), precision, scenario, point."""
     sel = options.selection(args)
     kinds = KINDS if args.kind == "all" else (args.kind,)
@@ -128,7 +129,7 @@ def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] 
             for sc in chosen[kind]:          # --set values each swept precision can represent
                 for pt in pts[sc.name]:
                     for prec in precisions[kind]:
-                        options.check_precision(sc, sc.params(pt["params"]), prec)
+                        options.check_precision(sc, pt["params"], prec)
             for be in sel["backends"]:
                 for variant in variants(kind, be, chosen[kind]):
                     for prec in precisions[kind]:
@@ -138,13 +139,10 @@ def plan(args: argparse.Namespace) -> list[tuple[dict[str, Any], dict[str, Any] 
                             measures = sweeps(sc.name).measures
                             role = measures if kind == "bandwidth" and measures else sc.name
                             for pt in pts[sc.name]:
-                                spec = {"scenario": sc.name, "backend": be, "device": dev,
-                                        "precision": prec, "variant": variant,
-                                        "params": dict(pt["params"]),
-                                        "tags": {"sweep": kind, "role": role, "knob": dict(pt["knob"])},
-                                        "repeat": repeat, "min_time": min_time, "cache": args.cache,
-                                        **pt["options"]}
-                                out.append((spec, pt["reference"]))
+                                cell = Cell(sc.name, be, dev, prec, variant, pt["params"],
+                                            tags={"sweep": kind, "role": role, "knob": dict(pt["knob"])},
+                                            repeat=repeat, min_time=min_time, cache=args.cache, **pt["options"])
+                                out.append((cell, pt["reference"]))
     return out
 
 
@@ -187,7 +185,7 @@ def contents(store: Store) -> dict[str, Any]:
 
 
 # ---- running --------------------------------------------------------------------------------
-def run_plan(specs: list[dict[str, Any]], references: list[dict[str, Any] | None], probes, args,
+def run_plan(specs: list[Cell], references: list[dict[str, Any] | None], probes, args,
              store: Store, yardstick: dict[str, dict[str, Any]], runner=None) -> None:
     """Run the cells into the store (saved after every record), each error-sweep record with
     its converged error attached first: one at a time here (they would share cores and the
@@ -254,8 +252,8 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     options.check_output(args.out)
     options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
     Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
-    probes = engine.availability(dict.fromkeys(s["backend"] for s, _ in planned))
-    blocked = [engine.not_runnable(engine.prepare(s), probes) for s, _ in planned]
+    probes = engine.availability(dict.fromkeys(c.backend for c, _ in planned))
+    blocked = [engine.not_runnable(c, probes) for c, _ in planned]
     run_suite.nothing_to_run([s for s, _ in planned], blocked)
     runnable = [s for (s, _), b in zip(planned, blocked) if not b]
     # connected before the claim: an unreachable scheduler leaves no lock and no --out behind
@@ -283,7 +281,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, 
     env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
     env["backends"] = probes
     env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
-    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(s["device"] for s, _ in planned)
+    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c, _ in planned)
                        if any(p["available"].get(d) is None for p in probes.values())}
     if client is not None:
         env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
