@@ -1,8 +1,12 @@
 from __future__ import annotations
 
+import contextlib
 import functools
+import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -29,6 +33,80 @@ def pytest_runtest_setup(item):
     adversarial.start()
 
 
+# ---- pytest-xdist: workers, tests that must run alone, the tallies gathered from the workers ----
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+    """``-n auto``: one worker per usable core; the long tier (``-m slow``) runs in this process,
+    one test at a time, as it always has (its tests fill disks and watch memory peaks)."""
+    markexpr = config.getoption("markexpr") or ""
+    if "slow" in markexpr.replace("not slow", ""):
+        return 0
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def _turn(item: pytest.Item) -> Iterator[None]:
+    """Under xdist, a test marked ``alone`` runs while no other test does: every test holds a
+    shared lock on a file of the run's temporary root, an ``alone`` test the exclusive one. A gate
+    taken first (exclusively by an ``alone`` test, in passing by the others) keeps the others'
+    next tests from starving a waiting ``alone`` test."""
+    basetemp = getattr(item.config.option, "basetemp", None)
+    if not os.environ.get("PYTEST_XDIST_WORKER") or not basetemp:
+        yield
+        return
+    import fcntl
+    alone = item.get_closest_marker("alone") is not None
+    mode = fcntl.LOCK_EX if alone else fcntl.LOCK_SH
+    root = Path(basetemp).parent          # each worker's basetemp is <run's root>/<worker id>
+    with open(root / "alone.gate", "a") as gate, open(root / "alone.lock", "a") as lock:
+        fcntl.flock(gate, mode)
+        fcntl.flock(lock, mode)
+        if not alone:
+            fcntl.flock(gate, fcntl.LOCK_UN)
+        yield                             # closing the files releases the locks
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Any:
+    with _turn(item):
+        return (yield)
+
+
+def _figures() -> dict | None:
+    return getattr(sys.modules.get("test_reliability"), "FIGURES", None)
+
+
+def _merge(into: dict, part: dict) -> None:
+    """Add one worker's counts into ``into``: numbers add, lists extend, dicts merge, text stays."""
+    for k, v in part.items():
+        if isinstance(v, dict):
+            _merge(into.setdefault(k, {}), v)
+        elif isinstance(v, list):
+            into[k] = into.get(k, []) + v
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            into[k] = into.get(k, 0) + v
+        else:
+            into[k] = v
+
+
+_GATHERED: dict[str, Any] = {}         # the workers' reliability figures (controller, under xdist)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """An xdist worker hands its tallies to the controller, which prints them."""
+    out = getattr(session.config, "workeroutput", None)
+    if out is not None:
+        out["adversarial"] = adversarial.state()
+        out["figures"] = _figures() or {}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node: Any, error: Any) -> None:
+    got = getattr(node, "workeroutput", None) or {}
+    adversarial.merge(got.get("adversarial") or {})
+    _merge(_GATHERED, got.get("figures") or {})
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
     """The adversarial tally (tests/adversarial.py): each hostile-input or fault test's cases."""
@@ -47,8 +125,7 @@ def pytest_runtest_makereport(item, call):
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
     """The adversarial tally and tests/test_reliability.py's figures (docs/reliability.md)."""
     tr = terminalreporter
-    mod = sys.modules.get("test_reliability")
-    figures = getattr(mod, "FIGURES", None)
+    figures = _figures() or _GATHERED
     tally = adversarial.lines()
     if tally:
         tr.write_sep("-", "adversarial tally")

@@ -64,6 +64,7 @@ def quick_run(tmp_path_factory):
     return p, out
 
 
+@pytest.mark.xdist_group("quick_run")
 def test_all_quick_is_ok_and_exit_0(quick_run):
     p, out = quick_run
     assert p.returncode == 0, p.stdout + p.stderr
@@ -71,6 +72,7 @@ def test_all_quick_is_ok_and_exit_0(quick_run):
         assert scenario in p.stdout
 
 
+@pytest.mark.xdist_group("quick_run")
 def test_results_json_contract(quick_run):
     _, out = quick_run
     data = json.loads((out / "results.json").read_text())
@@ -123,6 +125,7 @@ def test_results_json_contract(quick_run):
     assert "| backend" in md and "projectile" in md
 
 
+@pytest.mark.xdist_group("quick_run")
 def test_save_arrays_contract(quick_run):
     _, out = quick_run
     want = {"saxpy": {"a", "x", "y", "out"}, "sdf": {"image"},
@@ -136,6 +139,7 @@ def test_save_arrays_contract(quick_run):
                     assert z[k].dtype == np.dtype(precision)
 
 
+@pytest.mark.xdist_group("quick_run")
 def test_every_scenario_draws_its_picture_and_report_redraws_it(quick_run, tmp_path):
     _, out = quick_run
     names = {"saxpy", "sdf", "particles", "projectile", "time_vs_error"}
@@ -146,6 +150,7 @@ def test_every_scenario_draws_its_picture_and_report_redraws_it(quick_run, tmp_p
     assert {f.stem for f in (tmp_path / "plots").glob("*.png")} == names   # from the saved arrays
 
 
+@pytest.mark.xdist_group("quick_run")
 def test_report_page_links_tables_and_pictures_and_leaves_the_source(quick_run, tmp_path):
     _, out = quick_run
     src = (out / "results.json").read_text()
