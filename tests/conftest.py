@@ -18,6 +18,11 @@ import adversarial  # noqa: E402
 from compare import cells  # noqa: E402
 
 
+# The spec keys of a cell run for its outputs, not its timings: reuse compiled kernels (framework
+# default caches) and skip the throughput regime. Timing runs start cold (tests/test_cli.py).
+CORRECTNESS = {"cache": "warm", "throughput": False}
+
+
 @functools.cache
 def availability(backend: str) -> dict[str, str | None]:
     return cells.probe(backend)["available"]
@@ -42,6 +47,32 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     if "slow" in markexpr.replace("not slow", ""):
         return 0
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+# Modules whose tests share work through a module-scoped fixture or a module-level cache of cells
+# (a command run once, one worker process for many cases): under xdist each runs whole on one
+# worker, in file order, as without xdist, so that work is done once. Every other test is
+# scheduled on its own. A module missing here still passes; its shared work is done once per worker
+# (xdist's xdist_group marks would say this per test, but its loadgroup ignores them on pytest 9.2:
+# pytest-dev/pytest-xdist#1386).
+ONE_WORKER = ("test_cli.py", "test_contract.py", "test_jax.py", "test_measure.py", "test_parity.py",
+              "test_site.py", "test_site_browser.py", "test_torch.py", "test_triton.py")
+
+
+@pytest.hookimpl(optionalhook=True, tryfirst=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """``-n``'s default distribution (load): every test on its own, but ONE_WORKER modules whole.
+    Units start largest first (xdist's loadscope order), so the long modules do not end last."""
+    if config.getvalue("dist") != "load":
+        return None                       # a --dist the user chose
+    from xdist.scheduler import LoadScopeScheduling
+
+    class Scheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return path if path.rsplit("/", 1)[-1] in ONE_WORKER else nodeid
+
+    return Scheduling(config, log)
 
 
 @contextlib.contextmanager
@@ -147,11 +178,14 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
 
 def run_cell(backend: str, scenario: str, precision: str, params: dict, device: str = "cpu",
              variant: str = "default") -> tuple[dict, dict]:
-    """One cell through the real worker path (its own process), at quick sizes; ok or mismatch."""
+    """One cell through the real worker path (its own process), at quick sizes; ok or mismatch.
+    Correctness only, as the parity suite: warm kernel caches and no throughput regime (the
+    command-line tests run cells cold)."""
     from compare import cells
     require_device(backend, device)
     spec = {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
-            "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant}
+            "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant,
+            **CORRECTNESS}
     record, outputs = cells.run(spec, timeout=600)
     assert record["status"] in ("ok", "mismatch"), \
         f"{record.get('reason')}\n{record.get('traceback', '')}"

@@ -21,7 +21,7 @@ import pytest
 import backends
 import scenarios
 from compare import cells
-from conftest import ROOT, require_device
+from conftest import CORRECTNESS, ROOT, require_device
 
 pytestmark = pytest.mark.numba
 pytest.importorskip("numba")
@@ -88,7 +88,7 @@ def test_float32_agrees_with_warp(scenario: str, overrides: dict) -> None:
     outs = {}
     for name in ("numba", backends.reference()):
         spec = {"scenario": scenario, "backend": name, "device": "cpu", "precision": "float32",
-                "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0}
+                "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0, **CORRECTNESS}
         record, outs[name] = cells.run(spec, timeout=600)
         assert record["status"] == "ok", record.get("reason")
     ours, ref = outs["numba"], outs[backends.reference()]

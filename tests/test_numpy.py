@@ -18,7 +18,7 @@ import pytest
 import backends
 import scenarios
 from compare import cells
-from conftest import require_device
+from conftest import CORRECTNESS, require_device
 
 pytestmark = pytest.mark.numpy
 
@@ -89,7 +89,7 @@ def test_float32_is_warps_float32_bit_for_bit(scenario: str, overrides: dict) ->
     outs = {}
     for name in ("numpy", backends.reference()):
         spec = {"scenario": scenario, "backend": name, "device": "cpu", "precision": "float32",
-                "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0}
+                "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0, **CORRECTNESS}
         record, outs[name] = cells.run(spec, timeout=600)
         assert record["status"] == "ok", record.get("reason")
     ours, ref = outs["numpy"], outs[backends.reference()]
