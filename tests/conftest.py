@@ -1,10 +1,7 @@
 from __future__ import annotations
 
-import contextlib
 import functools
-import os
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +12,11 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import adversarial  # noqa: E402
+import parallel  # noqa: E402
 from compare import cells  # noqa: E402
+# pytest-xdist's workers, groups and `alone` tests (tests/parallel.py)
+from parallel import (pytest_collection_finish, pytest_configure, pytest_runtest_protocol,  # noqa: E402,F401
+                      pytest_unconfigure, pytest_xdist_auto_num_workers, pytest_xdist_make_scheduler)
 
 
 # The spec keys of a cell run for its outputs, not its timings: reuse compiled kernels (framework
@@ -38,86 +39,8 @@ def pytest_runtest_setup(item):
     adversarial.start()
 
 
-# ---- pytest-xdist: workers, tests that must run alone, the tallies gathered from the workers ----
-@pytest.hookimpl(optionalhook=True)
-def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: one worker per usable core; the long tier (``-m slow``) runs in this process,
-    one test at a time, as it always has (its tests fill disks and watch memory peaks)."""
-    markexpr = config.getoption("markexpr") or ""
-    if "slow" in markexpr.replace("not slow", ""):
-        return 0
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
-# Modules whose tests share work through a module-scoped fixture or a module-level cache of cells
-# (a command run once, one worker process for many cases): under xdist each runs whole on one
-# worker, in file order, as without xdist, so that work is done once. Every other test is
-# scheduled on its own. A module missing here still passes; its shared work is done once per worker
-# (xdist's xdist_group marks would say this per test, but its loadgroup ignores them on pytest 9.2:
-# pytest-dev/pytest-xdist#1386).
-ONE_WORKER = ("test_cli.py", "test_contract.py", "test_jax.py", "test_measure.py", "test_parity.py",
-              "test_site.py", "test_site_browser.py", "test_torch.py", "test_triton.py")
-
-
-@pytest.hookimpl(optionalhook=True, tryfirst=True)
-def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
-    """``-n``'s default distribution (load): every test on its own, but ONE_WORKER modules whole.
-    Units start largest first (xdist's loadscope order), so the long modules do not end last."""
-    if config.getvalue("dist") != "load":
-        return None                       # a --dist the user chose
-    from xdist.scheduler import LoadScopeScheduling
-
-    class Scheduling(LoadScopeScheduling):
-        def _split_scope(self, nodeid: str) -> str:
-            path = nodeid.split("::", 1)[0]
-            return path if path.rsplit("/", 1)[-1] in ONE_WORKER else nodeid
-
-    return Scheduling(config, log)
-
-
-@contextlib.contextmanager
-def _turn(item: pytest.Item) -> Iterator[None]:
-    """Under xdist, a test marked ``alone`` runs while no other test does: every test holds a
-    shared lock on a file of the run's temporary root, an ``alone`` test the exclusive one. A gate
-    taken first (exclusively by an ``alone`` test, in passing by the others) keeps the others'
-    next tests from starving a waiting ``alone`` test."""
-    basetemp = getattr(item.config.option, "basetemp", None)
-    if not os.environ.get("PYTEST_XDIST_WORKER") or not basetemp:
-        yield
-        return
-    import fcntl
-    alone = item.get_closest_marker("alone") is not None
-    mode = fcntl.LOCK_EX if alone else fcntl.LOCK_SH
-    root = Path(basetemp).parent          # each worker's basetemp is <run's root>/<worker id>
-    with open(root / "alone.gate", "a") as gate, open(root / "alone.lock", "a") as lock:
-        fcntl.flock(gate, mode)
-        fcntl.flock(lock, mode)
-        if not alone:
-            fcntl.flock(gate, fcntl.LOCK_UN)
-        yield                             # closing the files releases the locks
-
-
-@pytest.hookimpl(wrapper=True)
-def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Any:
-    with _turn(item):
-        return (yield)
-
-
 def _figures() -> dict | None:
     return getattr(sys.modules.get("test_reliability"), "FIGURES", None)
-
-
-def _merge(into: dict, part: dict) -> None:
-    """Add one worker's counts into ``into``: numbers add, lists extend, dicts merge, text stays."""
-    for k, v in part.items():
-        if isinstance(v, dict):
-            _merge(into.setdefault(k, {}), v)
-        elif isinstance(v, list):
-            into[k] = into.get(k, []) + v
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            into[k] = into.get(k, 0) + v
-        else:
-            into[k] = v
 
 
 _GATHERED: dict[str, Any] = {}         # the workers' reliability figures (controller, under xdist)
@@ -135,7 +58,7 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 def pytest_testnodedown(node: Any, error: Any) -> None:
     got = getattr(node, "workeroutput", None) or {}
     adversarial.merge(got.get("adversarial") or {})
-    _merge(_GATHERED, got.get("figures") or {})
+    parallel.merge(_GATHERED, got.get("figures") or {})
 
 
 @pytest.hookimpl(hookwrapper=True)

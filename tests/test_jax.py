@@ -176,6 +176,7 @@ def batch_results():
     return json.loads(line[5:])
 
 
+@pytest.mark.xdist_group("batch_results")
 def test_batched_checkpoint_matches_the_plain_path(batch_results):
     """The "checkpoint" variant (segments of round(sqrt(steps)) steps) on a batch: both pass the
     oracle check and agree to float64 rounding (the recomputed forward segments may round
@@ -192,6 +193,7 @@ def test_batched_checkpoint_matches_the_plain_path(batch_results):
         assert np.all(np.abs(c - a) <= 1e-12 * scale), (name, np.max(np.abs(c - a) / scale))
 
 
+@pytest.mark.xdist_group("batch_results")
 def test_batched_set_input_reuses_the_compiled_program(batch_results):
     assert batch_results["reused"]          # no recompilation: the same executable ran
     assert batch_results["moved"]           # the new v0 was used ...
@@ -199,6 +201,7 @@ def test_batched_set_input_reuses_the_compiled_program(batch_results):
     assert batch_results["shape_refused"]   # a different batch size would need a new program
 
 
+@pytest.mark.xdist_group("batch_results")
 def test_projectile_checkpoint_variant_is_offered(batch_results):
     """The variant exists for the projectile only, and a kernel refuses variants it lacks."""
     import backends

@@ -44,7 +44,8 @@ _runs: dict = {}
 
 
 def _params(case):
-    return [pytest.param(b, d, p, s, o, marks=getattr(pytest.mark, b),
+    # one xdist group per worker process of cells (run_case's cache), so it runs once
+    return [pytest.param(b, d, p, s, o, marks=[getattr(pytest.mark, b), pytest.mark.xdist_group(f"parity-{b}-{d}-{p}")],
                          id=f"{b}-{d}-{p}-{s}-" + ",".join(f"{k}={v}" for k, v in o.items()))
             for b in backends.BACKENDS for d in backends.DEVICES for p in ("float64", "float32")
             for s, o in case]
