@@ -25,20 +25,38 @@ import pytest
 import backends
 import scenarios
 from compare import cells
-from conftest import ROOT, require_device, run_cell, run_script
+from conftest import ROOT, require_device, run_script, shared_cell
 from scenarios.projectile import CONSTANTS
 from scenarios.projectile_adjoint import finite_difference_gradient, loss_of, rollout
 
 pytestmark = pytest.mark.taichi
 
+PRECISIONS = ("float64", "float32")
 SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 11, "height": 7},
          "particles": {"n": 33, "steps": 57, "record_every": 7},
          "projectile": {"contact": "soft", "iters": 3}}
 
 
+FD = [{"contact": c, "iters": 0} for c in ("hard", "soft")]
+FRAMES = {"n": 33, "steps": 57, "record_every": 7}
+
+
+def _cells() -> list:
+    """Every cell the tests marked xdist_group("taichi-cells") run through the worker."""
+    return ([("taichi", s, p, o, d, "fastmath") for s, o in SMALL.items() for p in PRECISIONS
+             for d in backends.DEVICES]
+            + [("taichi", s, p, o, "cpu", "default") for s, o in SMALL.items() for p in PRECISIONS]
+            + [(b, s, "float32", o, "cpu", "default") for b in ("taichi", backends.reference())
+               for s, o in VS_WARP]
+            + [("taichi", "projectile", "float64", o, d, "default") for o in FD for d in backends.DEVICES]
+            + [("taichi", "particles", "float64", FRAMES, "cpu", "default")])
+
+
 def _run(scenario: str, precision: str, params: dict, device: str = "cpu",
          variant: str = "default", backend: str = "taichi") -> tuple[dict, dict]:
-    return run_cell(backend, scenario, precision, params, device, variant)
+    """One cell through the worker path; the module's cells share a worker process per
+    precision and variant (conftest.shared_cell), each test asserts on its own."""
+    return shared_cell("taichi-cells", _cells(), backend, scenario, precision, params, device, variant)
 
 
 def _script(body: str, device: str = "cpu") -> dict:
@@ -47,6 +65,7 @@ def _script(body: str, device: str = "cpu") -> dict:
 
 
 # ---- 1. variants --------------------------------------------------------------------------------
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("device", backends.DEVICES)
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("scenario", list(SMALL))
@@ -57,6 +76,7 @@ def test_fastmath_variant_runs_and_reports_a_finite_error(scenario, precision, d
     assert all(np.all(np.isfinite(v)) for v in outputs.values())
 
 
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("scenario", list(SMALL))
 def test_default_variant_is_not_fast_math(scenario):
     record, _ = _run(scenario, "float32", SMALL[scenario])
@@ -77,6 +97,7 @@ def test_package_import_does_not_import_taichi():
 
 
 # ---- 2. precision and operation order -----------------------------------------------------------
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("scenario", list(SMALL))
 def test_outputs_have_the_cells_precision(scenario, precision):
@@ -90,6 +111,7 @@ VS_WARP = [("saxpy", {}), ("saxpy", {"n": 257, "inputs": "random", "seed": 3}), 
            ("projectile", {"contact": "soft"})]
 
 
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("scenario,overrides", VS_WARP, ids=[f"{s}-{o}" for s, o in VS_WARP])
 def test_float32_agrees_with_warp_to_two_ulps(scenario, overrides):
     """Same algorithm, same operation order, same precision: bitwise on x86 CPUs in practice.
@@ -105,10 +127,11 @@ def test_float32_agrees_with_warp_to_two_ulps(scenario, overrides):
 
 
 # ---- 3. autodiff --------------------------------------------------------------------------------
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("device", backends.DEVICES)
 @pytest.mark.parametrize("contact", ["hard", "soft"])
 def test_gradient_matches_finite_differences_of_the_oracle(contact, device):
-    params = {"contact": contact, "iters": 0}
+    params = next(o for o in FD if o["contact"] == contact)
     _, outputs = _run("projectile", "float64", params, device)
     sc = scenarios.get("projectile")
     p = sc.params(params, quick=True)
@@ -423,9 +446,10 @@ def test_repeated_run_neither_recompiles_nor_changes_outputs(device):
         assert v["repeatable"], case
 
 
+@pytest.mark.xdist_group("taichi-cells")
 def test_particle_trajectory_frames_match_the_oracle():
     """The scenario's check only verifies the frames' shape; compare their values here."""
-    params = {"n": 33, "steps": 57, "record_every": 7}
+    params = FRAMES
     _, outputs = _run("particles", "float64", params)
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)
