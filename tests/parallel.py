@@ -5,8 +5,9 @@ tests/conftest.py.
   at a time, as it always has (its tests fill disks and watch memory peaks).
 - **Groups**: tests marked ``xdist_group(name)`` run on one worker, one after another in file
   order: they share work done once per process (a module-scoped fixture, a module-level cache of
-  cells run in one worker process). Every other test is scheduled on its own, the largest groups
-  first. xdist's own ``--dist loadgroup`` does this, but on pytest 9.2 it ignores the marks
+  cells run in one worker process). Every other test is scheduled on its own: tests marked
+  ``early`` (the long ones) first, then the largest groups, so that the run does not end waiting
+  on one long test. xdist's own ``--dist loadgroup`` does this, but on pytest 9.2 it ignores the marks
   (pytest-dev/pytest-xdist#1386), so the workers write each test's group to a file that the
   controller's scheduler reads. A ``--dist`` given on the command line is xdist's as usual.
 - **Alone**: a test marked ``alone`` runs while no other test does (the others wait): tests that
@@ -60,13 +61,15 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     path = os.environ.get(GROUPS_ENV)
     if not (_worker() and path):
         return
-    groups = {}
+    groups, early = {}, []
     for item in session.items:
         mark = item.get_closest_marker("xdist_group")
         if mark:
             groups[item.nodeid] = str(mark.args[0] if mark.args else mark.kwargs.get("name", "default"))
+        if item.get_closest_marker("early"):
+            early.append(item.nodeid)
     tmp = f"{path}.{os.environ['PYTEST_XDIST_WORKER']}"
-    Path(tmp).write_text(json.dumps(groups))
+    Path(tmp).write_text(json.dumps({"groups": groups, "early": early}))
     os.replace(tmp, path)                     # every worker writes the same map
 
 
@@ -77,15 +80,28 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     from xdist.scheduler import LoadScopeScheduling
 
     class GroupScheduling(LoadScopeScheduling):
-        """LoadScopeScheduling with one scope per group and one per ungrouped test; scheduled
-        once every worker has collected, so after each has written the map."""
-        _groups: dict[str, str] | None = None
+        """LoadScopeScheduling with one scope per group and one per ungrouped test, the scopes
+        holding an ``early`` test first; scheduled once every worker has collected, so after each
+        has written the map."""
+        _map: dict[str, Any] | None = None
+        _ordered = False
+
+        def _read(self) -> dict[str, Any]:
+            if self._map is None:
+                self._map = json.loads(Path(os.environ[GROUPS_ENV]).read_text() or "{}")
+            return self._map
 
         def _split_scope(self, nodeid: str) -> str:
-            if self._groups is None:
-                self._groups = json.loads(Path(os.environ[GROUPS_ENV]).read_text() or "{}")
-            group = self._groups.get(nodeid)
+            group = self._read().get("groups", {}).get(nodeid)
             return f"group:{group}" if group else nodeid
+
+        def _assign_work_unit(self, node: Any) -> None:
+            if not self._ordered:                 # the queue is complete at the first assignment
+                early = {self._split_scope(n) for n in self._read().get("early", [])}
+                for scope in reversed([s for s in self.workqueue if s in early]):
+                    self.workqueue.move_to_end(scope, last=False)
+                self._ordered = True
+            super()._assign_work_unit(node)
 
     return GroupScheduling(config, log)
 

@@ -181,6 +181,7 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
 @pytest.mark.parametrize("precision", ["float64", "float32"])   # a process each (ti.init)
 @pytest.mark.parametrize("device", backends.DEVICES)
 def test_fused_rollout_equals_one_launch_per_step(device, precision):
@@ -270,6 +271,7 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
 def test_each_batch_row_is_its_own_single_trajectory():
     """Trajectories do not interact: each row of a batch (not only row 0, whose inputs are the
     seed case) equals a single-trajectory run at that row's v0 and target bit for bit. A shared
@@ -328,6 +330,7 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
 @pytest.mark.parametrize("precision", ["float64", "float32"])   # a process each (ti.init)
 @pytest.mark.parametrize("device", backends.DEVICES)
 def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device, precision):
@@ -385,6 +388,7 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
 def test_fused_rollout_only_where_the_adstacks_hold_it():
     """Past the configured depth Taichi overflows its adstacks silently (wrong gradients, a crash
     or a hang), so longer rollouts must take the per-step path. At the limit, even with a contact
