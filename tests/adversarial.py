@@ -52,6 +52,20 @@ def skipped(reason: str) -> None:
     SKIPPED[reason] = SKIPPED.get(reason, 0) + 1
 
 
+def state() -> dict:
+    """This process's counts (an xdist worker sends them to the controller)."""
+    return {"tally": TALLY, "skipped": SKIPPED}
+
+
+def merge(other: dict) -> None:
+    """Add another process's ``state()`` to this one's."""
+    for c, (cases, clean) in other.get("tally", {}).items():
+        TALLY[c][0] += cases
+        TALLY[c][1] += clean
+    for reason, n in other.get("skipped", {}).items():
+        SKIPPED[reason] = SKIPPED.get(reason, 0) + n
+
+
 def lines() -> list[str]:
     cases = sum(t[0] for t in TALLY.values())
     if not cases and not SKIPPED:

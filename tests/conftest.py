@@ -1,8 +1,10 @@
 from __future__ import annotations
 
 import functools
+import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -11,12 +13,26 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import adversarial  # noqa: E402
-from compare import cells  # noqa: E402
+import parallel  # noqa: E402
+from compare import cells, engine  # noqa: E402
+# pytest-xdist's workers, groups and `alone` tests (tests/parallel.py)
+from parallel import (pytest_collection_finish, pytest_configure, pytest_runtest_protocol,  # noqa: E402,F401
+                      pytest_unconfigure, pytest_xdist_auto_num_workers, pytest_xdist_make_scheduler)
+
+
+# The spec keys of a cell run for its outputs, not its timings: reuse compiled kernels (framework
+# default caches) and skip the throughput regime. Timing runs start cold (tests/test_cli.py).
+CORRECTNESS = {"cache": "warm", "throughput": False}
 
 
 @functools.cache
+def probe(backend: str) -> dict[str, Any]:
+    """The backend's availability probe (its own process), once per test process."""
+    return cells.probe(backend)
+
+
 def availability(backend: str) -> dict[str, str | None]:
-    return cells.probe(backend)["available"]
+    return probe(backend)["available"]
 
 
 def require_device(backend: str, device: str) -> None:
@@ -27,6 +43,28 @@ def require_device(backend: str, device: str) -> None:
 
 def pytest_runtest_setup(item):
     adversarial.start()
+
+
+def _figures() -> dict | None:
+    return getattr(sys.modules.get("test_reliability"), "FIGURES", None)
+
+
+_GATHERED: dict[str, Any] = {}         # the workers' reliability figures (controller, under xdist)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """An xdist worker hands its tallies to the controller, which prints them."""
+    out = getattr(session.config, "workeroutput", None)
+    if out is not None:
+        out["adversarial"] = adversarial.state()
+        out["figures"] = _figures() or {}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node: Any, error: Any) -> None:
+    got = getattr(node, "workeroutput", None) or {}
+    adversarial.merge(got.get("adversarial") or {})
+    parallel.merge(_GATHERED, got.get("figures") or {})
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -47,8 +85,7 @@ def pytest_runtest_makereport(item, call):
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
     """The adversarial tally and tests/test_reliability.py's figures (docs/reliability.md)."""
     tr = terminalreporter
-    mod = sys.modules.get("test_reliability")
-    figures = getattr(mod, "FIGURES", None)
+    figures = _figures() or _GATHERED
     tally = adversarial.lines()
     if tally:
         tr.write_sep("-", "adversarial tally")
@@ -70,12 +107,45 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
 
 def run_cell(backend: str, scenario: str, precision: str, params: dict, device: str = "cpu",
              variant: str = "default") -> tuple[dict, dict]:
-    """One cell through the real worker path (its own process), at quick sizes; ok or mismatch."""
+    """One cell through the real worker path (its own process), at quick sizes; ok or mismatch.
+    Correctness only, as the parity suite: warm kernel caches and no throughput regime (the
+    command-line tests run cells cold)."""
     from compare import cells
     require_device(backend, device)
     spec = {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
-            "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant}
+            "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant,
+            **CORRECTNESS}
     record, outputs = cells.run(spec, timeout=600)
+    assert record["status"] in ("ok", "mismatch"), \
+        f"{record.get('reason')}\n{record.get('traceback', '')}"
+    return record, outputs
+
+
+Case = tuple[str, str, str, dict, str, str]     # backend, scenario, precision, params, device, variant
+_SHARED: dict[str, dict[str, tuple[dict, dict]]] = {}
+
+
+def _case_key(case: Case) -> str:
+    return json.dumps(case, sort_keys=True)
+
+
+def shared_cell(name: str, cases: list[Case], backend: str, scenario: str, precision: str,
+                params: dict, device: str = "cpu", variant: str = "default") -> tuple[dict, dict]:
+    """One of ``cases``, as run_cell gives it. On first use every case of ``name`` whose device is
+    available runs through the worker path, one worker process per backend, device, precision and
+    variant (engine.run_cells, share_process): a framework starts, and compiles what the cells
+    share, once rather than once per cell. Tests reading one ``name`` carry xdist_group(name), so
+    under xdist they share one run."""
+    require_device(backend, device)
+    if name not in _SHARED:
+        runnable = [c for c in cases if not availability(c[0]).get(c[4], "unknown device")]
+        specs = [{"scenario": s, "backend": b, "device": d, "precision": p, "params": o, "quick": True,
+                  "repeat": 1, "min_time": 0.0, "variant": v, **CORRECTNESS}
+                 for b, s, p, o, d, v in runnable]
+        results = engine.run_cells(specs, timeout=900, share_process=True,
+                                   probes={c[0]: probe(c[0]) for c in runnable})
+        _SHARED[name] = {_case_key(c): r for c, r in zip(runnable, results)}
+    record, outputs = _SHARED[name][_case_key((backend, scenario, precision, params, device, variant))]
     assert record["status"] in ("ok", "mismatch"), \
         f"{record.get('reason')}\n{record.get('traceback', '')}"
     return record, outputs

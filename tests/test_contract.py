@@ -174,6 +174,7 @@ def records(path: Path) -> list[dict]:
     return json.loads(path.read_text())["records"]
 
 
+@pytest.mark.xdist_group("repo")
 def test_list_names_problems_in_one_line_each(repo):
     p = compare(repo, "list")
     assert p.returncode == 0 and "Traceback" not in p.stderr, p.stderr
@@ -184,6 +185,7 @@ def test_list_names_problems_in_one_line_each(repo):
     assert "tiny " in p.stdout.split("problems:")[0]        # the first 'tiny' is the one used
 
 
+@pytest.mark.xdist_group("repo")
 def test_liar_vague_and_twin_are_caught(repo, tmp_path):
     p = compare(repo, "run", "saxpy", "particles", "--quick", "--backends", "liar,vague,twin",
                 "--repeat", "1", "--out", str(tmp_path), "--no-plots")
@@ -202,6 +204,7 @@ def test_liar_vague_and_twin_are_caught(repo, tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("repo")
 def test_new_backend_runs_through_all_sweep_and_stress(repo, tmp_path):
     p = compare(repo, "all", "--quick", "--backends", "tiny", "--repeat", "1", "--out", str(tmp_path / "all"))
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]

@@ -329,6 +329,7 @@ def mutated(draw: st.DrawFn) -> tuple[str, bytes]:
     return suite, text.encode()
 
 
+@pytest.mark.early
 @settings(max_examples=60, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(case=mutated())

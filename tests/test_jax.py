@@ -13,7 +13,7 @@ import pytest
 
 import scenarios
 from compare import cells
-from conftest import ROOT, require_device
+from conftest import ROOT, require_device, shared_cell
 from scenarios.projectile import CONSTANTS
 from scenarios.projectile_adjoint import finite_difference_gradient, loss_of
 
@@ -33,10 +33,26 @@ def _run(scenario: str, precision: str, params: dict, device: str = "cpu", varia
     return record, outputs
 
 
+FD = [{"contact": c, "iters": 0} for c in ("hard", "soft")]
+FRAMES = {"n": 33, "steps": 57, "record_every": 7}
+CELLS = ([("jax", s, p, o, "cpu", "default") for s, o in SMALL.items() for p in ("float64", "float32")]
+         + [("jax", "projectile", "float64", o, "cpu", "default") for o in FD]
+         + [("jax", "particles", "float64", FRAMES, "cpu", "default")])
+
+
+def _shared(scenario: str, precision: str, params: dict) -> tuple[dict, dict]:
+    """A cell of CELLS: they share a worker process per precision (conftest.shared_cell)."""
+    record, outputs = shared_cell("jax-cells", CELLS, "jax", scenario, precision, params)
+    assert record["status"] == "ok", \
+        f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
+    return record, outputs
+
+
+@pytest.mark.xdist_group("jax-cells")
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("scenario", list(SMALL))
 def test_outputs_have_the_cells_precision(scenario, precision):
-    _, outputs = _run(scenario, precision, SMALL[scenario])
+    _, outputs = _shared(scenario, precision, SMALL[scenario])
     assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
 
 
@@ -52,10 +68,11 @@ def test_back_to_back_cells_keep_their_own_precision():
             assert np.any(out != out.astype(np.float32).astype(np.float64))
 
 
+@pytest.mark.xdist_group("jax-cells")
 @pytest.mark.parametrize("contact", ["hard", "soft"])
 def test_gradient_matches_finite_differences_of_the_oracle(contact):
-    params = {"contact": contact, "iters": 0}
-    _, outputs = _run("projectile", "float64", params)
+    params = next(o for o in FD if o["contact"] == contact)
+    _, outputs = _shared("projectile", "float64", params)
     sc = scenarios.get("projectile")
     p = sc.params(params, quick=True)
     inputs = sc.inputs(p, "float64")
@@ -68,9 +85,10 @@ def test_gradient_matches_finite_differences_of_the_oracle(contact):
     assert float(outputs["loss"]) == pytest.approx(loss_of(c, contact, p.steps, v0), rel=1e-13)
 
 
+@pytest.mark.xdist_group("jax-cells")
 def test_particle_trajectory_frames_match_the_oracle():
-    params = {"n": 33, "steps": 57, "record_every": 7}
-    _, outputs = _run("particles", "float64", params)
+    params = FRAMES
+    _, outputs = _shared("particles", "float64", params)
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)
     ref = sc.oracle(p, sc.inputs(p, "float64"), "float64")
@@ -79,8 +97,9 @@ def test_particle_trajectory_frames_match_the_oracle():
         np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)
 
 
+@pytest.mark.xdist_group("jax-cells")
 def test_info_reports_donation_and_memory():
-    record, _ = _run("particles", "float32", SMALL["particles"])
+    record, _ = _shared("particles", "float32", SMALL["particles"])
     info = record["info"]
     assert info["donated"] is True        # outputs are written into the previous call's buffers
     assert info["alias_bytes"] >= 4 * 33 * 4
@@ -176,6 +195,7 @@ def batch_results():
     return json.loads(line[5:])
 
 
+@pytest.mark.xdist_group("batch_results")
 def test_batched_checkpoint_matches_the_plain_path(batch_results):
     """The "checkpoint" variant (segments of round(sqrt(steps)) steps) on a batch: both pass the
     oracle check and agree to float64 rounding (the recomputed forward segments may round
@@ -192,6 +212,7 @@ def test_batched_checkpoint_matches_the_plain_path(batch_results):
         assert np.all(np.abs(c - a) <= 1e-12 * scale), (name, np.max(np.abs(c - a) / scale))
 
 
+@pytest.mark.xdist_group("batch_results")
 def test_batched_set_input_reuses_the_compiled_program(batch_results):
     assert batch_results["reused"]          # no recompilation: the same executable ran
     assert batch_results["moved"]           # the new v0 was used ...
@@ -199,6 +220,7 @@ def test_batched_set_input_reuses_the_compiled_program(batch_results):
     assert batch_results["shape_refused"]   # a different batch size would need a new program
 
 
+@pytest.mark.xdist_group("batch_results")
 def test_projectile_checkpoint_variant_is_offered(batch_results):
     """The variant exists for the projectile only, and a kernel refuses variants it lacks."""
     import backends

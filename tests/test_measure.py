@@ -189,6 +189,7 @@ def quick_sweep(tmp_path_factory):
     return p, out
 
 
+@pytest.mark.xdist_group("quick_sweep")
 def test_sweep_quick_runs_everything_ok(quick_sweep):
     p, out = quick_sweep
     assert p.returncode == 0, p.stdout + p.stderr
@@ -216,6 +217,7 @@ def test_sweep_quick_runs_everything_ok(quick_sweep):
     assert "Roofline for this device" in md and "python -m compare sweep all --quick" in md
 
 
+@pytest.mark.xdist_group("quick_sweep")
 def test_sweep_report_rebuilds_without_running(quick_sweep, tmp_path):
     _, out = quick_sweep
     page = tmp_path / "page.md"
@@ -226,6 +228,7 @@ def test_sweep_report_rebuilds_without_running(quick_sweep, tmp_path):
     assert text.startswith("# Rebuilt") and "(plots/bandwidth_cpu.png)" in text
 
 
+@pytest.mark.xdist_group("quick_sweep")
 def test_sweep_resume_skips_ok_cells(quick_sweep):
     _, out = quick_sweep
     p = run_sweep("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",

@@ -62,6 +62,8 @@ def _cell(repeat: int = 30) -> Record:
                              **record})
 
 
+# alone: the idle half must see no other test's load (pytest-xdist's other workers wait)
+@pytest.mark.alone
 @pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the host meter reads /proc/stat (Linux)")
 def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not() -> None:
     idle = _cell()

@@ -21,7 +21,7 @@ import pytest
 import backends
 import scenarios
 from compare import cells
-from conftest import ROOT, require_device
+from conftest import ROOT, require_device, shared_cell
 
 pytestmark = pytest.mark.numba
 pytest.importorskip("numba")
@@ -75,6 +75,7 @@ F32_VS_WARP = [("saxpy", {}), ("saxpy", {"n": 257, "inputs": "random", "seed": 3
 MAX_ULP = 2
 
 
+@pytest.mark.xdist_group("numba-vs-warp")        # its cells run together (conftest.shared_cell)
 @pytest.mark.parametrize("scenario,overrides", F32_VS_WARP,
                          ids=[f"{s}-{o}" for s, o in F32_VS_WARP])
 def test_float32_agrees_with_warp(scenario: str, overrides: dict) -> None:
@@ -86,10 +87,10 @@ def test_float32_agrees_with_warp(scenario: str, overrides: dict) -> None:
     require_device("numba", "cpu")
     require_device(backends.reference(), "cpu")
     outs = {}
+    every = [(b, s, "float32", o, "cpu", "default") for b in ("numba", backends.reference())
+             for s, o in F32_VS_WARP]
     for name in ("numba", backends.reference()):
-        spec = {"scenario": scenario, "backend": name, "device": "cpu", "precision": "float32",
-                "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0}
-        record, outs[name] = cells.run(spec, timeout=600)
+        record, outs[name] = shared_cell("numba-vs-warp", every, name, scenario, "float32", overrides)
         assert record["status"] == "ok", record.get("reason")
     ours, ref = outs["numba"], outs[backends.reference()]
     keys = ("loss", "grad") if scenario == "projectile" else ref.keys()

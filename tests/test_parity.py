@@ -14,7 +14,7 @@ import pytest
 
 import backends
 from compare import engine
-from conftest import require_device
+from conftest import probe, require_device
 
 CASES = [
     ("saxpy", {}),                                       # quick: n = 100_003
@@ -44,7 +44,8 @@ _runs: dict = {}
 
 
 def _params(case):
-    return [pytest.param(b, d, p, s, o, marks=getattr(pytest.mark, b),
+    # one xdist group per worker process of cells (run_case's cache), so it runs once
+    return [pytest.param(b, d, p, s, o, marks=[getattr(pytest.mark, b), pytest.mark.xdist_group(f"parity-{b}-{d}-{p}")],
                          id=f"{b}-{d}-{p}-{s}-" + ",".join(f"{k}={v}" for k, v in o.items()))
             for b in backends.BACKENDS for d in backends.DEVICES for p in ("float64", "float32")
             for s, o in case]
@@ -61,7 +62,8 @@ def run_case(backend, device, precision, scenario, overrides):
     test of the group runs them all): the framework starts once, not once per case."""
     group = (backend, device, precision)
     if group not in _runs:
-        results = engine.run_cells([_spec(*group, s, o) for s, o in CASES], timeout=900, share_process=True)
+        results = engine.run_cells([_spec(*group, s, o) for s, o in CASES], timeout=900, share_process=True,
+                                   probes={backend: probe(backend)})
         _runs[group] = {(s, tuple(sorted(o.items()))): r for (s, o), r in zip(CASES, results)}
     return _runs[group][(scenario, tuple(sorted(overrides.items())))]
 

@@ -145,6 +145,7 @@ def run_publish(monkeypatch, capsys, out, keep, *extra):
     return code, capsys.readouterr().out
 
 
+@pytest.mark.early
 def test_a_real_publish_logs_skips_done_parts_and_reruns_one(tmp_path, monkeypatch, capsys):
     out = tmp_path / "m"
     keep = {"bandwidth", "stress-ulps", "stress-merge", "site"}

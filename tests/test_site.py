@@ -213,6 +213,7 @@ def test_store_loads_with_every_framework():
     assert sum((STORE / f).stat().st_size for f in SUITES.values()) <= 400_000
 
 
+@pytest.mark.xdist_group("site")
 def test_site_layout(site: Path):
     assert (site / "index.html").is_file() and (site / "matrix.md").is_file()
     assert len(list(site.rglob("*.html"))) > 1, "the overview and at least one question page"
@@ -220,11 +221,13 @@ def test_site_layout(site: Path):
     assert figures, "no figures/*.png"
 
 
+@pytest.mark.xdist_group("site")
 def test_site_static(site: Path):
     problems = site_problems(site)
     assert not problems, "\n".join(problems)
 
 
+@pytest.mark.xdist_group("site")
 def test_matrix_has_one_column_per_framework(site: Path):
     columns = parse(site / "index.html").matrix_frameworks
     assert columns, 'no <table id="matrix"> with <th data-framework=...> cells in index.html'

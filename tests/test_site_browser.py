@@ -29,6 +29,7 @@ def chromium():
         yield b
 
 
+@pytest.mark.xdist_group("site")
 def test_every_page_loads_clean_in_chromium(chromium: browser.Browser, tmp_path_factory):
     site = built_site(tmp_path_factory)
     pages = sorted(site.rglob("*.html"))
@@ -40,6 +41,7 @@ def test_every_page_loads_clean_in_chromium(chromium: browser.Browser, tmp_path_
     assert not problems, "\n".join(problems)
 
 
+@pytest.mark.xdist_group("site")
 def test_matrix_has_one_column_per_framework_in_chromium(chromium: browser.Browser, tmp_path_factory):
     site = built_site(tmp_path_factory)
     result = chromium.check(site / "index.html", evaluate={"frameworks": MATRIX_JS})

@@ -175,6 +175,7 @@ def test_bad_usage_exits_2_with_one_line(args, needle):
     assert len(lines) == 1 and needle in lines[0], p.stderr
 
 
+@pytest.mark.early
 def test_quick_warp_cpu_two_experiments(tmp_path):
     require_device("warp", "cpu")
     p = run_stress("--quick", "--backends", "warp", "--devices", "cpu", "--only",

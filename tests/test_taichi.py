@@ -25,20 +25,38 @@ import pytest
 import backends
 import scenarios
 from compare import cells
-from conftest import ROOT, require_device, run_cell, run_script
+from conftest import ROOT, require_device, run_script, shared_cell
 from scenarios.projectile import CONSTANTS
 from scenarios.projectile_adjoint import finite_difference_gradient, loss_of, rollout
 
 pytestmark = pytest.mark.taichi
 
+PRECISIONS = ("float64", "float32")
 SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 11, "height": 7},
          "particles": {"n": 33, "steps": 57, "record_every": 7},
          "projectile": {"contact": "soft", "iters": 3}}
 
 
+FD = [{"contact": c, "iters": 0} for c in ("hard", "soft")]
+FRAMES = {"n": 33, "steps": 57, "record_every": 7}
+
+
+def _cells() -> list:
+    """Every cell the tests marked xdist_group("taichi-cells") run through the worker."""
+    return ([("taichi", s, p, o, d, "fastmath") for s, o in SMALL.items() for p in PRECISIONS
+             for d in backends.DEVICES]
+            + [("taichi", s, p, o, "cpu", "default") for s, o in SMALL.items() for p in PRECISIONS]
+            + [(b, s, "float32", o, "cpu", "default") for b in ("taichi", backends.reference())
+               for s, o in VS_WARP]
+            + [("taichi", "projectile", "float64", o, d, "default") for o in FD for d in backends.DEVICES]
+            + [("taichi", "particles", "float64", FRAMES, "cpu", "default")])
+
+
 def _run(scenario: str, precision: str, params: dict, device: str = "cpu",
          variant: str = "default", backend: str = "taichi") -> tuple[dict, dict]:
-    return run_cell(backend, scenario, precision, params, device, variant)
+    """One cell through the worker path; the module's cells share a worker process per
+    precision and variant (conftest.shared_cell), each test asserts on its own."""
+    return shared_cell("taichi-cells", _cells(), backend, scenario, precision, params, device, variant)
 
 
 def _script(body: str, device: str = "cpu") -> dict:
@@ -47,6 +65,7 @@ def _script(body: str, device: str = "cpu") -> dict:
 
 
 # ---- 1. variants --------------------------------------------------------------------------------
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("device", backends.DEVICES)
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("scenario", list(SMALL))
@@ -57,6 +76,7 @@ def test_fastmath_variant_runs_and_reports_a_finite_error(scenario, precision, d
     assert all(np.all(np.isfinite(v)) for v in outputs.values())
 
 
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("scenario", list(SMALL))
 def test_default_variant_is_not_fast_math(scenario):
     record, _ = _run(scenario, "float32", SMALL[scenario])
@@ -77,6 +97,7 @@ def test_package_import_does_not_import_taichi():
 
 
 # ---- 2. precision and operation order -----------------------------------------------------------
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("scenario", list(SMALL))
 def test_outputs_have_the_cells_precision(scenario, precision):
@@ -90,6 +111,7 @@ VS_WARP = [("saxpy", {}), ("saxpy", {"n": 257, "inputs": "random", "seed": 3}), 
            ("projectile", {"contact": "soft"})]
 
 
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("scenario,overrides", VS_WARP, ids=[f"{s}-{o}" for s, o in VS_WARP])
 def test_float32_agrees_with_warp_to_two_ulps(scenario, overrides):
     """Same algorithm, same operation order, same precision: bitwise on x86 CPUs in practice.
@@ -105,10 +127,11 @@ def test_float32_agrees_with_warp_to_two_ulps(scenario, overrides):
 
 
 # ---- 3. autodiff --------------------------------------------------------------------------------
+@pytest.mark.xdist_group("taichi-cells")
 @pytest.mark.parametrize("device", backends.DEVICES)
 @pytest.mark.parametrize("contact", ["hard", "soft"])
 def test_gradient_matches_finite_differences_of_the_oracle(contact, device):
-    params = {"contact": contact, "iters": 0}
+    params = next(o for o in FD if o["contact"] == contact)
     _, outputs = _run("projectile", "float64", params, device)
     sc = scenarios.get("projectile")
     p = sc.params(params, quick=True)
@@ -131,7 +154,7 @@ PATHS = """
 import numpy as np
 from backends.taichi.projectile import Kernel
 out = {}
-for precision in ("float64", "float32"):
+for precision in (PRECISION,):
     b = backends.get("taichi"); b.setup(DEVICE, precision, "default")
     sc = scenarios.get("projectile")
     for contact in ("none", "hard", "soft"):
@@ -158,15 +181,17 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
+@pytest.mark.parametrize("precision", ["float64", "float32"])   # a process each (ti.init)
 @pytest.mark.parametrize("device", backends.DEVICES)
-def test_fused_rollout_equals_one_launch_per_step(device):
+def test_fused_rollout_equals_one_launch_per_step(device, precision):
     """The fused backward pass (adstacks; exp linearised around the primal's stored value) gives
     the gradients, losses and iterates of the plain per-step differentiation, for one trajectory
     and for a batch (one thread per trajectory in both paths): bitwise on the CPU; on CUDA, where
     the compiler contracts products and sums into FMAs kernel by kernel, to a few roundings (both
     also within the oracle's bounds)."""
-    r = _script(PATHS, device)
-    assert len(r) == 12
+    r = _script(f"PRECISION = {precision!r}\n" + PATHS, device)
+    assert len(r) == 6 and all(case.startswith(precision) for case in r)
     for case, v in r.items():
         batch = int(case.rsplit("-", 1)[1])
         assert v["ok"] == [True, True], case
@@ -246,6 +271,7 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
 def test_each_batch_row_is_its_own_single_trajectory():
     """Trajectories do not interact: each row of a batch (not only row 0, whose inputs are the
     seed case) equals a single-trajectory run at that row's v0 and target bit for bit. A shared
@@ -270,7 +296,8 @@ bt.AD_STACK_SIZE[DEVICE] = 40          # small stacks: a rollout longer than the
 b = backends.get("taichi")
 sc = scenarios.get("projectile")
 out = {}
-for precision in ("float64", "float32"):
+reference = {}                          # (contact, steps) -> the uncheckpointed outputs and path
+for precision in (PRECISION,):
     b.setup(DEVICE, precision, "default")   # the variant's arithmetic is IEEE, as 'default'
     out["limit"] = fused_steps_limit()
     # (steps, forced segment length): ceil(sqrt(60)) = 8 (uneven last segment), 7, 1 step per
@@ -285,13 +312,15 @@ for precision in ("float64", "float32"):
             Kernel.segment = None
             b.synchronize(DEVICE, kc.run())
             oc = kc.outputs()
-            k = Kernel(p, i, DEVICE, precision, "default")
-            b.synchronize(DEVICE, k.run())
-            o = k.outputs()
+            if (contact, steps) not in reference:      # same parameters and inputs: same rollout
+                k = Kernel(p, i, DEVICE, precision, "default")
+                b.synchronize(DEVICE, k.run())
+                reference[contact, steps] = k.outputs(), k.info()["fused_rollout"]
+            o, fused = reference[contact, steps]
             info = kc.info()
             out[f"{precision}-{contact}-{steps}-{seg}"] = {
                 "ok": bool(sc.check(p, i, oc, sc.oracle(p, i, precision), precision).ok),
-                "reference_fused": k.info()["fused_rollout"],
+                "reference_fused": fused,
                 "segment": [info["checkpoint_segment"], info["checkpoint_segments"]],
                 "scratch_rows": kc.state[0].shape[0], "checkpoint_rows": kc.ck[0].shape[0],
                 "identical": all(np.array_equal(o[n], oc[n]) for n in o),
@@ -301,15 +330,17 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
+@pytest.mark.parametrize("precision", ["float64", "float32"])   # a process each (ti.init)
 @pytest.mark.parametrize("device", backends.DEVICES)
-def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device):
+def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device, precision):
     """The 'checkpoint' variant (segments recomputed in the backward pass) gives the outputs of
     the fused rollout, and past the adstack depth those of the per-step path, while storing only
     the segment starts and one segment of scratch: bitwise on the CPU, to a few roundings on CUDA
     (different kernels, different FMA contraction); within the oracle's bounds."""
-    r = _script(CHECKPOINT, device)
+    r = _script(f"PRECISION = {precision!r}\n" + CHECKPOINT, device)
     limit = r.pop("limit")
-    assert limit == 38 and len(r) == 24
+    assert limit == 38 and len(r) == 12 and all(case.startswith(precision) for case in r)
     for case, v in r.items():
         _, _, steps, seg = case.split("-")
         steps = int(steps)
@@ -357,6 +388,7 @@ print("RESULT" + json.dumps(out))
 """
 
 
+@pytest.mark.early
 def test_fused_rollout_only_where_the_adstacks_hold_it():
     """Past the configured depth Taichi overflows its adstacks silently (wrong gradients, a crash
     or a hang), so longer rollouts must take the per-step path. At the limit, even with a contact
@@ -418,9 +450,10 @@ def test_repeated_run_neither_recompiles_nor_changes_outputs(device):
         assert v["repeatable"], case
 
 
+@pytest.mark.xdist_group("taichi-cells")
 def test_particle_trajectory_frames_match_the_oracle():
     """The scenario's check only verifies the frames' shape; compare their values here."""
-    params = {"n": 33, "steps": 57, "record_every": 7}
+    params = FRAMES
     _, outputs = _run("particles", "float64", params)
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)

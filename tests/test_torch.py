@@ -50,6 +50,7 @@ def _torch():
     return torch
 
 
+@pytest.mark.xdist_group("torch-cells")            # cells()' cache: its cells run once
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_outputs_have_the_cells_precision_and_tf32_is_recorded_off(precision):
     for scenario, (record, outputs) in cells(precision, "default").items():
@@ -87,6 +88,7 @@ def test_global_default_dtype_does_not_leak_into_a_cell(default):
     assert sc.check(p, sc.inputs(p, precision), out, sc.oracle(p, sc.inputs(p, precision), precision), precision).ok
 
 
+@pytest.mark.xdist_group("torch-cells")
 def test_compile_variant_equals_eager():
     eager, comp = cells("float64", "default"), cells("float64", "compile")
     for scenario, (record, outputs) in comp.items():

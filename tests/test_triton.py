@@ -167,6 +167,7 @@ def ptx() -> dict:
     return script(PTX, interpret=False)
 
 
+@pytest.mark.xdist_group("triton-ptx")
 @pytest.mark.parametrize("precision", ["float32", "float64"])
 def test_ptx_precision_ieee_division_and_fma(ptx, precision) -> None:
     t = "f32" if precision == "float32" else "f64"
@@ -188,6 +189,7 @@ def test_ptx_precision_ieee_division_and_fma(ptx, precision) -> None:
     assert f"sqrt.rn.{t}" in ptx[f"sdf-{precision}"]["ops"]
 
 
+@pytest.mark.xdist_group("triton-ptx")
 @pytest.mark.parametrize("precision", ["float32", "float64"])
 def test_ptx_saxpy_moves_16_bytes_per_access(ptx, precision) -> None:
     lanes = "v4.b32" if precision == "float32" else "v2.b64"
@@ -219,6 +221,7 @@ def interp_cells(backend: str, precision: str) -> dict:
     return _runs[key]
 
 
+@pytest.mark.xdist_group("triton-interpreted")      # interp_cells' cache: its cells run once
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("case", range(len(INTERP_CASES)),
                          ids=[f"{s}-" + ",".join(f"{k}={v}" for k, v in o.items()) for s, o in INTERP_CASES])
@@ -290,6 +293,7 @@ def adjoint() -> dict:
     return script(ADJOINT, interpret=True)
 
 
+@pytest.mark.xdist_group("triton-adjoint")
 def test_adjoint_matches_central_differences_and_the_closed_form(adjoint) -> None:
     assert len(adjoint["fd"]) == 6
     for case in adjoint["fd"]:
@@ -303,12 +307,14 @@ def test_adjoint_matches_central_differences_and_the_closed_form(adjoint) -> Non
             assert case["below"], "the projectile must penetrate the soft ground"
 
 
+@pytest.mark.xdist_group("triton-adjoint")
 def test_batch_rows_are_single_trajectories_bit_for_bit(adjoint) -> None:
     assert len(adjoint["rows"]) == 4
     for case in adjoint["rows"]:
         assert case["same"] == [True] * 6 and case["distinct"] == 6, case
 
 
+@pytest.mark.xdist_group("triton-adjoint")
 def test_set_input_reruns_at_the_new_inputs(adjoint) -> None:
     assert adjoint["set_input"] and adjoint["refuses_lr"]
 
