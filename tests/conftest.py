@@ -144,7 +144,8 @@ def shared_cell(name: str, cases: list[Case], backend: str, scenario: str, preci
                  for b, s, p, o, d, v in runnable]
         results = engine.run_cells(specs, timeout=900, share_process=True,
                                    probes={c[0]: probe(c[0]) for c in runnable})
-        _SHARED[name] = {_case_key(c): r for c, r in zip(runnable, results)}
+        # the record as the worker path's JSON object (what cells.run gives a test)
+        _SHARED[name] = {_case_key(c): (r.to_json(), o) for c, (r, o) in zip(runnable, results)}
     record, outputs = _SHARED[name][_case_key((backend, scenario, precision, params, device, variant))]
     assert record["status"] in ("ok", "mismatch"), \
         f"{record.get('reason')}\n{record.get('traceback', '')}"

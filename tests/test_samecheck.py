@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from compare import samecheck
+from compare.record import Record
 from compare.store import Store, array_file, save_arrays
 from conftest import ROOT
 
@@ -21,7 +22,8 @@ def record(backend: str, status: str = "ok") -> dict[str, Any]:
     return {"scenario": "saxpy", "backend": backend, "device": "cpu", "precision": "float32",
             "variant": "default", "params": {"n": 3, "a": 2.5, "inputs": "linspace", "seed": 0},
             "status": status, "reason": "" if status == "ok" else "error 1 exceeds tolerance 0.1",
-            "time": {"first_call_s": 1.5, "median_s": 0.1, "wall": {"median_s": 0.1},
+            "time": {"first_call_s": 1.5, "median_s": 0.1, "iqr_s": 0.01, "min_s": 0.09, "repeats": 10,
+                     "wall": {"median_s": 0.1, "iqr_s": 0.01, "min_s": 0.09},
                      "noise": {"noisy": False, "reasons": []}},
             "error": {"vs_oracle": 0.0, "tolerance": 1e-7, "vs_reference": 0.0, "metric": "max"},
             "memory": {"peak_host_rss_bytes": 100}, "host": "vm", "versions": {backend: "1.0"},
@@ -33,7 +35,7 @@ ARRAYS = {"a": np.array(2.5, np.float32), "x": np.arange(3, dtype=np.float32),
 
 
 def folder(path: Path, records: list[dict[str, Any]], arrays: dict[str, dict[str, np.ndarray]] | None = None) -> Path:
-    Store(path / "results.json", "run", [{"hostname": str(path)}], records).save()
+    Store(path / "results.json", "run", [{"hostname": str(path)}], [Record.from_json(r) for r in records]).save()
     for rec in records:
         if rec["status"] == "ok":
             save_arrays(path, rec, (arrays or {}).get(rec["backend"], ARRAYS))
@@ -49,7 +51,7 @@ def test_a_copy_is_the_same_and_measurements_do_not_count(base: Path, tmp_path: 
     recs = [record("warp"), record("numpy")]
     for r in recs:                    # another run: other timings, memory, host and versions
         r["time"].update(first_call_s=9.0, median_s=0.2)
-        r["time"]["noise"]["reasons"] = [{"why": "host busy"}]
+        r["time"]["noise"]["reasons"] = [{"why": "host busy", "regime": "latency"}]
         r["memory"]["peak_host_rss_bytes"] = 7
         r.update(host="other", versions={r["backend"]: "2.0"}, traceback="File x, line 9")
     b = folder(tmp_path / "b", recs)
@@ -76,7 +78,7 @@ def flip_bit(recs: list[dict[str, Any]], arrays: dict[str, dict[str, np.ndarray]
     (lambda r, a: r[0]["error"].update(vs_oracle=1e-9), ["saxpy/warp/cpu/float32/default: error.vs_oracle: "]),
     (lambda r, a: r[0]["info"].pop("threads"), ["saxpy/warp/cpu/float32/default: info.threads: only in A"]),
     (lambda r, a: r[0]["time"].update(events_s=1.0), ["saxpy/warp/cpu/float32/default: time.events_s: only in B"]),
-    (lambda r, a: r[0]["error"].update(metric=["max"]), ["saxpy/warp/cpu/float32/default: error.metric: "]),
+    (lambda r, a: r[0]["error"].update(metric="max abs"), ["saxpy/warp/cpu/float32/default: error.metric: "]),
     (lambda r, a: r[0]["params"].update(n=4), ['saxpy/warp/cpu/float32/default {"a": 2.5, "inputs": "linspace", '
                                                '"n": 3, "seed": 0}: cell only in A', '"n": 4, "seed": 0}: cell only in B']),
     (lambda r, a: r.pop(), ["saxpy/numpy/cpu/float32/default {", "}: cell only in A"]),
