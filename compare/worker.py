@@ -79,9 +79,10 @@ def apply_cache_policy(policy: str, backend: Backend, out_dir: Path) -> str:
     the framework is imported. Returns the note recorded with the time."""
     if policy == "warm":
         return "warm: framework default caches, which may hold kernels compiled by earlier runs"
-    env = backend.cache_environment(out_dir / "cache")
+    cache = out_dir / "cache"
+    env = backend.cache_environment(cache)
     for var, value in env.items():
-        if value:
+        if value and cache in Path(value).parents:     # a cache directory (not a flag's value)
             Path(value).mkdir(parents=True, exist_ok=True)
         os.environ[var] = value
     return "cold: " + (", ".join(f"{k} empty" if v else f"{k} off" for k, v in env.items())

@@ -56,3 +56,20 @@ def test_report_never_rewrites_its_input(tmp_path: Path) -> None:
     assert rc == 2 and "rewrite its input" in err, err
     assert (out / "results.json").read_bytes() == before
     assert main(["report", str(out / "results.json"), "--out", str(tmp_path / "merged")])[0] == 0
+
+
+def test_a_cold_cache_creates_only_cache_directories(tmp_path, monkeypatch):
+    """The cold-cache policy makes the backend's cache directories inside the cell's own folder
+    and nothing else: a flag's value (JAX's JAX_ENABLE_COMPILATION_CACHE=false) is not a path to
+    create in the working directory."""
+    import os
+
+    import backends
+    from compare.worker import apply_cache_policy
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(os, "environ", dict(os.environ))
+    cell = tmp_path / "cell"
+    note = apply_cache_policy("cold", backends.get("jax"), cell)
+    assert os.environ["JAX_ENABLE_COMPILATION_CACHE"] == "false" and note.startswith("cold")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cell"] or not any(tmp_path.iterdir())
+    assert not (tmp_path / "false").exists()
