@@ -28,7 +28,7 @@ import pytest
 
 import backends
 from compare import cells
-from conftest import ROOT, require_device, run_cell, run_script
+from conftest import ROOT, require_device, run_script, shared_cell
 
 pytestmark = pytest.mark.quadrants
 
@@ -37,9 +37,20 @@ SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 11
          "projectile": {"contact": "soft", "iters": 3}}
 
 
+def _cells() -> list:
+    """Every cell the tests marked xdist_group("quadrants-cells") run through the worker."""
+    return ([("quadrants", s, "float32", SMALL[s], "cpu", "fastmath") for s in ("sdf", "projectile")]
+            + [("quadrants", s, p, o, "cpu", "default") for s, o in SMALL.items()
+               for p in ("float64", "float32")]
+            + [(b, s, "float32", o, "cpu", "default") for b in ("quadrants", backends.reference())
+               for s, o in VS_WARP])
+
+
 def _run(scenario: str, precision: str, params: dict, device: str = "cpu",
          variant: str = "default", backend: str = "quadrants") -> tuple[dict, dict]:
-    return run_cell(backend, scenario, precision, params, device, variant)
+    """One cell through the worker path; the module's cells share a worker process per
+    precision and variant (conftest.shared_cell), each test asserts on its own."""
+    return shared_cell("quadrants-cells", _cells(), backend, scenario, precision, params, device, variant)
 
 
 def _script(body: str, device: str = "cpu") -> dict:
@@ -48,6 +59,7 @@ def _script(body: str, device: str = "cpu") -> dict:
 
 
 # ---- 1. variants --------------------------------------------------------------------------------
+@pytest.mark.xdist_group("quadrants-cells")
 @pytest.mark.parametrize("scenario", ["sdf", "projectile"])
 def test_fastmath_variant_runs_and_reports_a_finite_error(scenario):
     record, outputs = _run(scenario, "float32", SMALL[scenario], variant="fastmath")
@@ -56,6 +68,7 @@ def test_fastmath_variant_runs_and_reports_a_finite_error(scenario):
     assert all(np.all(np.isfinite(v)) for v in outputs.values())
 
 
+@pytest.mark.xdist_group("quadrants-cells")
 @pytest.mark.parametrize("scenario", list(SMALL))
 def test_default_variant_is_not_fast_math(scenario):
     record, _ = _run(scenario, "float32", SMALL[scenario])
@@ -76,6 +89,7 @@ def test_package_import_does_not_import_quadrants():
 
 
 # ---- 2. precision and operation order -----------------------------------------------------------
+@pytest.mark.xdist_group("quadrants-cells")
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 def test_outputs_have_the_cells_precision(precision):
     for scenario in SMALL:
@@ -88,6 +102,7 @@ VS_WARP = [("saxpy", {"n": 257, "inputs": "random", "seed": 3}), ("sdf", {}),
            ("projectile", {"contact": "hard"}), ("projectile", {"contact": "soft"})]
 
 
+@pytest.mark.xdist_group("quadrants-cells")
 @pytest.mark.parametrize("scenario,overrides", VS_WARP, ids=[f"{s}-{o}" for s, o in VS_WARP])
 def test_float32_agrees_with_warp_to_two_ulps(scenario, overrides):
     """Same algorithm, same operation order, same precision: a float64 literal or a reordered
