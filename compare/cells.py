@@ -14,7 +14,7 @@ from typing import Any, Callable
 import numpy as np
 
 from backends.base import DEVICES
-from compare import lifeline
+from compare import lifeline, phases
 from compare.spec import Cell, as_cell
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -89,6 +89,7 @@ def run_batch(specs: list[Cell | dict[str, Any]], timeout: float | None = 600.0,
         cmd = lifeline.command("compare.worker", str(tmp_path / "cells.json"), str(tmp_path))
         with tempfile.TemporaryFile("w+") as err:
             env = lifeline.child_environment(worker_env(batch[0].backend, batch[0].variant), tmp_path)
+            env[phases.LAUNCHED_ENV] = repr(time.time())
             proc = subprocess.Popen(cmd, cwd=ROOT, env=env,
                                     stdout=subprocess.DEVNULL, stderr=err, text=True, stdin=subprocess.DEVNULL)
             started, done = time.monotonic(), 0

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -19,7 +20,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options, report, run_plots, scaleout
+from compare import engine, environment, hardware, options, phases, report, run_plots, scaleout
 from compare.record import Record, plain
 from compare.spec import Cell, as_cell
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
@@ -218,7 +219,9 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     options.check_output(args.out)                    # a bad --out is refused before the probes
     refuse_overwrite(args)
     Store.open(args.out, "run", keep=args.resume)     # and a bad results.json to resume (read only)
+    began = time.perf_counter()
     probes = engine.availability(sorted({c.backend for c in cells}))
+    spent = {"probes": time.perf_counter() - began}
     local = args.scheduler in (None, "local")
     refuse = memory_refusal() if local else None
     blocked = [engine.not_runnable(c, probes) or (refuse(c) if refuse else None) for c in cells]
@@ -234,7 +237,7 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
             client.close()
         raise
     with lock:
-        return run_claimed(args, argv, cells, out, probes, client)
+        return run_claimed(args, argv, cells, out, probes, client, spent)
 
 
 def nothing_to_run(cells: list[Cell], blocked: list[tuple[str, str] | None]) -> None:
@@ -270,15 +273,20 @@ def arrays_saved(out: Path, rec: Record) -> bool:
 
 
 def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], out: Path,
-                probes: dict[str, dict[str, Any]], client: Any = None) -> int:
-    """The run, once its output directory is checked, has room and is locked by this driver."""
+                probes: dict[str, dict[str, Any]], client: Any = None,
+                spent: dict[str, float] | None = None) -> int:
+    """The run, once its output directory is checked, has room and is locked by this driver.
+    ``spent``: seconds the run's parts so far took (``compare.phases``)."""
     import platform
+    spent = dict(spent or {})
     store = RunStore.open(out, "run", keep=args.resume)
     env = store.env = environment.collect(argv)
     env["backends"] = probes
     # the framework-neutral yardstick of every device some backend can use, in this same run
+    t0 = time.perf_counter()
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in cells)
                        if any(p["available"].get(d) is None for p in probes.values())}
+    spent["yardstick"] = time.perf_counter() - t0
     store.runs = [*store.runs, env] if args.resume else [env]
     if args.resume:
         # kept cells a killed run finished before judging them get this machine's yardstick
@@ -301,9 +309,12 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
         if args.save_arrays and outs is not None:        # before its record is saved: a failed
             save_arrays(out, rec, outs)                  # write leaves the cell to be run again
         show(i, rec, outs)
+    t0 = time.perf_counter()
     results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=on_record,
                                refuse=memory_refusal() if client is None else None)
+    spent["cells"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]
     outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
@@ -316,8 +327,12 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
         store.put(r)
     store.save()
     render(out, env, records, outputs, plots=not args.no_plots, clean=not args.resume)
+    spent["tables and pictures"] = time.perf_counter() - t0
+    env["phases"] = {"run": spent, "cells": phases.cell_parts(r for r, _ in results)}
+    store.save()                # the run's parts beside its records
     print(report.tables(records, wide=args.wide))
     print("\n".join(report.summary_lines(records) + report.noise_lines(records) + [""]), end="")
+    print(phases.summary_line(spent, env["phases"]["cells"], len(results)))
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
     missing = [r for r, _ in results if args.save_arrays and r.status in ("ok", "mismatch")
                and not arrays_saved(out, r)]

@@ -26,7 +26,7 @@ import numpy as np
 import backends
 import scenarios
 from backends.base import Backend
-from compare import noise, scaleout, timing
+from compare import noise, phases, scaleout, timing
 from compare.nvml import open_nvml
 from compare.spec import Cell
 from compare.store import jsonable
@@ -129,12 +129,16 @@ def device_memory(be: Any, device: str) -> dict[str, Any]:
         return {"device_memory_error": f"{type(exc).__name__}: {exc}"}
 
 
-def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = False) -> dict[str, Any]:
-    """Build, time, download and check one cell. Exceptions propagate (the parent records them)."""
+def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = False,
+             laps: phases.Laps | None = None) -> dict[str, Any]:
+    """Build, time, download and check one cell. Exceptions propagate (the parent records them).
+    ``laps``: where the cell's time goes (``time.phases``), begun before the caller's part."""
+    laps = laps or phases.Laps()
     sc = scenarios.get(cell.scenario)
     be = backends.get(cell.backend)
     device, precision, variant, params = cell.device, cell.precision, cell.variant, cell.params
     inputs = sc.inputs(params, precision)
+    laps.lap("inputs")
 
     nvml, nvml_note = open_nvml(device)       # baseline before the framework touches the GPU
     if not set_up:
@@ -144,24 +148,29 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         nvml.mark_baseline()                  # the metric leaves the framework's context out
     sync = lambda r: be.synchronize(device, r)  # noqa: E731
     rss_before = current_rss_bytes()          # the host-memory baseline, framework started
+    laps.lap("framework")
     t0 = time.perf_counter()
     kernel = be.kernel(sc.name)(params, inputs, device, precision, variant)
     sync(None)
     setup_s = time.perf_counter() - t0
+    laps.lap("build")
     if nvml:
         nvml.sample()
     first_call_s = timing.call(kernel.run, sync)
+    laps.lap("first_call")
     if nvml:
         nvml.sample()
     timer, clock = timing.event_timer(be, device, cell.timer)
     meter = noise.HostMeter()
     t = timing.steady_state(kernel.run, sync, warmup=cell.warmup, repeat=cell.repeat, min_time=cell.min_time,
                             max_time=cell.max_time, timer=timer)
+    laps.lap("steady")
     if nvml:
         nvml.sample()
     regimes = {"latency": {k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")} | {"repeats": t["repeats"]}}
     if cell.throughput:
         regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=cell.max_time)
+        laps.lap("throughput")
         if nvml:
             nvml.sample()
     host = meter.stop()
@@ -169,6 +178,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     t0 = time.perf_counter()
     got = kernel.outputs()
     download_s = time.perf_counter() - t0
+    laps.lap("download")
     if not isinstance(got, dict):
         raise ContractError(f"contract: outputs() returned {type(got).__name__}, not a dict of arrays")
     outputs = {k: np.asarray(v) for k, v in got.items()}
@@ -189,9 +199,11 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
 
     if cell.throughput:     # after the download: a failed capture cannot touch the outputs
         regimes["graph"] = graph_regime(be, device, kernel, sync, cell.max_time)
+        laps.lap("graph")
     if cell.host_profile and "throughput" in regimes:   # after the peaks and the download too
         calls = max(20, min(regimes["throughput"]["k"], 2000))
         regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, cell.host_profile)
+        laps.lap("host_profile")
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
@@ -200,6 +212,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     reference = sc.oracle(params, c_in, precision)
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
+    laps.lap("check")
     times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
              "clock": timing.CLOCK if "events_error" in t else clock,
              "timer": "events" if timer is not None and "events_error" not in t else "wall",
@@ -244,6 +257,9 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         np.savez(out_dir / "outputs.npz", **outputs)
     if cell.save_inputs:
         np.savez(out_dir / "inputs.npz", **inputs)
+    if cell.save_outputs or cell.save_inputs:
+        laps.lap("save")
+    times["phases"] = {k: round(v, 4) for k, v in laps.spent.items()}
     return record
 
 
@@ -256,6 +272,7 @@ _SET_UP: set[tuple[str, str, str, str]] = set()
 
 def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
     """One cell of the batch: its record (and outputs) in ``cell_dir``, whatever happens."""
+    laps = phases.Laps(phases.since_launch() if not _SET_UP else 0.0)   # the process start: first cell only
     cell_dir.mkdir(parents=True, exist_ok=True)
     try:
         cell = Cell.from_dict(raw)
@@ -269,7 +286,7 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
         ident = (cell.backend, str(cell.device), str(cell.precision), cell.variant)
         if _SET_UP and ident not in _SET_UP:
             raise ValueError(f"cells sharing a worker must share backend, device, precision and variant; got {ident}")
-        record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP)
+        record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps)
         _SET_UP.add(ident)
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
         record = {"status": "error", "reason": str(exc)}
