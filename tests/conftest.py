@@ -8,6 +8,9 @@ from typing import Any
 
 import pytest
 
+# the tests' helper modules assert too: pytest's messages for their failures as for the tests'
+pytest.register_assert_rewrite("hand_adjoint", "oracle_checks")
+
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))

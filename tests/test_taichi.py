@@ -23,11 +23,9 @@ import numpy as np
 import pytest
 
 import backends
-import scenarios
 from compare import cells
 from conftest import ROOT, require_device, run_script, shared_cell
-from scenarios.projectile import CONSTANTS
-from scenarios.projectile_adjoint import finite_difference_gradient, loss_of, rollout
+from oracle_checks import FD, FRAMES, assert_frames_match_the_oracle, assert_gradient_matches_finite_differences
 
 pytestmark = pytest.mark.taichi
 
@@ -35,10 +33,6 @@ PRECISIONS = ("float64", "float32")
 SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 11, "height": 7},
          "particles": {"n": 33, "steps": 57, "record_every": 7},
          "projectile": {"contact": "soft", "iters": 3}}
-
-
-FD = [{"contact": c, "iters": 0} for c in ("hard", "soft")]
-FRAMES = {"n": 33, "steps": 57, "record_every": 7}
 
 
 def _cells() -> list:
@@ -132,22 +126,7 @@ def test_float32_agrees_with_warp_to_two_ulps(scenario, overrides):
 @pytest.mark.parametrize("contact", ["hard", "soft"])
 def test_gradient_matches_finite_differences_of_the_oracle(contact, device):
     params = next(o for o in FD if o["contact"] == contact)
-    _, outputs = _run("projectile", "float64", params, device)
-    sc = scenarios.get("projectile")
-    p = sc.params(params, quick=True)
-    inputs = sc.inputs(p, "float64")
-    c = {k: float(inputs[k]) for k in CONSTANTS}
-    _, tape = rollout(c, contact, p.steps, *map(float, inputs["v0"]))
-    if contact == "hard":
-        assert any(t[-1] for t in tape), "the contact must fire for the test to mean anything"
-    else:
-        assert any(t[1][1] < 0 for t in tape), "the projectile must penetrate the soft ground"
-
-    v0 = inputs["v0"].astype(np.float64)
-    fd = finite_difference_gradient(c, contact, p.steps, v0)
-    grad = outputs["grad"]
-    assert np.all(np.abs(grad - fd) <= 1e-6 * np.abs(fd) + 1e-9 * np.max(np.abs(fd))), (grad, fd)
-    assert float(outputs["loss"]) == pytest.approx(loss_of(c, contact, p.steps, v0), rel=1e-13)
+    assert_gradient_matches_finite_differences(_run("projectile", "float64", params, device)[1], params)
 
 
 PATHS = """
@@ -452,12 +431,4 @@ def test_repeated_run_neither_recompiles_nor_changes_outputs(device):
 
 @pytest.mark.xdist_group("taichi-cells")
 def test_particle_trajectory_frames_match_the_oracle():
-    """The scenario's check only verifies the frames' shape; compare their values here."""
-    params = FRAMES
-    _, outputs = _run("particles", "float64", params)
-    sc = scenarios.get("particles")
-    p = sc.params(params, quick=True)
-    ref = sc.oracle(p, sc.inputs(p, "float64"), "float64")
-    for k in ("traj_x", "traj_y"):
-        assert outputs[k].shape == ref[k].shape == (57 // 7 + 1, 33)
-        np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)
+    assert_frames_match_the_oracle(_run("particles", "float64", FRAMES)[1])
