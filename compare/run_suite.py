@@ -88,7 +88,7 @@ def cell_bytes(spec: Cell | dict[str, Any]) -> tuple[float, float, float]:
 def check_memory(specs: list[Cell | dict[str, Any]], driver: bool = True, worker: bool = True) -> None:
     """Refuse a plan this machine's AVAILABLE memory cannot hold, before any worker starts: the
     largest cell's worker (interpreter and framework + Scenario.footprint, a bound checked
-    against measured peaks by tests/test_reliability.py) plus, with ``driver``, the outputs the
+    against measured peaks by tests/test_memory_guard.py) plus, with ``driver``, the outputs the
     driver keeps of every cell until the report is written."""
     import psutil
     if not specs:

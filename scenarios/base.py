@@ -257,7 +257,7 @@ class Scenario:
         framework's copies, outputs, oracle and check temporaries), beyond the interpreter and
         framework (compare.run_suite.WORKER_BASELINE_BYTES, per device). ``device``: where the
         framework's own working copies live (on a GPU they are not host memory). An upper bound: the run suite
-        refuses sizes whose bound exceeds the available memory, and tests/test_reliability.py
+        refuses sizes whose bound exceeds the available memory, and tests/test_memory_guard.py
         checks it against measured peaks."""
         return 0.0
 

@@ -8,6 +8,9 @@ from typing import Any
 
 import pytest
 
+# the tests' helper modules assert too: pytest's messages for their failures as for the tests'
+pytest.register_assert_rewrite("hand_adjoint", "oracle_checks", "reliability_checks")
+
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -46,7 +49,9 @@ def pytest_runtest_setup(item):
 
 
 def _figures() -> dict | None:
-    return getattr(sys.modules.get("test_reliability"), "FIGURES", None)
+    """This process's reliability figures; none where no reliability test was imported (the
+    xdist controller), which gathers the workers' instead."""
+    return getattr(sys.modules.get("reliability_checks"), "FIGURES", None)
 
 
 _GATHERED: dict[str, Any] = {}         # the workers' reliability figures (controller, under xdist)
@@ -83,7 +88,7 @@ def pytest_runtest_makereport(item, call):
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
-    """The adversarial tally and tests/test_reliability.py's figures (docs/reliability.md)."""
+    """The adversarial tally and the reliability tests' figures (tests/reliability_checks.py)."""
     tr = terminalreporter
     figures = _figures() or _GATHERED
     tally = adversarial.lines()

@@ -1,7 +1,30 @@
-"""The GPU check every hand-adjoint backend's projectile shares (tests/test_cupy.py,
-tests/test_triton.py): row 0 of a batch equals the single trajectory bitwise for each contact,
-and a captured run replayed after ``set_input`` gives what a fresh kernel gives."""
+"""The GPU checks the hand-adjoint backends share (tests/test_cupy.py, tests/test_triton.py):
+every scenario's cell times with CUDA events, replays a CUDA graph and reports a device memory
+peak; row 0 of a projectile batch equals the single trajectory bitwise for each contact, and a
+captured run replayed after ``set_input`` gives what a fresh kernel gives."""
 from __future__ import annotations
+
+import numpy as np
+
+from compare import cells
+
+GPU_CASES = [("saxpy", {}), ("sdf", {}), ("particles", {"record_every": 30}), ("launch", {}), ("copy", {}),
+             ("projectile", {"contact": "hard"}), ("projectile", {"contact": "soft"}),
+             ("projectile", {"contact": "soft", "batch": 37})]
+
+
+def assert_gpu_cell_with_events_graph_and_memory(backend: str, scenario: str, overrides: dict,
+                                                 precision: str) -> None:
+    """One GPU cell through the worker path, with the throughput regime (its graph replay)."""
+    spec = {"scenario": scenario, "backend": backend, "device": "cuda", "precision": precision,
+            "params": overrides, "quick": True, "repeat": 3, "min_time": 0.0, "throughput": True}
+    record, outputs = cells.run(spec, timeout=600)
+    assert record["status"] == "ok", f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
+    assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
+    assert record["time"]["timer"] == "events", record["time"].get("clock")
+    graph = record["time"].get("graph", {})
+    assert "failed" not in graph and "unavailable" not in graph, graph
+    assert record["memory"].get("device_peak_bytes", 0) > 0, record["memory"]
 
 _BODY = """b = backends.get("__BACKEND__"); b.setup("cuda", "float32", "default"); b.ensure_context("cuda")
 sc = scenarios.get("projectile")

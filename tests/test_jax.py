@@ -11,11 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-import scenarios
 from compare import cells
 from conftest import ROOT, require_device, shared_cell
-from scenarios.projectile import CONSTANTS
-from scenarios.projectile_adjoint import finite_difference_gradient, loss_of
+from oracle_checks import FD, FRAMES, assert_frames_match_the_oracle, assert_gradient_matches_finite_differences
 
 pytestmark = pytest.mark.jax
 
@@ -33,8 +31,6 @@ def _run(scenario: str, precision: str, params: dict, device: str = "cpu", varia
     return record, outputs
 
 
-FD = [{"contact": c, "iters": 0} for c in ("hard", "soft")]
-FRAMES = {"n": 33, "steps": 57, "record_every": 7}
 CELLS = ([("jax", s, p, o, "cpu", "default") for s, o in SMALL.items() for p in ("float64", "float32")]
          + [("jax", "projectile", "float64", o, "cpu", "default") for o in FD]
          + [("jax", "particles", "float64", FRAMES, "cpu", "default")])
@@ -72,29 +68,12 @@ def test_back_to_back_cells_keep_their_own_precision():
 @pytest.mark.parametrize("contact", ["hard", "soft"])
 def test_gradient_matches_finite_differences_of_the_oracle(contact):
     params = next(o for o in FD if o["contact"] == contact)
-    _, outputs = _shared("projectile", "float64", params)
-    sc = scenarios.get("projectile")
-    p = sc.params(params, quick=True)
-    inputs = sc.inputs(p, "float64")
-    c = {k: float(inputs[k]) for k in CONSTANTS}
-
-    v0 = inputs["v0"].astype(np.float64)
-    fd = finite_difference_gradient(c, contact, p.steps, v0)
-    grad = outputs["grad"]
-    assert np.all(np.abs(grad - fd) <= 1e-6 * np.abs(fd) + 1e-9 * np.max(np.abs(fd))), (grad, fd)
-    assert float(outputs["loss"]) == pytest.approx(loss_of(c, contact, p.steps, v0), rel=1e-13)
+    assert_gradient_matches_finite_differences(_shared("projectile", "float64", params)[1], params)
 
 
 @pytest.mark.xdist_group("jax-cells")
 def test_particle_trajectory_frames_match_the_oracle():
-    params = FRAMES
-    _, outputs = _shared("particles", "float64", params)
-    sc = scenarios.get("particles")
-    p = sc.params(params, quick=True)
-    ref = sc.oracle(p, sc.inputs(p, "float64"), "float64")
-    for k in ("traj_x", "traj_y"):
-        assert outputs[k].shape == ref[k].shape == (57 // 7 + 1, 33)
-        np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)
+    assert_frames_match_the_oracle(_shared("particles", "float64", FRAMES)[1])
 
 
 @pytest.mark.xdist_group("jax-cells")

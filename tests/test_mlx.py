@@ -13,6 +13,7 @@ import pytest
 import scenarios
 from compare import cells
 from conftest import require_device, run_script
+from oracle_checks import FRAMES, assert_frames_match_the_oracle
 from scenarios.projectile import CONSTANTS
 from scenarios.projectile_adjoint import closed_form, finite_difference_gradient, loss_of
 
@@ -108,14 +109,7 @@ def test_gradient_matches_finite_differences_of_the_oracle(contact, batch):
 
 
 def test_particle_trajectory_frames_match_the_oracle():
-    params = {"n": 33, "steps": 57, "record_every": 7}
-    _, outputs = _run("particles", "float64", params)
-    sc = scenarios.get("particles")
-    p = sc.params(params, quick=True)
-    ref = sc.oracle(p, sc.inputs(p, "float64"), "float64")
-    for k in ("traj_x", "traj_y"):
-        assert outputs[k].shape == ref[k].shape == (57 // 7 + 1, 33)
-        np.testing.assert_allclose(outputs[k], ref[k], rtol=0, atol=1e-13)
+    assert_frames_match_the_oracle(_run("particles", "float64", FRAMES)[1])
 
 
 LAZY = """

@@ -31,7 +31,7 @@ import backends
 import scenarios
 from compare import cells
 from conftest import ROOT, availability
-from hand_adjoint import row0_and_replay
+from hand_adjoint import GPU_CASES, assert_gpu_cell_with_events_graph_and_memory, row0_and_replay
 
 pytestmark = pytest.mark.triton
 
@@ -326,24 +326,11 @@ def require_gpu() -> None:
         pytest.skip(f"Triton's compiled kernels run on a CUDA GPU only; {why}")
 
 
-GPU_CASES = [("saxpy", {}), ("sdf", {}), ("particles", {"record_every": 30}), ("launch", {}), ("copy", {}),
-             ("projectile", {"contact": "hard"}), ("projectile", {"contact": "soft"}),
-             ("projectile", {"contact": "soft", "batch": 37})]
-
-
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("scenario,overrides", GPU_CASES, ids=[f"{s}-{o}" for s, o in GPU_CASES])
 def test_gpu_cell_with_events_graph_and_memory(scenario, overrides, precision) -> None:
     require_gpu()
-    spec = {"scenario": scenario, "backend": "triton", "device": "cuda", "precision": precision,
-            "params": overrides, "quick": True, "repeat": 3, "min_time": 0.0, "throughput": True}
-    record, outputs = cells.run(spec, timeout=600)
-    assert record["status"] == "ok", f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
-    assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
-    assert record["time"]["timer"] == "events", record["time"].get("clock")
-    graph = record["time"].get("graph", {})
-    assert "failed" not in graph and "unavailable" not in graph, graph
-    assert record["memory"].get("device_peak_bytes", 0) > 0, record["memory"]
+    assert_gpu_cell_with_events_graph_and_memory("triton", scenario, overrides, precision)
 
 
 GPU_SCRIPT = row0_and_replay("triton", 300)
