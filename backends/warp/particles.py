@@ -18,6 +18,8 @@ import functools
 import numpy as np
 import warp as wp
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import launcher, wp_device, wp_scalar
 from ..base import ScenarioKernel
 
@@ -81,12 +83,12 @@ class Kernel(ScenarioKernel):
         self.kernel = _rollout(scalar)
         self.params = params
         arr = lambda a: wp.array(a, dtype=scalar, device=self.dev)  # noqa: E731
-        self.state0 = [arr(inputs[k]) for k in ("x0", "y0", "vx0", "vy0")]
+        self.state0 = [arr(inputs[k]) for k in INITIAL]
         self.state = [wp.empty(params.n, dtype=scalar, device=self.dev) for _ in range(4)]
-        frames = params.steps // params.record_every + 1 if params.record_every else 0
+        frames = n_frames(params)
         shape = (frames, params.n) if frames else (0, 0)
         self.traj = [wp.empty(shape, dtype=scalar, device=self.dev) for _ in range(2)]
-        self.consts = [scalar(float(inputs[k])) for k in ("dt", "gravity", "damping", "bounce", "radius")]
+        self.consts = [scalar(float(inputs[k])) for k in CONSTANTS]
         self.launch = launcher(variant, self.kernel, params.n,
                                [params.steps, params.record_every, *self.consts, *self.state0],
                                [*self.state, *self.traj], self.dev)
@@ -95,7 +97,7 @@ class Kernel(ScenarioKernel):
         self.launch()
 
     def outputs(self) -> dict[str, np.ndarray]:
-        out = dict(zip(("x", "y", "vx", "vy"), (a.numpy() for a in self.state)))
+        out = dict(zip(STATE, (a.numpy() for a in self.state)))
         if self.params.record_every:
             out["traj_x"], out["traj_y"] = (a.numpy() for a in self.traj)
         return out
@@ -167,10 +169,10 @@ class RacyOneLaunch(ScenarioKernel):
         self.k_init, self.k_steps = _racy_kernels(scalar)
         self.params = params
         arr = lambda a: wp.array(a, dtype=scalar, device=self.dev)  # noqa: E731
-        self.state0 = [arr(inputs[k]) for k in ("x0", "y0", "vx0", "vy0")]
+        self.state0 = [arr(inputs[k]) for k in INITIAL]
         size = (params.steps + 1) * params.n
         self.hist = [wp.zeros(size, dtype=scalar, device=self.dev) for _ in range(4)]
-        self.consts = [scalar(float(inputs[k])) for k in ("dt", "gravity", "damping", "bounce", "radius")]
+        self.consts = [scalar(float(inputs[k])) for k in CONSTANTS]
 
     def run(self):
         p = self.params
@@ -184,7 +186,7 @@ class RacyOneLaunch(ScenarioKernel):
     def outputs(self) -> dict[str, np.ndarray]:
         p = self.params
         hist = [h.numpy().reshape(p.steps + 1, p.n) for h in self.hist]
-        out = dict(zip(("x", "y", "vx", "vy"), (h[-1].copy() for h in hist)))
+        out = dict(zip(STATE, (h[-1].copy() for h in hist)))
         if p.record_every:
             out["traj_x"], out["traj_y"] = (h[::p.record_every].copy() for h in hist[:2])
         return out
