@@ -14,6 +14,7 @@ the result happens to be right; on a GPU the blocks of different steps run concu
 """
 
 import functools
+from typing import Any
 
 import numpy as np
 import warp as wp
@@ -22,6 +23,26 @@ from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
 
 from . import launcher, wp_device, wp_scalar
 from ..base import ScenarioKernel
+
+
+@wp.func
+def step(x: Any, y: Any, u: Any, v: Any, gdt: Any, dt: Any, damping: Any, bounce: Any, radius: Any,
+         lo: Any, hi: Any):
+    """One step of one particle in the scenario's order (both kernels below take it)."""
+    v = v + gdt
+    x = x + u * dt
+    y = y + v * dt
+    if y < radius:
+        y = radius
+        v = -bounce * v
+        u = damping * u
+    if x < lo:
+        x = lo
+        u = -bounce * u
+    if x > hi:
+        x = hi
+        u = -bounce * u
+    return x, y, u, v
 
 
 @functools.cache
@@ -46,19 +67,7 @@ def _rollout(scalar):
             traj_x[0, p] = x
             traj_y[0, p] = y
         for s in range(steps):
-            v = v + gdt
-            x = x + u * dt
-            y = y + v * dt
-            if y < radius:
-                y = radius
-                v = -bounce * v
-                u = damping * u
-            if x < lo:
-                x = lo
-                u = -bounce * u
-            if x > hi:
-                x = hi
-                u = -bounce * u
+            x, y, u, v = step(x, y, u, v, gdt, dt, damping, bounce, radius, lo, hi)
             if record_every > 0:
                 if (s + 1) % record_every == 0:
                     f = (s + 1) // record_every
@@ -127,25 +136,11 @@ def _racy_kernels(scalar):
         p = tid - s * n              # which particle
         i0 = s * n + p
         i1 = (s + 1) * n + p
-        x = px[i0]                   # RACE: written by thread (s-1, p) of this same launch
-        y = py[i0]
-        u = vx[i0]
-        v = vy[i0]
-        v = v + gravity * dt
-        x = x + u * dt
-        y = y + v * dt
         lo = scalar(-1.0) + radius
         hi = scalar(1.0) - radius
-        if y < radius:
-            y = radius
-            v = -bounce * v
-            u = damping * u
-        if x < lo:
-            x = lo
-            u = -bounce * u
-        if x > hi:
-            x = hi
-            u = -bounce * u
+        # RACE: step s was written by thread (s-1, p) of this same launch
+        x, y, u, v = step(px[i0], py[i0], vx[i0], vy[i0], gravity * dt, dt, damping, bounce, radius,
+                          lo, hi)
         px[i1] = x
         py[i1] = y
         vx[i1] = u
