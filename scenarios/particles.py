@@ -35,7 +35,10 @@ import numpy as np
 
 from .base import Check, Precision, Scenario, UNIT_ROUNDOFF, dtype_of, require
 
+# The input and output names every port uses, in kernel-argument order (one list for all ports).
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
+INITIAL = ("x0", "y0", "vx0", "vy0")
+STATE = ("x", "y", "vx", "vy")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +83,7 @@ def initial_state(params: ParticlesParams) -> dict[str, np.ndarray]:
 
 
 def n_frames(params: ParticlesParams) -> int:
+    """Trajectory frames kept (frame 0 the initial state); 0 when ``record_every`` is 0."""
     return params.steps // params.record_every + 1 if params.record_every else 0
 
 
@@ -92,6 +96,14 @@ def constants(inputs: dict[str, np.ndarray], dtype: type[np.floating] = np.float
     one = dtype(1.0)
     c.update(lo=-one + c["radius"], hi=one - c["radius"], gdt=c["gravity"] * c["dt"])
     return c
+
+
+def step_constants(inputs: dict[str, np.ndarray], dtype: type[np.floating]) -> dict[str, np.floating]:
+    """What a whole-array port's step reads (NumPy, MLX): dt, gdt, damping, radius, lo, hi of
+    ``constants`` and nbounce = -bounce, negated once since -bounce*v == (-bounce)*v exactly."""
+    c = constants(inputs, dtype)
+    return {"dt": c["dt"], "gdt": c["gdt"], "damping": c["damping"], "nbounce": -c["bounce"],
+            "radius": c["radius"], "lo": c["lo"], "hi": c["hi"]}
 
 
 def fly(x, y, u, v, c):
@@ -119,7 +131,7 @@ def simulate(inputs: dict[str, np.ndarray], steps: int, dtype: type[np.floating]
     initial state in ``inputs``. Returns ((x, y, u, v), steps taken); with ``until_nonfinite``
     it stops after the first step that leaves some state value non-finite."""
     c = constants(inputs, dtype)
-    x, y, u, v = (np.asarray(inputs[k]).astype(dtype) for k in ("x0", "y0", "vx0", "vy0"))
+    x, y, u, v = (np.asarray(inputs[k]).astype(dtype) for k in INITIAL)
     with np.errstate(all="ignore"):
         for s in range(1, steps + 1):
             x, y, u, v = fly(x, y, u, v, c)
@@ -153,7 +165,7 @@ class Particles(Scenario):
     title = "Bouncing particles"
     Params = ParticlesParams
     quick = {"n": 1000, "steps": 300}     # n not a multiple of any block size
-    outputs = ("x", "y", "vx", "vy")
+    outputs = STATE
     item = "particles"
 
     def inputs(self, params: ParticlesParams, precision: str) -> dict[str, np.ndarray]:
@@ -217,7 +229,7 @@ class Particles(Scenario):
     def state_error(outputs, other) -> np.ndarray:
         """Per particle, the largest difference of any state component (x, y, vx, vy)."""
         return np.max([np.abs(np.asarray(outputs[k], np.float64) - np.asarray(other[k], np.float64))
-                       for k in ("x", "y", "vx", "vy")], axis=0)
+                       for k in STATE], axis=0)
 
     def check(self, params, inputs, outputs, reference, precision) -> Check:
         err = self.state_error(outputs, reference)

@@ -11,11 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import THREADS_PER_BLOCK, blocks, empty, kernel_info, prelude, raw_kernel, scalar_type, upload
 from ..base import ScenarioKernel
-
-CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
-STATE = ("x", "y", "vx", "vy")
 
 BODY = r"""
 extern "C" __global__ void particles(
@@ -86,10 +85,10 @@ class Kernel(ScenarioKernel):
         S = scalar_type(precision)
         self.params = params
         self.fn = compiled(precision)
-        frames = params.steps // params.record_every + 1 if params.record_every else 0
+        frames = n_frames(params)
         traj_shape = (frames, params.n) if frames else (0, 0)
         consts = [S(inputs[k]) for k in CONSTANTS]          # typed scalars, like Warp's
-        self.state0 = [upload(inputs[k], S) for k in ("x0", "y0", "vx0", "vy0")]
+        self.state0 = [upload(inputs[k], S) for k in INITIAL]
         self.state = [empty(params.n, S) for _ in STATE]
         self.traj = [empty(traj_shape, S) for _ in range(2)]
         self.grid = (blocks(params.n),)

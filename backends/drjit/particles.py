@@ -13,11 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import download, fast_math, jit_module, real_type, scalar, upload
 from ..base import ScenarioKernel
-
-STATE = ("x0", "y0", "vx0", "vy0")
-CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
 
 
 def rollout(steps: int, record_every: int, state: tuple, c: dict[str, Any], uint: Any,
@@ -73,9 +72,9 @@ class Kernel(ScenarioKernel):
         cls = real_type(device, precision)
         self.uint = jit_module(device).UInt32
         self.params, self.dtype = params, np.dtype(precision)
-        self.state0 = tuple(upload(inputs[k], cls) for k in STATE)
+        self.state0 = tuple(upload(inputs[k], cls) for k in INITIAL)
         self.consts = {k: scalar(inputs[k], cls) for k in CONSTANTS}
-        self.frames = params.steps // params.record_every + 1 if params.record_every else 0
+        self.frames = n_frames(params)
         # frames * n <= 2^31 - 1 (the scenario's limit), so UInt32 indices cannot overflow
         self.traj = (tuple(dr.empty(cls, self.frames * params.n) for _ in range(2))
                      if self.frames else None)
@@ -92,7 +91,7 @@ class Kernel(ScenarioKernel):
 
     def outputs(self) -> dict[str, np.ndarray]:
         n = self.params.n
-        out = {k: download(a, self.dtype, (n,)) for k, a in zip(("x", "y", "vx", "vy"), self.state)}
+        out = {k: download(a, self.dtype, (n,)) for k, a in zip(STATE, self.state)}
         if self.traj:
             # a copy: the next run() scatters into the same buffers
             out["traj_x"], out["traj_y"] = (download(t, self.dtype, (self.frames, n)).copy()

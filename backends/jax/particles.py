@@ -15,11 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import Program, jax_device, jax_dtype, put
 from ..base import ScenarioKernel
-
-STATE = ("x0", "y0", "vx0", "vy0")
-CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
 # Steps per loop iteration: XLA:GPU pays ~10 us per while-loop trip, and 16 steps of scalar or
 # elementwise work fuse into a few kernels (measured on an H100/H200: 10-16x faster than 1; 64 made
 # compiles take 10-20 s). On CPU unrolling gained little or lost, so it stays 1 there.
@@ -78,13 +77,12 @@ class Kernel(ScenarioKernel):
         import jax.numpy as jnp
         dev = jax_device(device)
         self.params = params
-        self.state0 = tuple(put(inputs[k], precision, dev) for k in STATE)
+        self.state0 = tuple(put(inputs[k], precision, dev) for k in INITIAL)
         self.consts = tuple(put(inputs[k], precision, dev) for k in CONSTANTS)
         dt = jax_dtype(precision)
         out = [jnp.empty(params.n, dtype=dt, device=dev) for _ in range(4)]
         if params.record_every:
-            frames = params.steps // params.record_every + 1
-            out += [jnp.empty((frames, params.n), dtype=dt, device=dev) for _ in range(2)]
+            out += [jnp.empty((n_frames(params), params.n), dtype=dt, device=dev) for _ in range(2)]
         self.out = tuple(out)
         self.unroll = unroll = UNROLL[device] if unroll is None else unroll
         fn = functools.partial(_rollout, params.steps, params.record_every, unroll)
@@ -95,8 +93,7 @@ class Kernel(ScenarioKernel):
         return self.out
 
     def outputs(self) -> dict[str, np.ndarray]:
-        names = ("x", "y", "vx", "vy", "traj_x", "traj_y")
-        return {k: np.asarray(a) for k, a in zip(names, self.out)}
+        return {k: np.asarray(a) for k, a in zip((*STATE, "traj_x", "traj_y"), self.out)}
 
     def info(self) -> dict[str, Any]:
         return {**self.program.info(), "loop": "lax.fori_loop over steps, vectorised over particles",

@@ -19,11 +19,11 @@ from typing import Any
 import numpy as np
 
 from scenarios.base import dtype_of
+from scenarios.particles import INITIAL, STATE, step_constants
 
 from . import Program, download, kernel_info, launch, put
 from ..base import ScenarioKernel
 
-STATE = ("x0", "y0", "vx0", "vy0")
 CHUNK = 32          # steps per async_eval: overlaps graph building with computing
 
 
@@ -48,16 +48,10 @@ def _step(x: Any, y: Any, u: Any, v: Any, c: dict[str, Any]) -> tuple[Any, Any, 
 class Kernel(ScenarioKernel):
     def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
                  variant: str) -> None:
-        S = dtype_of(precision)
         self.params, self.device, self.precision = params, device, precision
-        dt, gravity, damping, bounce, radius = (S(inputs[k]) for k in
-                                                ("dt", "gravity", "damping", "bounce", "radius"))
-        # derived once per run, rounded in the cell's dtype as the oracle's constants() does;
-        # -bounce*v == (-bounce)*v exactly
-        consts = {"dt": dt, "gdt": gravity * dt, "damping": damping, "nbounce": -bounce,
-                  "radius": radius, "lo": S(-1.0) + radius, "hi": S(1.0) - radius}
-        self.c = {k: put(v, precision) for k, v in consts.items()}
-        self.state0 = tuple(put(inputs[k], precision) for k in STATE)
+        # derived once per run (gdt, lo, hi), rounded in the cell's dtype as the oracle's are
+        self.c = {k: put(v, precision) for k, v in step_constants(inputs, dtype_of(precision)).items()}
+        self.state0 = tuple(put(inputs[k], precision) for k in INITIAL)
         self.step = Program(_step)
         self.out: tuple[Any, ...] = ()
 
@@ -80,8 +74,7 @@ class Kernel(ScenarioKernel):
         return self.out
 
     def outputs(self) -> dict[str, np.ndarray]:
-        names = ("x", "y", "vx", "vy", "traj_x", "traj_y")
-        return {k: download(a, self.precision) for k, a in zip(names, self.out)}
+        return {k: download(a, self.precision) for k, a in zip((*STATE, "traj_x", "traj_y"), self.out)}
 
     def info(self) -> dict[str, Any]:
         return kernel_info(self.device, self.precision, self.step,

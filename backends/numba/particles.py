@@ -26,11 +26,11 @@ try:
 except ImportError:          # CPU-only install
     cuda = None
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import THREADS_PER_BLOCK, blocks, kernel_info, launch_stream, scalar_type, use_fastmath
 from ..base import ScenarioKernel
 
-CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
-STATE = ("x", "y", "vx", "vy")
 # CPU particles per prange iteration: a few SIMD registers' worth and L1-resident (4 arrays x
 # 256 x 8 bytes), fewer when n is small, so that every thread gets a chunk.
 CHUNK = 256
@@ -134,10 +134,10 @@ class Kernel(ScenarioKernel):
                  variant: str) -> None:
         S = scalar_type(precision)
         self.device, self.fastmath, self.params = device, use_fastmath(variant), params
-        frames = params.steps // params.record_every + 1 if params.record_every else 0
+        frames = n_frames(params)
         traj_shape = (frames, params.n) if frames else (0, 0)
         consts = [S(inputs[k]) for k in CONSTANTS]          # typed scalars, like Warp's
-        state0 = [np.ascontiguousarray(inputs[k]) for k in ("x0", "y0", "vx0", "vy0")]
+        state0 = [np.ascontiguousarray(inputs[k]) for k in INITIAL]
         if device == "cuda":
             state0 = [cuda.to_device(a) for a in state0]
             self.state = [cuda.device_array(params.n, dtype=S) for _ in STATE]

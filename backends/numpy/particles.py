@@ -14,11 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.particles import INITIAL, STATE, n_frames, step_constants
+
 from . import kernel_info, scalar_type
 from ..base import ScenarioKernel
-
-CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
-STATE = ("x", "y", "vx", "vy")
 
 
 class Kernel(ScenarioKernel):
@@ -26,16 +25,13 @@ class Kernel(ScenarioKernel):
                  variant: str) -> None:
         S = scalar_type(precision)
         self.params = params
-        dt, gravity, damping, bounce, radius = (S(inputs[k]) for k in CONSTANTS)
-        # derived once per run, as Warp's kernel does: gdt, lo, hi; -bounce*v == (-bounce)*v exactly
-        self.c = {"dt": dt, "gdt": gravity * dt, "damping": damping, "nbounce": -bounce,
-                  "radius": radius, "lo": S(-1.0) + radius, "hi": S(1.0) - radius}
-        self.state0 = [np.ascontiguousarray(inputs[k], S) for k in ("x0", "y0", "vx0", "vy0")]
+        self.c = step_constants(inputs, S)      # gdt, lo, hi derived once per run, as Warp's kernel does
+        self.state0 = [np.ascontiguousarray(inputs[k], S) for k in INITIAL]
         n = params.n
         self.state = [np.empty(n, S) for _ in STATE]
         self.tmp = np.empty(n, S)
         self.mask = np.empty(n, np.bool_)
-        frames = params.steps // params.record_every + 1 if params.record_every else 0
+        frames = n_frames(params)
         self.traj = [np.empty((frames, n) if frames else (0, 0), S) for _ in range(2)]
 
     def run(self) -> None:

@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import built_on_first_use, framework_config_info
 from ..base import ScenarioKernel
-
-STATE = ("x", "y", "vx", "vy")
 
 
 @functools.cache
@@ -77,14 +77,13 @@ def build(ti: ModuleType) -> tuple[Any, type[ScenarioKernel]]:
             self.params = params
             n = params.n
             self.state0 = [ti.field(float, shape=n) for _ in STATE]
-            for f, k in zip(self.state0, ("x0", "y0", "vx0", "vy0")):
+            for f, k in zip(self.state0, INITIAL):
                 f.from_numpy(inputs[k])
             self.state = [ti.field(float, shape=n) for _ in STATE]
-            frames = params.steps // params.record_every + 1 if params.record_every else 0
+            frames = n_frames(params)
             # A 1x1 placeholder when no trajectory is kept (fields cannot be empty); never written.
             self.traj = [ti.field(float, shape=(frames, n) if frames else (1, 1)) for _ in range(2)]
-            self.consts = [float(inputs[k])
-                           for k in ("dt", "gravity", "damping", "bounce", "radius")]
+            self.consts = [float(inputs[k]) for k in CONSTANTS]
 
         def run(self) -> None:
             p = self.params

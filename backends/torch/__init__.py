@@ -95,20 +95,9 @@ def kernel_info(variant: str, **facts: Any) -> dict[str, Any]:
     return {"execution": how, **facts, **numerics()}
 
 
-class TorchBackend(Backend):
-    name = "torch"
-    package = "torch"
-    gradient_method = "ad"
-    variants = VARIANTS
-    display_order, color = 5, "C5"
-    related_packages = ("triton",)
-
-    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
-        # torch.compile's FX-graph/Inductor cache and Triton's kernel cache, and the CUDA driver's
-        # PTX cache: empty per cell, so a compile variant's first call includes compilation.
-        return {"TORCHINDUCTOR_CACHE_DIR": str(cache_dir / "inductor"),
-                "TRITON_CACHE_DIR": str(cache_dir / "triton"),
-                "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
+class TorchCuda(Backend):
+    """CUDA hooks of a backend whose kernels run on PyTorch tensors and PyTorch's current stream:
+    this one, and Triton's (backends/triton), which launches on that stream."""
 
     def ensure_context(self, device: str) -> None:
         if device == "cuda":
@@ -116,9 +105,15 @@ class TorchBackend(Backend):
             torch.cuda.init()
             torch.cuda.synchronize(torch_device(device))   # creates the primary context now
 
+    def synchronize(self, device: str, result: Any) -> None:
+        if device == "cuda":
+            import torch
+            torch.cuda.synchronize(torch_device(device))
+
     def capture(self, device: str, run: Any) -> Any:
         """``torch.cuda.graph`` of one ``run()`` (after a warm-up call on a side stream, as the
-        PyTorch CUDA-graph docs require), replayed with ``CUDAGraph.replay``; CUDA only."""
+        PyTorch CUDA-graph docs require; Triton has autotuned at the first call already),
+        replayed with ``CUDAGraph.replay``; CUDA only."""
         if device != "cuda":
             return None
         import torch
@@ -134,6 +129,25 @@ class TorchBackend(Backend):
 
     def event_timer(self, device: str) -> "TorchEvents | None":
         return TorchEvents() if device == "cuda" else None
+
+    def memory(self, device: str) -> dict[str, Any]:
+        return allocator_memory(torch_device(device)) if device == "cuda" else {}
+
+
+class TorchBackend(TorchCuda):
+    name = "torch"
+    package = "torch"
+    gradient_method = "ad"
+    variants = VARIANTS
+    display_order, color = 5, "C5"
+    related_packages = ("triton",)
+
+    def cache_environment(self, cache_dir: Path) -> dict[str, str]:
+        # torch.compile's FX-graph/Inductor cache and Triton's kernel cache, and the CUDA driver's
+        # PTX cache: empty per cell, so a compile variant's first call includes compilation.
+        return {"TORCHINDUCTOR_CACHE_DIR": str(cache_dir / "inductor"),
+                "TRITON_CACHE_DIR": str(cache_dir / "triton"),
+                "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
 
     def available(self) -> dict[str, str | None]:
         # without an NVIDIA GPU the CPU wheel (about 200 MB), not the default CUDA one (several GB)
@@ -180,14 +194,6 @@ class TorchBackend(Backend):
                 dynamo.fail_on_recompile_limit_hit = True
         if device == "cuda":
             torch.cuda.set_device(torch_device(device))
-
-    def synchronize(self, device: str, result: Any) -> None:
-        if device == "cuda":
-            import torch
-            torch.cuda.synchronize(torch_device(device))
-
-    def memory(self, device: str) -> dict[str, Any]:
-        return allocator_memory(torch_device(device)) if device == "cuda" else {}
 
 
 def allocator_memory(dev: Any) -> dict[str, Any]:

@@ -17,11 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import check_variant, compiled, download, empty, kernel_info, put
 from ..base import ScenarioKernel
-
-STATE = ("x0", "y0", "vx0", "vy0")
-CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
 
 
 def _step(x, y, u, v, dt, gdt, radius, lo, hi, neg_bounce, damping):
@@ -53,15 +52,14 @@ class Kernel(ScenarioKernel):
         check_variant(variant)
         self.variant, self.params = variant, params
         n = params.n
-        self.state0 = [put(inputs[k], precision, device) for k in STATE]
+        self.state0 = [put(inputs[k], precision, device) for k in INITIAL]
         self.state = [empty((n,), precision, device) for _ in range(4)]
         dt, gravity, damping, bounce, radius = (put(inputs[k], precision, device) for k in CONSTANTS)
         one = put(1.0, precision, device)
         # derived once, rounded in the cell's dtype, as the reference does per launch
         self.c = {"dt": dt, "gdt": gravity * dt, "radius": radius, "lo": -one + radius,
                   "hi": one - radius, "neg_bounce": -bounce, "damping": damping, "one": one}
-        frames = params.steps // params.record_every + 1 if params.record_every else 0
-        self.traj = [empty((frames, n), precision, device) for _ in range(2)]
+        self.traj = [empty((n_frames(params), n), precision, device) for _ in range(2)]
         self.tmp = empty((n,), precision, device)
         self.factor = empty((n,), precision, device)
         self.hit = torch.empty((n,), dtype=torch.bool, device=self.tmp.device)
@@ -107,7 +105,7 @@ class Kernel(ScenarioKernel):
         return self.state
 
     def outputs(self) -> dict[str, np.ndarray]:
-        out = dict(zip(("x", "y", "vx", "vy"), (download(a) for a in self.state)))
+        out = dict(zip(STATE, (download(a) for a in self.state)))
         if self.params.record_every:
             out["traj_x"], out["traj_y"] = (download(a) for a in self.traj)
         return out

@@ -19,8 +19,9 @@ Why these choices:
     Numba's and NVRTC's defaults contract (Triton 3.10 turns its own default off), and libdevice
     is linked without flush-to-zero (``enable_reflect_ftz=False``; Triton's default flushes float32
     subnormals in div_rn, sqrt_rn, exp ..., CUDA C's does not).
-  * Launches go on PyTorch's current stream, so ``capture`` is ``torch.cuda.graph`` and the events
-    and memory figure are PyTorch's (Triton allocates nothing itself here).
+  * Launches go on PyTorch's current stream, so the CUDA hooks are PyTorch's (``TorchCuda``:
+    context, synchronize, ``capture`` as ``torch.cuda.graph``, events, the allocator's memory
+    figure; Triton allocates nothing itself here).
 Importing this package does not import triton or torch (the driver imports every backend package).
 """
 from __future__ import annotations
@@ -32,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from ..base import Backend, cuda_build_hint, not_installed
-from ..torch import TorchEvents, allocator_memory   # Triton takes its tensors and stream from PyTorch
+from ..base import cuda_build_hint, not_installed
+from ..torch import TorchCuda   # Triton takes its tensors and stream from PyTorch
 
 CPU_REASON = ("Triton compiles for GPUs only; its CPU interpreter (TRITON_INTERPRET=1: NumPy, one "
               "program at a time) is for correctness and is not timed (tests/test_triton.py runs "
@@ -101,7 +102,7 @@ def tuned(kernel: Any) -> dict[str, Any]:
     return {"autotuned": {**cfg.kwargs, "num_warps": cfg.num_warps}}
 
 
-class TritonBackend(Backend):
+class TritonBackend(TorchCuda):
     name = "triton"
     package = "triton"
     gradient_method = "adjoint"          # hand-written discrete adjoint (as CuPy, Numba): no autodiff
@@ -150,41 +151,6 @@ class TritonBackend(Backend):
         if device == "cuda":
             import torch
             torch.cuda.set_device(torch_device(device))
-
-    def ensure_context(self, device: str) -> None:
-        if device == "cuda":
-            import torch
-            torch.cuda.init()
-            torch.cuda.synchronize(torch_device(device))   # creates the primary context now
-
-    def synchronize(self, device: str, result: Any) -> None:
-        if device == "cuda":
-            import torch
-            torch.cuda.synchronize(torch_device(device))
-
-    def capture(self, device: str, run: Any) -> Any:
-        """``torch.cuda.graph`` of one ``run()``: Triton launches on PyTorch's current stream, so
-        stream capture records them (after a warm-up on a side stream, as PyTorch's CUDA-graph
-        docs ask; autotuning already happened at the first call). CUDA only."""
-        if device != "cuda":
-            return None
-        import torch
-        side = torch.cuda.Stream()
-        side.wait_stream(torch.cuda.current_stream())
-        with torch.cuda.stream(side):
-            run()
-        torch.cuda.current_stream().wait_stream(side)
-        graph = torch.cuda.CUDAGraph()
-        with torch.cuda.graph(graph):
-            run()
-        return graph.replay
-
-    def event_timer(self, device: str) -> "TorchEvents | None":
-        return TorchEvents() if device == "cuda" else None
-
-    def memory(self, device: str) -> dict[str, Any]:
-        """PyTorch's caching allocator's peak: every tensor the kernels touch is its."""
-        return allocator_memory(torch_device(device)) if device == "cuda" else {}
 
 
 BACKEND = TritonBackend()

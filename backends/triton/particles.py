@@ -17,11 +17,10 @@ import numpy as np
 import triton
 import triton.language as tl
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import download, empty, kernel_info, launch_options, put
 from ..base import ScenarioKernel
-
-CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
-STATE = ("x", "y", "vx", "vy")
 # One particle a thread, 128 threads a program (a serial rollout per thread; smaller programs
 # spread a modest n over more SMs).
 WARPS = 4
@@ -79,9 +78,9 @@ class Kernel(ScenarioKernel):
                  variant: str) -> None:
         self.params = params
         n = params.n
-        frames = params.steps // params.record_every + 1 if params.record_every else 0
+        frames = n_frames(params)
         self.consts = put([inputs[k] for k in CONSTANTS], precision, device)
-        self.state0 = [put(inputs[k], precision, device) for k in ("x0", "y0", "vx0", "vy0")]
+        self.state0 = [put(inputs[k], precision, device) for k in INITIAL]
         self.state = [empty((n,), precision, device) for _ in STATE]
         # without frames the kernel never touches these: one element each keeps real pointers
         self.traj = [empty((frames, n) if frames else (1,), precision, device) for _ in range(2)]

@@ -14,12 +14,35 @@ the result happens to be right; on a GPU the blocks of different steps run concu
 """
 
 import functools
+from typing import Any
 
 import numpy as np
 import warp as wp
 
+from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
+
 from . import launcher, wp_device, wp_scalar
 from ..base import ScenarioKernel
+
+
+@wp.func
+def step(x: Any, y: Any, u: Any, v: Any, gdt: Any, dt: Any, damping: Any, bounce: Any, radius: Any,
+         lo: Any, hi: Any):
+    """One step of one particle in the scenario's order (both kernels below take it)."""
+    v = v + gdt
+    x = x + u * dt
+    y = y + v * dt
+    if y < radius:
+        y = radius
+        v = -bounce * v
+        u = damping * u
+    if x < lo:
+        x = lo
+        u = -bounce * u
+    if x > hi:
+        x = hi
+        u = -bounce * u
+    return x, y, u, v
 
 
 @functools.cache
@@ -44,19 +67,7 @@ def _rollout(scalar):
             traj_x[0, p] = x
             traj_y[0, p] = y
         for s in range(steps):
-            v = v + gdt
-            x = x + u * dt
-            y = y + v * dt
-            if y < radius:
-                y = radius
-                v = -bounce * v
-                u = damping * u
-            if x < lo:
-                x = lo
-                u = -bounce * u
-            if x > hi:
-                x = hi
-                u = -bounce * u
+            x, y, u, v = step(x, y, u, v, gdt, dt, damping, bounce, radius, lo, hi)
             if record_every > 0:
                 if (s + 1) % record_every == 0:
                     f = (s + 1) // record_every
@@ -81,12 +92,12 @@ class Kernel(ScenarioKernel):
         self.kernel = _rollout(scalar)
         self.params = params
         arr = lambda a: wp.array(a, dtype=scalar, device=self.dev)  # noqa: E731
-        self.state0 = [arr(inputs[k]) for k in ("x0", "y0", "vx0", "vy0")]
+        self.state0 = [arr(inputs[k]) for k in INITIAL]
         self.state = [wp.empty(params.n, dtype=scalar, device=self.dev) for _ in range(4)]
-        frames = params.steps // params.record_every + 1 if params.record_every else 0
+        frames = n_frames(params)
         shape = (frames, params.n) if frames else (0, 0)
         self.traj = [wp.empty(shape, dtype=scalar, device=self.dev) for _ in range(2)]
-        self.consts = [scalar(float(inputs[k])) for k in ("dt", "gravity", "damping", "bounce", "radius")]
+        self.consts = [scalar(float(inputs[k])) for k in CONSTANTS]
         self.launch = launcher(variant, self.kernel, params.n,
                                [params.steps, params.record_every, *self.consts, *self.state0],
                                [*self.state, *self.traj], self.dev)
@@ -95,7 +106,7 @@ class Kernel(ScenarioKernel):
         self.launch()
 
     def outputs(self) -> dict[str, np.ndarray]:
-        out = dict(zip(("x", "y", "vx", "vy"), (a.numpy() for a in self.state)))
+        out = dict(zip(STATE, (a.numpy() for a in self.state)))
         if self.params.record_every:
             out["traj_x"], out["traj_y"] = (a.numpy() for a in self.traj)
         return out
@@ -125,25 +136,11 @@ def _racy_kernels(scalar):
         p = tid - s * n              # which particle
         i0 = s * n + p
         i1 = (s + 1) * n + p
-        x = px[i0]                   # RACE: written by thread (s-1, p) of this same launch
-        y = py[i0]
-        u = vx[i0]
-        v = vy[i0]
-        v = v + gravity * dt
-        x = x + u * dt
-        y = y + v * dt
         lo = scalar(-1.0) + radius
         hi = scalar(1.0) - radius
-        if y < radius:
-            y = radius
-            v = -bounce * v
-            u = damping * u
-        if x < lo:
-            x = lo
-            u = -bounce * u
-        if x > hi:
-            x = hi
-            u = -bounce * u
+        # RACE: step s was written by thread (s-1, p) of this same launch
+        x, y, u, v = step(px[i0], py[i0], vx[i0], vy[i0], gravity * dt, dt, damping, bounce, radius,
+                          lo, hi)
         px[i1] = x
         py[i1] = y
         vx[i1] = u
@@ -167,10 +164,10 @@ class RacyOneLaunch(ScenarioKernel):
         self.k_init, self.k_steps = _racy_kernels(scalar)
         self.params = params
         arr = lambda a: wp.array(a, dtype=scalar, device=self.dev)  # noqa: E731
-        self.state0 = [arr(inputs[k]) for k in ("x0", "y0", "vx0", "vy0")]
+        self.state0 = [arr(inputs[k]) for k in INITIAL]
         size = (params.steps + 1) * params.n
         self.hist = [wp.zeros(size, dtype=scalar, device=self.dev) for _ in range(4)]
-        self.consts = [scalar(float(inputs[k])) for k in ("dt", "gravity", "damping", "bounce", "radius")]
+        self.consts = [scalar(float(inputs[k])) for k in CONSTANTS]
 
     def run(self):
         p = self.params
@@ -184,7 +181,7 @@ class RacyOneLaunch(ScenarioKernel):
     def outputs(self) -> dict[str, np.ndarray]:
         p = self.params
         hist = [h.numpy().reshape(p.steps + 1, p.n) for h in self.hist]
-        out = dict(zip(("x", "y", "vx", "vy"), (h[-1].copy() for h in hist)))
+        out = dict(zip(STATE, (h[-1].copy() for h in hist)))
         if p.record_every:
             out["traj_x"], out["traj_y"] = (h[::p.record_every].copy() for h in hist[:2])
         return out
