@@ -304,7 +304,10 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
         env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
     show = engine.progress(len(cells))
 
+    ran: list[dict[str, Any]] = []        # the cells this run ran (not those --resume kept)
+
     def on_record(i: int, rec: dict[str, Any], outs: dict[str, np.ndarray] | None) -> None:
+        ran.append({"time": rec.get("time")})
         hardware.annotate([rec], env["hardware"])        # judged against this run's yardstick
         if args.save_arrays and outs is not None:        # before its record is saved: a failed
             save_arrays(out, rec, outs)                  # write leaves the cell to be run again
@@ -313,8 +316,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=on_record,
                                refuse=memory_refusal() if client is None else None)
-    spent["cells"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    spent["cells"], t0 = time.perf_counter() - t0, time.perf_counter()
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]
     outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
@@ -328,11 +330,11 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     store.save()
     render(out, env, records, outputs, plots=not args.no_plots, clean=not args.resume)
     spent["tables and pictures"] = time.perf_counter() - t0
-    env["phases"] = {"run": spent, "cells": phases.cell_parts(r for r, _ in results)}
+    env["phases"] = {"run": spent, "cells": phases.cell_parts(ran)}
     store.save()                # the run's parts beside its records
     print(report.tables(records, wide=args.wide))
     print("\n".join(report.summary_lines(records) + report.noise_lines(records) + [""]), end="")
-    print(phases.summary_line(spent, env["phases"]["cells"], len(results)))
+    print(phases.summary_line(spent, env["phases"]["cells"], len(ran)))
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
     missing = [r for r, _ in results if args.save_arrays and r.status in ("ok", "mismatch")
                and not arrays_saved(out, r)]
