@@ -26,6 +26,7 @@ CELL_PARTS = {
     "graph": "graph",
     "host_profile": "host profile",
     "check": "oracle and check",
+    "record": "the record (kernel facts, versions, memory)",
     "save": "saving arrays",
 }
 TIMED = ("steady", "throughput", "graph", "host_profile")

@@ -253,6 +253,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
             **{k: check.details[f"gradient_{k}"] for k in ("fd_agreement", "fd_resolved")
                if f"gradient_{k}" in check.details},
         }
+    laps.lap("record")
     if cell.save_outputs:
         np.savez(out_dir / "outputs.npz", **outputs)
     if cell.save_inputs:

@@ -15,7 +15,7 @@ def test_a_cells_parts_are_named_positive_and_within_its_wall_time():
     assert record["status"] == "ok", record.get("reason")
     parts = record["time"]["phases"]
     for part in ("start", "inputs", "framework", "build", "first_call", "steady", "throughput", "download",
-                 "check"):
+                 "check", "record"):
         assert part in parts, part
     assert set(parts) <= set(phases.CELL_PARTS)
     assert all(v >= 0 for v in parts.values())

@@ -70,12 +70,16 @@ def check_variant(variant: str) -> None:
         raise ValueError(f"PyTorch has no variant {variant!r} (offered: {VARIANTS})")
 
 
-def numerics() -> dict[str, Any]:
-    """The process's precision switches as PyTorch reports them (recorded in every info())."""
+def numerics(compiled: bool = True) -> dict[str, Any]:
+    """The process's precision switches as PyTorch reports them (recorded in every info()).
+    Inductor's and Dynamo's only for a compiled kernel: importing them costs an eager cell
+    seconds, and they do not touch eager execution."""
     import torch
-    out = {"tf32_matmul": bool(torch.backends.cuda.matmul.allow_tf32),
-           "tf32_cudnn": bool(torch.backends.cudnn.allow_tf32),
-           "float32_matmul_precision": torch.get_float32_matmul_precision()}
+    out: dict[str, Any] = {"tf32_matmul": bool(torch.backends.cuda.matmul.allow_tf32),
+                           "tf32_cudnn": bool(torch.backends.cudnn.allow_tf32),
+                           "float32_matmul_precision": torch.get_float32_matmul_precision()}
+    if not compiled:
+        return out
     try:
         from torch._inductor import config
         out["inductor_division_rounding"] = bool(config.eager_numerics.division_rounding)
@@ -92,7 +96,7 @@ def numerics() -> dict[str, Any]:
 def kernel_info(variant: str, **facts: Any) -> dict[str, Any]:
     how = (f"torch.compile(mode={COMPILE_MODE!r}, fullgraph=True, dynamic=False)"
            if variant == "compile" else "eager")
-    return {"execution": how, **facts, **numerics()}
+    return {"execution": how, **facts, **numerics(variant == "compile")}
 
 
 class TorchCuda(Backend):
