@@ -36,6 +36,13 @@ def jax_dtype(precision: Precision) -> Any:
     return {Precision.FLOAT32: jnp.float32, Precision.FLOAT64: jnp.float64}[precision]
 
 
+# Time steps per while-loop iteration of the particle and projectile loops: on a GPU each trip
+# of an XLA while loop costs a fixed host/device round, which unrolling amortises, and a longer
+# unroll lengthens compiles; on the CPU unrolling does not pay (docs/measurement.md, "JAX's loop
+# unrolling", has the measurements behind both numbers).
+UNROLL = {"cpu": 1, "cuda": 16}
+
+
 def put(array: Any, precision: Precision, device: Any) -> Any:
     """Upload a host array (or scalar) as a committed device array of the cell's dtype."""
     import jax

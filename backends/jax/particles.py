@@ -17,12 +17,8 @@ import numpy as np
 
 from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
 
-from . import Program, jax_device, jax_dtype, put
+from . import UNROLL, Program, jax_device, jax_dtype, put
 from ..base import ScenarioKernel
-# Steps per loop iteration: XLA:GPU pays ~10 us per while-loop trip, and 16 steps of scalar or
-# elementwise work fuse into a few kernels (measured on an H100/H200: 10-16x faster than 1; 64 made
-# compiles take 10-20 s). On CPU unrolling gained little or lost, so it stays 1 there.
-UNROLL = {"cpu": 1, "cuda": 16}
 
 
 def _rollout(steps: int, record_every: int, unroll: int, state0, consts, out):

@@ -28,15 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from . import Program, jax_device, put
+from . import UNROLL, Program, jax_device, put
 from ..base import ScenarioKernel
 
 # Shared scalar constants; v0 and target are per trajectory.
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
-# Steps per loop iteration: XLA:GPU pays ~10 us per while-loop trip, and 16 steps of scalar or
-# elementwise work fuse into a few kernels (measured on an H100/H200: 10-16x faster than 1; 64 made
-# compiles take 10-20 s). On CPU unrolling gained little or lost, so it stays 1 there.
-UNROLL = {"cpu": 1, "cuda": 16}
 VARIANTS = ("default", "graph", "checkpoint")   # graph: XLA command buffers, set per process (__init__.GRAPH_FLAGS)
 
 
