@@ -51,6 +51,11 @@ FD_AGREEMENT = 1e-2     # relative distance at which a gradient agrees with fini
 LINEAR_MARGIN = 0.1    # how far the descent's error gain may be uncertain for the history bound
 BATCH_CHECKED = 64     # trajectories of a batch checked against the oracle unless told otherwise
 
+# Host bytes a CPU port's tape takes per step: (one trajectory, per trajectory of a batch). The
+# first bounds a single trajectory's per-operation overheads, the second the slope between
+# horizons where fixed costs cancel (docs/measurement.md, "Memory": where both come from).
+TAPE_STEP_BYTES = (900.0, 400.0)
+
 
 @dataclasses.dataclass(frozen=True)
 class ProjectileParams:
@@ -306,13 +311,15 @@ class Projectile(Scenario):
     def footprint(self, params: ProjectileParams, precision: str, device: str = "cpu") -> float:
         # per checked trajectory, the per-step states of the float64 oracle's rollout + adjoint +
         # bounds (soft: also its steps x 4 x 4 transition stack); per trajectory, the inputs and
-        # outputs and, on the CPU, the port's tape (at most ~900 B/step measured for a single
-        # trajectory; on a GPU the tape is device memory); plus a fixed part (JAX's ~22 MiB)
+        # outputs; on the CPU the port's tape per step, the larger of a single trajectory's step
+        # and the batch times the largest per-trajectory-step slope of the horizon sweeps
+        # (TAPE_STEP_BYTES; on a GPU the tape is device memory); plus a fixed part for JAX
         checked = min(params.batch, BATCH_CHECKED)
         oracle = params.steps * (1400.0 + (128.0 * params.steps if params.contact == "soft" else 0.0))
-        tape = params.steps * 900.0 if device == "cpu" else 0.0
-        per_traj = tape + (params.iters + 8) * 8.0 * 3
-        return 32.0 * 2**20 + checked * oracle + params.batch * per_traj + params.iters * 64.0
+        one, per_traj_step = TAPE_STEP_BYTES
+        tape = params.steps * max(one, per_traj_step * params.batch) if device == "cpu" else 0.0
+        per_traj = (params.iters + 8) * 8.0 * 3
+        return 32.0 * 2**20 + checked * oracle + tape + params.batch * per_traj + params.iters * 64.0
 
     def floor(self, params: ProjectileParams, precision: str, hardware: dict) -> dict | None:
         """A trajectory is a serial chain: each step's forward pass needs vy <- vy + acc dt, then

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import pytest
+from pathlib import Path
 
 from compare import cli, run_suite
 from reliability_checks import FIGURES, assert_refused, working_directory
@@ -69,7 +70,8 @@ MEMORY_SIZES = {"saxpy": ({"n": 1 << 16}, {"n": 1 << 23}),
                 "sdf": ({"width": 256, "height": 256}, {"width": 2048, "height": 2048}),
                 "particles": ({"n": 1 << 12, "steps": 20}, {"n": 1 << 20, "steps": 10, "record_every": 5},
                               {"n": 1 << 14, "steps": 200, "record_every": 1}),
-                "projectile": ({"steps": 180, "iters": 2}, {"steps": 100_000, "iters": 1})}
+                "projectile": ({"steps": 180, "iters": 2}, {"steps": 100_000, "iters": 1},
+                               {"batch": 4096, "steps": 1000, "iters": 0})}
 
 
 @pytest.mark.slow
@@ -91,3 +93,22 @@ def test_memory_estimate_bounds_measured_peaks():
         assert estimate >= peak, (spec["scenario"], spec["params"], peak / 2**20, estimate / 2**20)
         ratios.append(estimate / peak)
     FIGURES["memory"] = f"{len(specs)} cells, estimate/peak {min(ratios):.2f} to {max(ratios):.2f}"
+
+
+def test_the_batched_tape_model_bounds_every_stored_cpu_horizon_slope():
+    """The preflight's per-trajectory-step tape (scenarios/projectile.py TAPE_STEP_BYTES) is at
+    least every CPU port's measured slope between horizons in the CPU store (fixed costs cancel)."""
+    from compare.record import Record
+    from compare.store import Store
+    from scenarios.projectile import TAPE_STEP_BYTES
+    store = Store.read(Path(__file__).resolve().parent.parent / "docs/results/cpu/sweep.json")
+    groups: dict[tuple, dict[int, tuple[float, int]]] = {}
+    for r in store.records:
+        r: Record
+        if (r.tags or {}).get("sweep") == "horizon" and r.status == "ok" and (r.memory or {}).get("host_bytes"):
+            groups.setdefault((r.backend, r.variant, r.precision, r.params["contact"]), {})[r.params["steps"]] = (
+                r.memory["host_bytes"], r.params["batch"])
+    slopes = [(h1 - h0) / (b * (s1 - s0)) for g in groups.values()
+              for (s0, (h0, b)), (s1, (h1, _)) in zip(sorted(g.items()), sorted(g.items())[1:])]
+    assert len(slopes) > 20                         # the store has the sweep
+    assert max(slopes) <= TAPE_STEP_BYTES[1], max(slopes)
