@@ -1,26 +1,18 @@
-"""Trivial launch in Dr.Jit: ``x + 1`` over n (default 1) elements, evaluated (one kernel)."""
+"""Trivial launch in Dr.Jit: ``x + 1`` over n (default 1) elements, evaluated (one kernel).
+
+The copy's ``Kernel`` (copy.py: the same upload, per-call evaluation and download) with this
+expression.
+"""
 from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
-from . import download, real_type, upload
-from ..base import ScenarioKernel
+from .copy import Kernel as CopyKernel
 
 
-class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
-                 variant: str) -> None:
-        self.dtype, self.n = np.dtype(precision), params.n
-        self.x = upload(inputs["x"], real_type(device, precision))
-        self.out: Any = None
+class Kernel(CopyKernel):
+    def expression(self, dr: Any) -> Any:
+        return self.x + 1.0
 
-    def run(self) -> Any:
-        import drjit as dr
-        self.out = self.x + 1.0
-        dr.eval(self.out)
-        return self.out
-
-    def outputs(self) -> dict[str, np.ndarray]:
-        return {"out": download(self.out, self.dtype, (self.n,))}
+    def info(self) -> dict[str, Any]:
+        return {}

@@ -19,21 +19,29 @@ def _copy(x, out):
 
 
 class Kernel(ScenarioKernel):
+    """One op from x into a preallocated out, eager or compiled (launch.py reuses it with its own):
+    ``body`` is the compile variant's function of ``args``, ``eager`` the default variant's call."""
+    body = staticmethod(_copy)
+
     def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
                  variant: str) -> None:
         check_variant(variant)
         self.variant = variant
         self.x = put(inputs["x"], precision, device)
         self.out = empty((params.n,), precision, device)
-        self.fn = compiled(_copy) if variant == "compile" else None
+        self.args: tuple[Any, ...] = (self.x, self.out)
+        self.fn = compiled(self.body) if variant == "compile" else None
+
+    def eager(self, torch: Any) -> None:
+        self.out.copy_(self.x)
 
     def run(self) -> Any:
         import torch
         with torch.inference_mode():
             if self.fn is not None:
-                self.fn(self.x, self.out)
+                self.fn(*self.args)
             else:
-                self.out.copy_(self.x)
+                self.eager(torch)
         return self.out
 
     def outputs(self) -> dict[str, np.ndarray]:

@@ -1,39 +1,33 @@
-"""Trivial launch in PyTorch: out = x + 1 over n (default 1) elements, one kernel into ``out``."""
+"""Trivial launch in PyTorch: out = x + 1 over n (default 1) elements, one kernel into ``out``.
+
+The copy's ``Kernel`` (copy.py: the same tensors, variants, inference mode and download) with
+this op, which takes a 0-d 1 of the cell's dtype: ``torch.add`` eager, ``_plus_one`` compiled.
+"""
 from __future__ import annotations
 
 from typing import Any
 
 import numpy as np
 
-from . import check_variant, compiled, download, empty, kernel_info, put
-from ..base import ScenarioKernel
+from . import kernel_info, put
+from .copy import Kernel as CopyKernel
 
 
 def _plus_one(x, one, out):
     out.copy_(x + one)
 
 
-class Kernel(ScenarioKernel):
+class Kernel(CopyKernel):
+    body = staticmethod(_plus_one)
+
     def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
                  variant: str) -> None:
-        check_variant(variant)
-        self.variant = variant
-        self.x = put(inputs["x"], precision, device)
+        super().__init__(params, inputs, device, precision, variant)
         self.one = put(1.0, precision, device)
-        self.out = empty((params.n,), precision, device)
-        self.fn = compiled(_plus_one) if variant == "compile" else None
+        self.args = (self.x, self.one, self.out)
 
-    def run(self) -> Any:
-        import torch
-        with torch.inference_mode():
-            if self.fn is not None:
-                self.fn(self.x, self.one, self.out)
-            else:
-                torch.add(self.x, self.one, out=self.out)
-        return self.out
-
-    def outputs(self) -> dict[str, np.ndarray]:
-        return {"out": download(self.out)}
+    def eager(self, torch: Any) -> None:
+        torch.add(self.x, self.one, out=self.out)
 
     def info(self) -> dict[str, Any]:
         return kernel_info(self.variant)

@@ -12,7 +12,7 @@ launch the fastest through the autotuner; ``info()`` reports the choice. Its ben
 Triton's L2-flush buffer (256 MB) through PyTorch, so the cell's device-memory peak includes it.
 The element offsets are int64, so n up to 2^31-1 cannot overflow. Under the interpreter the first
 config runs (autotuning would time NumPy).
-copy.py and launch.py reuse ``elementwise``.
+copy.py reuses ``Kernel`` (and with it ``elementwise``) with its own kernel.
 """
 from __future__ import annotations
 
@@ -65,11 +65,15 @@ def elementwise(kernel: Any, n: int, *args: Any) -> tuple[Any, Any]:
 
 
 class Kernel(ScenarioKernel):
+    """``kernel`` over the inputs named in ``operands``, then a preallocated out, launched through
+    ``elementwise`` (copy.py reuses it with its own)."""
+    kernel, operands = saxpy_kernel, ("a", "x", "y")
+
     def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
                  variant: str) -> None:
-        self.a, self.x, self.y = (put(inputs[k], precision, device) for k in ("a", "x", "y"))
+        self.args = [put(inputs[k], precision, device) for k in self.operands]
         self.out = empty((params.n,), precision, device)
-        self.launch, self.fn = elementwise(saxpy_kernel, params.n, self.a, self.x, self.y, self.out)
+        self.launch, self.fn = elementwise(self.kernel, params.n, *self.args, self.out)
 
     def run(self) -> Any:
         self.launch()
