@@ -64,6 +64,7 @@ def quick_run(tmp_path_factory):
     return p, out
 
 
+@pytest.mark.early                      # its group is the longest: start it first
 @pytest.mark.xdist_group("quick_run")
 def test_all_quick_is_ok_and_exit_0(quick_run):
     p, out = quick_run

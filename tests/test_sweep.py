@@ -101,6 +101,7 @@ def quick_sweep(tmp_path_factory):
     return p, out
 
 
+@pytest.mark.early                      # its group is the longest: start it first
 @pytest.mark.xdist_group("quick_sweep")
 def test_sweep_quick_runs_everything_ok(quick_sweep):
     p, out = quick_sweep
