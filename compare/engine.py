@@ -120,7 +120,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     failed: list[BaseException] = []
     idents = [c.identity() for c in plan]
 
-    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True) -> None:
+    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:
         inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
         if inputs and out is not None:
             out = {**inputs, **out}
@@ -142,7 +142,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
             if store is not None and save:
                 store.put(record)
                 try:
-                    store.save()
+                    if flush:
+                        store.save()
                 except BaseException as exc:
                     failed.append(exc)
                     raise
@@ -154,12 +155,15 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
             finish(i, store.get(key(idents[i])).to_json(), None, save=False)
             continue
         blocked = not_runnable(cell, probes) or (refuse(cell) if refuse is not None else None)
-        if blocked:
-            finish(i, {"status": blocked[0], "reason": blocked[1]}, None)
+        if blocked:       # nothing ran: saved once with the others below, not a file write each
+            finish(i, {"status": blocked[0], "reason": blocked[1]}, None, flush=False)
             continue
         shared = share_process and runner is None and cell.cache == "warm"
         group = (cell.backend, cell.device, cell.precision, cell.variant) if shared else ("solo", i)
         groups.setdefault(group, []).append(i)
+
+    if store is not None and any(r is not None for r in done):
+        store.save()
 
     def run_group(idx: list[int]) -> None:
         if runner is not None:

@@ -155,3 +155,22 @@ def test_the_engine_stores_no_record_a_reader_could_not_load(tmp_path: Path) -> 
     assert rec.reason == "malformed record: time.median_s must be a finite number > 0, got 0.0"
     assert (rec.scenario, rec.backend, rec.params["n"]) == ("saxpy", "numpy", 1000)
     assert [r.status for r in Store.read(store.path).records] == ["error"]
+
+
+def test_cells_that_cannot_start_are_stored_in_one_write_before_any_cell_runs(tmp_path, monkeypatch):
+    """Skipped cells (here: a device no backend has) cost no file write each; they are in the
+    store before the first cell runs, and every cell that runs is saved as it finishes."""
+    probes = {"numpy": {"available": {"cpu": None, "cuda": "NumPy runs on the CPU only"}, "versions": {}}}
+    cells = [{"scenario": "saxpy", "backend": "numpy", "device": d, "precision": p, "params": {"n": 1000},
+              "quick": True} for d in ("cuda", "cpu") for p in ("float32", "float64")]
+    store = Store(tmp_path / "results.json", "run")
+    saved: list[list[str]] = []
+    real_save = Store.save
+    monkeypatch.setattr(Store, "save", lambda self: (saved.append([r.status for r in self.records]),
+                                                     real_save(self))[1])
+    good = {"status": "skipped", "reason": "stand-in for a run"}
+    results = engine.run_cells(cells, timeout=60, probes=probes, store=store,
+                               runner=lambda s: (copy.deepcopy(good), None))
+    assert [r.status for r, _ in results] == ["skipped"] * 4
+    assert saved == [["skipped"] * 2, ["skipped"] * 3, ["skipped"] * 4]
+    assert len(Store.read(store.path).records) == 4
