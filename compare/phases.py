@@ -53,12 +53,11 @@ def since_launch() -> float:
         return 0.0
 
 
-def cell_parts(records: Iterable[Any]) -> dict[str, float]:
-    """The cells' parts summed over records (``Record`` or JSON dicts)."""
+def cell_parts(records: Iterable[dict[str, Any]]) -> dict[str, float]:
+    """The cells' parts summed over records (their JSON objects)."""
     total: dict[str, float] = {}
     for r in records:
-        t = r.get("time") if isinstance(r, dict) else r.time
-        for part, s in ((t or {}).get("phases") or {}).items():
+        for part, s in ((r.get("time") or {}).get("phases") or {}).items():
             total[part] = total.get(part, 0.0) + float(s)
     return total
 

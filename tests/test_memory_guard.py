@@ -98,13 +98,11 @@ def test_memory_estimate_bounds_measured_peaks():
 def test_the_batched_tape_model_bounds_every_stored_cpu_horizon_slope():
     """The preflight's per-trajectory-step tape (scenarios/projectile.py TAPE_STEP_BYTES) is at
     least every CPU port's measured slope between horizons in the CPU store (fixed costs cancel)."""
-    from compare.record import Record
     from compare.store import Store
     from scenarios.projectile import TAPE_STEP_BYTES
     store = Store.read(Path(__file__).resolve().parent.parent / "docs/results/cpu/sweep.json")
     groups: dict[tuple, dict[int, tuple[float, int]]] = {}
     for r in store.records:
-        r: Record
         if (r.tags or {}).get("sweep") == "horizon" and r.status == "ok" and (r.memory or {}).get("host_bytes"):
             groups.setdefault((r.backend, r.variant, r.precision, r.params["contact"]), {})[r.params["steps"]] = (
                 r.memory["host_bytes"], r.params["batch"])

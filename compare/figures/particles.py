@@ -9,7 +9,7 @@ import numpy as np
 import scenarios
 from compare.figures.runs import Runs, pick_runs, run_label
 
-SC = scenarios.get("particles")
+SC = scenarios.get(__name__.rpartition(".")[2])    # this module draws the scenario it is named after
 
 
 def figure(runs: Runs) -> Any:

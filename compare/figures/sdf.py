@@ -10,7 +10,7 @@ from compare.figures.runs import Runs, pick_runs, run_label
 from scenarios.base import UNIT_ROUNDOFF
 from scenarios.sdf import TOLERANCE_ULPS
 
-SC = scenarios.get("sdf")
+SC = scenarios.get(__name__.rpartition(".")[2])    # this module draws the scenario it is named after
 
 
 def figure(runs: Runs) -> Any:
