@@ -150,6 +150,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
         done[i] = (record, out)
 
     groups: dict[Any, list[int]] = {}
+    deferred = False
     for i, cell in enumerate(plan):
         if store is not None and resume and store.done(key(idents[i])):
             finish(i, store.get(key(idents[i])).to_json(), None, save=False)
@@ -157,12 +158,13 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
         blocked = not_runnable(cell, probes) or (refuse(cell) if refuse is not None else None)
         if blocked:       # nothing ran: saved once with the others below, not a file write each
             finish(i, {"status": blocked[0], "reason": blocked[1]}, None, flush=False)
+            deferred = True
             continue
         shared = share_process and runner is None and cell.cache == "warm"
         group = (cell.backend, cell.device, cell.precision, cell.variant) if shared else ("solo", i)
         groups.setdefault(group, []).append(i)
 
-    if store is not None and any(r is not None for r in done):
+    if store is not None and deferred:
         store.save()
 
     def run_group(idx: list[int]) -> None:
