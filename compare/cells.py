@@ -39,18 +39,18 @@ def worker_env(backend: str | None = None, variant: str = "default") -> dict[str
     return env
 
 
-def _tail(text: str, lines: int = 5) -> str:
+def tail(text: str, lines: int = 5) -> str:
     rows = [r for r in text.strip().splitlines() if r.strip()]
     return " | ".join(rows[-lines:])
 
 
-def _died(proc: subprocess.Popen, err: str) -> str:
+def died(proc: subprocess.Popen, err: str) -> str:
     rc = proc.returncode
     how = f"killed by signal {signal.Signals(-rc).name}" if rc is not None and rc < 0 else f"exit code {rc}"
-    return f"worker died ({how}): {_tail(err)}"
+    return f"worker died ({how}): {tail(err)}"
 
 
-def _collect(cell_dir: Path, cell: Cell) -> Result:
+def collect(cell_dir: Path, cell: Cell) -> Result:
     record = json.loads((cell_dir / "record.json").read_text())
     outputs = None
     if (cell_dir / "outputs.npz").exists():
@@ -98,20 +98,20 @@ def run_batch(specs: list[Cell | dict[str, Any]], timeout: float | None = 600.0,
             try:
                 while done < len(batch):
                     if (tmp_path / f"cell-{done}" / "record.json").exists():
-                        got(_collect(tmp_path / f"cell-{done}", batch[done]))
+                        got(collect(tmp_path / f"cell-{done}", batch[done]))
                         done, began, started = done + 1, started, time.monotonic()
                         continue
                     if proc.poll() is not None:
                         if (tmp_path / f"cell-{done}" / "record.json").exists():
                             continue
                         err.seek(0)
-                        reason = _died(proc, err.read())
+                        reason = died(proc, err.read())
                         break
                     if timeout is not None and time.monotonic() - started > timeout:
                         proc.kill()
                         proc.wait()
                         err.seek(0)
-                        reason = f"timed out after {timeout:g} s; {_tail(err.read(), 2)}".rstrip("; ")
+                        reason = f"timed out after {timeout:g} s; {tail(err.read(), 2)}".rstrip("; ")
                         break
                     time.sleep(0.02)
                 if reason is None and proc.poll() is None:
@@ -179,5 +179,5 @@ def probe(name: str, timeout: float = 180.0) -> dict[str, Any]:
     for line in proc.stdout.splitlines():
         if line.startswith("PROBE"):
             return json.loads(line[5:])[name]
-    why = f"availability probe failed (exit {proc.returncode}): {_tail(proc.stderr, 2)}"
+    why = f"availability probe failed (exit {proc.returncode}): {tail(proc.stderr, 2)}"
     return {"available": {d: why for d in DEVICES}, "versions": {}}

@@ -96,7 +96,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
               runner: Callable[[Cell], Result] | None = None,
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
-              refuse: Callable[[Cell], tuple[str, str] | None] | None = None) -> list[Result]:
+              refuse: Callable[[Cell], tuple[str, str] | None] | None = None,
+              ahead: int = 0, footprint: Callable[[Cell], float] | None = None) -> list[Result]:
     """Run every cell in a worker process; returns (record, outputs) per cell, in order. A dict
     is decoded into its Cell (``Cell.from_dict``) first.
 
@@ -109,7 +110,9 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     what finished), and with ``resume`` a cell the store holds as ok/mismatch/skipped is not run
     again (its record is returned, outputs None, without ``on_record``); error records are retried.
     ``refuse``: the caller's own reason not to start a cell (e.g. the memory it needs), as
-    ``not_runnable``'s.
+    ``not_runnable``'s. ``ahead`` > 0 (timed suites, one cell at a time): up to that many
+    workers start before their turn, their untimed parts overlapped and their clocks never
+    (``compare.overlap``); ``footprint``: a worker's host-memory estimate, which bounds them.
     ``on_record`` sees a record's JSON object before ``Record.from_json`` checks it (it may add
     to it); a record that fails the check becomes an ``error`` record of its cell.
     """
@@ -175,7 +178,15 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
             cells.run_batch([plan[i] for i in idx], timeout,
                             on_result=lambda k, result: finish(idx[k], *result))
 
-    pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
+    solo = [idx[0] for idx in groups.values() if len(idx) == 1]
+    if ahead > 0 and runner is None and jobs <= 1 and len(solo) == len(groups) and len(solo) > 1:
+        import psutil
+        from compare import overlap
+        overlap.run_overlapped([plan[i] for i in solo], timeout, lambda k, res: finish(solo[k], *res),
+                               ahead, need=footprint, budget=0.9 * psutil.virtual_memory().available,
+                               lane=gpu_lane)
+    else:
+        pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
     return [r for r in done if r is not None]
 
 

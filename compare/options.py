@@ -134,6 +134,9 @@ def add_timing(p: argparse.ArgumentParser, repeat: int | None = 10, min_time: fl
     p.add_argument("--min-time", type=nonnegative_seconds, default=min_time,
                    help="minimum timed seconds per cell")
     p.add_argument("--timeout", type=seconds, default=timeout, help="seconds before a cell is killed")
+    p.add_argument("--overlap", type=nonnegative_int, default=None, metavar="N",
+                   help="workers that start before their turn, their set-up overlapped and their "
+                   "clocks never (0: one cell at a time; default 1, or 3 on 8 or more cores)")
 
 
 def add_output(p: argparse.ArgumentParser, out: str) -> None:

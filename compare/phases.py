@@ -18,6 +18,7 @@ CELL_PARTS = {
     "start": "process start and imports",
     "inputs": "inputs",
     "framework": "framework set-up",
+    "wait": "waiting for its turn (an overlapped run)",
     "build": "kernel build",
     "first_call": "compile and first call",
     "steady": "warm-up and latency",
@@ -63,8 +64,10 @@ def cell_parts(records: Iterable[dict[str, Any]]) -> dict[str, float]:
 
 
 def summary_line(run: dict[str, float], cells: dict[str, float], n_cells: int) -> str:
-    """One line: the run's wall time and its parts, then the cells' time by part (share of the
-    cells' wall time; what no worker accounts for is the driver's and the processes' exits)."""
+    """One line: the run's wall time and its parts, then the cells' time by part: shares of the
+    cells' wall time, or, where workers overlapped (``compare.overlap``), of the workers' summed
+    time with waits at the gate left out; what no worker accounts for is the driver's and the
+    processes' exits."""
     wall = sum(run.values())
     head = ", ".join(f"{name} {s:.3g} s" for name, s in run.items() if s >= 0.05)
     line = f"time: {n_cells} cells in {wall:.3g} s ({head})"
@@ -72,8 +75,14 @@ def summary_line(run: dict[str, float], cells: dict[str, float], n_cells: int) -
     if in_cells <= 0 or not cells:
         return line
     timed = sum(cells.get(p, 0.0) for p in TIMED)
-    parts = sorted(((s, CELL_PARTS.get(p, p)) for p, s in cells.items() if s > 0), reverse=True)
-    other = max(0.0, in_cells - sum(cells.values()))
-    shares = ", ".join(f"{name} {100 * s / in_cells:.0f} %" for s, name in parts[:6])
+    work = {p: s for p, s in cells.items() if p != "wait" and s > 0}
+    total = sum(work.values())
+    overlapped = total > 1.02 * in_cells
+    parts = sorted(((s, CELL_PARTS.get(p, p)) for p, s in work.items()), reverse=True)
+    shares = ", ".join(f"{name} {100 * s / (total if overlapped else in_cells):.0f} %" for s, name in parts[:6])
+    if overlapped:
+        return (f"{line}; the workers' {total:.3g} s overlapped into the cells' {in_cells:.3g} s, "
+                f"{100 * timed / in_cells:.0f} % of them measurement; the workers' time: {shares}")
+    other = max(0.0, in_cells - total)
     return (f"{line}; of the cells' time {100 * timed / in_cells:.0f} % is measurement; "
             f"{shares}; driver and exits {100 * other / in_cells:.0f} %")

@@ -133,11 +133,13 @@ FIGURES = Either("a figure or a list of figures", (FIGURE, Seq(FIGURE)))
 
 # ---- a record ---------------------------------------------------------------------------------
 REGIME = Obj({"median_s": OPT_SECONDS, "iqr_s": OPT_SECONDS, "min_s": OPT_SECONDS, "repeats": OPT_COUNT,
-              "k": OPT_COUNT, "host_s": OPT_SECONDS, "how": TEXT, "failed": TEXT, "unavailable": TEXT})
+              "k": OPT_COUNT, "host_s": OPT_SECONDS, "how": TEXT, "failed": TEXT, "unavailable": TEXT,
+              "same_as": TEXT})
 THROUGHPUT = Obj({**REGIME.fields, "median_s": SECONDS}, ("median_s",))
 TIME = Obj({"first_call_s": SECONDS, "median_s": POSITIVE, "iqr_s": SECONDS, "min_s": SECONDS, "repeats": COUNT,
             "warmup": COUNT, "timed_total_s": SECONDS, "setup_s": OPT_SECONDS, "download_s": OPT_SECONDS,
             "timer": TEXT, "clock": TEXT, "cache": TEXT, "first_call_clock": TEXT,
+            "window": Seq(SECONDS),       # epoch seconds the cell's timed window opened and closed
             "wall": Obj({"median_s": POSITIVE, "iqr_s": SECONDS, "min_s": SECONDS},
                         ("median_s", "iqr_s", "min_s")),
             # the yardstick judges a throughput regime by its median (compare.hardware.annotate)

@@ -20,9 +20,9 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options, phases, report, run_plots, scaleout
+from compare import calibrate, engine, environment, hardware, options, overlap, phases, report, run_plots, scaleout
 from compare.record import Record, plain
-from compare.spec import Cell, as_cell
+from compare.spec import Cell, as_cell, key
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
@@ -282,6 +282,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     store = RunStore.open(out, "run", keep=args.resume)
     env = store.env = environment.collect(argv)
     env["backends"] = probes
+    env["overlap"] = ahead = overlap.ahead(args)
     # the framework-neutral yardstick of every device some backend can use, in this same run
     t0 = time.perf_counter()
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in cells)
@@ -312,10 +313,19 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
         if args.save_arrays and outs is not None:        # before its record is saved: a failed
             save_arrays(out, rec, outs)                  # write leaves the cell to be run again
         show(i, rec, outs)
+    refuse = None
+    if client is None:          # a Dask worker's machine is not this one: neither preflight
+        t0 = time.perf_counter()
+        memory = memory_refusal()
+        runnable = [c for c in cells if not engine.not_runnable(c, probes) and not memory(c)
+                    and not (args.resume and store.done(key(c.identity())))]
+        slow = calibrate.time_refusal(runnable, args.timeout, jobs=1 + ahead)
+        spent["miniatures"] = time.perf_counter() - t0
+        refuse = lambda c: memory(c) or slow(c)    # noqa: E731
     t0 = time.perf_counter()
     results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
-                               store=store, resume=args.resume, on_record=on_record,
-                               refuse=memory_refusal() if client is None else None)
+                               store=store, resume=args.resume, on_record=on_record, refuse=refuse,
+                               ahead=ahead, footprint=lambda c: cell_bytes(c)[0])
     spent["cells"], t0 = time.perf_counter() - t0, time.perf_counter()
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]

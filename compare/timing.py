@@ -104,7 +104,8 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
 
 
 def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: float = 0.02,
-              repeat: int = 5, max_k: int = 1 << 16, max_time: float = 10.0) -> dict[str, Any]:
+              repeat: int = 5, max_k: int = 1 << 16, max_time: float = 10.0,
+              latency: dict[str, Any] | None = None) -> dict[str, Any]:
     """The throughput regime: ``k`` back-to-back ``run()`` calls, one synchronise, time / k.
 
     What a simulation loop that synchronises rarely pays per call: launches are queued while the
@@ -112,7 +113,13 @@ def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: floa
     slower than the device). ``k`` doubles from 1 until one batch lasts at least ``batch_s``
     (stable against the one synchronise and the clock), at most ``max_k``; then ``repeat`` batches
     are timed on the wall clock. Returns median/IQR/min of the per-call time, ``repeats`` and ``k``.
+    Where one synchronised call already lasts ``batch_s`` (``latency``'s median, wall clock) the
+    batch is one call and one synchronise, which is the latency regime itself: its figures are
+    returned (``same_as``) rather than timing the same thing again.
     """
+    if latency is not None and latency["median_s"] >= batch_s:
+        return {**{f: latency[f] for f in ("median_s", "iqr_s", "min_s", "repeats")}, "k": 1,
+                "host_s": None, "same_as": "latency"}
     k, spent = 1, 0.0
     while True:
         t0 = time.perf_counter()

@@ -27,6 +27,7 @@ import backends
 import scenarios
 from backends.base import Backend
 from compare import noise, phases, scaleout, timing
+from compare.gate import Gate
 from compare.nvml import open_nvml
 from compare.spec import Cell
 from compare.store import jsonable
@@ -130,10 +131,13 @@ def device_memory(be: Any, device: str) -> dict[str, Any]:
 
 
 def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = False,
-             laps: phases.Laps | None = None) -> dict[str, Any]:
+             laps: phases.Laps | None = None, gate: Gate | None = None) -> dict[str, Any]:
     """Build, time, download and check one cell. Exceptions propagate (the parent records them).
-    ``laps``: where the cell's time goes (``time.phases``), begun before the caller's part."""
+    ``laps``: where the cell's time goes (``time.phases``), begun before the caller's part.
+    ``gate``: in an overlapped run, the driver's word before the clocks start (``compare.gate``);
+    everything from the kernel's build to the graph regime is the cell's timed window."""
     laps = laps or phases.Laps()
+    gate = gate or Gate(out_dir)
     sc = scenarios.get(cell.scenario)
     be = backends.get(cell.backend)
     device, precision, variant, params = cell.device, cell.precision, cell.variant, cell.params
@@ -149,6 +153,8 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     sync = lambda r: be.synchronize(device, r)  # noqa: E731
     rss_before = current_rss_bytes()          # the host-memory baseline, framework started
     laps.lap("framework")
+    gate.wait()
+    laps.lap("wait")
     t0 = time.perf_counter()
     kernel = be.kernel(sc.name)(params, inputs, device, precision, variant)
     sync(None)
@@ -169,7 +175,8 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         nvml.sample()
     regimes = {"latency": {k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")} | {"repeats": t["repeats"]}}
     if cell.throughput:
-        regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=cell.max_time)
+        regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=cell.max_time,
+                                                 latency=regimes["latency"])
         laps.lap("throughput")
         if nvml:
             nvml.sample()
@@ -204,6 +211,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         calls = max(20, min(regimes["throughput"]["k"], 2000))
         regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, cell.host_profile)
         laps.lap("host_profile")
+    gate.release()
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
@@ -216,7 +224,8 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
              "clock": timing.CLOCK if "events_error" in t else clock,
              "timer": "events" if timer is not None and "events_error" not in t else "wall",
-             "first_call_clock": timing.CLOCK, "cache": cache_note}
+             "first_call_clock": timing.CLOCK, "cache": cache_note,
+             "window": [round(w, 4) for w in gate.window]}   # epoch seconds: no two cells' overlap
     times["noise"] = noise.verdict(times, host)
     record: dict[str, Any] = {
         "status": "ok" if check.ok else "mismatch",
@@ -287,7 +296,7 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
         ident = (cell.backend, str(cell.device), str(cell.precision), cell.variant)
         if _SET_UP and ident not in _SET_UP:
             raise ValueError(f"cells sharing a worker must share backend, device, precision and variant; got {ident}")
-        record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps)
+        record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps, gate=Gate(cell_dir))
         _SET_UP.add(ident)
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
         record = {"status": "error", "reason": str(exc)}

@@ -294,6 +294,11 @@ class Scenario:
         pick = lambda d: {key: (np.asarray(a)[idx] if np.ndim(a) else a) for key, a in d.items()}  # noqa: E731
         return Sample(pick(inputs), pick(outputs), int(idx.size), n, self.item, seed, idx)
 
+    def scaled(self, params, factor: int):
+        """The same parameters at 1/``factor`` of the cell's size, run first to predict how long a
+        big cell takes (``compare.calibrate``); None (the default) for a cell too small to need it."""
+        return None
+
     def size_text(self, params) -> str:
         return ", ".join(f"{k}={getattr(params, k)}" for k in ("n", "width", "height", "steps")
                          if hasattr(params, k))

@@ -39,6 +39,7 @@ from .base import Check, Precision, Scenario, UNIT_ROUNDOFF, dtype_of, require
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
 INITIAL = ("x0", "y0", "vx0", "vy0")
 STATE = ("x", "y", "vx", "vy")
+BIG_N = 1 << 22      # from here a cell is first timed in miniature (compare.calibrate)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -265,6 +266,9 @@ class Particles(Scenario):
     def distance(self, params, inputs, outputs, other) -> float:
         err = self.state_error(outputs, other)
         return float(err.max()) if np.all(np.isfinite(err)) else math.inf
+
+    def scaled(self, params: ParticlesParams, factor: int) -> ParticlesParams | None:
+        return dataclasses.replace(params, n=max(1, params.n // factor)) if params.n >= BIG_N else None
 
     def footprint(self, params: ParticlesParams, precision: str, device: str = "cpu") -> float:
         # state, the oracle's float64 rollout with its running bounds and margins, and with

@@ -37,6 +37,7 @@ from .projectile_adjoint import closed_form, evaluate, finite_difference_gradien
 CONSTANTS = ("dt", "gravity", "target_x", "target_y", "bounce", "damping", "stiffness",
              "softness", "lr")
 MAX_BATCH = 1 << 24
+BIG_BATCH = 1 << 16    # from here a cell is first timed in miniature (compare.calibrate)
 # Useful floating-point operations per trajectory-step, forward + reverse: 'none' 3 updates of 2
 # FLOPs forward and 2 of 2 in reverse; 'hard' adds 3 multiplies on a bounce (counted always);
 # 'soft' adds the softplus (2 transcendental + 6 FLOPs) and its derivative (~8) in each direction.
@@ -137,6 +138,10 @@ class Projectile(Scenario):
 
     def size_text(self, params: ProjectileParams) -> str:
         return f"steps={params.steps}" + (f", batch={params.batch}" if params.batch > 1 else "")
+
+    def scaled(self, params: ProjectileParams, factor: int) -> ProjectileParams | None:
+        return (dataclasses.replace(params, batch=max(1, params.batch // factor))
+                if params.batch >= BIG_BATCH else None)
 
     def sample(self, params: ProjectileParams, inputs: dict[str, np.ndarray],
                outputs: dict[str, np.ndarray], k: int) -> Sample | None:

@@ -42,3 +42,9 @@ def test_records_parts_are_summed():
     recs = [{"time": {"phases": {"start": 1.0, "steady": 2.0}}}, {"time": None},
             {"time": {"phases": {"steady": 0.5}}}]
     assert phases.cell_parts(recs) == {"start": 1.0, "steady": 2.5}
+
+
+def test_summary_line_of_an_overlapped_run_shares_the_workers_time():
+    line = phases.summary_line({"cells": 10.0}, {"start": 4.0, "wait": 6.0, "first_call": 3.0, "steady": 5.0}, 4)
+    assert "the workers' 12 s overlapped into the cells' 10 s, 50 % of them measurement" in line
+    assert "warm-up and latency 42 %" in line and "waiting" not in line

@@ -29,7 +29,7 @@ from typing import Any
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options, run_suite, scaleout
+from compare import engine, environment, hardware, options, overlap, run_suite, scaleout
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.spec import Cell
 from compare.store import UPGRADES, Store, atomic_write
@@ -210,7 +210,8 @@ def run_plan(specs: list[Cell], references: list[dict[str, Any] | None], probes,
         hardware.annotate([rec], yardstick)
         show(next(count), rec, outputs)
     engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
-                     resume=args.resume, runner=runner)
+                     resume=args.resume, runner=runner, ahead=overlap.ahead(args),
+                     footprint=lambda c: run_suite.cell_bytes(c)[0])
 
 
 def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
@@ -280,6 +281,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, 
     store = Store.open(out, "sweep", keep=not args.fresh)
     env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
     env["backends"] = probes
+    env["overlap"] = overlap.ahead(args)
     env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c, _ in planned)
                        if any(p["available"].get(d) is None for p in probes.values())}

@@ -1,0 +1,214 @@
+"""Timed cells, one fresh process each, with the parts no clock sees overlapped.
+
+A cell's worker (``compare.worker``) starts, imports, makes its inputs and sets its framework up,
+then waits at its gate (``compare.gate``) until this driver lets its clocks start; when its timed
+window is over (kernel build, first call, warm-up and latency, throughput, download, graph) it
+says so and goes on to the oracle, the check, its record and its exit. Here up to ``ahead``
+workers are started before their turn and one gate is opened at a time:
+
+- no two cells' timed windows overlap (each record keeps its own, ``time.window``);
+- a CPU cell's gate opens only when every other worker waits at its gate (blocked, idle) and
+  none starts until its window is over: it has the host to itself, as without overlap;
+- while a CUDA cell is timed, other workers may start, import and set their frameworks up (a
+  core each; their inputs reach a device only in their own window); one worker per framework
+  and GPU at a time (``engine.gpu_lane``), and the workers' memory estimates together within
+  the budget;
+- each cell still has its own process and empty kernel caches, so its first call is as cold
+  as in a run without overlap; waiting at the gate is its own part (``time.phases.wait``) and
+  does not count against ``timeout``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable, IO
+
+from compare import cells, lifeline, phases
+from compare.gate import GATE_ENV, READY, TIMED
+from compare.spec import Cell
+
+Result = cells.Result
+
+
+def ahead(args: Any = None) -> int:
+    """Workers started before their turn: ``--overlap`` where given; else one where cores are
+    few, three on a larger host."""
+    given = getattr(args, "overlap", None)
+    if given is not None:
+        return int(given)
+    n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return 1 if n < 8 else 3
+
+
+def schedule(plan: list[Cell]) -> list[int]:
+    """The order cells run in: CUDA and CPU cells alternate (a CPU cell starts while a CUDA cell
+    is timed), and consecutive cells of one device differ in framework where they can."""
+    by_dev: dict[str, list[int]] = {}
+    for i, c in enumerate(plan):
+        by_dev.setdefault("cpu" if c.device == "cpu" else "gpu", []).append(i)
+    for dev, idx in by_dev.items():
+        idx.sort(key=lambda i: (str(plan[i].precision), plan[i].scenario, plan[i].variant, plan[i].backend))
+    gpu, cpu = by_dev.get("gpu", []), by_dev.get("cpu", [])
+    out: list[int] = []
+    for k in range(max(len(gpu), len(cpu))):
+        out += gpu[k:k + 1] + cpu[k:k + 1]
+    return out
+
+
+@dataclasses.dataclass
+class _Job:
+    i: int
+    cell: Cell
+    dir: Path
+    proc: subprocess.Popen
+    gate: int                      # the write end of the worker's gate pipe
+    err: IO[str]
+    launched: float
+    state: str = "start"           # start -> ready -> timed -> after -> (exit)
+    ready_at: float = 0.0
+    waited: float = 0.0
+    result: Result | None = None
+
+    @property
+    def cpu(self) -> bool:
+        return self.cell.device == "cpu"
+
+    def close(self) -> None:
+        for f in (lambda: os.close(self.gate), self.err.close):
+            try:
+                f()
+            except OSError:
+                pass
+
+
+def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[[int, Result], None],
+                   ahead: int, need: Callable[[Cell], float] | None = None,
+                   budget: float | None = None, lane: Callable[[Cell], Any] | None = None) -> None:
+    """Run every cell of ``plan`` (one process each), calling ``on_result(i, result)`` as each
+    finishes. ``need``/``budget``: a worker's host-memory estimate and what the workers may hold
+    together; ``lane``: cells of one lane never run at the same time (None: no constraint)."""
+    todo = schedule(plan)
+    active: list[_Job] = []
+    with lifeline.temp_dir("overlap-") as tmp:
+        root = Path(tmp)
+        try:
+            while todo or active:
+                now = time.monotonic()
+                for job in list(active):
+                    if _advance(job, now, timeout):
+                        active.remove(job)
+                        job.close()
+                        on_result(job.i, job.result)
+                        _remove(job.dir)
+                _grant(active)
+                started = _launchable(todo, active, plan, ahead, need, budget, lane)
+                if started is not None:
+                    todo.remove(started)
+                    active.append(_launch(started, plan[started], root, timeout))
+                    continue
+                time.sleep(0.002)
+        finally:                       # the driver gives up (a full disk, Ctrl-C): no worker runs on
+            for job in active:
+                if job.proc.poll() is None:
+                    job.proc.kill()
+                    job.proc.wait()
+                job.close()
+
+
+def _launch(i: int, cell: Cell, root: Path, timeout: float | None) -> _Job:
+    d = root / f"cell-{i}"
+    d.mkdir()
+    (d / "cells.json").write_text(json.dumps([cell.to_dict()]))
+    r, w = os.pipe()
+    env = lifeline.child_environment(cells.worker_env(cell.backend, cell.variant), d)
+    env[phases.LAUNCHED_ENV] = repr(time.time())
+    env[GATE_ENV] = str(r)
+    err = tempfile.TemporaryFile("w+")
+    proc = subprocess.Popen(lifeline.command("compare.worker", str(d / "cells.json"), str(d)), cwd=cells.ROOT,
+                            env=env, stdout=subprocess.DEVNULL, stderr=err, text=True,
+                            stdin=subprocess.DEVNULL, pass_fds=(r,))
+    os.close(r)
+    return _Job(i, cell, d, proc, w, err, time.monotonic())
+
+
+def _advance(job: _Job, now: float, timeout: float | None) -> bool:
+    """Move ``job`` on from what its worker left in its directory; True once it is over (its
+    record read and its process gone, or its failure made a record)."""
+    out = job.dir / "cell-0"
+    if job.state == "start" and (out / READY).exists():
+        job.state, job.ready_at = "ready", now
+    if job.state == "timed" and (out / TIMED).exists():
+        job.state = "after"
+    if job.result is None and (out / "record.json").exists():
+        job.result = cells.collect(out, job.cell)
+        job.state = "after"
+    alive = job.proc.poll() is None
+    if job.result is not None and not alive:
+        return True
+    spent = now - job.launched - job.waited - (now - job.ready_at if job.state == "ready" else 0.0)
+    if alive and (timeout is None or spent <= timeout):
+        return False
+    if alive:
+        job.proc.kill()
+        job.proc.wait()
+        if job.result is not None:      # its record is kept; only its exit hung
+            return True
+        job.err.seek(0)
+        why = f"timed out after {timeout:g} s; {cells.tail(job.err.read(), 2)}".rstrip("; ")
+    else:
+        job.err.seek(0)
+        why = cells.died(job.proc, job.err.read())
+    job.result = ({"status": "error", "reason": why}, None)
+    return True
+
+
+def _grant(active: list[_Job]) -> None:
+    """Open the next gate: the first ready worker in launch order, when no window is open, and
+    for a CPU cell only when every other worker waits at its gate."""
+    if any(j.state == "timed" for j in active):
+        return
+    ready = [j for j in active if j.state == "ready"]
+    if not ready:
+        return
+    job = ready[0]
+    if job.cpu and any(j is not job and j.state != "ready" for j in active):
+        return
+    try:
+        os.write(job.gate, b"g")
+    except OSError:                   # the worker died at its gate: _advance records why
+        return
+    job.waited += time.monotonic() - job.ready_at
+    job.state = "timed"
+
+
+def _launchable(todo: list[int], active: list[_Job], plan: list[Cell], ahead: int,
+                need: Callable[[Cell], float] | None, budget: float | None,
+                lane: Callable[[Cell], Any] | None) -> int | None:
+    """The next cell to start now, or None: at most 1 + ``ahead`` workers; none while a CPU
+    cell is timed or waits for the host to itself; within the memory budget and the lanes."""
+    if not todo or len(active) > ahead:
+        return None
+    if not active:
+        return todo[0]
+    if any(j.cpu and j.state in ("ready", "timed") for j in active):
+        return None
+    held = sum(need(j.cell) for j in active) if need else 0.0
+    lanes = {lane(j.cell) for j in active} if lane else set()
+    for i in todo[:1 + ahead]:
+        cell = plan[i]
+        if need and budget is not None and held + need(cell) > budget:
+            continue
+        if lane and lane(cell) is not None and lane(cell) in lanes:
+            continue
+        return i
+    return None
+
+
+def _remove(d: Path) -> None:
+    import shutil
+    shutil.rmtree(d, ignore_errors=True)

@@ -1,0 +1,159 @@
+"""Overlapped runs (compare/overlap.py): workers start before their turn, yet no two cells'
+timed windows overlap, a CPU cell is timed only while every other worker waits, and a call that
+already lasts the throughput batch is not timed twice (compare/timing.py)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from compare import overlap, timing
+from compare.spec import Cell
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+_READ_ENDS: list[int] = []
+
+
+@pytest.fixture(autouse=True)
+def _close_read_ends():
+    yield
+    while _READ_ENDS:
+        os.close(_READ_ENDS.pop())
+
+
+class _Proc:
+    def poll(self):
+        return None
+
+
+def _job(i: int, device: str, state: str, backend: str = "numpy") -> overlap._Job:
+    r, w = os.pipe()                # the read end stays open (the worker's), so a grant lands
+    _READ_ENDS.append(r)
+    cell = Cell.from_dict({"scenario": "saxpy", "backend": backend, "device": device,
+                           "precision": "float32", "variant": "default", "params": {}})
+    job = overlap._Job(i, cell, Path("."), _Proc(), w, open(os.devnull, "w"), time.monotonic(), state=state)
+    job.ready_at = time.monotonic()
+    return job
+
+
+def _cells(*devices_backends: tuple[str, str]) -> list[Cell]:
+    return [Cell.from_dict({"scenario": "saxpy", "backend": b, "device": d, "precision": "float32",
+                            "variant": "default", "params": {}}) for d, b in devices_backends]
+
+
+def test_a_cpu_cell_is_timed_only_while_every_other_worker_waits():
+    cpu, other = _job(0, "cpu", "ready"), _job(1, "cuda", "start", "warp")
+    overlap._grant([cpu, other])
+    assert cpu.state == "ready"                  # the other worker is still setting up
+    other.state = "ready"
+    overlap._grant([cpu, other])
+    assert cpu.state == "timed" and other.state == "ready"
+    overlap._grant([cpu, other])
+    assert other.state == "ready"                # one window at a time
+    for j in (cpu, other):
+        j.close()
+
+
+def test_a_cuda_cell_is_timed_while_others_set_up():
+    gpu, other = _job(0, "cuda", "ready", "warp"), _job(1, "cpu", "start")
+    overlap._grant([gpu, other])
+    assert gpu.state == "timed"
+    for j in (gpu, other):
+        j.close()
+
+
+def test_no_worker_starts_while_a_cpu_cell_is_timed_or_waits_for_the_host():
+    plan = _cells(("cpu", "numpy"), ("cuda", "warp"), ("cpu", "numba"))
+    for state in ("ready", "timed"):
+        active = [_job(0, "cpu", state)]
+        assert overlap._launchable([1, 2], active, plan, 3, None, None, None) is None
+        active[0].close()
+    active = [_job(1, "cuda", "timed", "warp")]
+    assert overlap._launchable([0, 2], active, plan, 3, None, None, None) == 0
+    assert overlap._launchable([0, 2], active, plan, 0, None, None, None) is None     # --overlap 0
+    active[0].close()
+
+
+def test_launches_keep_to_the_gpu_lanes_and_the_memory_budget():
+    from compare.engine import gpu_lane
+    plan = _cells(("cuda", "warp"), ("cuda", "warp"), ("cuda", "jax"))
+    active = [_job(0, "cuda", "timed", "warp")]
+    assert overlap._launchable([1, 2], active, plan, 3, None, None, gpu_lane) == 2     # warp's lane is busy
+    need = {"warp": 5.0, "jax": 6.0}
+    assert overlap._launchable([1, 2], active, plan, 3, lambda c: need[c.backend], 9.0, None) is None
+    assert overlap._launchable([], [], plan, 3, None, None, None) is None
+    active[0].close()
+
+
+def test_the_schedule_alternates_devices_and_frameworks():
+    plan = _cells(("cuda", "warp"), ("cuda", "warp"), ("cpu", "numpy"), ("cuda", "jax"), ("cpu", "numba"))
+    order = overlap.schedule(plan)
+    assert sorted(order) == list(range(5))
+    assert [plan[i].device for i in order[:4]] == ["cuda", "cpu", "cuda", "cpu"]
+
+
+def test_a_call_that_fills_the_batch_is_its_own_throughput_regime():
+    latency = {"median_s": 0.03, "iqr_s": 0.001, "min_s": 0.029, "repeats": 10}
+    calls = []
+    got = timing.pipelined(lambda: calls.append(time.sleep(0.03)), lambda r: None, latency=latency)
+    assert got["same_as"] == "latency" and got["k"] == 1 and got["median_s"] == 0.03
+    assert not calls                                         # not one call timed again
+    fast = timing.pipelined(lambda: None, lambda r: None, latency={**latency, "median_s": 1e-6})
+    assert "same_as" not in fast and fast["k"] > 1
+
+
+def test_an_overlapped_run_keeps_windows_apart_and_cpu_cells_alone(tmp_path):
+    out = tmp_path / "run"
+    p = subprocess.run([sys.executable, "-m", "compare", "saxpy", "--backends", "numpy,jax", "--devices",
+                        "cpu", "--repeat", "2", "--overlap", "2", "--no-plots", "--out", str(out)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    data = json.loads((out / "results.json").read_text())
+    assert data["runs"][-1]["overlap"] == 2
+    recs = [r for r in data["records"] if r["status"] == "ok"]
+    assert len(recs) == 4
+    spans = []
+    for r in recs:
+        t, ph = r["time"], r["time"]["phases"]
+        start, end = t["window"]
+        assert end > start and "wait" in ph
+        launched = start - sum(ph.get(k, 0.0) for k in ("start", "inputs", "framework", "wait"))
+        ready = start - ph["wait"]
+        finished = end + sum(ph.get(k, 0.0) for k in ("check", "record", "save"))
+        spans.append((start, end, [(launched, ready), (end, finished)]))
+    slack = 0.01                                             # the records' rounding and clocks
+    for a in spans:
+        for b in spans:
+            if a is b:
+                continue
+            assert b[1] <= a[0] + slack or b[0] >= a[1] - slack          # windows never overlap
+            for lo, hi in b[2]:                                          # nor another's work
+                assert hi <= a[0] + slack or lo >= a[1] - slack, (a, b)
+
+
+def test_protocol_calls_follow_the_timing_rules():
+    from compare import calibrate
+    cell = Cell.from_dict({"scenario": "projectile", "backend": "numpy", "device": "cpu",
+                           "precision": "float32", "variant": "default", "params": {}})
+    # a 60 s call: one warm-up, three timed, no throughput batch of its own
+    assert calibrate.protocol_calls(60.0, cell) == 1 + 3
+    # a 1 ms call: two warm-ups, 200 timed calls (min_time 0.2 s), the throughput batches
+    assert calibrate.protocol_calls(1e-3, cell) == 2 + 200 + 160
+
+
+def test_a_big_cell_predicted_past_the_timeout_is_skipped_with_the_prediction(tmp_path):
+    out = tmp_path / "run"
+    p = subprocess.run([sys.executable, "-m", "compare", "projectile", "--set", "batch=65536", "--backends",
+                        "numpy", "--devices", "cpu", "--precision", "float32", "--timeout", "2",
+                        "--no-plots", "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    (rec,) = [r for r in json.loads((out / "results.json").read_text())["records"] if r["backend"] == "numpy"]
+    assert rec["status"] == "skipped", rec
+    assert "predicted to take about" in rec["reason"] and "over --timeout 2 s; --timeout" in rec["reason"]
