@@ -1,21 +1,22 @@
-"""Timed cells, one fresh process each, with the parts no clock sees overlapped.
+"""Timed cells, one fresh process each, their set-up done side by side and their clocks alone.
 
 A cell's worker (``compare.worker``) starts, imports, makes its inputs and sets its framework up,
 then waits at its gate (``compare.gate``) until this driver lets its clocks start; when its timed
 window is over (kernel build, first call, warm-up and latency, throughput, download, graph) it
-says so and goes on to the oracle, the check, its record and its exit. Here up to ``ahead``
-workers are started before their turn and one gate is opened at a time:
+says so and goes on to the oracle, the check, its record and its exit. Here up to 1 + ``ahead``
+workers set up at the same time, then their gates open one after another:
 
-- no two cells' timed windows overlap (each record keeps its own, ``time.window``);
-- a CPU cell's gate opens only when every other worker waits at its gate (blocked, idle) and
-  none starts until its window is over: it has the host to itself, as without overlap;
-- while a CUDA cell is timed, other workers may start, import and set their frameworks up (a
-  core each; their inputs reach a device only in their own window); one worker per framework
-  and GPU at a time (``engine.gpu_lane``), and the workers' memory estimates together within
-  the budget;
+- a gate opens only when every other worker waits at its gate (blocked on a pipe: idle) or has
+  exited, so nothing else runs on the host while a cell is timed, on the CPU or on a GPU: no two
+  windows overlap (each record keeps its own, ``time.window``), and no set-up, check or exit
+  overlaps a window either. Workers that set up while a CUDA cell was timed made launch-bound
+  CUDA cells up to 1.9 times slower on the H100 (docs/results/h100/evidence/session15-overlap),
+  so the set-up of the next workers begins only when no worker is ready or timed;
+- one worker per framework and GPU at a time (``engine.gpu_lane``), and the workers' memory
+  estimates together within the budget;
 - each cell still has its own process and empty kernel caches, so its first call is as cold
-  as in a run without overlap; waiting at the gate is its own part (``time.phases.wait``) and
-  does not count against ``timeout``.
+  as one at a time; waiting at the gate is its own part (``time.phases.wait``) and does not
+  count against ``timeout``.
 """
 from __future__ import annotations
 
@@ -36,18 +37,18 @@ Result = cells.Result
 
 
 def ahead(args: Any = None) -> int:
-    """Workers started before their turn: ``--overlap`` where given; else one where cores are
-    few, three on a larger host."""
+    """Workers that set up beside the next one: ``--overlap`` where given; else half the cores
+    less one, at least one (1 on 2 cores, 7 on 16)."""
     given = getattr(args, "overlap", None)
     if given is not None:
         return int(given)
     n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return 1 if n < 8 else 3
+    return max(1, n // 2 - 1)
 
 
 def schedule(plan: list[Cell]) -> list[int]:
-    """The order cells run in: CUDA and CPU cells alternate (a CPU cell starts while a CUDA cell
-    is timed), and consecutive cells of one device differ in framework where they can."""
+    """The order cells run in: CUDA and CPU cells alternate and consecutive cells of one device
+    differ in framework where they can, so that workers setting up together rarely share a lane."""
     by_dev: dict[str, list[int]] = {}
     for i, c in enumerate(plan):
         by_dev.setdefault("cpu" if c.device == "cpu" else "gpu", []).append(i)
@@ -168,16 +169,12 @@ def _advance(job: _Job, now: float, timeout: float | None) -> bool:
 
 
 def _grant(active: list[_Job]) -> None:
-    """Open the next gate: the first ready worker in launch order, when no window is open, and
-    for a CPU cell only when every other worker waits at its gate."""
-    if any(j.state == "timed" for j in active):
-        return
+    """Open the next gate: the first ready worker in launch order, when every other worker waits
+    at its gate (none is timed, setting up, checking or exiting)."""
     ready = [j for j in active if j.state == "ready"]
-    if not ready:
+    if not ready or len(ready) < len(active):
         return
     job = ready[0]
-    if job.cpu and any(j is not job and j.state != "ready" for j in active):
-        return
     try:
         os.write(job.gate, b"g")
     except OSError:                   # the worker died at its gate: _advance records why
@@ -189,13 +186,14 @@ def _grant(active: list[_Job]) -> None:
 def _launchable(todo: list[int], active: list[_Job], plan: list[Cell], ahead: int,
                 need: Callable[[Cell], float] | None, budget: float | None,
                 lane: Callable[[Cell], Any] | None) -> int | None:
-    """The next cell to start now, or None: at most 1 + ``ahead`` workers; none while a CPU
-    cell is timed or waits for the host to itself; within the memory budget and the lanes."""
+    """The next cell to start now, or None: at most 1 + ``ahead`` workers, and only while none is
+    ready or timed (set-ups start together, then the gates open one by one); within the memory
+    budget and the lanes."""
     if not todo or len(active) > ahead:
         return None
     if not active:
         return todo[0]
-    if any(j.cpu and j.state in ("ready", "timed") for j in active):
+    if any(j.state in ("ready", "timed") for j in active):
         return None
     held = sum(need(j.cell) for j in active) if need else 0.0
     lanes = {lane(j.cell) for j in active} if lane else set()

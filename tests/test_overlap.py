@@ -61,30 +61,35 @@ def test_a_cpu_cell_is_timed_only_while_every_other_worker_waits():
         j.close()
 
 
-def test_a_cuda_cell_is_timed_while_others_set_up():
+def test_a_cuda_cell_waits_too_while_another_worker_sets_up():
     gpu, other = _job(0, "cuda", "ready", "warp"), _job(1, "cpu", "start")
     overlap._grant([gpu, other])
-    assert gpu.state == "timed"
+    assert gpu.state == "ready"
+    other.state = "after"                        # checking its outputs, or exiting
+    overlap._grant([gpu, other])
+    assert gpu.state == "ready"
     for j in (gpu, other):
         j.close()
 
 
-def test_no_worker_starts_while_a_cpu_cell_is_timed_or_waits_for_the_host():
+def test_workers_start_together_only_while_no_window_is_open_or_due():
     plan = _cells(("cpu", "numpy"), ("cuda", "warp"), ("cpu", "numba"))
-    for state in ("ready", "timed"):
-        active = [_job(0, "cpu", state)]
-        assert overlap._launchable([1, 2], active, plan, 3, None, None, None) is None
-        active[0].close()
-    active = [_job(1, "cuda", "timed", "warp")]
+    for device, backend in (("cpu", "numpy"), ("cuda", "warp")):
+        for state in ("ready", "timed"):
+            active = [_job(0, device, state, backend)]
+            assert overlap._launchable([1, 2], active, plan, 3, None, None, None) is None
+            active[0].close()
+    active = [_job(1, "cuda", "start", "warp"), _job(3, "cpu", "after")]
     assert overlap._launchable([0, 2], active, plan, 3, None, None, None) == 0
-    assert overlap._launchable([0, 2], active, plan, 0, None, None, None) is None     # --overlap 0
-    active[0].close()
+    assert overlap._launchable([0, 2], active, plan, 1, None, None, None) is None     # 1 + ahead workers
+    for j in active:
+        j.close()
 
 
 def test_launches_keep_to_the_gpu_lanes_and_the_memory_budget():
     from compare.engine import gpu_lane
     plan = _cells(("cuda", "warp"), ("cuda", "warp"), ("cuda", "jax"))
-    active = [_job(0, "cuda", "timed", "warp")]
+    active = [_job(0, "cuda", "start", "warp")]
     assert overlap._launchable([1, 2], active, plan, 3, None, None, gpu_lane) == 2     # warp's lane is busy
     need = {"warp": 5.0, "jax": 6.0}
     assert overlap._launchable([1, 2], active, plan, 3, lambda c: need[c.backend], 9.0, None) is None
@@ -97,6 +102,7 @@ def test_the_schedule_alternates_devices_and_frameworks():
     order = overlap.schedule(plan)
     assert sorted(order) == list(range(5))
     assert [plan[i].device for i in order[:4]] == ["cuda", "cpu", "cuda", "cpu"]
+    assert [plan[i].backend for i in order if plan[i].device == "cuda"] == ["jax", "warp", "warp"]
 
 
 def test_a_call_that_fills_the_batch_is_its_own_throughput_regime():
@@ -109,7 +115,7 @@ def test_a_call_that_fills_the_batch_is_its_own_throughput_regime():
     assert "same_as" not in fast and fast["k"] > 1
 
 
-def test_an_overlapped_run_keeps_windows_apart_and_cpu_cells_alone(tmp_path):
+def test_an_overlapped_run_times_each_cell_alone(tmp_path):
     out = tmp_path / "run"
     p = subprocess.run([sys.executable, "-m", "compare", "saxpy", "--backends", "numpy,jax", "--devices",
                         "cpu", "--repeat", "2", "--overlap", "2", "--no-plots", "--out", str(out)],
