@@ -91,6 +91,15 @@ def nonnegative_int(text: str) -> int:
     return whole_number(text, 0)
 
 
+def overlap_count(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        return whole_number(text, 0)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0 or auto, got {text!r}") from None
+
+
 def seconds(text: str, allow_zero: bool = False) -> float:
     try:
         value = float(text)
@@ -134,9 +143,10 @@ def add_timing(p: argparse.ArgumentParser, repeat: int | None = 10, min_time: fl
     p.add_argument("--min-time", type=nonnegative_seconds, default=min_time,
                    help="minimum timed seconds per cell")
     p.add_argument("--timeout", type=seconds, default=timeout, help="seconds before a cell is killed")
-    p.add_argument("--overlap", type=nonnegative_int, default=None, metavar="N",
-                   help="workers that start before their turn, their set-up overlapped and their "
-                   "clocks never (0: one cell at a time; default 1, or 3 on 8 or more cores)")
+    p.add_argument("--overlap", type=overlap_count, default=0, metavar="N",
+                   help="N more workers set up side by side with the next cell's, each timed alone "
+                   "(auto: half the cores less one; default 0, one cell at a time: "
+                   "docs/measurement.md, 'Overlapped set-ups')")
 
 
 def add_output(p: argparse.ArgumentParser, out: str) -> None:

@@ -37,13 +37,15 @@ Result = cells.Result
 
 
 def ahead(args: Any = None) -> int:
-    """Workers that set up beside the next one: ``--overlap`` where given; else half the cores
-    less one, at least one (1 on 2 cores, 7 on 16)."""
+    """Workers that set up beside the next one: ``--overlap`` (``auto``: half the cores less
+    one, at least one: 7 on 16 cores); 0 by default, the protocol the published figures used."""
     given = getattr(args, "overlap", None)
-    if given is not None:
-        return int(given)
-    n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return max(1, n // 2 - 1)
+    if given in (None, 0):
+        return 0
+    if given == "auto":
+        n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        return max(1, n // 2 - 1)
+    return int(given)
 
 
 def schedule(plan: list[Cell]) -> list[int]:

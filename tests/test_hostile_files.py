@@ -329,12 +329,7 @@ def mutated(draw: st.DrawFn) -> tuple[str, bytes]:
     return suite, text.encode()
 
 
-@pytest.mark.early
-@settings(max_examples=60, deadline=None, derandomize=True, database=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-@given(case=mutated())
-def test_property_a_mutated_file_loads_and_builds_a_site_or_is_refused(tmp_path_factory: Any,
-                                                                       case: tuple[str, bytes]) -> None:
+def _loads_and_builds_or_is_refused(tmp_path_factory: Any, case: tuple[str, bytes]) -> None:
     adversarial.case()
     suite, raw = case
     tmp = tmp_path_factory.mktemp("fuzz")
@@ -349,6 +344,25 @@ def test_property_a_mutated_file_loads_and_builds_a_site_or_is_refused(tmp_path_
     rc, lines = run_main(["site", str(f), "--out", str(tmp / "site")])
     assert rc == 0, lines
     assert (tmp / "site" / "index.html").is_file()
+
+
+_FUZZ = dict(deadline=None, derandomize=True, database=None,
+             suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+
+
+@pytest.mark.early
+@settings(max_examples=25, **_FUZZ)
+@given(case=mutated())
+def test_property_a_mutated_file_loads_and_builds_a_site_or_is_refused(tmp_path_factory: Any,
+                                                                       case: tuple[str, bytes]) -> None:
+    _loads_and_builds_or_is_refused(tmp_path_factory, case)
+
+
+@pytest.mark.slow                     # the long tier: more mutants of the same property
+@settings(max_examples=200, **_FUZZ)
+@given(case=mutated())
+def test_property_many_mutated_files(tmp_path_factory: Any, case: tuple[str, bytes]) -> None:
+    _loads_and_builds_or_is_refused(tmp_path_factory, case)
 
 
 def test_the_loader_is_quick_on_the_largest_committed_store() -> None:

@@ -117,7 +117,7 @@ def test_a_call_that_fills_the_batch_is_its_own_throughput_regime():
 
 def test_an_overlapped_run_times_each_cell_alone(tmp_path):
     out = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-m", "compare", "saxpy", "--backends", "numpy,jax", "--devices",
+    p = subprocess.run([sys.executable, "-m", "compare", "run", "saxpy", "sdf", "--backends", "numpy", "--devices",
                         "cpu", "--repeat", "2", "--overlap", "2", "--no-plots", "--out", str(out)],
                        cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
