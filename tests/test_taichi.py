@@ -54,9 +54,12 @@ for precision in (PRECISION,):
     b.setup(DEVICE, precision, "default")   # the variant's arithmetic is IEEE, as 'default'
     out["limit"] = fused_steps_limit()
     # (steps, forced segment length): ceil(sqrt(60)) = 8 (uneven last segment), 7, 1 step per
-    # segment, and 100 steps > the adstack limit: segments of 10, against the per-step path
+    # segment, and 100 steps > the adstack limit: segments of 10, against the per-step path;
+    # the forced lengths with the hard contact only (the segment loop is the same for every contact)
     for contact in ("none", "hard", "soft"):
         for steps, seg in ((60, None), (60, 7), (23, 1), (100, None)):
+            if seg is not None and contact != "hard":
+                continue
             p = sc.params({"contact": contact, "steps": steps, "dt": 1.5 / steps, "iters": 3,
                            "batch": 37})
             i = sc.inputs(p, precision)
@@ -94,7 +97,7 @@ def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device, precision)
     (different kernels, different FMA contraction); within the oracle's bounds."""
     r = _script(CHECKPOINT, device, PRECISION=precision)
     limit = r.pop("limit")
-    assert limit == 38 and len(r) == 12 and all(case.startswith(precision) for case in r)
+    assert limit == 38 and len(r) == 8 and all(case.startswith(precision) for case in r)
     for case, v in r.items():
         _, _, steps, seg = case.split("-")
         steps = int(steps)
