@@ -20,6 +20,7 @@ class Gate:
     def __init__(self, cell_dir: Path) -> None:
         raw = os.environ.pop(GATE_ENV, "")        # one cell per gate: a later cell runs ungated
         self.fd = int(raw) if raw.isdigit() else None
+        self.gated = self.fd is not None
         self.dir = cell_dir
         self.window: list[float] = []
 
