@@ -77,10 +77,6 @@ class _Job:
     waited: float = 0.0
     result: Result | None = None
 
-    @property
-    def cpu(self) -> bool:
-        return self.cell.device == "cpu"
-
     def close(self) -> None:
         for f in (lambda: os.close(self.gate), self.err.close):
             try:
@@ -114,7 +110,8 @@ def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[
                     todo.remove(started)
                     active.append(_launch(started, plan[started], root, timeout))
                     continue
-                time.sleep(0.002)
+                # while a window is open the driver's own polling is other work: rarely then
+                time.sleep(0.01 if any(j.state == "timed" for j in active) else 0.002)
         finally:                       # the driver gives up (a full disk, Ctrl-C): no worker runs on
             for job in active:
                 if job.proc.poll() is None:
