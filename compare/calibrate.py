@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from typing import Any, Callable
 
 import scenarios
@@ -71,6 +72,12 @@ def miniature(cell: Cell) -> Cell | None:
 
 def _when(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
+
+
+def side_by_side() -> int:
+    """Miniatures run at once: a quarter of the cores (at least one); they are estimates."""
+    n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, n // 4)
 
 
 def time_refusal(plan: list[Cell], timeout: float | None, jobs: int = 1,
