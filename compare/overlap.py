@@ -9,9 +9,9 @@ workers set up at the same time, then their gates open one after another:
 - a gate opens only when every other worker waits at its gate (blocked on a pipe: idle) or has
   exited, so nothing else runs on the host while a cell is timed, on the CPU or on a GPU: no two
   windows overlap (each record keeps its own, ``time.window``), and no set-up, check or exit
-  overlaps a window either. Workers that set up while a CUDA cell was timed made launch-bound
-  CUDA cells up to 1.9 times slower on the H100 (docs/results/h100/evidence/session15-overlap),
-  so the set-up of the next workers begins only when no worker is ready or timed;
+  overlaps a window either (a launch-bound cell's host thread shares cores, caches and memory
+  with whatever else runs), so the set-up of the next workers begins only when no worker is
+  ready or timed (docs/results/h100/evidence/session15-overlap: the evidence for this design);
 - one worker per framework and GPU at a time (``engine.gpu_lane``), and the workers' memory
   estimates together within the budget;
 - each cell still has its own process and empty kernel caches, so its first call is as cold
@@ -54,7 +54,7 @@ def schedule(plan: list[Cell]) -> list[int]:
     by_dev: dict[str, list[int]] = {}
     for i, c in enumerate(plan):
         by_dev.setdefault("cpu" if c.device == "cpu" else "gpu", []).append(i)
-    for dev, idx in by_dev.items():
+    for idx in by_dev.values():
         idx.sort(key=lambda i: (str(plan[i].precision), plan[i].scenario, plan[i].variant, plan[i].backend))
     gpu, cpu = by_dev.get("gpu", []), by_dev.get("cpu", [])
     out: list[int] = []
