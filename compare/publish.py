@@ -127,7 +127,7 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
     from compare.sweep.points import SWEEPS
     parts, left = [], []
     for dev in devices:
-        # each scenario's sizes (compare/sweep/points.py; --quick shrinks them), in registry order
+        # each scenario's sizes (compare/sweep/points/; --quick shrinks them), in registry order
         sizes = [(n, e) for n, sw in SWEEPS.items() for e in (sw.large_quick if quick else sw.large.get(dev, ()))]
         for name, exp in sizes:
             sc, sw = scenarios.get(name), SWEEPS[name]

@@ -4,9 +4,9 @@ A scenario knows nothing about frameworks. A backend's kernel file receives the 
 makes (already rounded to the cell's precision) and returns outputs named as in ``outputs``.
 
 A scenario holds physics only, and knows nothing of the suites either: what they do with it is
-registered by scenario name beside them (sweep points and converged errors in
-compare/sweep/points.py, stress experiments in compare/stress/registry.py, the report's picture
-in compare/figures/). tests/test_layout.py checks that nothing here imports ``backends`` or
+found by scenario name beside them (sweep points in compare/sweep/points/<name>.py and
+converged errors in compare/sweep/converged.py, stress experiments in compare/stress/<name>.py,
+the report's picture in compare/figures/<name>.py). tests/test_layout.py checks that nothing here imports ``backends`` or
 ``compare``.
 """
 from __future__ import annotations

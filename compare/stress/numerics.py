@@ -1,6 +1,6 @@
 """Scenario-agnostic numerics of the stress suite, and what a stress experiment is.
 
-An experiment (registered per scenario in compare/stress/registry.py) runs through a context the
+An experiment (a scenario's, in the module compare/stress/<scenario>.py that compare/stress/registry.py finds) runs through a context the
 driver hands it (``StressContext``: cells, host-loop tasks, row helpers), so that experiments
 import neither the driver nor the store, and compare/records.py can read their page hooks. What
 those experiments share is here.

@@ -1,5 +1,5 @@
 """Converged float64 references of the time-against-error sweep, and the errors measured
-against them (compare/sweep/points.py says which scenario uses which).
+against them (compare/sweep/points/ says which scenario uses which).
 
 Each reference comes from the scenario's own physics (its field, its NumPy stepper, its rollout
 and adjoint), computed at a finer resolution than any swept point; a reference that depends on

@@ -1,6 +1,6 @@
 """The horizon sweep's table and plot: memory, time and gradient quality against the horizon.
 
-A scenario takes part through its sweeps (compare/sweep/points.py): ``points('horizon', ...)``
+A scenario takes part through its sweeps (compare/sweep/points/): ``points('horizon', ...)``
 (the knob is the horizon, e.g. the projectile's steps), ``labels`` 'horizon_items' (the parameter
 that counts independent items per run, e.g. batch) and 'horizon_memory' (the parameter values
 whose points the memory and time panels draw, e.g. {'contact': 'hard'}), and

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Mapping
 
+import scenarios
 from compare.record import Record
 from compare.sweep.points import sweeps
 
@@ -26,7 +27,10 @@ def ok(records: Iterable[Record], sweep: str | None = None, role: str | None = N
 
 
 def label(scenario: str, what: str, default: str = "") -> str:
-    """A scenario's word for the sweep page (``points.Sweeps.labels``); 'name' defaults to its name."""
+    """A scenario's word for the sweep page (``points.Sweeps.labels``); 'name' defaults to its
+    name, 'items' to what the scenario calls one item (``Scenario.item``)."""
+    if what == "items" and what not in sweeps(scenario).labels:
+        default = scenarios.get(scenario).item or default
     return sweeps(scenario).labels.get(what, scenario if what == "name" else default)
 
 

@@ -1,0 +1,45 @@
+"""The saxpy scenario's part in the measurement sweeps (``compare.sweep.points``)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+import scenarios
+from compare.sweep.points import CHECK_SAMPLE, Point, Sweeps
+
+
+# Bandwidth-sweep sizes per (device, quick), exponents of 2: CPU sizes stop where a cell still
+# takes seconds on a small machine, GPU sizes where the arrays are ~1 GiB.
+SAXPY_EXP = {("cpu", False): range(10, 25, 2), ("cpu", True): range(10, 21, 5),
+             ("cuda", False): range(10, 29, 2), ("cuda", True): range(10, 23, 2)}
+
+
+class SaxpySweeps(Sweeps):
+    measures = "bandwidth"          # the size sweep (achieved bandwidth against size)
+    large = {"cuda": (26, 28), "cpu": (24, 26)}
+    large_quick = (16, 18)
+    large_variants = ("default", "graph", "vector", "tile")
+    error_metric = "scenario metric against the float64 oracle: max |err|/(|a x|+|y|)"
+    labels = {"name": "SAXPY", "bytes": "3·n·itemsize",
+              "error_axis": "max |err|/(|a x|+|y|) vs float64 oracle (0 drawn at {floor:g})"}
+
+    def points(self, kind: str, device: str, quick: bool) -> list[Point]:
+        if kind == "bandwidth":
+            return [{"params": {"n": 1 << e}, "knob": {"name": "n", "value": 1 << e},
+                     "check_sample": CHECK_SAMPLE, "save_outputs": False}
+                    for e in SAXPY_EXP.get((device, quick), ())]
+        if kind == "error":        # knobs: precision and variant only
+            return [{"params": {"n": scenarios.get(self.scenario).params(quick=quick).n},
+                     "knob": {"name": "precision", "value": None}}]
+        return []
+
+    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
+                        record: dict[str, Any], cache: dict[Any, Any],
+                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
+        """The oracle's error is already converged: float64 of the same rounded inputs."""
+        return {"error": record["error"]["vs_oracle"], "metric": self.error_metric,
+                "reference": {"note": "float64 oracle of the same rounded inputs"}}
+
+
+SWEEPS = SaxpySweeps()
