@@ -14,15 +14,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from typing import Any, Callable
 
 import scenarios
-from compare import cells
+from compare import cells, environment
+from compare.timing import BATCH_S
 from compare.spec import Cell
 
 FACTOR = 64
-BATCH_S = 0.02              # compare.timing.pipelined's batch: a call this long is its own batch
 Refusal = Callable[[Cell], "tuple[str, str] | None"]
 
 
@@ -76,8 +75,7 @@ def _when(seconds: float) -> str:
 
 def side_by_side() -> int:
     """Miniatures run at once: a quarter of the cores (at least one); they are estimates."""
-    n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return max(1, n // 4)
+    return max(1, environment.usable_cores() // 4)
 
 
 def time_refusal(plan: list[Cell], timeout: float | None, jobs: int = 1,

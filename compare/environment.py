@@ -13,6 +13,14 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 
+
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity: fewer than the host's under a core set)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
 def packages() -> tuple[str, ...]:
     """The distributions whose versions a results file records: this project's own requirements
     (from its installed metadata) and every backend's package."""
@@ -65,10 +73,7 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
             versions[pkg] = importlib.metadata.version(pkg)
         except importlib.metadata.PackageNotFoundError:
             pass
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = os.cpu_count() or 0
+    cores = usable_cores()
     import psutil
     cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []
     commit = os.environ.get("COMPARE_GIT_COMMIT", "").strip()

@@ -25,7 +25,6 @@ from __future__ import annotations
 import ctypes
 import json
 import math
-import os
 import subprocess
 import sys
 import time
@@ -33,6 +32,8 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
+
+from compare import environment
 
 # Stated peak non-tensor FLOP rates (NVIDIA datasheets, boost clock): the FLOP floors' denominators.
 STATED_PEAK_FLOPS = {
@@ -78,7 +79,7 @@ def measure_cpu() -> dict[str, Any]:
     n = 1 << 25                                    # float32: 128 MiB per array
     src = np.ones(n, np.float32)
     dst = np.empty_like(src)
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cores = environment.usable_cores()
     with ThreadPoolExecutor(cores) as pool:
         t1 = _copy_seconds(lambda: np.copyto(dst, src))
         tn = _copy_seconds(lambda: copy_in_slices(dst, src, pool, cores))

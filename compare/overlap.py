@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, IO
 
-from compare import cells, lifeline, phases
+from compare import cells, environment, lifeline, phases
 from compare.gate import GATE_ENV, READY, TIMED
 from compare.spec import Cell
 
@@ -43,8 +43,7 @@ def ahead(args: Any = None) -> int:
     if given in (None, 0):
         return 0
     if given == "auto":
-        n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        return max(1, n // 2 - 1)
+        return max(1, environment.usable_cores() // 2 - 1)
     return int(given)
 
 

@@ -259,7 +259,7 @@ def state(part: Part, log: dict[str, Any], out: str) -> str:
 
 def host() -> dict[str, Any]:
     import platform
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 0
+    cores = environment.usable_cores()
     return {"hostname": platform.node(), "cpu": environment.cpu_model(), "cores": cores,
             "gpus": environment.gpus()}
 

@@ -103,7 +103,10 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
     return out
 
 
-def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: float = 0.02,
+BATCH_S = 0.02     # the throughput regime's shortest batch (``pipelined``)
+
+
+def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: float = BATCH_S,
               repeat: int = 5, max_k: int = 1 << 16, max_time: float = 10.0,
               latency: dict[str, Any] | None = None) -> dict[str, Any]:
     """The throughput regime: ``k`` back-to-back ``run()`` calls, one synchronise, time / k.
