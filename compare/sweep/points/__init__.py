@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import scenarios
+from compare.sweep.converged import dt_reference
 
 CHECK_SAMPLE = 1 << 16     # items checked against the oracle in large per-item sweep cells
 
@@ -64,6 +65,16 @@ class Sweeps:
         record; ``cache``: a dict the suite keeps for a whole run, for memoising references;
         ``reference``: the point's 'reference' (None: the scenario's default)."""
         return None
+
+    def against_dt_reference(self, params: dict[str, Any], outputs: dict[str, np.ndarray],
+                             cache: dict[Any, Any], reference: dict[str, Any] | None, default_dt: float,
+                             converge: Any, error: Any, t: float, names: tuple[str, ...]) -> dict[str, Any]:
+        """The error of ``outputs[names]`` at simulated time ``t`` against a float64 rollout at
+        the point's reference dt (``default_dt`` without one): ``converge`` computes a reference,
+        ``error(*outputs, *reference)`` compares (compare/sweep/converged.py)."""
+        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference, default_dt, converge,
+                                 lambda a, b: error(*a, *b)["error"], t)
+        return {**error(*(outputs[k] for k in names), *ref), "metric": self.error_metric, "reference": info}
 
     def state_bytes_per_step(self, precision: str) -> float | None:
         """Bytes of state one item carries per step: the least a tape storing every step keeps

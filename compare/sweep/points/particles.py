@@ -5,9 +5,8 @@ from typing import Any
 
 import numpy as np
 
-import scenarios
 from compare.sweep import converged
-from compare.sweep.converged import REF_FACTOR, dt_reference
+from compare.sweep.converged import REF_FACTOR
 from compare.sweep.points import Point, Sweeps
 
 
@@ -48,12 +47,9 @@ class ParticlesSweeps(Sweeps):
         (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference,
-                                 min(PARTICLES_DT[False]) / REF_FACTOR,
-                                 converged.converged_positions,
-                                 lambda a, b: converged.position_error(*a, *b)["error"], PARTICLES_T)
-        return {**converged.position_error(outputs["x"], outputs["y"], *ref), "metric": self.error_metric,
-                "reference": info}
+        return self.against_dt_reference(params, outputs, cache, reference, min(PARTICLES_DT[False]) / REF_FACTOR,
+                                         converged.converged_positions, converged.position_error, PARTICLES_T,
+                                         ("x", "y"))
 
 
 SWEEPS = ParticlesSweeps()

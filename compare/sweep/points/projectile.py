@@ -5,9 +5,8 @@ from typing import Any
 
 import numpy as np
 
-import scenarios
 from compare.sweep import converged
-from compare.sweep.converged import REF_FACTOR, dt_reference
+from compare.sweep.converged import REF_FACTOR
 from compare.sweep.points import Point, Sweeps
 from scenarios.base import dtype_of
 
@@ -61,12 +60,9 @@ class ProjectileSweeps(Sweeps):
         reference dt (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:
             return None
-        ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference,
-                                 min(PROJECTILE_DT[False]) / REF_FACTOR,
-                                 converged.converged_loss_grad,
-                                 lambda a, b: converged.loss_grad_error(*a, *b)["error"], PROJECTILE_T)
-        return {**converged.loss_grad_error(outputs["loss"], outputs["grad"], *ref),
-                "metric": self.error_metric, "reference": info}
+        return self.against_dt_reference(params, outputs, cache, reference, min(PROJECTILE_DT[False]) / REF_FACTOR,
+                                         converged.converged_loss_grad, converged.loss_grad_error, PROJECTILE_T,
+                                         ("loss", "grad"))
 
     def state_bytes_per_step(self, precision: str) -> float:
         """x, y, vx, vy: what a tape that stores every step must keep at the least."""
