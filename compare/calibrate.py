@@ -7,8 +7,11 @@ says so (``Scenario.scaled``: the same parameters at 1/``FACTOR`` of the size, o
 too small to matter). Its miniature runs like any cell (own process, empty kernel caches) with two
 timed calls; one call of the big cell is predicted as the miniature's median times the ratio of
 their work (``Scenario.work``), its compilation as the miniature's, and the number of calls from
-the protocol's rules. Miniatures are not measurements: they run side by side (``jobs``), before
-any timed cell, and their figures stay out of the results except in a skipped cell's reason.
+the protocol's rules. Miniatures run before any timed cell, one at a time like the cells: side by
+side, frameworks that start a thread per core oversubscribe the host (PyTorch's CPU particles ran
+300x slower four at once on 16 cores), and a prediction that decides whether a cell runs must come
+from the conditions it will run in. Their figures stay out of the results except in a skipped
+cell's reason.
 """
 from __future__ import annotations
 
@@ -17,7 +20,7 @@ import math
 from typing import Any, Callable
 
 import scenarios
-from compare import cells, environment
+from compare import cells
 from compare.timing import BATCH_S
 from compare.spec import Cell
 
@@ -73,21 +76,15 @@ def _when(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
-def side_by_side() -> int:
-    """Miniatures run at once: a quarter of the cores (at least one); they are estimates."""
-    return max(1, environment.usable_cores() // 4)
-
-
-def time_refusal(plan: list[Cell], timeout: float | None, jobs: int = 1,
+def time_refusal(plan: list[Cell], timeout: float | None,
                  run: Callable[[Cell], cells.Result] | None = None) -> Refusal:
     """A ``refuse`` for ``engine.run_cells``: the big cells of ``plan`` (those not refused
     otherwise: pass only runnable cells) whose predicted protocol outlasts ``timeout``."""
-    from compare.engine import gpu_lane, pool_map
     if timeout is None:
         return lambda cell: None
     pairs = [(c, m) for c in plan if (m := miniature(c)) is not None]
     run = run or (lambda c: cells.run(c, timeout))
-    results = pool_map(lambda pair: run(pair[1]), pairs, jobs=jobs, lane=lambda pair: gpu_lane(pair[1]))
+    results = [run(small) for _, small in pairs]
     verdicts: dict[tuple[Any, ...], tuple[str, str]] = {}
     for (cell, small), (rec, _) in zip(pairs, results):
         if rec.get("status") not in ("ok", "mismatch") or not rec.get("time"):

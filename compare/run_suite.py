@@ -319,7 +319,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
         memory = memory_refusal()
         runnable = [c for c in cells if not engine.not_runnable(c, probes) and not memory(c)
                     and not (args.resume and store.done(key(c.identity())))]
-        slow = calibrate.time_refusal(runnable, args.timeout, jobs=max(1 + ahead, calibrate.side_by_side()))
+        slow = calibrate.time_refusal(runnable, args.timeout)
         spent["miniatures"] = time.perf_counter() - t0
         refuse = lambda c: memory(c) or slow(c)    # noqa: E731
     t0 = time.perf_counter()

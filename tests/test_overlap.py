@@ -163,3 +163,23 @@ def test_a_big_cell_predicted_past_the_timeout_is_skipped_with_the_prediction(tm
     (rec,) = [r for r in json.loads((out / "results.json").read_text())["records"] if r["backend"] == "numpy"]
     assert rec["status"] == "skipped", rec
     assert "predicted to take about" in rec["reason"] and "over --timeout 2 s; --timeout" in rec["reason"]
+
+
+def test_miniatures_run_one_at_a_time():
+    # side by side, frameworks that start a thread per core oversubscribe the host and the
+    # predictions that decide whether a cell runs come out hundreds of times too long
+    from compare import calibrate
+    active, most, seen = [0], [0], []
+
+    def run(small: Cell) -> tuple[dict, None]:
+        active[0] += 1
+        most[0] = max(most[0], active[0])
+        time.sleep(0.05)
+        seen.append(small.params.batch)
+        active[0] -= 1
+        return {"status": "ok", "time": {"median_s": 1.0, "first_call_s": 1.0}}, None
+
+    plan = [Cell.make("projectile", b, "cpu", "float32", params={"batch": 65536}) for b in ("numpy", "jax", "torch")]
+    refuse = calibrate.time_refusal(plan, 10.0, run=run)
+    assert most[0] == 1 and seen == [65536 // calibrate.FACTOR] * 3
+    assert all(refuse(c)[0] == "skipped" for c in plan)      # 64 s a call, over 10 s
