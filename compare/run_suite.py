@@ -54,7 +54,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--check-sample", type=options.nonnegative_int, default=0, metavar="K",
                    help="check K items of per-item scenarios against the oracle (row 0, the last, the "
                         "extremes of the inputs and outputs, the rest a seeded random draw) "
-                        "(large n: the float64 oracle of every item can take minutes; 0: all)")
+                        "(large n: the float64 oracle of every item can take minutes; 0: the scenario's "
+                        "default, every item up to a size: 64 trajectories of a projectile batch, "
+                        "65536 particles; K at least n: all)")
     p.add_argument("--host-profile", type=options.nonnegative_int, default=0, metavar="TOP",
                    help="also profile the host side of the throughput regime (cProfile) and keep "
                         "the TOP functions by own time in each record (time.host_profile)")

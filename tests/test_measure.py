@@ -48,6 +48,21 @@ def test_check_sample_checks_a_seeded_sample():
     assert out is None
 
 
+def test_big_particles_are_checked_on_a_sample_by_default():
+    """Above PARTICLES_CHECKED the plain command checks a seeded sample (its float64 rollout
+    of every particle took 14 minutes at 2^24); --check-sample n checks them all."""
+    from scenarios.particles import PARTICLES_CHECKED
+    n = PARTICLES_CHECKED + 1001
+    base = {"scenario": "particles", "backend": "numpy", "device": "cpu", "precision": "float32",
+            "params": {"n": n, "steps": 20}, "repeat": 1, "min_time": 0.0, "save_outputs": False,
+            "throughput": False, "cache": "warm"}
+    for k, expect in ((0, f"{PARTICLES_CHECKED} of {n} particles (seeded random"), (n, "all")):
+        rec, _ = cells.run({**base, "check_sample": k}, timeout=600)
+        assert rec["status"] == "ok", rec.get("reason")
+        assert rec["error"]["checked_items"].startswith(expect), rec["error"]
+        assert rec["error"]["well_conditioned"] + rec["error"]["ill_conditioned"] == (PARTICLES_CHECKED if k == 0 else n)
+
+
 # ---- timing --------------------------------------------------------------------------------
 class FakeEvents:
     """Stands in for CUDA events: reports a fixed device time per call."""
