@@ -65,9 +65,24 @@ def _cell(repeat: int = 30) -> Record:
 # alone: the idle half must see no other test's load (pytest-xdist's other workers wait)
 @pytest.mark.alone
 @pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the host meter reads /proc/stat (Linux)")
+def _settle(limit_s: float = 30.0) -> None:
+    """Wait until other processes use less than an idle host's daemons over half a second (the
+    suite's earlier tests may leave workers exiting and files being removed)."""
+    end, others = time.monotonic() + limit_s, None
+    while time.monotonic() < end:
+        meter = noise.HostMeter()
+        time.sleep(0.5)
+        others = meter.stop().get("others_cores")
+        if others is not None and others < noise.IDLE_FLOOR:
+            return
+    pytest.skip(f"the host never went idle in {limit_s:g} s (other processes used {others} cores): "
+                "an idle cell cannot be timed here")
+
+
 def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not() -> None:
+    _settle()
     idle = _cell()
-    assert not any("host busy" in r["why"] for r in idle.time["noise"]["reasons"]), idle.time["noise"]
+    assert idle.time["noise"]["noisy"] is False, idle.time["noise"]
     spin = "import time\nt = time.time() + 120\nwhile time.time() < t: pass\n"
     hogs = [subprocess.Popen([sys.executable, "-c", spin]) for _ in range(os.cpu_count() or 1)]
     try:
