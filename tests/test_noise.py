@@ -62,9 +62,6 @@ def _cell(repeat: int = 30) -> Record:
                              **record})
 
 
-# alone: the idle half must see no other test's load (pytest-xdist's other workers wait)
-@pytest.mark.alone
-@pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the host meter reads /proc/stat (Linux)")
 def _settle(limit_s: float = 30.0) -> None:
     """Wait until other processes use less than an idle host's daemons over half a second (the
     suite's earlier tests may leave workers exiting and files being removed)."""
@@ -75,10 +72,14 @@ def _settle(limit_s: float = 30.0) -> None:
         others = meter.stop().get("others_cores")
         if others is not None and others < noise.IDLE_FLOOR:
             return
+    top = subprocess.run(["ps", "-eo", "pcpu,etime,args", "--sort=-pcpu"], capture_output=True, text=True).stdout
     pytest.skip(f"the host never went idle in {limit_s:g} s (other processes used {others} cores): "
-                "an idle cell cannot be timed here")
+                "an idle cell cannot be timed here; " + " | ".join(top.splitlines()[1:4])[:600])
 
 
+# alone: the idle half must see no other test's load (pytest-xdist's other workers wait)
+@pytest.mark.alone
+@pytest.mark.skipif(not os.path.exists("/proc/stat"), reason="the host meter reads /proc/stat (Linux)")
 def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not() -> None:
     _settle()
     idle = _cell()
