@@ -262,16 +262,17 @@ def test_plot_colours_belong_to_the_backend():
     assert list(c)[:2] == ["warp", "numba"] and c["elsewhere"] not in (c["warp"], c["numba"])
 
 
-def test_sweep_and_stress_suites_name_no_framework_and_no_scenario():
-    """The sweep and stress suites name no framework and no scenario in their code: each
+def test_sweep_stress_and_site_suites_name_no_framework_and_no_scenario():
+    """The sweep, stress and site suites name no framework and no scenario in their code: each
     scenario's sweep points (compare/sweep/points/<scenario>.py), stress experiments
-    (compare/stress/<scenario>.py) and ulp cases are found by the module's or function's name
-    (issue 29: suites hold their per-scenario parts, compare/ names no framework)."""
+    (compare/stress/<scenario>.py), ulp cases and site questions and pages
+    (compare/site/topics/<scenario>.py) are found by the module's or function's name (issue 29:
+    suites hold their per-scenario parts, compare/ names no framework)."""
     import re
     frameworks = re.compile(r"['\"](" + "|".join(backends.BACKENDS) + r")['\"]")
     # 'launch' and 'copy' are also the names of the roles the bandwidth page draws
     names = re.compile(r"['\"](" + "|".join(n for n in scenarios.SCENARIOS if n not in ("launch", "copy")) + r")['\"]")
-    for suite in ("sweep", "stress"):
+    for suite in ("sweep", "stress", "site"):
         for f in (ROOT / "compare" / suite).rglob("*.py"):
             for i, line in enumerate(f.read_text().splitlines(), 1):
                 code = line.split("#", 1)[0]

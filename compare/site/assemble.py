@@ -7,7 +7,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from compare.site import data, fmt, pages, questions
+from compare.site import data, fmt, pages, questions, topics
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.render import H, Items, P, Table, page_html, page_md
@@ -85,8 +85,8 @@ def machine(c: qp.Ctx) -> list[Any]:
     return blocks
 
 
-BUILDERS = {"bandwidth": qp.bandwidth, "per-call": qp.per_call, "particles": qp.particles,
-            "gradients": qp.gradients, "accuracy": pages.accuracy, "compile": pages.compile_cost,
+BUILDERS = {**{k: build for k, (_, build) in topics.PAGES.items()},
+            "accuracy": pages.accuracy, "compile": pages.compile_cost,
             "cpu": pages.cpu, "stability": pages.stability, "machine": machine}
 
 

@@ -1,6 +1,7 @@
-"""One page per question: the matrix rows it answers, bar charts per framework and variant with
-spread, the scaling curves, the numbers as a sortable table, and under each figure the command
-that reproduces its data."""
+"""What the question pages share: the context of a build, the verdicts of a page's matrix rows,
+bars per framework and variant with spread, the scaling curves, the numbers as a table, and
+under each figure the command that reproduces its data. The pages of one scenario's questions
+are in compare/site/topics/, the pages over every scenario in compare/site/pages.py."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,7 +9,7 @@ from typing import Any, Callable
 
 from compare import charts
 from compare.record import Record
-from compare.site import data, fmt, matrix
+from compare.site import data, fmt
 from compare.site.data import Machine
 from compare.site.matrix import Row
 from compare.site.render import Block, Figure, H, P, Table
@@ -85,74 +86,12 @@ def _variants(recs: list[Record]) -> list[Record]:
     return [r for r in recs if r.variant != "graph"]
 
 
-# ---- pages ------------------------------------------------------------------------------------
-def bandwidth(c: Ctx) -> Page:
-    rows = c.rows_of("bandwidth")
-    blocks: Page = [P("Bandwidth-bound array work: SAXPY reads two arrays and writes one. At large n "
-                      "each framework's kernel meets the memory system; the hardware fraction is "
-                      "the scenario's floor (its bytes at the same-run copy yardstick, no framework "
-                      "involved) divided by the time.")] + verdicts(rows)
-    big = matrix.largest_of("saxpy", (None, "bandwidth"))(c.m, c.device)
-    allvar = [r for r in c.m.records if r.device == c.device and r.scenario == "saxpy"
-              and r.precision == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
-              and data.tag(r, "sweep") in (None, "bandwidth")]
-    allvar = matrix.latest(_variants(allvar))
-    if allvar:
-        png, rel, csv = c.fig("bandwidth-largest")
-        charts.bars(png, f"SAXPY at the largest n ({matrix.scope(allvar)}), {c.device}, float32: per call, "
-                    "throughput regime", "seconds per call (whiskers: quartiles)",
-                    [_bar(r, matrix.regime("throughput")) for r in allvar], fmt=fmt.seconds)
-        n = int(data.size(allvar[0]))
-        blocks += [Figure(rel, "Every framework and variant at the largest n; bars sorted fastest first.",
-                          c.cmd(f"run saxpy --devices {c.device} --precision float32 --variants all --set n={n}"), csv),
-                   timing_table(allvar, ("latency", "throughput"), lambda r: [fmt.pct(data.hw_fraction(r))],
-                                ("hw fraction",))]
-    sweep = [r for r in c.m.sweep if data.tag(r, "sweep") == "bandwidth" and r.scenario == "saxpy"
-             and r.device == c.device and r.status == "ok"]
-    if sweep:
-        series = []
-        for (fw, var), rs in sorted(_group(sweep).items()):
-            pts = sorted((data.size(r), (r.work or {}).get("bytes", 0) / t.median / 1e9, t)
-                         for r in rs if (t := data.per_call(r, "throughput") or data.timing(r, "latency")))
-            if pts:
-                series.append(charts.Series(_label(fw, var), fw,
-                                            [p[0] for p in pts], [p[1] for p in pts]))
-        png, rel, csv = c.fig("bandwidth-vs-n")
-        charts.curves(png, f"SAXPY achieved bandwidth against n ({c.device}, float32, throughput regime "
-                      "where measured)", "n (elements)", "GB/s (3·n·4 bytes / time)", series)
-        blocks += [H("Bandwidth against size"),
-                   Figure(rel, "Achieved bandwidth against n: small n is launch-bound, large n meets memory.",
-                          c.cmd(f"sweep bandwidth --devices {c.device}"), csv)]
-    return blocks
-
-
+# ---- helpers of the topic pages (compare/site/topics/) --------------------------------
 def _group(recs: list[Record]) -> dict[tuple[str, str], list[Record]]:
     out: dict[tuple[str, str], list[Record]] = {}
     for r in recs:
         out.setdefault((r.backend, r.variant), []).append(r)
     return out
-
-
-def per_call(c: Ctx) -> Page:
-    blocks: Page = [P("What one call costs when the kernel is small: the framework's launch path, "
-                      "not the arithmetic. Latency is one call and a synchronise (a step of an "
-                      "interactive loop); pipelined is k calls and one synchronise (a simulation "
-                      "loop); graph replay is a captured call replayed.")] + verdicts(c.rows_of("per-call"))
-    recs = [r for sc in ("saxpy", "sdf", "particles") for r in matrix.defaults_of(sc)(c.m, c.device)]
-    sax = [r for r in recs if r.scenario == "saxpy"]
-    panels = [charts.Panel(g, [_bar(r, matrix.regime(g)) for r in sax
-                               if r.status != "ok" or data.per_call(r, g) is not None])
-              for g in data.REGIMES]
-    panels = [p for p in panels if any(b.value is not None for b in p.bars)]
-    png, rel, csv = c.fig("per-call-saxpy")
-    charts.bar_panels(png, f"SAXPY n = 10^6 ({c.device}, float32): per-call cost by regime",
-                      "seconds per call (whiskers: quartiles; log scale)", panels, log=True, fmt=fmt.seconds)
-    yard = _launch_yardstick(c.m, c.device)
-    blocks += [Figure(rel, "Per-call cost of the default-size SAXPY in the three regimes, every variant."
-                      + (f" For scale, the driver's own empty-kernel launch: {yard}." if yard else ""),
-                      c.cmd(f"run saxpy sdf particles --devices {c.device} --precision float32 --variants all"), csv),
-               H("Every small cell"), timing_table(recs, extra=_host_share, extra_headers=("host share",))]
-    return blocks
 
 
 def _host_share(r: Record) -> list[str]:
@@ -168,32 +107,6 @@ def _launch_yardstick(m: Machine, device: str) -> str:
         if lat and pipe:
             return f"{fmt.seconds(lat)} with a synchronise, {fmt.seconds(pipe)} pipelined"
     return ""
-
-
-def particles(c: Ctx) -> Page:
-    blocks: Page = [P("A particle simulation loop: 300 steps of gravity, damping and wall contact. "
-                      "At small n the loop's per-step launches dominate; at large n the kernels do.")]
-    blocks += verdicts(c.rows_of("particles"))
-    small = _variants(matrix.defaults_of("particles")(c.m, c.device))
-    if small:
-        png, rel, csv = c.fig("particles-small")
-        charts.bars(png, f"Particles at the defaults (256 × 300 steps, {c.device}, float32): per rollout, "
-                    "throughput regime", "seconds per rollout (whiskers: quartiles; log scale)",
-                    [_bar(r, matrix.regime("throughput")) for r in small], log=True, fmt=fmt.seconds)
-        blocks += [Figure(rel, "Every framework and variant at the default size.",
-                          c.cmd(f"run particles --devices {c.device} --precision float32 --variants all"), csv)]
-    big = _variants(matrix.largest_of("particles", (None, "scaling"))(c.m, c.device))
-    if big:
-        png, rel, csv = c.fig("particles-large")
-        charts.bars(png, f"Particles at the largest n ({matrix.scope(big)}, {c.device}, float32): particle-steps "
-                    "per second, throughput regime", "particle-steps per second",
-                    [_bar(r, data.item_rate) for r in big], better="higher", fmt=lambda v: fmt.rate(v))
-        n = int(data.size(big[0]))
-        blocks.append(Figure(rel, "Every framework and variant at the largest n; fastest first.",
-                             c.cmd(f"run particles --devices {c.device} --precision float32 --variants all "
-                                   f"--set n={n} --check-sample 4096"), csv))
-    blocks += _scaling(c, "particles", "particle-steps per second", "n (particles)")
-    return blocks
 
 
 def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False) -> Page:
@@ -227,31 +140,6 @@ def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = Fal
                      fmt.nbytes(data.device_bytes(r)) if r.status == "ok" else "-",
                      r.status if r.status == "ok" else f"{r.status}: {r.reason[:120]}"))
     blocks.append(Table(("framework", "variant", "size", ylabel, "device memory", "status"), tuple(rows)))
-    return blocks
-
-
-def gradients(c: Ctx) -> Page:
-    blocks: Page = [P("Gradients through a simulation: a batch of projectiles, each descending on its "
-                      "own loss through 180 steps with contact. The rate counts trajectory-gradients "
-                      "per second; memory is what the gradient keeps on the device (a tape, adstacks, "
-                      "or the one value and flag per step of a hand adjoint).")]
-    blocks += verdicts(c.rows_of("gradients"))
-    blocks += _scaling(c, "projectile", "trajectory-gradients per second", "batch (trajectories)", memory=True)
-    hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r.device == c.device]
-    if hz:
-        from compare.sweep import plots as sweep_plots
-        png, rel, _ = c.fig("gradients-horizon")
-        if sweep_plots.plot_horizon(list(hz), c.device, png, "projectile"):
-            charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "steps", "device bytes",
-                                                       "gradient fd agreement"),
-                             [(r.backend, r.variant, r.precision,
-                               (r.params or {}).get("steps"), data.device_bytes(r),
-                               (r.error or {}).get("gradient_fd_agreement")) for r in hz if r.status == "ok"])
-            blocks += [H("Memory and gradient quality against the horizon"),
-                       Figure(rel, "Device memory and gradient agreement with float64 finite differences "
-                              "against the number of steps, with each framework's memory-saving variants.",
-                              c.cmd(f"sweep horizon --devices {c.device}"), rel[:-4] + ".csv")]
-        blocks += _longest_loop(hz)
     return blocks
 
 

@@ -1,0 +1,52 @@
+"""The batched differentiable projectile on the site: gradients through a simulation at scale."""
+from __future__ import annotations
+
+from compare import charts
+from compare.site import data
+from compare.site.matrix import Rule, largest_of, rate
+from compare.site.questions_pages import Ctx, Page, _longest_loop, _scaling, verdicts
+from compare.site.render import Figure, H, P
+from compare.site.topics import scenario_of
+
+SCENARIO = scenario_of(__name__)
+
+RULES = (
+    Rule("gradients", "Gradients through a simulation at scale: rate", "gradients", "1/s", "higher",
+         "The batched differentiable projectile (hard contact, 180 steps, a descent of loss + "
+         "gradient evaluations) at the largest batch in the scaling sweep, float32: trajectory-"
+         "gradients per second in the throughput regime.",
+         largest_of(SCENARIO, ("scaling",)), rate),
+    Rule("gradients-memory", "Gradients through a simulation at scale: device memory", "gradients",
+         "B", "lower",
+         "The same cells: device memory above the framework's CUDA context (NVML peak of the "
+         "process), the one memory figure every framework shares.",
+         largest_of(SCENARIO, ("scaling",)), data.device_bytes),
+)
+
+
+def page(c: Ctx) -> Page:
+    blocks: Page = [P("Gradients through a simulation: a batch of projectiles, each descending on its "
+                      "own loss through 180 steps with contact. The rate counts trajectory-gradients "
+                      "per second; memory is what the gradient keeps on the device (a tape, adstacks, "
+                      "or the one value and flag per step of a hand adjoint).")]
+    blocks += verdicts(c.rows_of("gradients"))
+    blocks += _scaling(c, SCENARIO, "trajectory-gradients per second", "batch (trajectories)", memory=True)
+    hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r.device == c.device]
+    if hz:
+        from compare.sweep import plots as sweep_plots
+        png, rel, _ = c.fig("gradients-horizon")
+        if sweep_plots.plot_horizon(list(hz), c.device, png, SCENARIO):
+            charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "steps", "device bytes",
+                                                       "gradient fd agreement"),
+                             [(r.backend, r.variant, r.precision,
+                               (r.params or {}).get("steps"), data.device_bytes(r),
+                               (r.error or {}).get("gradient_fd_agreement")) for r in hz if r.status == "ok"])
+            blocks += [H("Memory and gradient quality against the horizon"),
+                       Figure(rel, "Device memory and gradient agreement with float64 finite differences "
+                              "against the number of steps, with each framework's memory-saving variants.",
+                              c.cmd(f"sweep horizon --devices {c.device}"), rel[:-4] + ".csv")]
+        blocks += _longest_loop(hz)
+    return blocks
+
+
+PAGES = {"gradients": ("Gradients at scale", page)}

@@ -1,0 +1,100 @@
+"""SAXPY on the site: large bandwidth-bound arrays, and the per-call cost of a small kernel."""
+from __future__ import annotations
+
+from compare import charts
+from compare.site import data, fmt, matrix
+from compare.site.matrix import Rule, defaults_of, largest_of, regime
+from compare.site.questions_pages import Ctx, Page, _bar, _group, _label, _launch_yardstick, _host_share, \
+    _variants, timing_table, verdicts
+from compare.site.render import Figure, H, P
+from compare.site.topics import scenario_of
+
+SCENARIO = scenario_of(__name__)
+SMALL = True
+
+RULES = (
+    Rule("bandwidth", "Large bandwidth-bound arrays", "bandwidth", "s", "lower",
+         "SAXPY (out = a·x + y, float32) at the largest n in the records that two or more frameworks "
+         "ran; time per call in the throughput regime (k calls, one synchronise); each framework's "
+         "fastest variant (fast-math variants and graph replay excluded).",
+         largest_of(SCENARIO, (None, "bandwidth")), regime("throughput")),
+    Rule("latency", "Small kernel: one synchronised call", "per-call", "s", "lower",
+         "SAXPY at its default n = 10^6, float32: median time of one call followed by a "
+         "synchronise (the latency regime), each framework's fastest variant (fast-math excluded).",
+         defaults_of(SCENARIO), regime("latency")),
+    Rule("pipelined", "Small kernel: pipelined calls", "per-call", "s", "lower",
+         "SAXPY at n = 10^6, float32: per-call time of k back-to-back calls and one synchronise "
+         "(the throughput regime), each framework's fastest variant (fast-math variants and graph "
+         "replay excluded).",
+         defaults_of(SCENARIO), regime("throughput")),
+    Rule("graph", "Small kernel: graph replay", "per-call", "s", "lower",
+         "SAXPY at n = 10^6, float32: per-call time of a captured call replayed (CUDA graphs, or "
+         "the framework's own graph variant); a framework without replay has no cell.",
+         defaults_of(SCENARIO), regime("graph")),
+)
+
+
+def bandwidth(c: Ctx) -> Page:
+    rows = c.rows_of("bandwidth")
+    blocks: Page = [P("Bandwidth-bound array work: SAXPY reads two arrays and writes one. At large n "
+                      "each framework's kernel meets the memory system; the hardware fraction is "
+                      "the scenario's floor (its bytes at the same-run copy yardstick, no framework "
+                      "involved) divided by the time.")] + verdicts(rows)
+    big = matrix.largest_of(SCENARIO, (None, "bandwidth"))(c.m, c.device)
+    allvar = [r for r in c.m.records if r.device == c.device and r.scenario == SCENARIO
+              and r.precision == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
+              and data.tag(r, "sweep") in (None, "bandwidth")]
+    allvar = matrix.latest(_variants(allvar))
+    if allvar:
+        png, rel, csv = c.fig("bandwidth-largest")
+        charts.bars(png, f"SAXPY at the largest n ({matrix.scope(allvar)}), {c.device}, float32: per call, "
+                    "throughput regime", "seconds per call (whiskers: quartiles)",
+                    [_bar(r, matrix.regime("throughput")) for r in allvar], fmt=fmt.seconds)
+        n = int(data.size(allvar[0]))
+        blocks += [Figure(rel, "Every framework and variant at the largest n; bars sorted fastest first.",
+                          c.cmd(f"run {SCENARIO} --devices {c.device} --precision float32 --variants all --set n={n}"), csv),
+                   timing_table(allvar, ("latency", "throughput"), lambda r: [fmt.pct(data.hw_fraction(r))],
+                                ("hw fraction",))]
+    sweep = [r for r in c.m.sweep if data.tag(r, "sweep") == "bandwidth" and r.scenario == SCENARIO
+             and r.device == c.device and r.status == "ok"]
+    if sweep:
+        series = []
+        for (fw, var), rs in sorted(_group(sweep).items()):
+            pts = sorted((data.size(r), (r.work or {}).get("bytes", 0) / t.median / 1e9, t)
+                         for r in rs if (t := data.per_call(r, "throughput") or data.timing(r, "latency")))
+            if pts:
+                series.append(charts.Series(_label(fw, var), fw,
+                                            [p[0] for p in pts], [p[1] for p in pts]))
+        png, rel, csv = c.fig("bandwidth-vs-n")
+        charts.curves(png, f"SAXPY achieved bandwidth against n ({c.device}, float32, throughput regime "
+                      "where measured)", "n (elements)", "GB/s (3·n·4 bytes / time)", series)
+        blocks += [H("Bandwidth against size"),
+                   Figure(rel, "Achieved bandwidth against n: small n is launch-bound, large n meets memory.",
+                          c.cmd(f"sweep bandwidth --devices {c.device}"), csv)]
+    return blocks
+
+
+def per_call(c: Ctx) -> Page:
+    from compare.site import topics
+    blocks: Page = [P("What one call costs when the kernel is small: the framework's launch path, "
+                      "not the arithmetic. Latency is one call and a synchronise (a step of an "
+                      "interactive loop); pipelined is k calls and one synchronise (a simulation "
+                      "loop); graph replay is a captured call replayed.")] + verdicts(c.rows_of("per-call"))
+    recs = [r for sc in topics.SMALL for r in matrix.defaults_of(sc)(c.m, c.device)]
+    mine = [r for r in recs if r.scenario == SCENARIO]
+    panels = [charts.Panel(g, [_bar(r, matrix.regime(g)) for r in mine
+                               if r.status != "ok" or data.per_call(r, g) is not None])
+              for g in data.REGIMES]
+    panels = [p for p in panels if any(b.value is not None for b in p.bars)]
+    png, rel, csv = c.fig(f"per-call-{SCENARIO}")
+    charts.bar_panels(png, f"SAXPY n = 10^6 ({c.device}, float32): per-call cost by regime",
+                      "seconds per call (whiskers: quartiles; log scale)", panels, log=True, fmt=fmt.seconds)
+    yard = _launch_yardstick(c.m, c.device)
+    blocks += [Figure(rel, "Per-call cost of the default-size SAXPY in the three regimes, every variant."
+                      + (f" For scale, the driver's own empty-kernel launch: {yard}." if yard else ""),
+                      c.cmd(f"run {' '.join(topics.SMALL)} --devices {c.device} --precision float32 --variants all"), csv),
+               H("Every small cell"), timing_table(recs, extra=_host_share, extra_headers=("host share",))]
+    return blocks
+
+
+PAGES = {"bandwidth": ("Large arrays", bandwidth), "per-call": ("Per-call cost", per_call)}
