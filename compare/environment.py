@@ -21,6 +21,7 @@ def usable_cores() -> int:
     except (AttributeError, OSError):
         return os.cpu_count() or 1
 
+
 def packages() -> tuple[str, ...]:
     """The distributions whose versions a results file records: this project's own requirements
     (from its installed metadata) and every backend's package."""

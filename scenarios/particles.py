@@ -280,7 +280,8 @@ class Particles(Scenario):
         return dataclasses.replace(params, n=max(1, params.n // factor)) if params.n >= BIG_N else None
 
     def footprint(self, params: ParticlesParams, precision: str, device: str = "cpu") -> float:
-        # state, the oracle's float64 rollout with its running bounds and margins, and with
+        # state, the oracle's float64 rollout with its running bounds and margins (of every particle:
+        # an upper bound above PARTICLES_CHECKED, where the check runs a sample), and with
         # record_every the kept frames (the port's and the oracle's, with bounds). Measured on
         # CPU (all four backends): at most 304 B/particle at n = 2^20 (JAX adds ~50 MB at any
         # size) and 92 B/particle-frame with 101 frames; bound ~1.4x that (docs/reliability.md)

@@ -17,7 +17,7 @@ PARTICLES_DT = {False: (0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125), True: (0.02, 
 PARTICLES_N = {("cpu", False): (256, 4096, 65536, 1 << 20), ("cpu", True): (256, 4096, 65536),
                ("cuda", False): (256, 4096, 65536, 1 << 20, 1 << 22, 1 << 24),
                ("cuda", True): (256, 4096, 65536, 1 << 20)}
-PARTICLES_CHECKED = 4096       # particles checked against the oracle in a large scaling cell
+SCALING_CHECKED = 4096         # particles checked against the oracle in a large scaling cell
 
 
 class ParticlesSweeps(Sweeps):
@@ -36,7 +36,7 @@ class ParticlesSweeps(Sweeps):
                      "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in PARTICLES_DT[quick]]
         if kind == "scaling":      # no trajectory: every array is per particle, so sampled checks
             return [{"params": {"n": n, "record_every": 0}, "knob": {"name": "n", "value": n},
-                     "check_sample": PARTICLES_CHECKED, "save_outputs": False}
+                     "check_sample": SCALING_CHECKED, "save_outputs": False}
                     for n in PARTICLES_N.get((device, quick), ())]
         return []
 
