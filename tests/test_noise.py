@@ -1,6 +1,7 @@
 """The noise verdict (compare/noise.py): a cell timed while every core was busy with other work is
 flagged, with the reason, in the record, the tables, the CSV, the closing lines and the site; an
-idle run is not flagged for its host; each rule on its own numbers."""
+idle run is not flagged for its host (its spread is chance, so not asserted); each rule on its own
+numbers."""
 from __future__ import annotations
 
 import csv
@@ -83,7 +84,11 @@ def _settle(limit_s: float = 30.0) -> None:
 def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not() -> None:
     _settle()
     idle = _cell()
-    assert idle.time["noise"]["noisy"] is False, idle.time["noise"]
+    # The idle cell must not be called busy. Its spread is not asserted: on an idle VM a latency
+    # IQR above 10 % of the median is a real width of the distribution (it happened on a fresh
+    # 2-core clone: spread 21 %, others_cores 0.014), and the spread rule is tested on its own numbers.
+    assert not any("host busy" in w for w in noise.reasons_for(idle)), idle.time["noise"]
+    assert noise.host_reason(idle.time["noise"]) is None, idle.time["noise"]
     spin = "import time\nt = time.time() + 120\nwhile time.time() < t: pass\n"
     hogs = [subprocess.Popen([sys.executable, "-c", spin]) for _ in range(os.cpu_count() or 1)]
     try:

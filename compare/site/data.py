@@ -128,12 +128,16 @@ def num(x: Any) -> float | None:
 
 @dataclasses.dataclass(frozen=True)
 class Timing:
-    """One regime's per-call time of one record: median, quartile bounds, repeats, noise."""
+    """One regime's per-call time of one record: median, quartile bounds, repeats, noise; where
+    the figure was measured in several worker processes (``time.processes``), ``median`` is the
+    median of the processes' figures and ``ci`` its interval (docs/measurement.md)."""
     median: float
     lo: float
     hi: float
     repeats: int | None
     noisy: str = ""              # why the figure is not to be trusted as it stands ('' if fine)
+    processes: int = 1           # independent worker processes behind ``median``
+    ci: tuple[float, float] | None = None   # the median's interval across processes; None for one
 
 
 REGIMES = ("latency", "throughput", "graph")
