@@ -141,6 +141,12 @@ class Backend:
         framework's public API has none (then the wall clock alone is the clock)."""
         return None
 
+    def own_latency(self, device: str, call: Any) -> dict[str, Any] | None:
+        """The framework's own timing utility around ``call`` (one ``run()`` and the framework's
+        synchronise), as its users would time it: ``{"tool", "median_s", "calls"}``; a cross-check
+        of the harness's latency regime. None where the framework ships no such utility."""
+        return None
+
     def available(self) -> dict[str, str | None]:
         """device -> None when usable, else the reason it is not (not installed, no GPU...)."""
         raise NotImplementedError

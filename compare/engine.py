@@ -11,6 +11,7 @@ a store can save it before the next cell starts.
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
 import threading
 from typing import Any, Callable, Iterable
 
@@ -18,7 +19,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import cells
+from compare import cells, repeats
 from compare.record import Record, RecordError
 from compare.spec import IDENTITY, Cell, as_cell, key
 from compare.store import Store, jsonable
@@ -97,7 +98,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
               refuse: Callable[[Cell], tuple[str, str] | None] | None = None,
-              ahead: int = 0, footprint: Callable[[Cell], float] | None = None) -> list[Result]:
+              ahead: int = 0, footprint: Callable[[Cell], float] | None = None,
+              processes: int | str = 1, seed: int = 0) -> list[Result]:
     """Run every cell in a worker process; returns (record, outputs) per cell, in order. A dict
     is decoded into its Cell (``Cell.from_dict``) first.
 
@@ -115,6 +117,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     (``compare.overlap``); ``footprint``: a worker's host-memory estimate, which bounds them.
     ``on_record`` sees a record's JSON object before ``Record.from_json`` checks it (it may add
     to it); a record that fails the check becomes an ``error`` record of its cell.
+    ``processes``: more than 1 (or 'auto') times every cell that ran ok again in further worker
+    processes, in seeded rounds, and adds ``time.processes`` to its record (``compare.repeats``).
     """
     plan = [as_cell(s) for s in specs]
     probes = probes if probes is not None else availability({c.backend for c in plan})
@@ -187,7 +191,37 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
                                lane=gpu_lane)
     else:
         pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
+    if repeats.plan(processes)[1] > 1:
+        ran = [i for idx in groups.values() for i in idx]
+        _more_processes(plan, done, ran, processes, seed, timeout, runner, store, lock)
     return [r for r in done if r is not None]
+
+
+def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int], processes: int | str,
+                    seed: int, timeout: float, runner: Callable[[Cell], Result] | None,
+                    store: Store | None, lock: threading.Lock) -> None:
+    """The repeat processes of every cell of ``ran`` that finished ok (``compare.repeats``)."""
+    first = {i: got[0].time for i in ran if (got := done[i]) is not None
+             and got[0].status == "ok" and got[0].time is not None}
+
+    def time_one(i: int) -> dict[str, Any] | None:
+        cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
+        rec, _ = runner(cell) if runner is not None else cells.run(cell, timeout)
+        rec = rec.to_json() if isinstance(rec, Record) else rec
+        return rec.get("time") if rec.get("status") == "ok" else None
+
+    def on_round(blocks: dict[int, dict[str, Any]]) -> None:
+        with lock:
+            for i, block in blocks.items():
+                rec, out = done[i]            # type: ignore[misc]
+                j = rec.to_json()
+                j["time"] = {**j["time"], "processes": block}
+                done[i] = (Record.from_json(jsonable(j)), out)
+                if store is not None:
+                    store.put(done[i][0])     # type: ignore[index]
+            if store is not None:
+                store.save()
+    repeats.run_rounds(first, processes, seed, time_one, on_round)
 
 
 def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None

@@ -100,6 +100,15 @@ def overlap_count(text: str) -> int | str:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 0 or auto, got {text!r}") from None
 
 
+def processes_count(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        return whole_number(text, 1)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1 or auto, got {text!r}") from None
+
+
 def seconds(text: str, allow_zero: bool = False) -> float:
     try:
         value = float(text)

@@ -143,7 +143,14 @@ TIME = Obj({"first_call_s": SECONDS, "median_s": POSITIVE, "iqr_s": SECONDS, "mi
             "wall": Obj({"median_s": POSITIVE, "iqr_s": SECONDS, "min_s": SECONDS},
                         ("median_s", "iqr_s", "min_s")),
             # the yardstick judges a throughput regime by its median (compare.hardware.annotate)
-            "latency": REGIME, "throughput": THROUGHPUT, "graph": REGIME,
+            "latency": REGIME, "throughput": THROUGHPUT, "graph": REGIME, "null": REGIME,
+            "events": Obj({**REGIME.fields, "clock": TEXT}), "events_error": TEXT,
+            "own_timer": Obj({"tool": TEXT, "median_s": OPT_SECONDS, "calls": OPT_COUNT, "failed": TEXT}),
+            # the cell's figures over several worker processes (compare.repeats)
+            "processes": Obj({"count": COUNT, "order": TEXT, "interval": TEXT, "failed": COUNT},
+                             rest=Obj({"values": Seq(POSITIVE, null=False), "median_s": POSITIVE,
+                                       "ci_lo_s": POSITIVE, "ci_hi_s": POSITIVE, "confidence": SECONDS},
+                                      ("values", "median_s", "ci_lo_s", "ci_hi_s", "confidence"))),
             "noise": Obj({"noisy": FLAG, "cores": OPT_COUNT, "measured_s": OPT_SECONDS, "own_cores": OPT_SECONDS,
                           "others_cores": OPT_SECONDS,
                           "reasons": Seq(Obj({"regime": TEXT, "why": TEXT}, ("regime", "why"), null=False))})},

@@ -11,7 +11,7 @@ from typing import Any, Iterable, Mapping
 
 from tabulate import tabulate
 
-from compare import noise
+from compare import noise, timing
 from compare.record import Record, plain
 from compare.store import atomic_write
 
@@ -90,7 +90,7 @@ def row(rec: Record) -> list[str]:
     return [rec.backend, device, rec.precision, rec.variant,
             rec.status, fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")) + mark("latency"),
             fmt_time(lat.get("iqr_s")), fmt_time(lat.get("min_s")),
-            fmt_time(t.get("median_s")) if t.get("timer") == "events" else "-",
+            fmt_time((timing.events_of(t) or {}).get("median_s")) or "-",
             fmt_time(thr.get("median_s")) + mark("throughput"), fmt_time(thr.get("host_s")),
             fmt_time(graph.get("median_s")) + mark("graph"),
             f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",
@@ -321,7 +321,7 @@ def tidy(rec: Record) -> dict[str, Any]:
             continue
         if col == "events_median_s":
             t = rec.time or {}
-            out[col] = t.get("median_s") if t.get("timer") == "events" else ""
+            out[col] = (timing.events_of(t) or {}).get("median_s", "")
             continue
         v: Any = getattr(rec, path[0])
         for k in path[1:]:

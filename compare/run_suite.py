@@ -60,6 +60,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--host-profile", type=options.nonnegative_int, default=0, metavar="TOP",
                    help="also profile the host side of the throughput regime (cProfile) and keep "
                         "the TOP functions by own time in each record (time.host_profile)")
+    p.add_argument("--processes", type=options.processes_count, default=1, metavar="N",
+                   help="time every cell in N independent worker processes (auto: until each "
+                        "figure's 95 %% interval is within 5 %% of its median, 6 to 10), in seeded "
+                        "interleaved rounds; the record keeps every process's figure, the median "
+                        "and its interval (time.processes; docs/measurement.md). Default 1: one "
+                        "process per cell, a figure no ranking relies on")
     p.add_argument("--resume", action="store_true",
                    help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
     p.add_argument("--force", action="store_true",
@@ -285,6 +291,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     env = store.env = environment.collect(argv)
     env["backends"] = probes
     env["overlap"] = ahead = overlap.ahead(args)
+    env["processes"] = args.processes
     # the framework-neutral yardstick of every device some backend can use, in this same run
     t0 = time.perf_counter()
     env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in cells)
@@ -327,7 +334,8 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     t0 = time.perf_counter()
     results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=on_record, refuse=refuse,
-                               ahead=ahead, footprint=lambda c: cell_bytes(c)[0])
+                               ahead=ahead, footprint=lambda c: cell_bytes(c)[0],
+                               processes=args.processes, seed=env.get("seed", 0))
     spent["cells"], t0 = time.perf_counter() - t0, time.perf_counter()
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]

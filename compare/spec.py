@@ -53,6 +53,7 @@ class Cell:
     host_profile: int = 0               # >0: cProfile the throughput regime, keep this many functions
     save_outputs: bool = True           # hand the outputs back (cross-backend comparison)
     save_inputs: bool = False           # also the inputs (--save-arrays)
+    check: bool = True                  # False: a repeat process of a checked cell, its timings alone
 
     def __post_init__(self) -> None:
         for f in IDENTITY:

@@ -11,10 +11,14 @@
 5. the *throughput* regime (``pipelined``): k back-to-back calls, one synchronisation, time / k,
    what a simulation loop that synchronises rarely pays per call; and, where the backend can
    capture a call as a graph (``Backend.capture``), the same with graph replays.
-Every timed call is measured on the wall clock (time.perf_counter, around run + synchronise). On a
-GPU, where the framework offers device events (``Backend.event_timer``), the same call is also bracketed by
-two events on the stream the kernels run on; the event times are then the primary figures
-(``clock`` says which), and the wall-clock figures stay in ``wall``.
+Every timed call is measured on the wall clock (time.perf_counter) around ``run(); synchronize()``
+and nothing else: no event record, meter read or bookkeeping of ours between the two clock reads,
+for every framework alike (a pair of event records costs more than a small kernel's launch). On a
+GPU, where the framework offers device events (``Backend.event_timer``), a separate pass of calls
+is bracketed by two events on the stream the kernels run on: the device's time of a call, stored
+as its own figure (``events``), never mixed into the latency. The *null call* (a no-op ``run`` and
+the framework's synchronise on an idle device) is timed the same way as the latency: the floor of
+what the latency regime can show for that framework (``null``).
 Host<->device transfers are outside the timed calls (uploads in the kernel's constructor,
 downloads in ``outputs()``); both are timed separately by the worker.
 """
@@ -49,58 +53,84 @@ def call(run: Callable[[], Any], sync: Callable[[Any], None]) -> float:
     return time.perf_counter() - t0
 
 
-def timed_call(run: Callable[[], Any], sync: Callable[[Any], None],
-               timer: EventTimer | None = None) -> tuple[float, float | None]:
-    """(wall seconds, event seconds or None) of one synchronised call."""
-    if timer is None:
-        return call(run, sync), None
-    t0 = time.perf_counter()
+def event_call(run: Callable[[], Any], sync: Callable[[Any], None], timer: EventTimer) -> float:
+    """Device seconds of one call between two events (its wall time is not kept: the event
+    records sit inside it)."""
     timer.start()
     r = run()
     timer.stop()
     sync(r)
-    wall = time.perf_counter() - t0
-    return wall, timer.elapsed_s()
+    return timer.elapsed_s()
 
 
 def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: int = 10,
                  warmup: int = 2, min_time: float = 0.2, max_time: float = 10.0,
                  max_calls: int = 100_000, timer: EventTimer | None = None) -> dict[str, Any]:
-    """Median/IQR/min of the primary clock (events if ``timer``, else wall), plus ``wall``.
+    """Median/IQR/min of the wall clock around each synchronised call (the latency), plus
+    ``wall`` (the same figures, the name older readers use) and, with ``timer``, ``events``: a
+    separate pass of at least ``repeat`` calls (and ``min_time / 2`` seconds) timed by device events.
     Warm-up stops early once its calls took ``max_time`` (a cell whose one call takes minutes
     warms up with one call); ``warmup`` in the result is the number made."""
     warm_s, made = 0.0, 0
     while made < warmup and warm_s < max_time:
         warm_s += call(run, sync)
         made += 1
-    walls: list[float] = []
-    events: list[float] = []
-    total = 0.0
-    events_error = None
-    while len(walls) < max_calls:
+    walls = _until(lambda: call(run, sync), repeat, min_time, max_time, max_calls)
+    out = summarise(walls)
+    out.update({"warmup": made, "timed_total_s": float(sum(walls)),
+                "wall": {k: out[k] for k in ("median_s", "iqr_s", "min_s")}})
+    if timer is not None:
+        spent = [0.0]
+
+        def timed() -> float:   # the pass's own budget is wall time, events included
+            t0 = time.perf_counter()
+            ev = event_call(run, sync, timer)
+            spent[0] += time.perf_counter() - t0
+            return ev
         try:
-            wall, ev = timed_call(run, sync, timer)
-        except Exception as exc:  # an event API failing must not cost the cell: fall back to wall
-            if timer is None:
-                raise
-            events_error = f"{type(exc).__name__}: {exc}"
-            timer, events = None, []
+            evs = _until(timed, repeat, min(min_time / 2, max_time), max_time, max_calls, spent)
+            out["events"] = {**summarise(evs), "clock": getattr(timer, "description", "device events")}
+        except Exception as exc:  # an event API failing must not cost the cell's latency
+            out["events_error"] = f"{type(exc).__name__}: {exc}"
             sync(None)
-            continue
-        walls.append(wall)
-        if ev is not None:
-            events.append(ev)
-        total += wall
-        enough = len(walls) >= repeat and total >= min_time
-        if enough or (total >= max_time and len(walls) >= min(3, repeat)):
-            break
-    wall_stats = summarise(walls)
-    out = summarise(events) if timer is not None else dict(wall_stats)
-    out.update({"warmup": made, "timed_total_s": total,
-                "wall": {k: wall_stats[k] for k in ("median_s", "iqr_s", "min_s")}})
-    if events_error:
-        out["events_error"] = events_error
     return out
+
+
+def _until(one: Callable[[], float], repeat: int, min_time: float, max_time: float, max_calls: int,
+           spent: list[float] | None = None) -> list[float]:
+    """Times from ``one()`` until ``repeat`` of them and ``min_time`` of their sum (or of
+    ``spent[0]`` where given), stopping early past ``max_time`` with at least 3."""
+    times: list[float] = []
+    total = 0.0
+    while len(times) < max_calls:
+        times.append(one())
+        total = spent[0] if spent is not None else total + times[-1]
+        if (len(times) >= repeat and total >= min_time) or (total >= max_time and len(times) >= min(3, repeat)):
+            break
+    return times
+
+
+NULL_CALLS = 200     # the null call's repeats: a few microseconds each
+
+
+def null_call(sync: Callable[[Any], None], calls: int = NULL_CALLS) -> dict[str, Any]:
+    """The harness's floor: the latency regime's clock around a no-op ``run`` and the
+    framework's synchronise (``sync(None)``) on an idle device, ``calls`` times after 10 warm."""
+    noop: Callable[[], Any] = lambda: None  # noqa: E731
+    for _ in range(10):
+        call(noop, sync)
+    return summarise([call(noop, sync) for _ in range(calls)])
+
+
+def events_of(t: Any) -> Any:
+    """A record's ``time`` block's device-event figures ({median_s, iqr_s, min_s, repeats}), or
+    None. Records made before the separate event pass (``timer == "events"`` and no ``events``)
+    kept them as the block's own figures."""
+    if not hasattr(t, "get"):
+        return None
+    if t.get("events") is not None:
+        return t["events"]
+    return t if t.get("timer") == "events" else None
 
 
 BATCH_S = 0.02     # the throughput regime's shortest batch (``pipelined``)

@@ -103,6 +103,18 @@ def graph_regime(be: Backend, device: str, kernel: Any, sync: Any, max_time: flo
         return {"failed": f"{type(exc).__name__}: {first}"}
 
 
+OWN_TIMER_BELOW_S = 0.01     # the framework's own timer cross-checks per-call cells, not long ones
+
+
+def own_latency(be: Backend, device: str, call: Any) -> dict[str, Any] | None:
+    """The framework's own timing of one call + synchronise (``Backend.own_latency``), or why not."""
+    try:
+        got = be.own_latency(device, call)
+    except Exception as exc:  # a cross-check failing is a note, never the cell
+        return {"failed": f"{type(exc).__name__}: {str(exc).strip()[:200]}"}
+    return got
+
+
 def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, Any]) -> str | None:
     """The first way the kernel's outputs break the scenario's declared contract, or None."""
     want = sc.output_shapes(params)
@@ -171,6 +183,8 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     meter = noise.HostMeter()
     t = timing.steady_state(kernel.run, sync, warmup=cell.warmup, repeat=cell.repeat, min_time=cell.min_time,
                             max_time=cell.max_time, timer=timer)
+    if timer is None and clock != timing.CLOCK:   # why no events: kept beside the latency
+        t["events_error"] = clock
     laps.lap("steady")
     if nvml:
         nvml.sample()
@@ -212,7 +226,20 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         calls = max(20, min(regimes["throughput"]["k"], 2000))
         regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, cell.host_profile)
         laps.lap("host_profile")
+    regimes["null"] = timing.null_call(sync)   # the harness's floor, on the now idle device
+    if regimes["latency"]["median_s"] < OWN_TIMER_BELOW_S:   # the framework's own clock, to cross-check
+        if (own := own_latency(be, device, lambda: sync(kernel.run()))) is not None:
+            regimes["own_timer"] = own
+    laps.lap("null")
     gate.release()
+    times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
+             "clock": timing.CLOCK, "timer": "wall",
+             "first_call_clock": timing.CLOCK, "cache": cache_note,
+             "window": [round(w, 4) for w in gate.window]}   # epoch seconds: no two cells' overlap
+    times["noise"] = noise.verdict(times, host)
+    if not cell.check:      # a repeat process (compare.repeats): the first process checked the cell
+        times["phases"] = {k: round(v, 4) for k, v in laps.spent.items()}
+        return {"status": "ok", "reason": "", "params": dataclasses.asdict(params), "time": times}
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
@@ -222,12 +249,6 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
     laps.lap("check")
-    times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
-             "clock": timing.CLOCK if "events_error" in t else clock,
-             "timer": "events" if timer is not None and "events_error" not in t else "wall",
-             "first_call_clock": timing.CLOCK, "cache": cache_note,
-             "window": [round(w, 4) for w in gate.window]}   # epoch seconds: no two cells' overlap
-    times["noise"] = noise.verdict(times, host)
     record: dict[str, Any] = {
         "status": "ok" if check.ok else "mismatch",
         "reason": "" if check.ok else f"error {check.error:.3g} exceeds tolerance {check.tolerance:.3g}",

@@ -37,11 +37,10 @@ class Kernel(ScenarioKernel):
 
     def run(self) -> Any:
         import torch
-        with torch.inference_mode():
-            if self.fn is not None:
-                self.fn(*self.args)
-            else:
-                self.eager(torch)
+        if self.fn is not None:
+            self.fn(*self.args)
+        else:
+            self.eager(torch)
         return self.out
 
     def outputs(self) -> dict[str, np.ndarray]:

@@ -84,24 +84,22 @@ class Kernel(ScenarioKernel):
         u.mul_(torch.where(hit, c["neg_bounce"], c["one"], out=f))
 
     def run(self) -> Any:
-        import torch
         p, c = self.params, self.c
-        with torch.inference_mode():
-            for s, s0 in zip(self.state, self.state0):
-                s.copy_(s0)
-            if p.record_every:
-                self.traj[0][0].copy_(self.state[0])
-                self.traj[1][0].copy_(self.state[1])
-            for s in range(p.steps):
-                if self.fn is not None:
-                    self.fn(*self.state, c["dt"], c["gdt"], c["radius"], c["lo"], c["hi"],
-                            c["neg_bounce"], c["damping"])
-                else:
-                    self._eager_step()
-                if p.record_every and (s + 1) % p.record_every == 0:
-                    f = (s + 1) // p.record_every
-                    self.traj[0][f].copy_(self.state[0])
-                    self.traj[1][f].copy_(self.state[1])
+        for s, s0 in zip(self.state, self.state0):
+            s.copy_(s0)
+        if p.record_every:
+            self.traj[0][0].copy_(self.state[0])
+            self.traj[1][0].copy_(self.state[1])
+        for s in range(p.steps):
+            if self.fn is not None:
+                self.fn(*self.state, c["dt"], c["gdt"], c["radius"], c["lo"], c["hi"],
+                        c["neg_bounce"], c["damping"])
+            else:
+                self._eager_step()
+            if p.record_every and (s + 1) % p.record_every == 0:
+                f = (s + 1) // p.record_every
+                self.traj[0][f].copy_(self.state[0])
+                self.traj[1][f].copy_(self.state[1])
         return self.state
 
     def outputs(self) -> dict[str, np.ndarray]:

@@ -34,13 +34,12 @@ class Kernel(ScenarioKernel):
 
     def run(self) -> Any:
         import torch
-        with torch.inference_mode():
-            if self.fn is not None:
-                self.fn(self.a, self.x, self.y, self.out)
-            elif self.fused:
-                torch.add(self.y, self.x, alpha=self.alpha, out=self.out)
-            else:
-                torch.mul(self.x, self.a, out=self.out).add_(self.y)
+        if self.fn is not None:
+            self.fn(self.a, self.x, self.y, self.out)
+        elif self.fused:
+            torch.add(self.y, self.x, alpha=self.alpha, out=self.out)
+        else:
+            torch.mul(self.x, self.a, out=self.out).add_(self.y)
         return self.out
 
     def outputs(self) -> dict[str, np.ndarray]:

@@ -53,13 +53,12 @@ class Kernel(ScenarioKernel):
 
     def run(self) -> Any:
         import torch
-        with torch.inference_mode():
-            torch.arange(self.i.shape[0], out=self.i)       # exact: width, height <= 65536
-            torch.arange(self.j.shape[0], out=self.j)
-            if self.fn is not None:
-                self.fn(self.i, self.j, self.wm1, self.hm1, self.lit, self.image)
-            else:
-                self._eager()
+        torch.arange(self.i.shape[0], out=self.i)       # exact: width, height <= 65536
+        torch.arange(self.j.shape[0], out=self.j)
+        if self.fn is not None:
+            self.fn(self.i, self.j, self.wm1, self.hm1, self.lit, self.image)
+        else:
+            self._eager()
         return self.image
 
     def _eager(self) -> None:

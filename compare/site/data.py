@@ -147,6 +147,9 @@ def timing(rec: Record, regime: str) -> Timing | None:
     """``regime``: 'latency' (one synchronised call), 'throughput' (k calls, one synchronise,
     per call), 'graph' (a captured call replayed), or 'first' (the first call, cold caches)."""
     t = rec.time or {}
+    across = across_processes(rec, regime)
+    if across is not None:
+        return across
     if regime == "first":
         v = num(t.get("first_call_s"))
         return Timing(v, v, v, 1) if v is not None else None
@@ -163,6 +166,33 @@ def timing(rec: Record, regime: str) -> Timing | None:
     why = noise.regime_reasons(part)
     why += [w for w in noise.reasons_for(rec, regime) if w not in why]
     return Timing(med, max(med - iqr / 2, 0.0), med + iqr / 2, reps, "; ".join(why))
+
+
+PROCESS_SPREAD = 0.10       # a median whose interval strays further than this is noisy
+
+
+def across_processes(rec: Record, regime: str) -> Timing | None:
+    """The regime's figure over several worker processes (``time.processes``; 'first' is the time
+    to first result, set-up + first call), or None for a one-process record. The bounds are the
+    median's interval; the figure is noisy where the interval strays more than PROCESS_SPREAD."""
+    block = ((rec.time or {}).get("processes") or {}).get(regime)
+    if not isinstance(block, Mapping):
+        return None
+    med, lo, hi = num(block.get("median_s")), num(block.get("ci_lo_s")), num(block.get("ci_hi_s"))
+    if med is None or lo is None or hi is None or med <= 0:
+        return None
+    n = len(block.get("values") or ())
+    cover = num(block.get("confidence")) or 0.0
+    why = []
+    if lo < (1 - PROCESS_SPREAD) * med or hi > (1 + PROCESS_SPREAD) * med:
+        why.append(f"processes disagree: interval {fmt_pct(lo / med - 1)} to {fmt_pct(hi / med - 1)} of the median")
+    if cover < 0.95:
+        why.append(f"{n} processes: interval at {100 * cover:.0f} % confidence")
+    return Timing(med, lo, hi, n, "; ".join(why), processes=n, ci=(lo, hi))
+
+
+def fmt_pct(x: float) -> str:
+    return f"{100 * x:+.0f} %"
 
 
 def per_call(rec: Record, regime: str) -> Timing | None:

@@ -7,6 +7,7 @@ from typing import Any, Iterable, Mapping
 
 import scenarios
 from compare.record import Record
+from compare.timing import events_of
 from compare.sweep.points import sweeps
 
 
@@ -40,8 +41,8 @@ def wall_s(rec: Record) -> float:
 
 
 def event_s(rec: Record) -> float | None:
-    t = rec.time
-    return float(t["median_s"]) if t.get("timer") == "events" else None
+    ev = events_of(rec.time)
+    return float(ev["median_s"]) if ev and ev.get("median_s") else None
 
 
 def throughput_s(rec: Record) -> float | None:

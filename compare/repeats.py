@@ -1,0 +1,132 @@
+"""Repeats across processes: one published figure from several independent worker processes.
+
+Within one process the timed calls agree (that is what ``time.noise`` judges); between processes
+they do not (fresh address space, allocator, clocks, a different physical page layout: up to 1.6x
+on the lent GPUs with 1 % spread inside each). So a cell whose figure is published runs in
+``processes`` worker processes: the first is the ordinary run (checked against the oracle); the
+others time the same cell again without the check (``Cell.check``), in rounds, every round over
+every cell still open in a seeded shuffle, so that drift of the host reaches every framework alike.
+
+Per figure (latency, throughput, graph, device events, time to first result = set-up + first
+call) the record keeps every process's value and the median with its distribution-free interval
+(order statistics of the binomial: the narrowest ``[x_(j), x_(n+1-j)]`` whose coverage is at least
+``CONFIDENCE``; with fewer than 6 processes no such pair exists, the interval is the range and its
+coverage, below 95 %, is stored). ``auto``: processes are added until every figure's interval
+lies within ``TARGET`` of its median, from ``AUTO_MIN`` to ``AUTO_MAX`` processes.
+"""
+from __future__ import annotations
+
+import math
+import random
+from typing import Any, Callable, Mapping, Sequence
+
+CONFIDENCE = 0.95
+TARGET = 0.05            # stop when the interval is within +-5 % of the median
+AUTO_MIN, AUTO_MAX = 6, 10
+FIGURES = ("latency", "throughput", "graph", "events", "first")
+
+
+def interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float, float]:
+    """(low, high, coverage) of the median of ``values``: order statistics, no distribution assumed."""
+    x = sorted(values)
+    n = len(x)
+    if n == 0:
+        raise ValueError("no values")
+    best = (x[0], x[-1], 1.0 - 2.0 * 0.5 ** n if n > 1 else 0.0)
+    for j in range(1, n // 2 + 1):       # [x_(j), x_(n+1-j)], 1-based
+        tail = sum(math.comb(n, i) for i in range(j)) / 2 ** n
+        cover = 1.0 - 2.0 * tail
+        if cover < confidence:
+            break
+        best = (x[j - 1], x[n - j], cover)
+    return best
+
+
+def median(values: Sequence[float]) -> float:
+    x = sorted(values)
+    n = len(x)
+    return x[n // 2] if n % 2 else 0.5 * (x[n // 2 - 1] + x[n // 2])
+
+
+def figures(t: Mapping[str, Any]) -> dict[str, float]:
+    """One process's figures from its record's ``time`` block."""
+    out: dict[str, float] = {}
+    lat = t.get("latency") or {}
+    for name, part in (("latency", lat), ("throughput", t.get("throughput")), ("graph", t.get("graph")),
+                       ("events", t.get("events"))):
+        v = (part or {}).get("median_s") if isinstance(part, Mapping) else None
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0:
+            out[name] = float(v)
+    first, setup = t.get("first_call_s"), t.get("setup_s")
+    if isinstance(first, (int, float)) and isinstance(setup, (int, float)):
+        out["first"] = float(first) + float(setup)
+    return out
+
+
+def summary(times: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """``time.processes`` from the time blocks of every process of a cell (the first included)."""
+    each = [figures(t) for t in times]
+    out: dict[str, Any] = {"count": len(times), "order": "rounds, a seeded shuffle of the open cells in each",
+                           "interval": "order statistics of the median (distribution-free)"}
+    for name in FIGURES:
+        vals = [f[name] for f in each if name in f]
+        if not vals:
+            continue
+        lo, hi, cover = interval(vals)
+        out[name] = {"values": vals, "median_s": median(vals), "ci_lo_s": lo, "ci_hi_s": hi,
+                     "confidence": round(cover, 4)}
+    return out
+
+
+def settled(block: Mapping[str, Any], target: float = TARGET, confidence: float = CONFIDENCE) -> bool:
+    """Every figure's interval (at ``confidence``) lies within ``target`` of its median."""
+    for name in FIGURES:
+        f = block.get(name)
+        if not isinstance(f, Mapping):
+            continue
+        if f["confidence"] < confidence:
+            return False
+        m = f["median_s"]
+        if f["ci_lo_s"] < (1 - target) * m or f["ci_hi_s"] > (1 + target) * m:
+            return False
+    return True
+
+
+def plan(processes: int | str) -> tuple[int, int]:
+    """(fewest, most) processes a cell runs in: a count N is (N, N); 'auto' (AUTO_MIN, AUTO_MAX)."""
+    if processes == "auto":
+        return AUTO_MIN, AUTO_MAX
+    n = int(processes)
+    return n, n
+
+
+def run_rounds(first: dict[int, Mapping[str, Any]], processes: int | str, seed: int,
+               time_one: Callable[[int], Mapping[str, Any] | None],
+               on_round: Callable[[dict[int, dict[str, Any]]], None]) -> dict[int, dict[str, Any]]:
+    """More processes for the cells in ``first`` (index -> the first process's ``time`` block):
+    rounds 2, 3, ..., each over the cells still open in a shuffle seeded by ``seed`` and the round.
+    ``time_one(i)`` runs cell i once more and returns its time block (None: it failed, counted).
+    ``on_round`` gets ``{i: time.processes}`` of the cells the round changed. Returns the same for all."""
+    fewest, most = plan(processes)
+    times: dict[int, list[Mapping[str, Any]]] = {i: [t] for i, t in first.items()}
+    failed: dict[int, int] = {i: 0 for i in first}
+    blocks: dict[int, dict[str, Any]] = {}
+    for rnd in range(2, most + 1):
+        open_ = [i for i in times if rnd <= fewest or not settled(summary(times[i]))]
+        if not open_:
+            break
+        random.Random(seed * 1000 + rnd).shuffle(open_)
+        for i in open_:
+            got = time_one(i)
+            if got is None:
+                failed[i] += 1
+            else:
+                times[i].append(got)
+        changed = {}
+        for i in open_:
+            b = summary(times[i])
+            if failed[i]:
+                b["failed"] = failed[i]
+            blocks[i] = changed[i] = b
+        on_round(changed)
+    return blocks
