@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from compare import charts
 from compare.site import data, fmt, matrix
+from compare.site.harness import harness_table
 from compare.site.matrix import Rule, defaults_of, largest_of, regime
 from compare.site.questions_pages import Ctx, Page, _bar, _group, _label, _launch_yardstick, _host_share, \
     _variants, timing_table, verdicts
@@ -94,6 +95,15 @@ def per_call(c: Ctx) -> Page:
                       + (f" For scale, the driver's own empty-kernel launch: {yard}." if yard else ""),
                       c.cmd(f"run {' '.join(topics.SMALL)} --devices {c.device} --precision float32 --variants all"), csv),
                H("Every small cell"), timing_table(recs, extra=_host_share, extra_headers=("host share",))]
+    if any((r.time or {}).get("null") for r in mine):
+        blocks += [H("What the clock costs"),
+                   P("The latency is the wall clock around one call and the framework's synchronise, "
+                     "nothing else between the clock reads. The null call (a no-op call and the same "
+                     "synchronise, in the same worker) is the floor that regime can show; device events "
+                     "are a separate pass of calls (the GPU's own time of one call, never mixed into the "
+                     "latency); the framework's own timing utility, where it ships one, times the same "
+                     "call + synchronise as its users would: 'ours / own' near 1 says the harness adds "
+                     "nothing."), harness_table(mine)]
     return blocks
 
 

@@ -1,0 +1,28 @@
+"""What the clock itself costs, per framework, from the records that timed the cells: the null
+call (a no-op ``run`` and the framework's synchronise: the floor of the latency regime), the
+device's time of a call (events, a separate pass), and the framework's own timing utility around
+the same call + synchronise where it ships one (a cross-check of the latency regime)."""
+from __future__ import annotations
+
+from compare.record import Record
+from compare.site import data, fmt
+from compare.site.render import Table
+from compare.timing import events_of
+
+
+def harness_table(recs: list[Record]) -> Table:
+    rows = []
+    for r in sorted(recs, key=lambda r: (r.backend, r.variant)):
+        if r.status != "ok" or r.variant == "graph":
+            continue
+        t = r.time or {}
+        lat = data.timing(r, "latency")
+        null = data.num((t.get("null") or {}).get("median_s"))
+        ev = data.num((events_of(t) or {}).get("median_s"))
+        own = t.get("own_timer") or {}
+        own_s = data.num(own.get("median_s"))
+        ratio = f"{lat.median / own_s:.2f}" if lat is not None and own_s else "-"
+        rows.append((r.backend, r.variant, fmt.seconds(lat.median if lat else None), fmt.seconds(null),
+                     fmt.seconds(ev), fmt.seconds(own_s), str(own.get("tool") or own.get("failed") or "-"), ratio))
+    return Table(("framework", "variant", "latency (ours)", "null call", "device events", "own timer",
+                  "own timer's tool", "ours / own"), tuple(rows))
