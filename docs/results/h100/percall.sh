@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# How the per-call rows (SAXPY n = 10^6, float32, CUDA, every framework and variant) were
+# remeasured on a lent H100 under the repeats protocol (issues 40 and 43): two runs one after
+# the other (a, then b), each timing every cell in 6 worker processes in seeded rounds. A call may
+# last 10 minutes, so the runs go on in the background (setsid) and each call waits up to WAIT
+# seconds, then copies what is finished to $OUT:
+#
+#   device calls 1..N: bash .gpu/pK/install.sh   (the wheels the GPU image lacks: ../shared/gpu/stage-wheels)
+#   device call N:     ... && bash docs/results/h100/percall.sh start
+#   next calls:        bash docs/results/h100/percall.sh          (until it says "ended")
+set -u
+W=/root/percall
+WAIT=${WAIT:-540}
+export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
+run="python -m compare run saxpy --devices cuda --precision float32 --variants all --processes 6 --no-plots"
+if [ "${1:-wait}" = start ]; then
+  mkdir -p "$W"
+  nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
+  setsid nohup bash -c "$run --out $W/a; $run --out $W/b; echo ALL-DONE" > "$W/log" 2>&1 &
+  echo $! > "$W/pid"
+fi
+end=$((SECONDS + WAIT))
+while kill -0 "$(cat "$W/pid")" 2>/dev/null && [ $SECONDS -lt $end ]; do sleep 5; done
+kill -0 "$(cat "$W/pid")" 2>/dev/null && echo "still running" || echo "ended"
+tar -czf "$OUT/percall.tgz" -C "$W" --exclude='*.npz' --exclude='*.png' --exclude='*.svg' . 2>/dev/null
+tail -25 "$W/log"
