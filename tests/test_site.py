@@ -288,3 +288,22 @@ def test_static_checks_catch_each_fault(tmp_path: Path, fault, expect: str):
     fault(site_dir)
     problems = site_problems(site_dir)
     assert any(expect in p for p in problems), problems
+
+
+# ---- figures' data say what their columns name ------------------------------------------------
+@pytest.mark.xdist_group("site")
+def test_time_vs_error_csv_has_each_points_error_and_wall_clock(site: Path):
+    """Every point of the time-against-error figure has its error (``converged.error``) and its
+    wall-clock median (``time.wall``), never a CUDA-event median under the wall column."""
+    import csv
+    from compare.sweep.rows import wall_s
+    recs = {(r.backend, r.variant, r.precision): r for r in Store.read(STORE / "sweep.json").records
+            if (r.tags or {}).get("sweep") == "error" and r.status == "ok"}
+    assert any(r.time.get("timer") == "events" for r in recs.values()), "the store lost its event-timed points"
+    with open(site / "figures" / "accuracy-time-vs-error.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(recs)
+    for row in rows:
+        r = recs[(row["framework"], row["variant"], row["precision"])]
+        assert row["error"] == format(r.converged["error"], ".6g"), row
+        assert row["wall median s"] == format(wall_s(r), ".6g"), row

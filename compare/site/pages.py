@@ -16,6 +16,7 @@ from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.matrix import Row
 from compare.site.render import Figure, H, Items, P, Raw, Table
+from compare.sweep.rows import wall_s
 
 REPO_DOCS = Path(__file__).resolve().parents[2] / "docs"
 
@@ -126,14 +127,19 @@ def accuracy(c: qp.Ctx) -> list[Any]:
     err = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r.device == c.device]
     if err:
         from compare.sweep import plots as sweep_plots
+        from compare.sweep.metrics import error_points
         png, rel, csv = c.fig("accuracy-time-vs-error")
         if sweep_plots.plot_time_vs_error(list(err), c.device, png):
+            # the plotted points and their coordinates: the wall clock (time.wall; time.median_s
+            # is the CUDA events' where a framework has them) and the error against the
+            # converged reference (converged.error, unfloored)
+            pts = [p["rec"] for sc in dict.fromkeys(r.scenario for r in err)
+                   for p in error_points(list(err), c.device, sc)]
             charts.write_csv(png.with_suffix(".csv"), ("scenario", "framework", "variant", "precision", "params",
                                                        "wall median s", "error"),
                              [(r.scenario, r.backend, r.variant, r.precision,
                                fmt.params_text(r.params or {}, data.defaults(r.scenario)),
-                               (r.time or {}).get("median_s"), (r.error or {}).get("converged"))
-                              for r in err if r.status == "ok"])
+                               wall_s(r), r.converged["error"]) for r in pts])
             fws = ", ".join(f for f in c.m.frameworks if any(r.backend == f for r in err))
             blocks += [H("Run time against error"),
                        Figure(rel, "Time against error against a converged float64 reference, both "
