@@ -307,3 +307,22 @@ def test_time_vs_error_csv_has_each_points_error_and_wall_clock(site: Path):
         r = recs[(row["framework"], row["variant"], row["precision"])]
         assert row["error"] == format(r.converged["error"], ".6g"), row
         assert row["wall median s"] == format(wall_s(r), ".6g"), row
+
+
+def test_a_newer_record_replaces_an_older_one_that_lacks_params_added_since():
+    """A record stored before a parameter existed (projectile before ``batch`` and ``seed``) ran
+    at that parameter's default: the same cell as a newer record at the defaults, which wins."""
+    import dataclasses
+    import scenarios
+    from compare.record import Record
+    from compare.site import matrix
+    full = dataclasses.asdict(scenarios.SCENARIOS["projectile"].params())
+    old = {k: v for k, v in full.items() if k not in ("batch", "seed")}
+    assert old != full, "projectile's defaults lost batch and seed: pick params added since"
+    cell = dict(scenario="projectile", device="cpu", precision="float32", status="ok")
+    older = Record(backend="jax", params=old, time={"median_s": 2.0}, **cell)
+    newer = Record(backend="jax", params=full, time={"median_s": 1.0}, **cell)
+    other = Record(backend="numba", params=old, time={"median_s": 3.0}, **cell)
+    assert matrix.latest([older, other, newer]) == [newer, other]
+    bigger = Record(backend="jax", params={**full, "batch": 4096}, time={"median_s": 5.0}, **cell)
+    assert matrix.latest([older, bigger]) == [older, bigger]       # another size: another cell
