@@ -326,3 +326,38 @@ def test_a_newer_record_replaces_an_older_one_that_lacks_params_added_since():
     assert matrix.latest([older, other, newer]) == [newer, other]
     bigger = Record(backend="jax", params={**full, "batch": 4096}, time={"median_s": 5.0}, **cell)
     assert matrix.latest([older, bigger]) == [older, bigger]       # another size: another cell
+
+
+def _particles_page(store: Path, out: Path):
+    from compare.site import data, pages
+    from compare.site import questions_pages as qp
+    from compare.site.topics import particles
+    m = data.load([store])
+    rows, _ = pages.evaluate(m)
+    c = qp.Ctx(m, rows, out, "STORE")
+    return c, particles.page(c)
+
+
+def test_the_particle_scaling_table_and_the_verdicts_read_one_record_per_cell(tmp_path: Path):
+    """Where the run suite and the scaling sweep both measured a cell (the CPU's Numba at n = 256:
+    10 µs per rollout in the run, 8 ms in a sweep run while the 2-core host was loaded), the
+    scaling table shows the run suite's record, as the matrix rows do, so the page's table and
+    its verdicts give one figure."""
+    from compare.site import fmt
+    from compare.site.render import Table
+    c, blocks = _particles_page(ROOT / "docs" / "results" / "cpu", tmp_path)
+    table = next(b for b in blocks if isinstance(b, Table) and "size" in b.headers)
+    rate = {(r[0], r[1], r[2]): r[3] for r in table.rows}
+    small = next(r for r in c.rows if r.rule.key == "particles-small")
+    large = next(r for r in c.rows if r.rule.key == "particles-large")
+    checked = 0
+    for fw, cell in small.cells.items():
+        if cell.value is not None and cell.variant == "default" and (fw, "default", "256") in rate:
+            assert rate[fw, "default", "256"] == fmt.rate(256 * 300 / cell.value), fw
+            checked += 1
+    for fw, cell in large.cells.items():
+        if cell.value is not None and cell.variant == "default" and (fw, "default", "1048576") in rate:
+            assert rate[fw, "default", "1048576"] == fmt.rate(cell.value), fw
+            checked += 1
+    assert checked >= 8
+    assert "numba (10 µs)" in small.verdict
