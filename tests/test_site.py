@@ -361,3 +361,18 @@ def test_the_particle_scaling_table_and_the_verdicts_read_one_record_per_cell(tm
             checked += 1
     assert checked >= 8
     assert "numba (10 µs)" in small.verdict
+
+
+@pytest.mark.xdist_group("site")
+def test_overview_picture_is_drawn_from_the_matrix_and_reproducible(site: Path, tmp_path: Path):
+    """overview.png (README's picture of the matrix) is written by the build, not screenshotted, and
+    the same rows give the same bytes."""
+    from compare.site import data, pages
+    png = site / "overview.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    m = data.load([STORE])
+    rows, _ = pages.evaluate(m)
+    title = parse(site / "index.html").title
+    again = tmp_path / "overview.png"
+    pages.matrix_png(again, rows, m.frameworks, title)
+    assert again.read_bytes() == png.read_bytes()
