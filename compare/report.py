@@ -111,23 +111,66 @@ def summary_lines(records: list[Record]) -> list[str]:
     out = [f"{len(records)} cells: " + ", ".join(f"{n} {st}" + (f" ({noisy} noisy {NOISY_MARK})" if st == "ok" and noisy
                                                                  else "") for st, n in counts.items())]
     base = backends.cpu_baseline()
-    groups: dict[tuple, dict[str, float]] = {}
+    groups: dict[tuple, dict[str, Record]] = {}
     for r in records:
         med = call_time(r)[0] if r.status == "ok" else None
         if med:
-            best = groups.setdefault((r.scenario, r.device, r.precision, params_text(r)), {})
-            best[r.backend] = min(best.get(r.backend, med), med)
-    for (scenario, device, precision, _), best in groups.items():
-        if len(best) < 2:
+            fastest = groups.setdefault((r.scenario, r.device, r.precision, params_text(r)), {})
+            if r.backend not in fastest or med < call_time(fastest[r.backend])[0]:
+                fastest[r.backend] = r      # a framework's best variant
+    for (scenario, device, precision, _), fastest in groups.items():
+        if len(fastest) < 2:
             continue
+        best = {b: call_time(r)[0] for b, r in fastest.items()}
         order = sorted(best, key=best.get)
-        line = (f"  {scenario} {device} {precision}: fastest {order[0]} ({fmt_time(best[order[0]])} a call), "
-                f"{best[order[1]] / best[order[0]]:.3g}x ahead of {order[1]}")
+        line = f"  {scenario} {device} {precision}: " + _lead(fastest[order[0]], fastest[order[1]])
         if device == "cpu" and base in best:
-            ups = ", ".join(f"{b} {best[base] / best[b]:.3g}x" for b in order if b != base)
+            ups = ", ".join(f"{b} {best[base] / best[b]:.3g}x" + (NOISY_MARK if _noisy(fastest[b]) else "")
+                            for b in order if b != base)
             line += f"; against {backends.display_name(base)}: {ups}"
         out += textwrap.wrap(line, 118, subsequent_indent="      ", break_on_hyphens=False)
     return out
+
+
+TIE = 1.05          # two figures within 5 % are not ranked, whatever their spread
+
+
+def _noisy(rec: Record) -> bool:
+    """The cell's figures are not to be read as they stand: a stored noise reason (any regime),
+    or the summary's own regime spread too wide or too few repeats."""
+    t = rec.time or {}
+    regime = call_time(rec)[2]
+    part = t.get("throughput") if regime == "throughput" else t
+    return bool(noise.reasons_for(rec) or noise.regime_reasons(part) or (t.get("noise") or {}).get("noisy"))
+
+
+def _interval(rec: Record) -> tuple[float, float]:
+    """Where the cell's per-call time lies: the interval across worker processes where several
+    measured it (``time.processes.<regime>``), else the median's quartile range."""
+    med, iqr, regime = call_time(rec)
+    procs = (rec.time or {}).get("processes")
+    part = procs.get(regime) if isinstance(procs, Mapping) else None
+    if isinstance(part, Mapping):
+        lo, hi = part.get("ci_lo_s"), part.get("ci_hi_s")
+        if all(isinstance(x, (int, float)) and math.isfinite(x) for x in (lo, hi)):
+            return float(lo), float(hi)
+    half = iqr / 2 if isinstance(iqr, (int, float)) and math.isfinite(iqr) else 0.0
+    return med - half, med + half
+
+
+def _lead(first: Record, second: Record) -> str:
+    """The fastest cell's lead over the next, claimed only where the figures can tell them apart:
+    neither noisy, their intervals apart and more than 5 % between them."""
+    a, b = call_time(first)[0], call_time(second)[0]
+    noisy = [r.backend for r in (first, second) if _noisy(r)]
+    if noisy:
+        return (f"noisy: rerun {' and '.join(noisy)} before ranking (the two fastest: {first.backend} "
+                f"{fmt_time(a)}, {second.backend} {fmt_time(b)} a call)")
+    (_, hi_a), (lo_b, _) = _interval(first), _interval(second)
+    if hi_a >= lo_b or b < a * TIE:
+        why = "within 5 %" if b < a * TIE else "their spreads overlap"
+        return f"tie: {first.backend}, {second.backend} ({fmt_time(a)}, {fmt_time(b)} a call: {why})"
+    return f"fastest {first.backend} ({fmt_time(a)} a call), {b / a:.3g}x ahead of {second.backend}"
 
 
 def params_text(rec: Record) -> str:

@@ -360,6 +360,7 @@ def check_pages(pages: list[Path], timeout: float = 30.0) -> dict[Path, PageChec
 
 def screenshot(page: str | Path, out: str | Path, width: int = 1400, height: int = 1000,
                full_page: bool = False, timeout: float = 30.0) -> Path:
-    """One screenshot in a browser of its own (README's overview picture)."""
+    """One screenshot in a browser of its own (README's overview is drawn by the site build instead:
+    compare.site.pages.matrix_png)."""
     with Browser(timeout=timeout) as b:
         return b.screenshot(page, out, width, height, full_page)

@@ -259,3 +259,44 @@ def test_scenario_help_lists_its_parameters_with_defaults_and_ranges():
             assert f"  {name} (default {default!r}): must be" in text, (sc.name, name, text[-800:])
     rules = dict((n, r) for n, _, r in scenarios.get("saxpy").param_rules())
     assert rules["n"] == "must be in [1, 2^31-1]" and rules["inputs"] == "must be one of linspace, random"
+
+
+# ---- the end-of-run summary ranks only what the figures can tell apart -------------------------
+def _cell(backend: str, median: float, iqr: float = 0.0, noisy: bool = False,
+          ci: tuple[float, float] | None = None):
+    """A projectile CPU float32 record timed in the throughput regime."""
+    from compare.record import Record
+    t: dict = {"median_s": median, "iqr_s": iqr, "repeats": 50,
+               "throughput": {"median_s": median, "iqr_s": iqr, "repeats": 5, "k": 10}}
+    if noisy:
+        t["noise"] = {"noisy": True, "reasons": [{"regime": "throughput", "why": "host busy: 1.2 other cores"}]}
+    if ci:
+        t["processes"] = {"throughput": {"median_s": median, "ci_lo_s": ci[0], "ci_hi_s": ci[1]}}
+    return Record(scenario="projectile", backend=backend, device="cpu", precision="float32",
+                  status="ok", params={"batch": 1}, time=t)
+
+
+def _ranking(*cells) -> str:
+    from compare import report
+    lines = report.summary_lines(list(cells))
+    return " ".join(x.strip() for x in lines if "projectile cpu float32" in x or x.startswith("      "))
+
+
+@pytest.mark.parametrize("cells, says, never", [
+    # a clear lead, both figures clean: the ranking as before
+    ((_cell("jax", 1e-4, 1e-6), _cell("numba", 2e-4, 1e-6)), "fastest jax (100 µs a call), 2x ahead of numba", "tie"),
+    # the loaded 2-core run: numba's cell noisy, so no lead of 97.9x is claimed
+    ((_cell("jax", 1e-4, 1e-6), _cell("numba", 9.79e-3, 1e-5, noisy=True)), "noisy: rerun numba", "ahead"),
+    ((_cell("jax", 1e-4, 1e-6, noisy=True), _cell("numba", 9.79e-3, 1e-5)), "noisy: rerun jax", "ahead"),
+    # quartile ranges overlap (1.0 ± 0.045 against 1.08 ± 0.045), each spread under the noise limit
+    ((_cell("jax", 1.0, 0.09), _cell("numba", 1.08, 0.09)), "tie: jax, numba", "ahead"),
+    # apart by their quartiles but within 5 %
+    ((_cell("jax", 1.0, 1e-4), _cell("numba", 1.04, 1e-4)), "tie: jax, numba", "ahead"),
+    # the cross-process interval, where there is one, decides instead of the quartiles
+    ((_cell("jax", 1.0, 1e-4, ci=(0.9, 1.3)), _cell("numba", 1.2, 1e-4, ci=(1.1, 1.4))), "tie: jax, numba", "ahead"),
+    ((_cell("jax", 1.0, 0.09, ci=(0.99, 1.01)), _cell("numba", 1.07, 0.09, ci=(1.06, 1.08))),
+     "1.07x ahead of numba", "tie"),
+])
+def test_summary_never_ranks_a_noisy_cell_or_an_overlapping_pair(cells, says, never):
+    line = _ranking(*cells)
+    assert says in line and never not in line, line

@@ -288,3 +288,91 @@ def test_static_checks_catch_each_fault(tmp_path: Path, fault, expect: str):
     fault(site_dir)
     problems = site_problems(site_dir)
     assert any(expect in p for p in problems), problems
+
+
+# ---- figures' data say what their columns name ------------------------------------------------
+@pytest.mark.xdist_group("site")
+def test_time_vs_error_csv_has_each_points_error_and_wall_clock(site: Path):
+    """Every point of the time-against-error figure has its error (``converged.error``) and its
+    wall-clock median (``time.wall``), never a CUDA-event median under the wall column."""
+    import csv
+    from compare.sweep.rows import wall_s
+    recs = {(r.backend, r.variant, r.precision): r for r in Store.read(STORE / "sweep.json").records
+            if (r.tags or {}).get("sweep") == "error" and r.status == "ok"}
+    assert any(r.time.get("timer") == "events" for r in recs.values()), "the store lost its event-timed points"
+    with open(site / "figures" / "accuracy-time-vs-error.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(recs)
+    for row in rows:
+        r = recs[(row["framework"], row["variant"], row["precision"])]
+        assert row["error"] == format(r.converged["error"], ".6g"), row
+        assert row["wall median s"] == format(wall_s(r), ".6g"), row
+
+
+def test_a_newer_record_replaces_an_older_one_that_lacks_params_added_since():
+    """A record stored before a parameter existed (projectile before ``batch`` and ``seed``) ran
+    at that parameter's default: the same cell as a newer record at the defaults, which wins."""
+    import dataclasses
+    import scenarios
+    from compare.record import Record
+    from compare.site import matrix
+    full = dataclasses.asdict(scenarios.SCENARIOS["projectile"].params())
+    old = {k: v for k, v in full.items() if k not in ("batch", "seed")}
+    assert old != full, "projectile's defaults lost batch and seed: pick params added since"
+    cell = dict(scenario="projectile", device="cpu", precision="float32", status="ok")
+    older = Record(backend="jax", params=old, time={"median_s": 2.0}, **cell)
+    newer = Record(backend="jax", params=full, time={"median_s": 1.0}, **cell)
+    other = Record(backend="numba", params=old, time={"median_s": 3.0}, **cell)
+    assert matrix.latest([older, other, newer]) == [newer, other]
+    bigger = Record(backend="jax", params={**full, "batch": 4096}, time={"median_s": 5.0}, **cell)
+    assert matrix.latest([older, bigger]) == [older, bigger]       # another size: another cell
+
+
+def _particles_page(store: Path, out: Path):
+    from compare.site import data, pages
+    from compare.site import questions_pages as qp
+    from compare.site.topics import particles
+    m = data.load([store])
+    rows, _ = pages.evaluate(m)
+    c = qp.Ctx(m, rows, out, "STORE")
+    return c, particles.page(c)
+
+
+def test_the_particle_scaling_table_and_the_verdicts_read_one_record_per_cell(tmp_path: Path):
+    """Where the run suite and the scaling sweep both measured a cell (the CPU's Numba at n = 256:
+    10 µs per rollout in the run, 8 ms in a sweep run while the 2-core host was loaded), the
+    scaling table shows the run suite's record, as the matrix rows do, so the page's table and
+    its verdicts give one figure."""
+    from compare.site import fmt
+    from compare.site.render import Table
+    c, blocks = _particles_page(ROOT / "docs" / "results" / "cpu", tmp_path)
+    table = next(b for b in blocks if isinstance(b, Table) and "size" in b.headers)
+    rate = {(r[0], r[1], r[2]): r[3] for r in table.rows}
+    small = next(r for r in c.rows if r.rule.key == "particles-small")
+    large = next(r for r in c.rows if r.rule.key == "particles-large")
+    checked = 0
+    for fw, cell in small.cells.items():
+        if cell.value is not None and cell.variant == "default" and (fw, "default", "256") in rate:
+            assert rate[fw, "default", "256"] == fmt.rate(256 * 300 / cell.value), fw
+            checked += 1
+    for fw, cell in large.cells.items():
+        if cell.value is not None and cell.variant == "default" and (fw, "default", "1048576") in rate:
+            assert rate[fw, "default", "1048576"] == fmt.rate(cell.value), fw
+            checked += 1
+    assert checked >= 8
+    assert "numba (10 µs)" in small.verdict
+
+
+@pytest.mark.xdist_group("site")
+def test_overview_picture_is_drawn_from_the_matrix_and_reproducible(site: Path, tmp_path: Path):
+    """overview.png (README's picture of the matrix) is written by the build, not screenshotted, and
+    the same rows give the same bytes."""
+    from compare.site import data, pages
+    png = site / "overview.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    m = data.load([STORE])
+    rows, _ = pages.evaluate(m)
+    title = parse(site / "index.html").title
+    again = tmp_path / "overview.png"
+    pages.matrix_png(again, rows, m.frameworks, title)
+    assert again.read_bytes() == png.read_bytes()

@@ -101,6 +101,7 @@ def store_label(inputs: list[Path]) -> str:
 
 
 MANIFEST = "site.json"        # what the site was built from: a rebuild reads it
+OVERVIEW = "overview.png"     # the matrix as a picture, beside matrix.md (README shows it)
 
 
 def _where(p: Path) -> str:
@@ -136,6 +137,8 @@ def write_site(inputs: list[Path], out: Path, title: str | None, against: list[P
             written.append(path)
     atomic_write(out / "matrix.md", pages.matrix_md(rows, m.frameworks) + "\n")
     written.append(out / "matrix.md")
+    pages.matrix_png(out / OVERVIEW, rows, m.frameworks, title)      # README's picture of the matrix
+    written.append(out / OVERVIEW)
     atomic_write(out / MANIFEST, json.dumps({"inputs": [_where(p) for p in inputs], "title": title,
                                              "against": [_where(p) for p in against]}, indent=1) + "\n")
     written.append(out / MANIFEST)

@@ -69,11 +69,16 @@ class Row:
 
 # ---- record selection -------------------------------------------------------------------------
 def latest(recs: list[Record]) -> list[Record]:
-    """One record per framework, variant and size: the last stored (stores merge oldest first)."""
+    """One record per framework, variant and size: the last stored (stores merge oldest first).
+    A parameter an older record lacks was added to its scenario since and the record ran at its
+    default, so its size is read with the scenario's defaults filled in (projectile's ``batch``)
+    and a newer record of the same cell replaces it."""
     seen: dict[tuple[Any, ...], Record] = {}
     for r in recs:
+        d = data.defaults(r.scenario)
+        full = r if all(k in (r.params or {}) for k in d) else r.replace(params={**d, **(r.params or {})})
         seen[(r.backend, r.scenario, r.device, r.precision, r.variant,
-              data.size(r), data.at_defaults(r))] = r
+              data.size(full), data.at_defaults(r))] = r
     return list(seen.values())
 
 

@@ -109,9 +109,25 @@ def _launch_yardstick(m: Machine, device: str) -> str:
     return ""
 
 
+def _cell(r: Record) -> tuple[Any, ...]:
+    """A cell's identity without the suite's tags; a parameter an older record lacks is at its
+    default (as matrix.latest reads it)."""
+    import json
+    params = {**data.defaults(r.scenario), **(r.params or {})}
+    return (r.scenario, r.backend, r.device, r.precision, r.variant, json.dumps(params, sort_keys=True, default=str))
+
+
+def _dedicated(recs: list[Record], run: tuple[Record, ...]) -> list[Record]:
+    """Each record, or the run suite's (its newest) where that measured the same cell too: one
+    figure per cell on every page, the one the matrix rows keep (the run suite's record is the
+    later in ``Machine.records``, so ``matrix.latest`` keeps it)."""
+    mine = {_cell(r): r for r in run}
+    return [mine.get(_cell(r), r) for r in recs]
+
+
 def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False) -> Page:
-    recs = [r for r in c.m.sweep if data.tag(r, "sweep") == "scaling" and r.scenario == scenario
-            and r.device == c.device and r.precision == "float32"]
+    recs = _dedicated([r for r in c.m.sweep if data.tag(r, "sweep") == "scaling" and r.scenario == scenario
+                       and r.device == c.device and r.precision == "float32"], c.m.run)
     ok = [r for r in recs if r.status == "ok"]
     if not ok:
         return []
@@ -131,15 +147,17 @@ def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = Fal
         png, rel, csv = c.fig(f"{scenario}-{what}-vs-size")
         charts.curves(png, f"{scenario}: {lab} against size ({c.device}, float32, throughput regime)",
                       xlabel, lab, series)
-        blocks.append(Figure(rel, f"{lab.capitalize()} against size, one line per framework.",
+        blocks.append(Figure(rel, f"{lab.capitalize()} against size, one line per framework (a size the "
+                             "run suite measured too shows its record, as the verdicts do).",
                              c.cmd(f"sweep scaling --scenarios {scenario} --devices {c.device}"), csv))
     rows = []
     for r in sorted(recs, key=lambda r: (r.backend, data.size(r))):
         rows.append((r.backend, r.variant, f"{data.size(r):.0f}",
                      fmt.rate(data.item_rate(r)) if r.status == "ok" else "-",
                      fmt.nbytes(data.device_bytes(r)) if r.status == "ok" else "-",
+                     "scaling sweep" if data.tag(r, "sweep") == "scaling" else "run",
                      r.status if r.status == "ok" else f"{r.status}: {r.reason[:120]}"))
-    blocks.append(Table(("framework", "variant", "size", ylabel, "device memory", "status"), tuple(rows)))
+    blocks.append(Table(("framework", "variant", "size", ylabel, "device memory", "record", "status"), tuple(rows)))
     return blocks
 
 
