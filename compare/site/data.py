@@ -143,13 +143,40 @@ class Timing:
 REGIMES = ("latency", "throughput", "graph")
 
 
+def across(rec: Record, regime: str) -> tuple[float, tuple[float, float] | None, int] | None:
+    """A regime's figure across independent worker processes, where the record has them
+    (``time.processes[regime]``: ``values``, ``median_s``, ``ci_lo_s``, ``ci_hi_s``): the
+    median, its 95 % interval (None where the record gives none) and how many processes."""
+    procs = (rec.time or {}).get("processes")
+    part = procs.get(regime) if isinstance(procs, Mapping) else None
+    if not isinstance(part, Mapping):
+        return None
+    med = num(part.get("median_s"))
+    if med is None or med <= 0:
+        return None
+    values = part.get("values")
+    n = len(values) if isinstance(values, (list, tuple)) else 1
+    lo, hi = num(part.get("ci_lo_s")), num(part.get("ci_hi_s"))
+    ci = (lo, hi) if lo is not None and hi is not None and lo <= med <= hi and n > 1 else None
+    return med, ci, n
+
+
+def _one(med: float, lo: float, hi: float, reps: int | None, noisy: str, rec: Record, regime: str) -> Timing:
+    """A Timing, with the median and its interval across processes where the record has them."""
+    got = across(rec, regime)
+    if got is None:
+        return Timing(med, lo, hi, reps, noisy)
+    pmed, ci, n = got
+    return Timing(pmed, lo - med + pmed, hi - med + pmed, reps, noisy, n, ci)   # quartiles kept about it
+
+
 def timing(rec: Record, regime: str) -> Timing | None:
     """``regime``: 'latency' (one synchronised call), 'throughput' (k calls, one synchronise,
     per call), 'graph' (a captured call replayed), or 'first' (the first call, cold caches)."""
     t = rec.time or {}
     if regime == "first":
         v = num(t.get("first_call_s"))
-        return Timing(v, v, v, 1) if v is not None else None
+        return _one(v, v, v, 1, "", rec, "first") if v is not None else None
     part = t.get(regime) if regime != "latency" else (t.get("latency") or t)
     if not isinstance(part, Mapping):
         return None
@@ -162,7 +189,23 @@ def timing(rec: Record, regime: str) -> Timing | None:
     # before time.noise existed has only the first two)
     why = noise.regime_reasons(part)
     why += [w for w in noise.reasons_for(rec, regime) if w not in why]
-    return Timing(med, max(med - iqr / 2, 0.0), med + iqr / 2, reps, "; ".join(why))
+    return _one(med, max(med - iqr / 2, 0.0), med + iqr / 2, reps, "; ".join(why), rec, regime)
+
+
+def first_result(rec: Record) -> Timing | None:
+    """Time to first result: set-up (the kernel's constructor) + the first call, the figure that
+    is fair between ports that compile in one or the other (docs/measurement.md). None without
+    ``time.setup_s`` (an older record: not comparable). Where cold processes were timed, each
+    part is their median, and the sum carries an interval only where both parts have one."""
+    setup = num((rec.time or {}).get("setup_s"))
+    first = timing(rec, "first")
+    if setup is None or first is None:
+        return None
+    got = across(rec, "setup")
+    s_med, s_ci, s_n = got if got is not None else (setup, None, 1)
+    ci = (s_ci[0] + first.ci[0], s_ci[1] + first.ci[1]) if s_ci and first.ci else None
+    v = s_med + first.median
+    return Timing(v, v, v, 1, "", min(s_n, first.processes), ci)
 
 
 def per_call(rec: Record, regime: str) -> Timing | None:
@@ -213,3 +256,53 @@ def item_rate(rec: Record, regime: str = "throughput") -> float | None:
 
 def hw_fraction(rec: Record) -> float | None:
     return num((rec.throughput or {}).get("hw_fraction"))
+
+
+# Where neither a record nor its run names the GPU's L2 size: a bound for the H100/H200 class
+# (50 MB of L2 on both; 60 MB leaves room for what a working set's count of bytes leaves out).
+L2_BOUND = {"H100": 60e6, "H200": 60e6}
+L2_KEYS = ("l2_bytes", "l2_cache_bytes", "l2_cache_size")
+
+
+def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float, str] | None:
+    """The L2 cache of the record's GPU and where it was read: an L2 field of the record's
+    yardstick, else of its run's environment (``hardware[device]`` or a GPU entry), else the
+    stated bound for a GPU of a class in L2_BOUND by name. None off CUDA or where unknown."""
+    if rec.device != "cuda":
+        return None
+    envs = list(runs)
+    places: list[Any] = [rec.hardware or {}]
+    places += [(e.get("hardware") or {}).get(rec.device) or {} for e in envs]
+    places += [g for e in envs for g in e.get("gpus") or [] if isinstance(g, Mapping)]
+    for place in places:
+        for k in L2_KEYS:
+            v = num(place.get(k)) if isinstance(place, Mapping) else None
+            if v:
+                return v, k
+    names = [str((rec.hardware or {}).get("gpu") or "")] + [str(g.get("name") or "") for g in places[1:]
+                                                             if isinstance(g, Mapping)]
+    for cls, bound in L2_BOUND.items():
+        if any(cls in n for n in names):
+            return bound, f"stated {bound / 1e6:.0f} MB bound for the {cls} class"
+    return None
+
+
+def fraction_label(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> str:
+    """Why a hardware fraction is not a plain fraction of memory bandwidth: 'cache' where the
+    working set (``work.bytes``) fits the GPU's L2, so it is served from cache, not from the
+    DRAM the copy yardstick measures, and where it exceeds 1 on CUDA with no working set or L2
+    known to say otherwise; 'above copy' where it exceeds 1 with a working set beyond the L2 (a
+    read-heavier mix than the copy's) or on a CPU (judged against a copy of its own size already:
+    docs/measurement.md); '' where the fraction stands as it is."""
+    f = hw_fraction(rec)
+    if f is None:
+        return ""
+    work = num((rec.work or {}).get("bytes"))
+    l2 = l2_bytes(rec, runs)
+    if l2 is not None and work is not None and work < l2[0]:
+        return "cache"
+    if f <= 1:
+        return ""
+    # above the copy: cache, unless the working set is known not to fit (or there is no GPU L2)
+    beyond = l2 is not None and work is not None and work >= l2[0]
+    return "above copy" if beyond or rec.device != "cuda" else "cache"
