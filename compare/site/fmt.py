@@ -57,8 +57,6 @@ def pct(v: float | None) -> str:
 
 
 def ratio(r: float) -> str:
-    if r < 1:                  # a reference cell ahead of the ranked leader
-        return f"{r:.2g}×"
     return f"{r:.2f}×" if r < 10 else f"{r:.3g}×" if r < 1000 else f"{r:.0f}×"
 
 
