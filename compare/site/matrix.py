@@ -60,7 +60,11 @@ class Reference:
     """Cells a rule shows beside its ranking but never ranks: which records, and in words."""
     test: Callable[[Record], bool]    # the record is a reference
     ranked: str                       # what the row ranks, e.g. 'AD'
-    words: str                        # the reference in the verdict, e.g. 'Hand-written adjoints (...)'
+    what: str                         # the reference cells in words, e.g. 'Hand-written adjoints'
+
+    def words(self, ahead: bool) -> str:
+        """The verdict's name for them: a ceiling only where all of them lead the ranking."""
+        return f"{self.what} ({'reference ceiling' if ahead else 'reference'}, not {self.ranked})"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -317,7 +321,7 @@ def _verdict(rule: Rule, cells: dict[str, Cell], top: str | None, tied: tuple[st
         text = f"{best}: {top} ({fmt(lead.value, rule.unit)}), the only one measured."
     refs = sorted((c for c in cells.values() if c.reference and c.ratio is not None), key=lambda c: c.ratio or 0.0)
     if rule.reference and refs:
-        text += (f" {rule.reference.words}: " + "; ".join(
+        text += (f" {rule.reference.words(all((c.ratio or 1.0) < 1 for c in refs))}: " + "; ".join(
             f"{c.framework} {_than(c.ratio or 1.0, rule)}" + (f" than {top}" if i == 0 else "")
             for i, c in enumerate(refs)) + ".")
     failed = [c.framework for c in cells.values() if c.status in ("error", "mismatch")]

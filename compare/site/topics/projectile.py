@@ -30,7 +30,7 @@ def hand_adjoint(r: Record) -> bool:
 
 # Automatic differentiation is ranked among itself; a hand-written discrete adjoint is another
 # kind of program (the derivative written by hand, no tape), shown beside it as the ceiling.
-HAND_ADJOINTS = Reference(hand_adjoint, "AD", "Hand-written adjoints (reference ceiling, not AD)")
+HAND_ADJOINTS = Reference(hand_adjoint, "AD", "Hand-written adjoints")
 
 RULES = (
     Rule("gradients", "Gradients through a simulation at scale: rate", "gradients", "1/s", "higher",
@@ -59,7 +59,7 @@ def page(c: Ctx) -> Page:
     blocks.append(P("Like with like: automatic differentiation (a tape or traced AD: the framework "
                     "derives the gradient) is ranked among itself. A hand-written discrete adjoint "
                     "(the reverse sweep written by hand, no tape) is another program, and the "
-                    "ceiling AD is measured against: its cells are shown beside the AD figures, "
+                    "reference AD is measured against: its cells are shown beside the AD figures, "
                     "marked ✎, as their ratio to the best AD figure, and never named best."
                     + (f" Hand-written adjoints here: {', '.join(hand)}." if hand else "")))
     blocks += verdicts(c.rows_of("gradients"))
