@@ -75,7 +75,7 @@ LEGEND = ("Each cell is the framework's figure divided by the leading framework'
           "Otherwise the row is a tie, and everyone not separated from the leader shares it "
           "(`tie: …`). Colours: 🟩 **bold**: the best, or tied with it; 🟨 within 2× of the "
           "leader; 🟧 within 5×; 🟥 beyond; 🟦 `✎` a hand-written adjoint on a gradient row: "
-          "its ratio to the best automatic differentiation, shown as the reference ceiling and "
+          "its ratio to the best automatic differentiation, shown as a reference and "
           f"never ranked. `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
           f"median, under {noise.MIN_REPEATS} repeats, other processes busy on the host while it was "
           "timed, or pipelined calls slower than one synchronised call); `✗` a cell that failed its check or crashed; `skipped` a framework or "
