@@ -270,17 +270,20 @@ def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float
     stated bound for a GPU of a class in L2_BOUND by name. None off CUDA or where unknown."""
     if rec.device != "cuda":
         return None
-    envs = list(runs)
-    places: list[Any] = [rec.hardware or {}]
-    places += [(e.get("hardware") or {}).get(rec.device) or {} for e in envs]
-    places += [g for e in envs for g in e.get("gpus") or [] if isinstance(g, Mapping)]
+    envs = [e for e in runs if isinstance(e, Mapping)]
+    own = rec.hardware if isinstance(rec.hardware, Mapping) else {}
+    places: list[Mapping[str, Any]] = [own]
+    for e in envs:
+        hw = e.get("hardware")
+        places += [hw[rec.device]] if isinstance(hw, Mapping) and isinstance(hw.get(rec.device), Mapping) else []
+        gpus = e.get("gpus")
+        places += [g for g in gpus if isinstance(g, Mapping)] if isinstance(gpus, (list, tuple)) else []
     for place in places:
         for k in L2_KEYS:
-            v = num(place.get(k)) if isinstance(place, Mapping) else None
+            v = num(place.get(k))
             if v:
                 return v, k
-    names = [str((rec.hardware or {}).get("gpu") or "")] + [str(g.get("name") or "") for g in places[1:]
-                                                             if isinstance(g, Mapping)]
+    names = [str(p.get("gpu") or p.get("name") or "") for p in places]
     for cls, bound in L2_BOUND.items():
         if any(cls in n for n in names):
             return bound, f"stated {bound / 1e6:.0f} MB bound for the {cls} class"
