@@ -62,7 +62,7 @@ def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "") -> 
 
 
 def _title(r: Row, c: matrix.Cell) -> str:
-    return fmt.cell_title(c, r.rule.unit, r.rule.reference.what if r.rule.reference else "a reference")
+    return fmt.cell_title(c, r.rule.unit, f"one of the {r.rule.reference.what.lower()}" if r.rule.reference else "a reference")
 
 
 LEGEND = ("Each cell is the framework's figure divided by the leading framework's on that row "
