@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping, Sequence
 CONFIDENCE = 0.95
 TARGET = 0.05            # stop when the interval is within +-5 % of the median
 AUTO_MIN, AUTO_MAX = 6, 10
-FIGURES = ("latency", "throughput", "graph", "events", "first")
+FIGURES = ("latency", "throughput", "graph", "events", "first_result")
 
 
 def interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float, float]:
@@ -59,7 +59,7 @@ def figures(t: Mapping[str, Any]) -> dict[str, float]:
             out[name] = float(v)
     first, setup = t.get("first_call_s"), t.get("setup_s")
     if isinstance(first, (int, float)) and isinstance(setup, (int, float)):
-        out["first"] = float(first) + float(setup)
+        out["first_result"] = float(first) + float(setup)
     return out
 
 

@@ -34,7 +34,7 @@ def test_summary_keeps_every_process_and_first_is_set_up_plus_first_call():
     b = repeats.summary([_t(1e-5), _t(2e-5, 2.0), _t(3e-5)])
     assert b["count"] == 3 and b["latency"]["values"] == [1e-5, 2e-5, 3e-5]
     assert b["latency"]["median_s"] == 2e-5 and b["throughput"]["median_s"] == 1e-5
-    assert b["first"]["values"] == [1.5, 2.5, 1.5]
+    assert b["first_result"]["values"] == [1.5, 2.5, 1.5]
     assert "graph" not in b and "events" not in b
 
 
@@ -85,5 +85,5 @@ def test_a_run_with_three_processes_keeps_all_three(tmp_path):
     doc = json.loads((out / "results.json").read_text())
     [rec] = [r for r in doc["records"] if r["status"] == "ok"]
     block = rec["time"]["processes"]
-    assert block["count"] == 3 and len(block["latency"]["values"]) == 3 and len(block["first"]["values"]) == 3
+    assert block["count"] == 3 and len(block["latency"]["values"]) == 3 and len(block["first_result"]["values"]) == 3
     assert doc["runs"][0]["processes"] == 3

@@ -147,12 +147,12 @@ def timing(rec: Record, regime: str) -> Timing | None:
     """``regime``: 'latency' (one synchronised call), 'throughput' (k calls, one synchronise,
     per call), 'graph' (a captured call replayed), or 'first' (the first call, cold caches)."""
     t = rec.time or {}
-    across = across_processes(rec, regime)
-    if across is not None:
-        return across
     if regime == "first":
         v = num(t.get("first_call_s"))
         return Timing(v, v, v, 1) if v is not None else None
+    several = across_processes(rec, regime)
+    if several is not None:
+        return several
     part = t.get(regime) if regime != "latency" else (t.get("latency") or t)
     if not isinstance(part, Mapping):
         return None
@@ -166,6 +166,21 @@ def timing(rec: Record, regime: str) -> Timing | None:
     why = noise.regime_reasons(part)
     why += [w for w in noise.reasons_for(rec, regime) if w not in why]
     return Timing(med, max(med - iqr / 2, 0.0), med + iqr / 2, reps, "; ".join(why))
+
+
+def first_result(rec: Record) -> Timing | None:
+    """Time to first result: set-up (the kernel's constructor) + the first call, the figure that
+    is fair between ports that compile in one or the other (docs/measurement.md). None without
+    ``time.setup_s`` (an older record: not comparable). Where cold processes were timed
+    (``time.processes.first_result``), their median and its interval."""
+    several = across_processes(rec, "first_result")
+    if several is not None:
+        return several
+    setup, first = num((rec.time or {}).get("setup_s")), num((rec.time or {}).get("first_call_s"))
+    if setup is None or first is None:
+        return None
+    v = setup + first
+    return Timing(v, v, v, 1)
 
 
 PROCESS_SPREAD = 0.10       # a median whose interval strays further than this is noisy
@@ -243,3 +258,56 @@ def item_rate(rec: Record, regime: str = "throughput") -> float | None:
 
 def hw_fraction(rec: Record) -> float | None:
     return num((rec.throughput or {}).get("hw_fraction"))
+
+
+# Where neither a record nor its run names the GPU's L2 size: a bound for the H100/H200 class
+# (50 MB of L2 on both; 60 MB leaves room for what a working set's count of bytes leaves out).
+L2_BOUND = {"H100": 60e6, "H200": 60e6}
+L2_KEYS = ("l2_bytes", "l2_cache_bytes", "l2_cache_size")
+
+
+def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float, str] | None:
+    """The L2 cache of the record's GPU and where it was read: an L2 field of the record's
+    yardstick, else of its run's environment (``hardware[device]`` or a GPU entry), else the
+    stated bound for a GPU of a class in L2_BOUND by name. None off CUDA or where unknown."""
+    if rec.device != "cuda":
+        return None
+    envs = [e for e in runs if isinstance(e, Mapping)]
+    own = rec.hardware if isinstance(rec.hardware, Mapping) else {}
+    places: list[Mapping[str, Any]] = [own]
+    for e in envs:
+        hw = e.get("hardware")
+        places += [hw[rec.device]] if isinstance(hw, Mapping) and isinstance(hw.get(rec.device), Mapping) else []
+        gpus = e.get("gpus")
+        places += [g for g in gpus if isinstance(g, Mapping)] if isinstance(gpus, (list, tuple)) else []
+    for place in places:
+        for k in L2_KEYS:
+            v = num(place.get(k))
+            if v:
+                return v, k
+    names = [str(p.get("gpu") or p.get("name") or "") for p in places]
+    for cls, bound in L2_BOUND.items():
+        if any(cls in n for n in names):
+            return bound, f"stated {bound / 1e6:.0f} MB bound for the {cls} class"
+    return None
+
+
+def fraction_label(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> str:
+    """Why a hardware fraction is not a plain fraction of memory bandwidth: 'cache' where the
+    working set (``work.bytes``) fits the GPU's L2, so it is served from cache, not from the
+    DRAM the copy yardstick measures, and where it exceeds 1 on CUDA with no working set or L2
+    known to say otherwise; 'above copy' where it exceeds 1 with a working set beyond the L2 (a
+    read-heavier mix than the copy's) or on a CPU (judged against a copy of its own size already:
+    docs/measurement.md); '' where the fraction stands as it is."""
+    f = hw_fraction(rec)
+    if f is None:
+        return ""
+    work = num((rec.work or {}).get("bytes"))
+    l2 = l2_bytes(rec, runs)
+    if l2 is not None and work is not None and work < l2[0]:
+        return "cache"
+    if f <= 1:
+        return ""
+    # above the copy: cache, unless the working set is known not to fit (or there is no GPU L2)
+    beyond = l2 is not None and work is not None and work >= l2[0]
+    return "above copy" if beyond or rec.device != "cuda" else "cache"

@@ -7,7 +7,8 @@ from typing import Any, Mapping
 from compare.noise import MARK as NOISY_MARK
 from compare.site.matrix import Cell
 
-BAND_EMOJI = {"best": "🟩", "near": "🟨", "far": "🟧", "poor": "🟥", "none": "⬜"}
+BAND_EMOJI = {"best": "🟩", "near": "🟨", "far": "🟧", "poor": "🟥", "ref": "🟦", "none": "⬜"}
+REFERENCE_MARK = "✎"           # a cell shown beside the ranking, never in it (a hand adjoint)
 
 
 def _g(x: float) -> str:
@@ -59,24 +60,37 @@ def ratio(r: float) -> str:
     return f"{r:.2f}×" if r < 10 else f"{r:.3g}×" if r < 1000 else f"{r:.0f}×"
 
 
+def fraction(v: float | None, label: str = "") -> str:
+    """A hardware fraction as a percentage, labelled where it is not a plain fraction of the
+    memory bandwidth (``cache (154 %)``, ``above copy (102 %)``: data.fraction_label)."""
+    return pct(v) if not label or v is None else f"{label} ({pct(v)})"
+
+
 def cell_text(c: Cell) -> str:
     """What the matrix shows: the ratio to the row's best, or why there is none."""
     if c.ratio is not None:
-        return ratio(c.ratio) + (NOISY_MARK if c.noisy else "")
+        return ratio(c.ratio) + (NOISY_MARK if c.noisy else "") + (f" {REFERENCE_MARK}" if c.reference else "")
     if c.status in ("error", "mismatch"):
         return "✗ " + c.status
     return "skipped" if c.status == "skipped" else "—"
 
 
-def cell_title(c: Cell, unit: str) -> str:
-    """The cell's tooltip: the figure itself, its variant and spread, or the reason."""
+def cell_title(c: Cell, unit: str, reference: str = "a reference") -> str:
+    """The cell's tooltip: the figure itself, its variant and spread, or the reason;
+    ``reference`` names what a reference cell is (the rule's words)."""
     if c.value is None:
         return c.reason or c.status
     parts = [value(c.value, unit)]
+    if c.reference:
+        parts.append(f"{reference}: beside the ranking, never ranked")
+    elif c.tied:
+        parts.append("shares the top of the row")
     if c.variant and c.variant != "default":
         parts.append(f"variant {c.variant}")
     if c.lo is not None and c.hi is not None and c.hi > c.lo:
         parts.append(f"quartiles {value(c.lo, unit)} – {value(c.hi, unit)}")
+    if c.ci is not None:
+        parts.append(f"95 % interval over {c.processes} processes {value(c.ci[0], unit)} – {value(c.ci[1], unit)}")
     if c.noisy:
         parts.append(f"noisy: {c.noisy}")
     return "; ".join(parts)

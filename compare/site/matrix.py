@@ -1,12 +1,15 @@
 """The recommendation matrix: one row per user question, one column per framework.
 
 Each row is a ``Rule``: which records it reads (scenario, device, precision, sizes), which figure
-of a record it compares (a regime's per-call time, a rate, device memory, an error, a first-call
-time) and whether lower or higher is better. A framework's cell is its best figure over its
-variants (the variant named), and its ratio to the best framework on the row: 1.0 for the best,
-2.0 for twice as slow (or half the rate, twice the memory). The rule's text is printed on the
-pages beside the row, and each row's verdict is derived here from the cells, never written by
-hand.
+of a record it compares (a regime's per-call time, a rate, device memory, an error, a time to
+first result) and whether lower or higher is better. A framework's cell is its best figure over
+its variants (the variant named), and its ratio to the leading figure on the row: 1.0 for the
+leader, 2.0 for twice as slow (or half the rate, twice the memory). A row names a best only where
+the leader is separated from the runner-up (compare/site/ranking.py); else the leader and all
+not separated from it share the top as a tie. A rule may set some cells apart as a reference
+(the hand-written adjoints beside automatic differentiation): shown against the leader, never
+ranked. The rule's text is printed on the pages beside the row, and each row's verdict is
+derived here from the cells, never written by hand.
 """
 from __future__ import annotations
 
@@ -16,13 +19,13 @@ from typing import Any, Callable
 
 import scenarios
 from compare.record import Record
-from compare.site import data
+from compare.site import data, ranking
 from compare.site.data import Machine, Timing
 
-WITHIN = 1.10                     # "within 10 % of the best"
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
 NOT_SAME_WORK = ("fastmath",)
-BANDS = ((1.10, "best"), (2.0, "near"), (5.0, "far"))   # ratio upper bounds; beyond: "poor"
+# Ratio upper bounds below the top band; beyond: "poor". The top band ("best") is the tie's alone.
+BANDS = ((2.0, "near"), (5.0, "far"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -35,13 +38,33 @@ class Cell:
     status: str = "absent"        # ok | mismatch | error | skipped | absent (no such record)
     reason: str = ""
     noisy: str = ""
-    ratio: float | None = None    # to the row's best: >= 1, 1 is the best
+    ratio: float | None = None    # to the row's leader: >= 1 for ranked cells, 1 is the leader
+    ci: tuple[float, float] | None = None    # the median's 95 % interval across processes
+    processes: int = 1
+    tied: bool = False            # shares the top of the row (the best, or tied with it)
+    reference: bool = False       # set apart by the rule (a hand adjoint): shown, never ranked
 
     @property
     def band(self) -> str:
         if self.ratio is None:
             return "none"
+        if self.reference:
+            return "ref"
+        if self.tied:
+            return "best"
         return next((name for bound, name in BANDS if self.ratio <= bound), "poor")
+
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """Cells a rule shows beside its ranking but never ranks: which records, and in words."""
+    test: Callable[[Record], bool]    # the record is a reference
+    ranked: str                       # what the row ranks, e.g. 'AD'
+    what: str                         # the reference cells in words, e.g. 'Hand-written adjoints'
+
+    def words(self, ahead: bool) -> str:
+        """The verdict's name for them: a ceiling only where all of them lead the ranking."""
+        return f"{self.what} ({'reference ceiling' if ahead else 'reference'}, not {self.ranked})"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,6 +78,8 @@ class Rule:
     pick: Callable[[Machine, str], list[Record]]     # the records the row reads
     figure: Callable[[Record], Timing | float | None]  # one record's figure
     device: str = ""              # '' the report's device; else this one
+    exact: bool = False           # deterministic figures (bytes, error shares): no interval needed
+    reference: Reference | None = None    # cells shown beside the ranking, never in it
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,9 +87,21 @@ class Row:
     rule: Rule
     device: str
     cells: dict[str, Cell]
-    best: str | None
+    top: str | None               # the leading figure's framework: the ratios' reference
+    tied: tuple[str, ...]         # who shares the top, the leader first: (top,) when separated
     verdict: str
     scope: str                    # the sizes the row ended up reading, in words
+
+    @property
+    def best(self) -> str | None:
+        """The one best framework, only where it is separated from every other ranked one."""
+        return self.top if len(self.tied) == 1 else None
+
+    def best_text(self) -> str:
+        """The matrix's last column: the best, ``tie: a, b, c`` (``tie: a, b +4``) or ``—``."""
+        if self.top is None:
+            return "—"
+        return self.tied[0] if len(self.tied) == 1 else f"tie: {ranking.shorten(self.tied)}"
 
 
 # ---- record selection -------------------------------------------------------------------------
@@ -126,8 +163,20 @@ def regime(name: str) -> Callable[[Record], Timing | None]:
     return lambda r: data.per_call(r, name)
 
 
-def rate(r: Record) -> float | None:
-    return data.item_rate(r)
+def rate(r: Record) -> Timing | None:
+    """Work items per second, carrying its timing's quartiles and interval through work / time
+    (so the rate is separated as the timing it comes from)."""
+    v = data.item_rate(r)
+    t = data.per_call(r, "throughput") or data.timing(r, "latency")
+    if v is None or t is None:
+        return None
+    work = v * t.median
+    ci = (work / t.ci[1], work / t.ci[0]) if t.ci else None
+    return Timing(v, work / t.hi, work / t.lo if t.lo > 0 else v, t.repeats, "", t.processes, ci)
+
+
+class NotComparable(ValueError):
+    """A framework's records give no figure this row can compare (the message says why)."""
 
 
 ERROR_FLOOR = 1e-3                # a share of the bound below this counts as this (exact results)
@@ -147,13 +196,26 @@ def _error_geomean(recs: list[Record]) -> float | None:
     return math.exp(sum(math.log(max(s, ERROR_FLOOR)) for s in shares) / len(shares))
 
 
-def _sum_first(recs: list[Record]) -> float | None:
-    ts = [data.timing(r, "first") for r in recs]
-    return sum(t.median for t in ts) if ts and all(ts) else None
+def _sum_first(recs: list[Record]) -> Timing | None:
+    """The sum over the scenarios of the time to first result (set-up + first call); its
+    interval, where every part has one, is the sum of the ends (wider than the sum's own)."""
+    ts = []
+    for r in recs:
+        t = data.first_result(r)
+        if t is None:
+            raise NotComparable(f"{r.scenario}: no set-up time (time.setup_s) in its record, so no "
+                                "time to first result")
+        ts.append(t)
+    if not ts:
+        return None
+    v = sum(t.median for t in ts)
+    ci = (sum(t.ci[0] for t in ts), sum(t.ci[1] for t in ts)) if all(t.ci for t in ts) else None
+    return Timing(v, v, v, None, "", min(t.processes for t in ts), ci)
 
 
-# Per-framework aggregates over several scenarios: (records of one framework) -> figure.
-AGGREGATES: dict[str, Callable[[list[Record]], float | None]] = {
+# Per-framework aggregates over several scenarios: (records of one framework) -> figure, or
+# NotComparable with the reason.
+AGGREGATES: dict[str, Callable[[list[Record]], Timing | float | None]] = {
     "accuracy": _error_geomean, "compile": _sum_first}
 IN_ALL = tuple(n for n, sc in scenarios.SCENARIOS.items() if sc.in_all)   # the scenarios of `all`
 
@@ -185,26 +247,43 @@ def _geomean_vs_best(m: Machine, device: str) -> dict[str, Cell]:
     return cells
 
 
+def _cell(fw: str, fig: Timing | float, variant: str, reference: bool = False) -> Cell:
+    if isinstance(fig, Timing):
+        return Cell(fw, fig.median, fig.lo, fig.hi, variant, "ok", "", fig.noisy,
+                    ci=fig.ci, processes=fig.processes, reference=reference)
+    return Cell(fw, fig, variant=variant, status="ok", reference=reference)
+
+
+def _aggregate(rule: Rule, recs: list[Record]) -> dict[str, Cell]:
+    cells: dict[str, Cell] = {}
+    for fw in sorted({r.backend for r in recs}):
+        mine = [r for r in recs if r.backend == fw]
+        bad = next((r for r in mine if r.status != "ok"), None)
+        missing = {r.scenario for r in recs} - {r.scenario for r in mine}
+        why = (bad.reason if bad else "") or "not every scenario measured"
+        fig = None
+        if not bad and not missing:
+            try:
+                fig = AGGREGATES[rule.key](mine)
+            except NotComparable as exc:
+                why = str(exc)
+        cells[fw] = _cell(fw, fig, "default") if fig is not None else \
+            Cell(fw, None, status=bad.status if bad else "absent", reason=why, variant="default")
+    return cells
+
+
 def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
     if rule.key == "cpu":
         return _geomean_vs_best(m, device)
     recs = rule.pick(m, device)
-    cells: dict[str, Cell] = {}
     if rule.key in AGGREGATES:
-        for fw in sorted({r.backend for r in recs}):
-            mine = [r for r in recs if r.backend == fw]
-            bad = next((r for r in mine if r.status != "ok"), None)
-            missing = {r.scenario for r in recs} - {r.scenario for r in mine}
-            v = None if bad or missing else AGGREGATES[rule.key](mine)
-            cells[fw] = Cell(fw, v, status="ok" if v is not None else (bad.status if bad else "absent"),
-                             reason="" if v is not None else (bad.reason if bad else "") or "not every scenario measured",
-                             variant="default")
-        return cells
+        return _aggregate(rule, recs)
+    cells: dict[str, Cell] = {}
     for r in recs:
         fw = r.backend
         fig = rule.figure(r) if r.status == "ok" else None
         val = fig.median if isinstance(fig, Timing) else fig
-        if val is None:
+        if fig is None or val is None:
             if fw not in cells:      # keep why a framework has no figure, unless it has one
                 cells[fw] = Cell(fw, None, status=r.status if r.status != "ok" else "absent",
                                  reason=r.reason or "no figure of this kind in its record")
@@ -213,18 +292,43 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
         better = cur is None or cur.value is None or (
             val < cur.value if rule.better == "lower" else val > cur.value)
         if better:
-            lo, hi, noisy = (fig.lo, fig.hi, fig.noisy) if isinstance(fig, Timing) else (None, None, "")
-            cells[fw] = Cell(fw, val, lo, hi, r.variant, "ok", "", noisy)
+            cells[fw] = _cell(fw, fig, r.variant, rule.reference is not None and rule.reference.test(r))
     return cells
 
 
-def _verdict(rule: Rule, cells: dict[str, Cell], best: str | None, fmt: Callable[[float, str], str]) -> str:
-    if best is None:
+def _than(ratio: float, rule: Rule) -> str:
+    """A reference cell against the leader in words: ``13.6× faster``, ``2.81× more memory``."""
+    worse = ratio > 1
+    k = ratio if worse else 1 / ratio
+    word = {"s": ("slower", "faster"), "1/s": ("slower", "faster"),
+            "B": ("more memory", "less memory")}.get(rule.unit, ("higher", "lower"))
+    return f"{k:.3g}× {word[0] if worse else word[1]}"
+
+
+def _verdict(rule: Rule, cells: dict[str, Cell], top: str | None, tied: tuple[str, ...],
+             fmt: Callable[[float, str], str]) -> str:
+    if top is None:
         return "No framework has a figure for this row in these records."
-    near = [c.framework for c in cells.values() if c.ratio is not None and c.ratio <= WITHIN]
-    text = f"Best: {best} ({fmt(cells[best].value, rule.unit)})."
-    others = [f for f in near if f != best]
-    text += f" Within 10 % of it: {', '.join(others)}." if others else " No other framework within 10 %."
+    lead = cells[top]
+    ranked = sorted((c for c in cells.values() if c.ratio is not None and not c.reference),
+                    key=lambda c: c.ratio or 0.0)
+    best = f"Best {rule.reference.ranked}" if rule.reference else "Best"
+    if len(tied) > 1:
+        among = f" among {rule.reference.ranked}" if rule.reference else ""
+        why = ranking.why_tied(lead, [cells[f] for f in tied[1:]], rule.exact)
+        text = (f"Tie{among}: {', '.join(tied)} (not separated from {top}'s "
+                f"{fmt(lead.value, rule.unit)}: {why}).")
+    elif len(ranked) > 1:
+        runner = ranked[1]
+        sep = ranking.separated(lead, runner, rule.exact)
+        text = f"{best}: {top} ({fmt(lead.value, rule.unit)}), separated from {runner.framework} ({sep.words()})."
+    else:
+        text = f"{best}: {top} ({fmt(lead.value, rule.unit)}), the only one measured."
+    refs = sorted((c for c in cells.values() if c.reference and c.ratio is not None), key=lambda c: c.ratio or 0.0)
+    if rule.reference and refs:
+        text += (f" {rule.reference.words(all((c.ratio or 1.0) < 1 for c in refs))}: " + "; ".join(
+            f"{c.framework} {_than(c.ratio or 1.0, rule)}" + (f" than {top}" if i == 0 else "")
+            for i, c in enumerate(refs)) + ".")
     failed = [c.framework for c in cells.values() if c.status in ("error", "mismatch")]
     if failed:
         text += f" Failed: {', '.join(failed)}."
@@ -237,15 +341,19 @@ def _verdict(rule: Rule, cells: dict[str, Cell], best: str | None, fmt: Callable
 def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
     device = rule.device or m.primary_device
     cells = _cells(rule, m, device)
-    values = {f: c.value for f, c in cells.items() if c.value is not None and c.value > 0}
-    best = (min if rule.better == "lower" else max)(values, key=values.get) if values else None
-    if best is not None:
-        b = values[best]
+    values = {f: c.value for f, c in cells.items() if c.value is not None and c.value > 0 and not c.reference}
+    top = (min if rule.better == "lower" else max)(values, key=values.get) if values else None
+    tied: tuple[str, ...] = ()
+    if top is not None:
+        b = values[top]
         cells = {f: dataclasses.replace(c, ratio=(c.value / b if rule.better == "lower" else b / c.value)
                                         if c.value is not None and c.value > 0 else None)
                  for f, c in cells.items()}
+        ranked = sorted((cells[f] for f in values), key=lambda c: (c.ratio, c.framework != top))
+        tied = ranking.tie(ranked, rule.exact)
+        cells = {f: dataclasses.replace(c, tied=f in tied) for f, c in cells.items()}
     recs = rule.pick(m, device) if rule.key != "cpu" else all_defaults(m, device)
-    return Row(rule, device, cells, best, _verdict(rule, cells, best, fmt), scope(recs))
+    return Row(rule, device, cells, top, tied, _verdict(rule, cells, top, tied, fmt), scope(recs))
 
 
 def scope(recs: list[Record]) -> str:

@@ -11,7 +11,7 @@ from typing import Any
 
 import backends
 from compare import charts, noise
-from compare.site import data, fmt, matrix, questions
+from compare.site import data, fmt, matrix, questions, ranking
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.matrix import Row
@@ -40,11 +40,11 @@ def matrix_html(rows: list[Row], frameworks: list[str]) -> str:
         for f in frameworks:
             c = r.cells.get(f, matrix.Cell(f, None))
             txt = html.escape(fmt.cell_text(c))
-            if f == r.best:
+            if f in r.tied:
                 txt = f"<strong>{txt}</strong>"
-            tds.append(f'<td class="cell {c.band}" title="{html.escape(fmt.cell_title(c, r.rule.unit))}">{txt}</td>')
+            tds.append(f'<td class="cell {c.band}" title="{html.escape(_title(r, c))}">{txt}</td>')
         q = f'<a href="{r.rule.page}.html">{html.escape(r.rule.question)}</a>'
-        body.append(f"<tr><th>{q}</th>{''.join(tds)}<td>{html.escape(r.best or '—')}</td></tr>")
+        body.append(f"<tr><th>{q}</th>{''.join(tds)}<td>{html.escape(r.best_text())}</td></tr>")
     return (f'<table id="matrix"><thead><tr><th>question ({html.escape(rows[0].device if rows else "")})</th>'
             f"{head}<th>best</th></tr></thead><tbody>{''.join(body)}</tbody></table>")
 
@@ -56,9 +56,9 @@ def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "") -> 
         for f in frameworks:
             c = r.cells.get(f, matrix.Cell(f, None))
             t = f"{fmt.BAND_EMOJI[c.band]} {fmt.cell_text(c)}"
-            cells.append(f"**{t}**" if f == r.best else t)
+            cells.append(f"**{t}**" if f in r.tied else t)
         lines.append(f"| [{r.rule.question}]({link_prefix}{r.rule.page}.md) | " + " | ".join(cells)
-                     + f" | {r.best or '—'} |")
+                     + f" | {r.best_text()} |")
     return "\n".join(lines)
 
 
@@ -116,17 +116,29 @@ def matrix_png(path: Path, rows: list[Row], frameworks: list[str], title: str) -
             for i, f in enumerate(frameworks, start=1):
                 c = r.cells.get(f, matrix.Cell(f, None))
                 bg, fg = _band_colors(c.band)
-                box(i, y, h, fmt.cell_text(c), bg, fg, bold=f == r.best)
-            box(len(frameworks) + 1, y, h, r.best or "—", "#ffffff")
+                box(i, y, h, fmt.cell_text(c), bg, fg, bold=f in r.tied)
+            box(len(frameworks) + 1, y, h, r.best_text() or "—", "#ffffff")
             y += h
         ax.text(margin, y + foot_in / 2, "\n".join(foot), fontsize=7, color="#57606a", va="center")
         charts.save(fig, path)
 
 
-LEGEND = ("Each cell is the framework's figure divided by the best framework's on that row "
-          "(1.00× is the best, named in the last column; 2.00× is twice as slow, half the rate or "
-          "twice the memory). Colours: 🟩 within 10 % of the best, 🟨 within 2×, 🟧 within 5×, "
-          f"🟥 beyond. `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
+def _title(r: Row, c: matrix.Cell) -> str:
+    return fmt.cell_title(c, r.rule.unit, f"one of the {r.rule.reference.what.lower()}" if r.rule.reference else "a reference")
+
+
+LEGEND = ("Each cell is the framework's figure divided by the leading framework's on that row "
+          "(1.00× leads; 2.00× is twice as slow, half the rate or twice the memory). A row names "
+          "a best (last column) only where the leader is separated from every other framework: "
+          f"95 % intervals across worker processes that do not overlap and at least "
+          f"{100 * (ranking.SEPARATED_GAP - 1):.0f} % apart, or, for a figure from one process "
+          f"(no interval), at least {ranking.ONE_PROCESS_GAP:g}× apart; deterministic figures "
+          f"(memory, error shares) at least {100 * (ranking.SEPARATED_GAP - 1):.0f} % apart. "
+          "Otherwise the row is a tie, and everyone not separated from the leader shares it "
+          "(`tie: …`). Colours: 🟩 **bold**: the best, or tied with it; 🟨 within 2× of the "
+          "leader; 🟧 within 5×; 🟥 beyond; 🟦 `✎` a hand-written adjoint on a gradient row: "
+          "its ratio to the best automatic differentiation, shown as a reference and "
+          f"never ranked. `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
           f"median, under {noise.MIN_REPEATS} repeats, other processes busy on the host while it was "
           "timed, or pipelined calls slower than one synchronised call); `✗` a cell that failed its check or crashed; `skipped` a framework or "
           "device not available (the reason is in the tooltip and on the question's page); `—` "
@@ -146,7 +158,7 @@ def legend() -> Raw:
 def evaluate(m: Machine) -> tuple[list[Row], list[Row]]:
     """(rows with at least one figure, rows with none on this machine)."""
     rows = [matrix.evaluate(r, m, fmt.value) for r in questions.RULES]
-    return [r for r in rows if r.best], [r for r in rows if not r.best]
+    return [r for r in rows if r.top], [r for r in rows if not r.top]
 
 
 # ---- pages ------------------------------------------------------------------------------------
@@ -211,17 +223,32 @@ def accuracy(c: qp.Ctx) -> list[Any]:
 
 
 def compile_cost(c: qp.Ctx) -> list[Any]:
-    blocks: list[Any] = [P("The first call of a cell with its kernel caches emptied: compilation or tracing "
-                           "plus the call. Later calls in the same process reuse the compiled kernel.")]
+    blocks: list[Any] = [P("Time to first result, with kernel caches emptied: set-up (the kernel's "
+                           "constructor: allocation, upload, and whatever framework work a port does "
+                           "there, e.g. recording a tape, which compiles its kernels) plus the first "
+                           "call (compilation or tracing plus the call). A port may compile in either, "
+                           "so only their sum compares (" + doc_link(c.out, "measurement.md")
+                           + "). Later calls in the same process reuse the compiled kernel.")]
     blocks += qp.verdicts(c.rows_of("compile"))
     recs = [r for r in matrix.all_defaults(c.m, c.device) if r.scenario in matrix.IN_ALL]
-    panels = [charts.Panel(sc, [qp._bar(r, lambda r: data.timing(r, "first")) for r in recs if r.scenario == sc])
+    panels = [charts.Panel(sc, [qp._bar(r, data.first_result) for r in recs if r.scenario == sc])
               for sc in matrix.IN_ALL]
     png, rel, csv = c.fig("compile-first-call")
-    charts.bar_panels(png, f"First call, cold caches ({c.device}, float32, default variant)",
-                      "seconds (log scale)", panels, log=True, fmt=fmt.seconds)
-    blocks.append(Figure(rel, "First-call time per scenario and framework.",
+    charts.bar_panels(png, f"Time to first result, cold caches ({c.device}, float32, default variant)",
+                      "seconds: set-up + first call (log scale)", panels, log=True, fmt=fmt.seconds)
+    blocks.append(Figure(rel, "Set-up plus first call per scenario and framework.",
                          c.cmd(f"all --devices {c.device} --precision float32"), csv))
+    rows = []
+    for r in sorted(recs, key=lambda r: (r.scenario, r.backend)):
+        ok = r.status == "ok"
+        setup = data.num((r.time or {}).get("setup_s")) if ok else None
+        first, total = (data.timing(r, "first"), data.first_result(r)) if ok else (None, None)
+        rows.append((r.scenario, r.backend, fmt.seconds(setup), fmt.seconds(first.median if first else None),
+                     fmt.seconds(total.median if total else None),
+                     str(total.processes) if total else "-", r.status if ok else f"{r.status}: {r.reason[:120]}"))
+    blocks += [H("Set-up and first call per cell"),
+               Table(("scenario", "framework", "set-up", "first call", "time to first result",
+                      "processes", "status"), tuple(rows))]
     return blocks
 
 

@@ -16,8 +16,8 @@ def _defaults_of_all(m: data.Machine, device: str) -> list[Record]:
     return [r for r in all_defaults(m, device) if r.scenario in IN_ALL]
 
 
-def _first_call(r: Record) -> float | None:
-    t = data.timing(r, "first")
+def _first_result(r: Record) -> float | None:
+    t = data.first_result(r)
     return t.median if t else None
 
 
@@ -26,12 +26,17 @@ RULES: tuple[Rule, ...] = topics.RULES + (
          "The four scenarios at their defaults, float32, default variant: each cell's error "
          "against the float64 oracle divided by the scenario's derived tolerance (1 = the whole "
          "error budget used; a cell above it is a mismatch, marked failed); a framework's figure "
-         "is the geometric mean of its four shares.",
-         _defaults_of_all, lambda r: None),
+         "is the geometric mean of its four shares. Deterministic figures: a best is named only "
+         "5 % or more ahead of the rest.",
+         _defaults_of_all, lambda r: None, exact=True),
     Rule("compile", "First-call (compile) cost", "compile", "s", "lower",
          "The four scenarios at their defaults, float32, default variant, kernel caches emptied "
-         "first: the sum of the four first calls (compilation, tracing and the call itself).",
-         _defaults_of_all, _first_call),
+         "first: the sum over the four of the time to first result, set-up (the kernel's "
+         "constructor: allocation, upload, and whatever a port builds there) plus the first call "
+         "(compilation, tracing and the call itself), the median over cold processes where "
+         "several ran. Ports compile in one or the other, so neither alone compares; a record "
+         "without a set-up time is not comparable.",
+         _defaults_of_all, _first_result),
     Rule("cpu", "CPU-only use", "cpu", "x", "lower",
          "On the CPU, the four scenarios at their defaults, float32, default variant: the "
          "geometric mean over the scenarios of the framework's throughput-regime time divided by "

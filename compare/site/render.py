@@ -98,7 +98,8 @@ th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:left;vertical-align:to
 th{background:#f3f5f7}th.sort{cursor:pointer}td.num{text-align:right;font-variant-numeric:tabular-nums}
 table#matrix td.cell{text-align:center;min-width:5.5em;font-variant-numeric:tabular-nums}
 .best{background:#1a7f37;color:#fff;font-weight:600}.near{background:#a6e3b0}
-.far{background:#f6d776}.poor{background:#f2a09a}.none{background:#eceff1;color:#57606a}
+.far{background:#f6d776}.poor{background:#f2a09a}.ref{background:#b6d4f2}
+.none{background:#eceff1;color:#57606a}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #e1e4e8}
 figcaption{font-size:13px;color:#444}pre{background:#f6f8fa;padding:.5em;overflow-x:auto;font-size:13px}
 code{font-size:13px}.legend span{display:inline-block;padding:1px 8px;margin-right:.4em}

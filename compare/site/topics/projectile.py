@@ -2,25 +2,50 @@
 from __future__ import annotations
 
 from compare import charts
+from compare.record import Record
 from compare.site import data
-from compare.site.matrix import Rule, largest_of, rate
+from compare.site.matrix import Reference, Rule, largest_of, rate
 from compare.site.questions_pages import Ctx, Page, _longest_loop, _scaling, verdicts
 from compare.site.render import Figure, H, P
 from compare.site.topics import scenario_of
 
 SCENARIO = scenario_of(__name__)
+ADJOINT = "adjoint"          # Backend.gradient_method of a hand-written discrete adjoint
+
+
+def gradient_method(r: Record) -> str:
+    """How a record's gradient was obtained ('tape', 'ad', 'adjoint'): its ``gradient.method``,
+    else its backend's declared ``gradient_method``."""
+    m = (r.gradient or {}).get("method")
+    if isinstance(m, str) and m:
+        return m
+    import backends
+    b = backends.BACKENDS.get(r.backend)
+    return b.gradient_method if b is not None else "-"
+
+
+def hand_adjoint(r: Record) -> bool:
+    return gradient_method(r) == ADJOINT
+
+
+# Automatic differentiation is ranked among itself; a hand-written discrete adjoint is another
+# kind of program (the derivative written by hand, no tape), shown beside it as the ceiling.
+HAND_ADJOINTS = Reference(hand_adjoint, "AD", "Hand-written adjoints")
 
 RULES = (
     Rule("gradients", "Gradients through a simulation at scale: rate", "gradients", "1/s", "higher",
          "The batched differentiable projectile (hard contact, 180 steps, a descent of loss + "
          "gradient evaluations) at the largest batch in the scaling sweep, float32: trajectory-"
-         "gradients per second in the throughput regime.",
-         largest_of(SCENARIO, ("scaling",)), rate),
+         "gradients per second in the throughput regime. Automatic differentiation (tapes and "
+         "traced AD) is ranked among itself; hand-written adjoints are shown beside it as the "
+         "reference ceiling, as their ratio to the best AD figure, and never ranked.",
+         largest_of(SCENARIO, ("scaling",)), rate, reference=HAND_ADJOINTS),
     Rule("gradients-memory", "Gradients through a simulation at scale: device memory", "gradients",
          "B", "lower",
          "The same cells: device memory above the framework's CUDA context (NVML peak of the "
-         "process), the one memory figure every framework shares.",
-         largest_of(SCENARIO, ("scaling",)), data.device_bytes),
+         "process), the one memory figure every framework shares; AD ranked among itself, hand-"
+         "written adjoints beside it, never ranked.",
+         largest_of(SCENARIO, ("scaling",)), data.device_bytes, exact=True, reference=HAND_ADJOINTS),
 )
 
 
@@ -29,6 +54,14 @@ def page(c: Ctx) -> Page:
                       "own loss through 180 steps with contact. The rate counts trajectory-gradients "
                       "per second; memory is what the gradient keeps on the device (a tape, adstacks, "
                       "or the one value and flag per step of a hand adjoint).")]
+    hand = sorted({r.backend for r in c.m.records if r.scenario == SCENARIO and r.device == c.device
+                   and hand_adjoint(r)})
+    blocks.append(P("Like with like: automatic differentiation (a tape or traced AD: the framework "
+                    "derives the gradient) is ranked among itself. A hand-written discrete adjoint "
+                    "(the reverse sweep written by hand, no tape) is another program, and the "
+                    "reference AD is measured against: its cells are shown beside the AD figures, "
+                    "marked ✎, as their ratio to the best AD figure, and never named best."
+                    + (f" Hand-written adjoints here: {', '.join(hand)}." if hand else "")))
     blocks += verdicts(c.rows_of("gradients"))
     blocks += _scaling(c, SCENARIO, "trajectory-gradients per second", "batch (trajectories)", memory=True)
     hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r.device == c.device]

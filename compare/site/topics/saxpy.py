@@ -40,7 +40,13 @@ def bandwidth(c: Ctx) -> Page:
     blocks: Page = [P("Bandwidth-bound array work: SAXPY reads two arrays and writes one. At large n "
                       "each framework's kernel meets the memory system; the hardware fraction is "
                       "the scenario's floor (its bytes at the same-run copy yardstick, no framework "
-                      "involved) divided by the time.")] + verdicts(rows)
+                      "involved) divided by the time. A fraction is labelled `cache` where the "
+                      "working set fits the GPU's L2 (or exceeds the copy with no L2 known), so "
+                      "cache, not DRAM, serves it, and `above copy` where it exceeds 1 beyond the "
+                      "L2: SAXPY reads two arrays per one written, a mix that moves a few percent "
+                      "more bytes per second than the copy's one read per write (not profiled), "
+                      "or a CPU copy's own limits (`docs/measurement.md`, the hardware yardstick).")]
+    blocks += verdicts(rows)
     big = matrix.largest_of(SCENARIO, (None, "bandwidth"))(c.m, c.device)
     allvar = [r for r in c.m.records if r.device == c.device and r.scenario == SCENARIO
               and r.precision == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
@@ -54,7 +60,8 @@ def bandwidth(c: Ctx) -> Page:
         n = int(data.size(allvar[0]))
         blocks += [Figure(rel, "Every framework and variant at the largest n; bars sorted fastest first.",
                           c.cmd(f"run {SCENARIO} --devices {c.device} --precision float32 --variants all --set n={n}"), csv),
-                   timing_table(allvar, ("latency", "throughput"), lambda r: [fmt.pct(data.hw_fraction(r))],
+                   timing_table(allvar, ("latency", "throughput"),
+                                lambda r: [fmt.fraction(data.hw_fraction(r), data.fraction_label(r, c.m.runs))],
                                 ("hw fraction",))]
     sweep = [r for r in c.m.sweep if data.tag(r, "sweep") == "bandwidth" and r.scenario == SCENARIO
              and r.device == c.device and r.status == "ok"]
