@@ -7,6 +7,7 @@
     stress                    numerical stability stress suite (docs/stress.md)
     site RESULTS... --out DIR the static report site (recommendation matrix, one page per question)
     publish --out DIR         run what a machine's report needs (resumable, in parts), then its site
+    agree FIRST SECOND        whether two runs of one machine kind agree on every significant ordering
 
 Every subcommand shares the options of compare/options.py and one error path: bad usage or a bad
 parameter is one line on stderr and exit 2, before any cell runs or any file is written.
@@ -29,7 +30,7 @@ from scenarios.base import ParamError
 
 # The subcommands with a module of their own: each has add_arguments, run and a docstring.
 SUITE_MODULES = {"sweep": "compare.sweep.suite", "stress": "compare.stress.suite", "site": "compare.site",
-                 "publish": "compare.publish"}
+                 "publish": "compare.publish", "agree": "compare.agree"}
 
 
 def suite_modules() -> dict[str, Any]:

@@ -93,3 +93,10 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
         "git_dirty": None if commit else bool(_run(["git", "status", "--porcelain", "--untracked-files=no"])),
         "command": " ".join(["python -m compare"] + (argv if argv is not None else sys.argv[1:])),
     }
+
+
+def run_stamp(env: dict[str, Any]) -> dict[str, Any]:
+    """What a record keeps of the run that measured it (``Record.run``): when it started, the
+    commit and whether the tree was dirty (None: unknown, a copied tree)."""
+    return {"created": str(env.get("created", "")), "commit": env.get("git_commit") or None,
+            "dirty": env.get("git_dirty")}

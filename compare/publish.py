@@ -148,6 +148,9 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
     return parts, left
 
 
+MATRIX_PROCESSES = "auto"
+
+
 def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
          timeout: float | None = None, have: dict[str, float] | None = None) -> tuple[list[Part], list[str]]:
     """Every part in run order, and notes on what was left out. ``out`` as the user spelled it."""
@@ -156,8 +159,10 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     sel = ["--backends", backends_arg]
     tmo = ["--timeout", f"{timeout:g}"] if timeout is not None else []
     tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
+    # the matrix part: every published figure from several interleaved processes (compare.repeats)
+    procs = () if quick else ("--processes", MATRIX_PROCESSES)
     parts = [Part("all", ("all", "--devices", devs, *sel, "--precision", "float32,float64",
-                          "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *tail))]
+                          "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *procs, *tail))]
     large, notes = large_parts(devices, chosen, sel, quick, have if have is not None else memory())
     parts += [dataclasses.replace(p, argv=p.argv + tuple(tail)) for p in large]
     parts += [Part(k, ("sweep", k, "--devices", devs, *sel, *tail)) for k in SWEEPS]

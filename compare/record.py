@@ -10,7 +10,10 @@ version below and saves the newest; users load these files with pandas, so keys 
       ``error.vs_warp_device``); a sweep record's ``sweep``, ``role`` and ``knob`` moved under
       ``tags`` (the bandwidth sweep's role became its scenario's ``measures``, was the scenario's
       name). Fields added since without a new version (absent from older files, read as null):
-      ``hardware``, ``host_cores``.
+      ``hardware``, ``host_cores``, ``run`` (the run that measured the record: its ``created``
+      time, ``commit`` and whether the tree was ``dirty``), ``time.events`` (device events, a
+      separate pass; before it an event-timed record's own figures were the events),
+      ``time.null``, ``time.own_timer``, ``time.processes`` (compare.repeats).
   1 - no ``format_version``: ``results.json`` is ``{"environment", "records"}``, ``sweep.json``
       ``{"runs", "records"}``, ``stress.json`` ``{"environment", "provenance", "rows", "series"}``.
       Each suite's module registers its record upgrade (``compare.store.UPGRADES``).
@@ -84,6 +87,7 @@ class Record:
     host_load_1m: float | None = None
     host_cores: int | None = None
     machine: str | None = None          # which machine, where records of several were merged
+    run: Block | None = None            # the run that measured it: created, commit, dirty
     traceback: str | None = None        # a failed cell's
     extra: Block = dataclasses.field(default_factory=dict)     # keys this version does not name, as found
     # the stored object's keys in their order, so saving writes what was read

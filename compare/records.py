@@ -175,6 +175,7 @@ RECORD = Obj({
                      ("error", "metric")),
     "hardware": HARDWARE, "info": Obj(), "versions": Obj(),
     "host": OPT_TEXT, "host_load_1m": OPT_NUMBER, "host_cores": OPT_COUNT, "machine": OPT_TEXT,
+    "run": Obj({"created": TEXT, "commit": OPT_TEXT, "dirty": FLAG, "note": TEXT}, ("created",)),
     "traceback": TEXT})
 
 

@@ -285,7 +285,6 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
                 spent: dict[str, float] | None = None) -> int:
     """The run, once its output directory is checked, has room and is locked by this driver.
     ``spent``: seconds the run's parts so far took (``compare.phases``)."""
-    import platform
     spent = dict(spent or {})
     store = RunStore.open(out, "run", keep=args.resume)
     env = store.env = environment.collect(argv)
@@ -299,11 +298,8 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     spent["yardstick"] = time.perf_counter() - t0
     store.runs = [*store.runs, env] if args.resume else [env]
     if args.resume:
-        # kept cells a killed run finished before judging them get this machine's yardstick
-        unjudged = [r.to_json() for r in store.records if r.hardware is None and r.host == platform.node()]
-        hardware.annotate(unjudged, env["hardware"])
-        for r in unjudged:
-            store.put(Record.from_json(r))
+        # kept cells keep their own run's yardstick (each record is judged before it is saved):
+        # never this run's, which did not measure them
         if args.save_arrays:        # a kept cell whose arrays were never written runs again
             store.rerun = frozenset(r.key for r in store.records
                                     if r.status in ("ok", "mismatch") and not arrays_saved(out, r))
@@ -319,6 +315,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     def on_record(i: int, rec: dict[str, Any], outs: dict[str, np.ndarray] | None) -> None:
         ran.append({"time": rec.get("time")})
         hardware.annotate([rec], env["hardware"])        # judged against this run's yardstick
+        rec["run"] = environment.run_stamp(env)          # and named as this run's
         if args.save_arrays and outs is not None:        # before its record is saved: a failed
             save_arrays(out, rec, outs)                  # write leaves the cell to be run again
         show(i, rec, outs)

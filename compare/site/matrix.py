@@ -19,7 +19,7 @@ from typing import Any, Callable
 
 import scenarios
 from compare.record import Record
-from compare.site import data, ranking
+from compare.site import data, provenance, ranking
 from compare.site.data import Machine, Timing
 
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
@@ -91,6 +91,7 @@ class Row:
     tied: tuple[str, ...]         # who shares the top, the leader first: (top,) when separated
     verdict: str
     scope: str                    # the sizes the row ended up reading, in words
+    runs: tuple[str, ...] = ()    # the runs its figures come from (compare.site.provenance)
 
     @property
     def best(self) -> str | None:
@@ -101,6 +102,8 @@ class Row:
         """The matrix's last column: the best, ``tie: a, b, c`` (``tie: a, b +4``) or ``—``."""
         if self.top is None:
             return "—"
+        if not self.tied:       # figures from several runs (or unstamped ones): never ranked
+            return "— (not one run)" if "" in self.runs else f"— ({len(self.runs)} runs)"
         return self.tied[0] if len(self.tied) == 1 else f"tie: {ranking.shorten(self.tied)}"
 
 
@@ -353,7 +356,13 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
         tied = ranking.tie(ranked, rule.exact)
         cells = {f: dataclasses.replace(c, tied=f in tied) for f, c in cells.items()}
     recs = rule.pick(m, device) if rule.key != "cpu" else all_defaults(m, device)
-    return Row(rule, device, cells, top, tied, _verdict(rule, cells, top, tied, fmt), scope(recs))
+    runs = provenance.runs_of(r for r in recs if r.status == "ok")
+    verdict = _verdict(rule, cells, top, tied, fmt)
+    if top is not None and not provenance.one_run(runs):     # never ranked across runs
+        tied = ()
+        cells = {f: dataclasses.replace(c, tied=False) for f, c in cells.items()}
+        verdict = f"{provenance.words(runs)} Leading figure: {top} ({fmt(values[top], rule.unit)})."
+    return Row(rule, device, cells, top, tied, verdict, scope(recs), runs)
 
 
 def scope(recs: list[Record]) -> str:

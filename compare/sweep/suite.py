@@ -186,7 +186,7 @@ def contents(store: Store) -> dict[str, Any]:
 
 # ---- running --------------------------------------------------------------------------------
 def run_plan(specs: list[Cell], references: list[dict[str, Any] | None], probes, args,
-             store: Store, yardstick: dict[str, dict[str, Any]], runner=None) -> None:
+             store: Store, env: dict[str, Any], runner=None) -> None:
     """Run the cells into the store (saved after every record), each error-sweep record with
     its converged error attached first: one at a time here (they would share cores and the
     GPU), or on a Dask cluster's workers, one per GPU and core set (``runner``)."""
@@ -207,7 +207,8 @@ def run_plan(specs: list[Cell], references: list[dict[str, Any] | None], probes,
                                                            reference=references[j])
             if conv is not None:
                 rec["converged"] = conv
-        hardware.annotate([rec], yardstick)
+        hardware.annotate([rec], env["hardware"])
+        rec["run"] = environment.run_stamp(env)
         show(next(count), rec, outputs)
     engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
                      resume=args.resume, runner=runner, ahead=overlap.ahead(args),
@@ -291,7 +292,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, 
     store.save()
     specs = [s for s, _ in planned]
     runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
-    run_plan(specs, [r for _, r in planned], probes, args, store, env["hardware"], runner)
+    run_plan(specs, [r for _, r in planned], probes, args, store, env, runner)
     page = rebuild(contents(store), args, [str(store.path)], notes)
     print(pages.summary(store.records))
     print(f"wrote {store.path} and {page}")

@@ -1,0 +1,47 @@
+"""Which runs a matrix row's figures come from (``Record.run``), in words for its page.
+
+A row is ranked only when every figure it reads comes from one run: one machine, one commit, one
+sitting, with that run's own yardstick. Records made before runs were stamped carry no run; a row
+that reads any of them, or records of several runs, shows its figures and names no best.
+"""
+from __future__ import annotations
+
+from typing import Iterable
+
+from compare.record import Record
+
+UNSTAMPED = "records without a run stamp (made before runs were recorded)"
+
+
+def label(rec: Record) -> str:
+    """A run in words: its start (to the minute), commit and a dirty tree; '' when unstamped."""
+    run = rec.run or {}
+    created = str(run.get("created") or "")
+    if not created:
+        return ""
+    commit = run.get("commit") or "unknown commit"
+    dirty = run.get("dirty")
+    state = " (dirty tree)" if dirty else "" if dirty is False else " (tree state unknown)"
+    return f"run {created[:16].replace('T', ' ')} UTC, commit {commit}{state}"
+
+
+def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:
+    """The distinct runs of ``recs`` in first-seen order ('' for unstamped records)."""
+    return tuple(dict.fromkeys(label(r) for r in recs))
+
+
+def one_run(runs: tuple[str, ...]) -> bool:
+    return len(runs) == 1 and runs[0] != ""
+
+
+def words(runs: tuple[str, ...]) -> str:
+    """The provenance sentence a row's page prints."""
+    if not runs:
+        return "No records."
+    if one_run(runs):
+        return f"Every figure of this row comes from one {runs[0]}."
+    named = [r for r in runs if r]
+    parts = named + ([UNSTAMPED] if "" in runs else [])
+    return (f"Not ranked: this row's figures come from {len(named) or 'an unknown number of'} run(s)"
+            f"{' and ' + UNSTAMPED if '' in runs and named else ''}: {'; '.join(parts)}. Ratios are "
+            "to the leading figure; no best is named across runs.")
