@@ -75,7 +75,7 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
     while made < warmup and warm_s < max_time:
         warm_s += call(run, sync)
         made += 1
-    walls = _until(lambda: call(run, sync), repeat, min_time, max_time, max_calls)
+    walls = until(lambda: call(run, sync), repeat, min_time, max_time, max_calls)
     out = summarise(walls)
     out.update({"warmup": made, "timed_total_s": float(sum(walls)),
                 "wall": {k: out[k] for k in ("median_s", "iqr_s", "min_s")}})
@@ -88,7 +88,7 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
             spent[0] += time.perf_counter() - t0
             return ev
         try:
-            evs = _until(timed, repeat, min(min_time / 2, max_time), max_time, max_calls, spent)
+            evs = until(timed, repeat, min(min_time / 2, max_time), max_time, max_calls, spent)
             out["events"] = {**summarise(evs), "clock": getattr(timer, "description", "device events")}
         except Exception as exc:  # an event API failing must not cost the cell's latency
             out["events_error"] = f"{type(exc).__name__}: {exc}"
@@ -96,7 +96,7 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
     return out
 
 
-def _until(one: Callable[[], float], repeat: int, min_time: float, max_time: float, max_calls: int,
+def until(one: Callable[[], float], repeat: int, min_time: float, max_time: float, max_calls: int,
            spent: list[float] | None = None) -> list[float]:
     """Times from ``one()`` until ``repeat`` of them and ``min_time`` of their sum (or of
     ``spent[0]`` where given), stopping early past ``max_time`` with at least 3."""

@@ -19,8 +19,13 @@ from compare.site import data, fmt, matrix, pages, questions, ranking
 RULES = {r.key: r for r in questions.RULES}
 
 
+ONE_RUN = {"created": "2026-11-27T00:00:00+00:00", "commit": "abc1234", "dirty": False}
+
+
 def rec(backend: str, scenario: str = "saxpy", *, status: str = "ok", time: dict[str, Any] | None = None,
         **fields: Any) -> Record:
+    """A record of one run (a row ranks only figures of one run: tests/test_agreement.py)."""
+    fields.setdefault("run", ONE_RUN)
     return Record(scenario=scenario, backend=backend, device="cuda", precision="float32", status=status,
                   time=time, **fields)
 

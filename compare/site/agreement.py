@@ -46,12 +46,13 @@ def orderings(row: Row) -> dict[tuple[str, str], int | None]:
 
 
 def compare_rows(first: list[Row], second: list[Row]) -> list[RowAgreement]:
-    """Per row both stores have, the pairs either separates and what the other says of them."""
+    """Per row both stores read at the same sizes, the pairs either separates and what the
+    other says of them."""
     theirs = {r.rule.key: r for r in second}
     out = []
     for r in first:
-        if r.rule.key not in theirs:
-            continue
+        if r.rule.key not in theirs or theirs[r.rule.key].scope != r.scope:
+            continue                        # not measured in both, or at other sizes
         a, b = orderings(r), orderings(theirs[r.rule.key])
         agree = tie = disagree = missing = 0
         rev = []

@@ -31,6 +31,30 @@ def _plan_parts(device: str) -> list[str]:
     return [p.name for p in parts]
 
 
+RERUN = "rerun"       # beside a store: an independent second run of (part of) its matrix part
+
+
+def reproducibility(c: qp.Ctx) -> list[Any]:
+    """How many of the matrix's significant orderings a second, independent run agrees with
+    (``compare agree``), where the store keeps one in its ``rerun/`` folder."""
+    dirs = [s.parent / RERUN for s in c.m.sources if (s.parent / RERUN).is_dir()]
+    if not dirs:
+        return [H("Reproducibility"), P("No second run of the matrix part is stored beside these records "
+                                         f"(a `{RERUN}/` folder): the rankings have not been rerun.")]
+    from compare.site import agreement
+    other = data.load([dirs[0]])
+    got = [r for r in agreement.compare_rows(c.rows, pages.evaluate(other)[0]) if r.significant]
+    runs = "; ".join(str(e.get("created", "?"))[:16] for e in other.runs)
+    return [H("Reproducibility"),
+            P(f"A second, independent run of the matrix part ({RERUN}/, started {runs}) is held against "
+              "these records ordering by ordering (`python -m compare agree`): for every pair of "
+              "frameworks that either run separates on a row, the other run's order. "
+              f"**{agreement.summary(got)}** Rows the second run did not measure are not counted."),
+            Table(("row", "significant pairs", "agree", "tie in one run", "reversed", "which"),
+                  tuple((r.question, str(r.significant - r.missing), str(r.agree), str(r.tie), str(r.disagree),
+                         ", ".join(r.reversed_pairs) or "-") for r in got))]
+
+
 def machine(c: qp.Ctx) -> list[Any]:
     m = c.m
     envs = list(m.runs)
@@ -57,6 +81,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                    P("Measured by each run with no framework involved: the device copy that floors "
                      "bandwidth-bound cells and the driver's empty-kernel launch that floors per-call cost."),
                    Table(("run", "device", "copy bandwidth", "launch + sync", "launch pipelined", "how"), tuple(yard))]
+    blocks += reproducibility(c)
     pub = [p for p in ((m.publish or {}).get("parts") or []) if isinstance(p, dict)]
     blocks += [H("Publish run time")]
     if pub:
