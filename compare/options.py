@@ -9,7 +9,7 @@ import argparse
 import math
 import os
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import backends
 import scenarios
@@ -91,22 +91,20 @@ def nonnegative_int(text: str) -> int:
     return whole_number(text, 0)
 
 
-def overlap_count(text: str) -> int | str:
-    if text == "auto":
-        return text
-    try:
-        return whole_number(text, 0)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0 or auto, got {text!r}") from None
+def count_or_auto(minimum: int) -> Callable[[str], int | str]:
+    """An argparse type: a whole number >= ``minimum``, or 'auto'."""
+    def parse(text: str) -> int | str:
+        if text == "auto":
+            return text
+        try:
+            return whole_number(text, minimum)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum} or auto, got {text!r}") from None
+    return parse
 
 
-def processes_count(text: str) -> int | str:
-    if text == "auto":
-        return text
-    try:
-        return whole_number(text, 1)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1 or auto, got {text!r}") from None
+overlap_count = count_or_auto(0)
+processes_count = count_or_auto(1)
 
 
 def seconds(text: str, allow_zero: bool = False) -> float:

@@ -100,29 +100,19 @@ def _host_share(r: Record) -> list[str]:
     return [fmt.pct(h / t) if h is not None and t else "-"]
 
 
-def _launch_yardstick(m: Machine, device: str) -> str:
-    for env in reversed(m.runs):
-        hw = ((env.get("hardware") or {}).get(device) or {})
+def _launch_yardstick(recs: list[Record]) -> str:
+    """The driver's empty-kernel launch of the runs that timed ``recs`` (each record keeps its own
+    run's yardstick in ``hardware``), never another run's."""
+    seen = []
+    for r in recs:
+        hw = r.hardware or {}
         lat, pipe = data.num(hw.get("launch_latency_s")), data.num(hw.get("launch_pipelined_s"))
-        if lat and pipe:
-            return f"{fmt.seconds(lat)} with a synchronise, {fmt.seconds(pipe)} pipelined"
-    return ""
-
-
-def _cell(r: Record) -> tuple[Any, ...]:
-    """A cell's identity without the suite's tags; a parameter an older record lacks is at its
-    default (as matrix.latest reads it)."""
-    import json
-    params = {**data.defaults(r.scenario), **(r.params or {})}
-    return (r.scenario, r.backend, r.device, r.precision, r.variant, json.dumps(params, sort_keys=True, default=str))
-
-
-def _dedicated(recs: list[Record], run: tuple[Record, ...]) -> list[Record]:
-    """Each record, or the run suite's (its newest) where that measured the same cell too: one
-    figure per cell on every page, the one the matrix rows keep (the run suite's record is the
-    later in ``Machine.records``, so ``matrix.latest`` keeps it)."""
-    mine = {_cell(r): r for r in run}
-    return [mine.get(_cell(r), r) for r in recs]
+        if lat and pipe and (lat, pipe) not in seen:
+            seen.append((lat, pipe))
+    words = [f"{fmt.seconds(lat)} with a synchronise, {fmt.seconds(pipe)} pipelined" for lat, pipe in seen]
+    if len(words) > 1:
+        return f"{len(words)} runs timed these cells, their yardsticks: " + "; ".join(words)
+    return words[0] if words else ""
 
 
 def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False) -> Page:

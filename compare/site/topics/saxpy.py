@@ -97,9 +97,9 @@ def per_call(c: Ctx) -> Page:
     png, rel, csv = c.fig(f"per-call-{SCENARIO}")
     charts.bar_panels(png, f"SAXPY n = 10^6 ({c.device}, float32): per-call cost by regime",
                       "seconds per call (whiskers: quartiles; log scale)", panels, log=True, fmt=fmt.seconds)
-    yard = _launch_yardstick(c.m, c.device)
+    yard = _launch_yardstick([r for r in mine if r.status == "ok"])
     blocks += [Figure(rel, "Per-call cost of the default-size SAXPY in the three regimes, every variant."
-                      + (f" For scale, the driver's own empty-kernel launch: {yard}." if yard else ""),
+                      + (f" For scale, the driver's own empty-kernel launch in the run that timed these cells: {yard}." if yard else ""),
                       c.cmd(f"run {' '.join(topics.SMALL)} --devices {c.device} --precision float32 --variants all"), csv),
                H("Every small cell"), timing_table(recs, extra=_host_share, extra_headers=("host share",))]
     if any((r.time or {}).get("null") for r in mine):

@@ -6,14 +6,16 @@
 # seconds, then copies what is finished to $OUT:
 #
 #   device calls 1..N: bash .gpu/pK/install.sh   (the wheels the GPU image lacks: ../shared/gpu/stage-wheels)
-#   device call N:     ... && bash docs/results/h100/percall.sh start
+#   device call N:     ... && COMMIT=<this checkout's HEAD> bash docs/results/h100/percall.sh start
+#   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT)
 #   next calls:        bash docs/results/h100/percall.sh          (until it says "ended")
 set -u
 W=/root/percall
 WAIT=${WAIT:-540}
-export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
+export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 COMPARE_GIT_COMMIT=${COMMIT:-}
 run="python -m compare run saxpy --devices cuda --precision float32 --variants all --processes 6 --no-plots"
 if [ "${1:-wait}" = start ]; then
+  [ -n "${COMMIT:-}" ] || { echo "name the commit: COMMIT=<sha> bash $0 start"; exit 2; }
   mkdir -p "$W"
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
   setsid nohup bash -c "$run --out $W/a; $run --out $W/b; echo ALL-DONE" > "$W/log" 2>&1 &
