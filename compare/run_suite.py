@@ -68,8 +68,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "and its interval (time.processes; docs/measurement.md). Default 1: one "
                         "process per cell, a figure no ranking relies on")
     p.add_argument("--busy", type=options.nonnegative_int, default=0, metavar="N",
-                   help="also time every CPU cell with N cores kept busy by other processes (a shared "
-                        "laptop or CI runner), right after the idle cell (tags.busy_cores)")
+                   help="the shared-host experiment: time every CPU cell idle, then right after with N "
+                        "cores kept busy by other processes (a laptop or CI runner; tags.busy_cores 0 "
+                        "and N, kept apart from the plain cells)")
     p.add_argument("--resume", action="store_true",
                    help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
     p.add_argument("--force", action="store_true",
@@ -160,9 +161,9 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[Cel
                   save_inputs=args.save_arrays, check_sample=args.check_sample, host_profile=args.host_profile)
              for sc in chosen for b in sel["backends"] for d in sel["devices"]
              for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants_for(sc.name)]
-    if args.busy:     # each CPU cell again, right after itself, with cores kept busy (a shared host)
-        specs = [c2 for c in specs for c2 in ([c, dataclasses.replace(c, tags={BUSY_TAG: args.busy})]
-                                               if str(c.device) == "cpu" else [c])]
+    if args.busy:     # the shared-host experiment: each CPU cell idle, then with cores kept busy
+        specs = [dataclasses.replace(c, tags={BUSY_TAG: n}) for c in specs if str(c.device) == "cpu"
+                 for n in (0, args.busy)]
     if not specs:
         raise UsageError(f"nothing to run: no chosen backend ({', '.join(sel['backends'])}) has "
                          f"variant(s) {', '.join(sel['variants'])}")

@@ -20,18 +20,18 @@ RUN = {"created": "2026-11-27T00:00:00+00:00", "commit": "abc1234", "dirty": Fal
 RULE = {r.key: r for r in questions.RULES}["busy"]
 
 
-def cell(backend: str, scenario: str, latency: float, busy: int = 0, own: float = 1.0) -> Record:
+def cell(backend: str, scenario: str, latency: float, busy: int | None = 0, own: float = 1.0) -> Record:
     t = {"first_call_s": 1.0, "median_s": latency, "iqr_s": 0.0, "min_s": latency, "repeats": 10,
          "latency": {"median_s": latency, "iqr_s": 0.0, "min_s": latency, "repeats": 10},
          "noise": {"noisy": False, "reasons": [], "cores": 2, "own_cores": own, "others_cores": 1.0 if busy else 0.0}}
     return Record(scenario=scenario, backend=backend, device="cpu", precision="float32", status="ok",
                   time=t, error={"vs_oracle": 0.0, "tolerance": 1.0}, run=RUN,
-                  tags={"busy_cores": busy} if busy else None)
+                  tags={"busy_cores": busy} if busy is not None else None)
 
 
 def machine(recs: list[Record]) -> data.Machine:
     return data.Machine((), tuple(r for r in recs if not r.tags), (), None, (), None,
-                        tuple(r for r in recs if r.tags))
+                        tuple(r for r in recs if r.tags))    # as data.load splits a store
 
 
 def test_the_row_is_the_geometric_mean_of_busy_over_idle_and_explains_a_parallel_loop():
@@ -50,10 +50,11 @@ def test_the_row_is_the_geometric_mean_of_busy_over_idle_and_explains_a_parallel
     assert shared_host.why(*[p for p in shared_host.pairs(m) if p[0].backend == "numpy"][0]) == ""
 
 
-def test_busy_cells_stay_out_of_every_other_row():
-    recs = [cell("numpy", sc, 1e-3) for sc in matrix.IN_ALL] + [cell("numpy", sc, 9e-3, busy=1) for sc in matrix.IN_ALL]
+def test_the_experiment_stays_out_of_every_other_row():
+    recs = ([cell("numpy", sc, 1e-3, busy=None) for sc in matrix.IN_ALL]
+            + [cell("numpy", sc, 5e-3) for sc in matrix.IN_ALL] + [cell("numpy", sc, 9e-3, busy=1) for sc in matrix.IN_ALL])
     m = machine(recs)
-    assert all(not r.tags for r in m.records) and len(m.busy) == len(matrix.IN_ALL)
+    assert all(not r.tags for r in m.records) and len(m.busy) == 2 * len(matrix.IN_ALL)
     lat = data.timing(matrix.all_defaults(m, "cpu")[0], "latency")
     assert lat.median == 1e-3
 
@@ -67,7 +68,8 @@ def test_run_busy_times_each_cpu_cell_again_with_a_core_taken(tmp_path):
     assert p.returncode == 0, p.stderr[-2000:]
     recs: list[dict[str, Any]] = json.loads((out / "results.json").read_text())["records"]
     busy = [r for r in recs if (r.get("tags") or {}).get("busy_cores") == 1]
-    idle = [r for r in recs if not (r.get("tags") or {}).get("busy_cores")]
+    idle = [r for r in recs if (r.get("tags") or {}).get("busy_cores") == 0]
+    assert len(recs) == 2
     assert len(busy) == len(idle) == 1 and busy[0]["status"] == idle[0]["status"] == "ok"
     if os.path.exists("/proc/stat"):       # the other process's core shows in the host meter
         assert busy[0]["time"]["noise"]["others_cores"] > 0.5

@@ -32,8 +32,8 @@ class Machine:
     stress: Store | None
     runs: tuple[dict[str, Any], ...]
     publish: dict[str, Any] | None
-    # run cells timed with other processes keeping cores busy (``run --busy``): the shared-host
-    # row alone reads them; every other reader sees the idle cells only
+    # the shared-host experiment (``run --busy``): cells timed idle and with cores kept busy by
+    # other processes, tagged ``busy_cores``; its row alone reads them, no other reader sees them
     busy: tuple[Record, ...] = ()
 
     @property
@@ -113,9 +113,9 @@ def load(paths: Iterable[Path]) -> Machine:
                 raise StoreError(f"{log}: not a publish log (an object with a list of parts)")
     runs = [env for s in merged.values() for env in s.runs]
     run = tuple(merged["run"].records) if "run" in merged else ()
-    return Machine(tuple(sources), tuple(r for r in run if not tag(r, BUSY_TAG)),
+    return Machine(tuple(sources), tuple(r for r in run if tag(r, BUSY_TAG) is None),
                    tuple(merged["sweep"].records) if "sweep" in merged else (),
-                   merged.get("stress"), tuple(runs), publish, tuple(r for r in run if tag(r, BUSY_TAG)))
+                   merged.get("stress"), tuple(runs), publish, tuple(r for r in run if tag(r, BUSY_TAG) is not None))
 
 
 # ---- figures of one record --------------------------------------------------------------------

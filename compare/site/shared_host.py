@@ -15,7 +15,7 @@ from typing import Any
 
 from compare.record import Record
 from compare.site import data, fmt
-from compare.site.matrix import IN_ALL, Cell, all_defaults
+from compare.site.matrix import IN_ALL, Cell
 from compare.site.render import H, P, Table
 from compare.spec import BUSY_TAG
 
@@ -23,18 +23,19 @@ LARGE = 2.0          # a slowdown the page explains
 PARALLEL = 1.5       # cores used while idle above this: the cell runs a parallel loop
 
 
+def _busy(r: Record) -> int:
+    return int((r.tags or {}).get(BUSY_TAG) or 0)
+
+
 def pairs(m: data.Machine, device: str = "cpu") -> list[tuple[Record, Record]]:
-    """(idle, busy) records of one cell: busy at the defaults, float32, default variant, with the
-    idle twin of the same run where it has one."""
-    idle = {(r.backend, r.scenario): r for r in all_defaults(m, device) if r.scenario in IN_ALL}
-    out = []
-    for b in m.busy:
-        if (b.device, b.precision, b.variant) != (device, "float32", "default") or not data.at_defaults(b):
-            continue
-        twin = idle.get((b.backend, b.scenario))
-        if twin is not None and b.scenario in IN_ALL:
-            out.append((twin, b))
-    return out
+    """(idle, busy) records of one cell of the experiment, both of one run: at the defaults,
+    float32, default variant, the four scenarios."""
+    def ident(r: Record) -> tuple[Any, ...]:
+        return (r.backend, r.scenario, (r.run or {}).get("created"))
+    mine = [r for r in m.busy if (r.device, r.precision, r.variant) == (device, "float32", "default")
+            and data.at_defaults(r) and r.scenario in IN_ALL]
+    idle = {ident(r): r for r in mine if _busy(r) == 0}
+    return [(idle[ident(b)], b) for b in mine if _busy(b) > 0 and ident(b) in idle]
 
 
 def slowdown(idle: Record, busy: Record) -> float | None:
@@ -85,7 +86,7 @@ def section(m: data.Machine) -> list[Any]:
         return [H("CPU, one core busy"),
                 P("No cells timed on a busy host in these records (`python -m compare all --devices cpu "
                   "--precision float32 --busy 1`).")]
-    n = max(int((b.tags or {}).get(BUSY_TAG) or 0) for _, b in got)
+    n = max(_busy(b) for _, b in got)
     rows = []
     for idle, busy in sorted(got, key=lambda p: (p[0].scenario, p[0].backend)):
         lat_i, lat_b = data.timing(idle, "latency"), data.timing(busy, "latency")
@@ -96,7 +97,7 @@ def section(m: data.Machine) -> list[Any]:
                      f"{_cores(busy, 'others_cores'):.2f}" if _cores(busy, "others_cores") is not None else "-",
                      why(idle, busy) or "-"))
     return [H("CPU, one core busy"),
-            P(f"Each CPU cell at the defaults timed again right after itself, in the same run, with {n} "
+            P(f"Each CPU cell at the defaults timed idle and again right after itself, in the same run, with {n} "
               f"core(s) of the {m.cpu_name()} kept busy by another process: the slowdown a user sees on a "
               "laptop or CI runner with other work on it. Latency regime; the large ones explained from "
               "the cores the cell used while idle."),
