@@ -10,6 +10,7 @@ results.csv/.md, and the console table.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -22,7 +23,7 @@ import backends
 import scenarios
 from compare import calibrate, engine, environment, hardware, options, overlap, phases, report, run_plots, scaleout
 from compare.record import Record, plain
-from compare.spec import Cell, as_cell, key
+from compare.spec import BUSY_TAG, Cell, as_cell, key
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import ParamError
@@ -66,6 +67,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "interleaved rounds; the record keeps every process's figure, the median "
                         "and its interval (time.processes; docs/measurement.md). Default 1: one "
                         "process per cell, a figure no ranking relies on")
+    p.add_argument("--busy", type=options.nonnegative_int, default=0, metavar="N",
+                   help="the shared-host experiment: time every CPU cell idle, then right after with N "
+                        "cores kept busy by other processes (a laptop or CI runner; tags.busy_cores 0 "
+                        "and N, kept apart from the plain cells)")
     p.add_argument("--resume", action="store_true",
                    help="keep DIR/results.json's ok, mismatch and skipped cells; run the rest (errors are retried)")
     p.add_argument("--force", action="store_true",
@@ -156,6 +161,9 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[Cel
                   save_inputs=args.save_arrays, check_sample=args.check_sample, host_profile=args.host_profile)
              for sc in chosen for b in sel["backends"] for d in sel["devices"]
              for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants_for(sc.name)]
+    if args.busy:     # the shared-host experiment: each CPU cell idle, then with cores kept busy
+        specs = [dataclasses.replace(c, tags={BUSY_TAG: n}) for c in specs if str(c.device) == "cpu"
+                 for n in (0, args.busy)]
     if not specs:
         raise UsageError(f"nothing to run: no chosen backend ({', '.join(sel['backends'])}) has "
                          f"variant(s) {', '.join(sel['variants'])}")

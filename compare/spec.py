@@ -31,6 +31,9 @@ class SpecError(ValueError):
     """A malformed cell or record; one line naming the first problem."""
 
 
+BUSY_TAG = "busy_cores"     # tags: a cell timed while this many other processes keep cores busy
+
+
 @dataclasses.dataclass(frozen=True)
 class Cell:
     """One cell: what to run (identity, typed; ``params`` the scenario's resolved Params) and how

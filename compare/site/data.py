@@ -16,6 +16,7 @@ from typing import Any, Iterable, Mapping
 import scenarios
 from compare import noise
 from compare.record import Record
+from compare.spec import BUSY_TAG
 from compare.store import SUITES, Store, StoreError
 from compare.sweep.points import sweeps
 
@@ -31,6 +32,9 @@ class Machine:
     stress: Store | None
     runs: tuple[dict[str, Any], ...]
     publish: dict[str, Any] | None
+    # the shared-host experiment (``run --busy``): cells timed idle and with cores kept busy by
+    # other processes, tagged ``busy_cores``; its row alone reads them, no other reader sees them
+    busy: tuple[Record, ...] = ()
 
     @property
     def records(self) -> list[Record]:
@@ -108,9 +112,10 @@ def load(paths: Iterable[Path]) -> Machine:
             if not isinstance(publish, dict) or not isinstance(publish.get("parts", []), list):
                 raise StoreError(f"{log}: not a publish log (an object with a list of parts)")
     runs = [env for s in merged.values() for env in s.runs]
-    return Machine(tuple(sources), tuple(merged["run"].records) if "run" in merged else (),
+    run = tuple(merged["run"].records) if "run" in merged else ()
+    return Machine(tuple(sources), tuple(r for r in run if tag(r, BUSY_TAG) is None),
                    tuple(merged["sweep"].records) if "sweep" in merged else (),
-                   merged.get("stress"), tuple(runs), publish)
+                   merged.get("stress"), tuple(runs), publish, tuple(r for r in run if tag(r, BUSY_TAG) is not None))
 
 
 # ---- figures of one record --------------------------------------------------------------------

@@ -80,6 +80,7 @@ class Rule:
     device: str = ""              # '' the report's device; else this one
     exact: bool = False           # deterministic figures (bytes, error shares): no interval needed
     reference: Reference | None = None    # cells shown beside the ranking, never in it
+    cells: Callable[[Machine, str], dict[str, "Cell"]] | None = None   # a row's own cell builder
 
 
 @dataclasses.dataclass(frozen=True)
@@ -276,6 +277,8 @@ def _aggregate(rule: Rule, recs: list[Record]) -> dict[str, Cell]:
 
 
 def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
+    if rule.cells is not None:
+        return rule.cells(m, device)
     if rule.key == "cpu":
         return _geomean_vs_best(m, device)
     recs = rule.pick(m, device)

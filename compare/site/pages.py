@@ -11,7 +11,7 @@ from typing import Any
 
 import backends
 from compare import charts, noise
-from compare.site import data, fmt, matrix, questions, ranking
+from compare.site import data, fmt, matrix, questions, ranking, shared_host
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.matrix import Row
@@ -279,7 +279,7 @@ def cpu(c: qp.Ctx) -> list[Any]:
         blocks.append(Figure(rel, f"Speed-up of each framework against {who}, per scenario.",
                              c.cmd("all --devices cpu --precision float32"), csv))
     blocks += [H("Every CPU cell at the defaults"), qp.timing_table(recs, ("latency", "throughput"))]
-    return blocks
+    return blocks + shared_host.section(c.m)
 
 
 def stability(c: qp.Ctx) -> list[Any]:

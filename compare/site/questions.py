@@ -8,7 +8,7 @@ can check each cell.
 from __future__ import annotations
 
 from compare.record import Record
-from compare.site import data, topics
+from compare.site import data, shared_host, topics
 from compare.site.matrix import IN_ALL, Rule, all_defaults
 
 
@@ -42,6 +42,12 @@ RULES: tuple[Rule, ...] = topics.RULES + (
          "geometric mean over the scenarios of the framework's throughput-regime time divided by "
          "the fastest framework's on that scenario (1 = fastest everywhere).",
          _defaults_of_all, lambda r: None, device="cpu"),
+    Rule("busy", "CPU, one core busy", "cpu", "x", "lower",
+         "On the CPU, the four scenarios at their defaults, float32, default variant, each timed "
+         "twice in one run: idle, then with one core kept busy by another process (`--busy 1`); a "
+         "framework's figure is the geometric mean over the scenarios of its busy latency over its "
+         "idle latency (1 = the busy core cost nothing).",
+         shared_host.pick, lambda r: None, device="cpu", cells=shared_host.cells),
 )
 
 PAGES = {**{k: label for k, (label, _) in topics.PAGES.items()},
