@@ -115,6 +115,22 @@ def _launch_yardstick(recs: list[Record]) -> str:
     return words[0] if words else ""
 
 
+def _cell(r: Record) -> tuple[Any, ...]:
+    """A cell's identity without the suite's tags; a parameter an older record lacks is at its
+    default (as matrix.latest reads it)."""
+    import json
+    params = {**data.defaults(r.scenario), **(r.params or {})}
+    return (r.scenario, r.backend, r.device, r.precision, r.variant, json.dumps(params, sort_keys=True, default=str))
+
+
+def _dedicated(recs: list[Record], run: tuple[Record, ...]) -> list[Record]:
+    """Each record, or the run suite's (its newest) where that measured the same cell too: one
+    figure per cell on every page, the one the matrix rows keep (the run suite's record is the
+    later in ``Machine.records``, so ``matrix.latest`` keeps it)."""
+    mine = {_cell(r): r for r in run}
+    return [mine.get(_cell(r), r) for r in recs]
+
+
 def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False) -> Page:
     recs = _dedicated([r for r in c.m.sweep if data.tag(r, "sweep") == "scaling" and r.scenario == scenario
                        and r.device == c.device and r.precision == "float32"], c.m.run)
