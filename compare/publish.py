@@ -6,8 +6,8 @@
 DIR is one machine's store, as docs/results/h100/ and cpu/ are: results.json, sweep.json,
 stress.json, and the site in DIR/report/. The parts, in order (``--list`` prints each command):
 
-  all             every scenario in 'all', float32 and float64, every variant, both timing regimes
-                  (the default), with --host-profile (where host time goes)
+  all             every scenario in 'all', float32 and float64, every variant, both timing regimes,
+                  --host-profile, each cell in 6-10 interleaved processes (--processes auto)
   large-DEV-SCn   a kernel-dominated size, float32, the default variant and those that change how
                   a bandwidth-bound kernel is issued or loads memory (graph, vector, tile). CUDA:
                   saxpy n=2^26 and 2^28, particles 2^24 (as the H100 store). CPU: saxpy 2^24 and
@@ -87,6 +87,7 @@ GRACE_S, HEARTBEAT_S = 30.0, 60.0   # a driver saves and exits within seconds of
 HOST_PROFILE_TOP, CHECK_SAMPLE, STAGED = 12, 4096, "stress-parts"
 SWEEPS = ("bandwidth", "scaling", "error", "horizon")
 GROUPS = ("large", "stress")
+MATRIX_PROCESSES = "auto"      # the matrix part: every figure from interleaved processes (compare.repeats)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,7 +124,7 @@ def memory() -> dict[str, float]:
 def large_parts(devices: list[str], chosen: list[str], common: list[str], quick: bool,
                 have: dict[str, float]) -> tuple[list[Part], list[str]]:
     """The large parts, and a line per size left out because it does not fit."""
-    from compare.run_suite import WORKER_BASELINE_BYTES
+    from compare.preflight import WORKER_BASELINE_BYTES
     from compare.sweep.points import SWEEPS
     parts, left = [], []
     for dev in devices:
@@ -148,9 +149,6 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
     return parts, left
 
 
-MATRIX_PROCESSES = "auto"
-
-
 def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
          timeout: float | None = None, have: dict[str, float] | None = None) -> tuple[list[Part], list[str]]:
     """Every part in run order, and notes on what was left out. ``out`` as the user spelled it."""
@@ -159,7 +157,6 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     sel = ["--backends", backends_arg]
     tmo = ["--timeout", f"{timeout:g}"] if timeout is not None else []
     tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
-    # the matrix part: every published figure from several interleaved processes (compare.repeats)
     procs = () if quick else ("--processes", MATRIX_PROCESSES)
     parts = [Part("all", ("all", "--devices", devs, *sel, "--precision", "float32,float64",
                           "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *procs, *tail))]

@@ -8,7 +8,7 @@ import json
 import pytest
 from pathlib import Path
 
-from compare import cli, run_suite
+from compare import cli, preflight, run_suite
 from reliability_checks import FIGURES, assert_refused, working_directory
 
 pytestmark = pytest.mark.cli
@@ -39,7 +39,7 @@ def test_memory_is_compared_with_available_not_total(monkeypatch):
     monkeypatch.setattr(psutil, "virtual_memory", lambda: Mem())
     spec = {"scenario": "saxpy", "backend": "numba", "device": "cpu", "precision": "float32", "params": {}}
     with pytest.raises(run_suite.ParamError, match="available"):
-        run_suite.check_memory([spec])
+        preflight.check_memory([spec])
 
 
 def test_cells_over_the_available_memory_are_skipped_and_the_rest_run(work, monkeypatch, capsys):
@@ -49,7 +49,7 @@ def test_cells_over_the_available_memory_are_skipped_and_the_rest_run(work, monk
     import psutil
     spec = lambda prec: {"scenario": "saxpy", "backend": "numpy", "device": "cpu",  # noqa: E731
                          "precision": prec, "params": {"n": 1 << 16}}
-    small, big = run_suite.cell_bytes(spec("float32"))[0], run_suite.cell_bytes(spec("float64"))[0]
+    small, big = preflight.cell_bytes(spec("float32"))[0], preflight.cell_bytes(spec("float64"))[0]
     assert small < big
 
     class Mem:
@@ -89,7 +89,7 @@ def test_memory_estimate_bounds_measured_peaks():
     for spec, (rec, _) in zip(specs, results):
         assert rec.status == "ok", rec.reason
         peak = rec.memory["peak_host_rss_bytes"]
-        estimate = run_suite.cell_bytes(spec)[0]
+        estimate = preflight.cell_bytes(spec)[0]
         assert estimate >= peak, (spec["scenario"], spec["params"], peak / 2**20, estimate / 2**20)
         ratios.append(estimate / peak)
     FIGURES["memory"] = f"{len(specs)} cells, estimate/peak {min(ratios):.2f} to {max(ratios):.2f}"

@@ -24,7 +24,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from compare import engine, environment, options
+from compare import engine, environment, options, preflight
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
 from compare.store import Store
 from compare.stress import page
@@ -35,8 +35,8 @@ from compare.stress.registry import experiments
 # disk preflight: the cell records and findings of a full suite, generously (the CPU suite's
 # stress.json is ~1 MB), and the page and plots
 RESERVE_BYTES = 256 * 2**20
-PAGE_BYTES = 32 * 2**20
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
 
 def add_arguments(p: argparse.ArgumentParser, common: bool = True) -> None:
     """The suite's options; with ``common`` also the shared selection and output ones."""
@@ -72,7 +72,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         options.check_output(args.out)
         Store.open(args.out, "stress")
         out, lock = options.claim_output(args.out, 2 * sum(Path(f).stat().st_size for f in args.merge)
-                                         + PAGE_BYTES)
+                                         + preflight.PAGE_BYTES)
         with lock:
             return page.merge(args.merge, out, registry, plots_=not args.no_plots)
     options.check_output(args.out)

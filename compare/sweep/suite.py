@@ -29,7 +29,7 @@ from typing import Any
 
 import backends
 import scenarios
-from compare import engine, environment, hardware, options, overlap, run_suite, scaleout
+from compare import engine, environment, hardware, options, overlap, preflight, run_suite, scaleout
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.spec import Cell
 from compare.store import UPGRADES, Store, atomic_write
@@ -43,8 +43,6 @@ PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "flo
              "horizon": "float32,float64"}
 ROLE_ORDER = ("launch", "copy", "bandwidth")    # the bandwidth sweep measures its yardsticks first
 SPEC_OPTIONS = ("check_sample", "save_outputs")  # what a sweep point may set in its cell's spec
-RECORD_BYTES = 64 * 2**10      # disk preflight: one record in sweep.json, generously
-PAGE_BYTES = 32 * 2**20        # ... and the page and plots
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -212,7 +210,7 @@ def run_plan(specs: list[Cell], references: list[dict[str, Any] | None], probes,
         show(next(count), rec, outputs)
     engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
                      resume=args.resume, runner=runner, ahead=overlap.ahead(args),
-                     footprint=lambda c: run_suite.cell_bytes(c)[0])
+                     footprint=lambda c: preflight.cell_bytes(c)[0])
 
 
 def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
@@ -261,8 +259,8 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     # connected before the claim: an unreachable scheduler leaves no lock and no --out behind
     client = scaleout.client(args.scheduler) if args.scheduler else None
     try:
-        out, lock = options.claim_output(args.out, 2 * (RECORD_BYTES * len(runnable) + existing_bytes(args.out))
-                                         + PAGE_BYTES)
+        out, lock = options.claim_output(args.out, 2 * (preflight.RECORD_BYTES * len(runnable) + existing_bytes(args.out))
+                                         + preflight.PAGE_BYTES)
     except UsageError:
         if client is not None:
             client.close()
@@ -311,7 +309,7 @@ def report(args: argparse.Namespace) -> int:
     for f in args.files:                  # a later file's record of the same cell wins
         merged.merge(Store.read(f, "sweep"))
     options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
-    out, lock = options.claim_output(args.out, PAGE_BYTES)
+    out, lock = options.claim_output(args.out, preflight.PAGE_BYTES)
     with lock:
         rebuild(contents(merged), args, list(args.files), notes)
     print(pages.summary(merged.records))
