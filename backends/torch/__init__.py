@@ -140,8 +140,11 @@ class TorchCuda(Backend):
 
     def own_latency(self, device: str, call: Any) -> dict[str, Any] | None:
         """``torch.utils.benchmark.Timer`` (blocks of calls on the wall clock, median per call)."""
+        import torch
         from torch.utils import benchmark
-        m = benchmark.Timer(stmt="call()", globals={"call": call}).blocked_autorange(min_run_time=0.2)
+        # the Timer runs on one thread unless told: the cell's own thread count (CPU cells)
+        m = benchmark.Timer(stmt="call()", globals={"call": call},
+                            num_threads=torch.get_num_threads()).blocked_autorange(min_run_time=0.2)
         return {"tool": "torch.utils.benchmark.Timer.blocked_autorange", "median_s": float(m.median),
                 "calls": int(m.number_per_run * len(m.times))}
 
