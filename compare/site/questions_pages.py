@@ -9,7 +9,7 @@ from typing import Any, Callable
 
 from compare import charts
 from compare.record import Record
-from compare.site import data, fmt
+from compare.site import data, fmt, provenance
 from compare.site.data import Machine
 from compare.site.matrix import Row
 from compare.site.render import Block, Figure, H, P, Table
@@ -42,8 +42,9 @@ class Ctx:
 def verdicts(rows: list[Row]) -> list[Block]:
     out: list[Block] = []
     for r in rows:
+        runs = f" {provenance.words(r.runs)}" if provenance.one_run(r.runs) else ""
         out += [H(r.rule.question, r.rule.key), P(f"**{r.verdict}**"),
-                P(f"Rule: {r.rule.text} Read here: {r.scope or 'no records'}, device {r.device}.")]
+                P(f"Rule: {r.rule.text} Read here: {r.scope or 'no records'}, device {r.device}.{runs}")]
     return out
 
 
