@@ -99,7 +99,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
               share_process: bool = False,
               refuse: Callable[[Cell], tuple[str, str] | None] | None = None,
               ahead: int = 0, footprint: Callable[[Cell], float] | None = None,
-              processes: int | str = 1, seed: int = 0) -> list[Result]:
+              processes: int | str = 1, seed: int = 0,
+              on_repeat: Callable[[dict[str, Any]], None] | None = None) -> list[Result]:
     """Run every cell in a worker process; returns (record, outputs) per cell, in order. A dict
     is decoded into its Cell (``Cell.from_dict``) first.
 
@@ -118,7 +119,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     ``on_record`` sees a record's JSON object before ``Record.from_json`` checks it (it may add
     to it); a record that fails the check becomes an ``error`` record of its cell.
     ``processes``: more than 1 (or 'auto') times every cell that ran ok again in further worker
-    processes, in seeded rounds, and adds ``time.processes`` to its record (``compare.repeats``).
+    processes, in seeded rounds, and adds ``time.processes`` to its record (``compare.repeats``);
+    ``on_repeat`` sees each repeat process's ``time`` block (its parts, for the run's summary).
     """
     plan = [as_cell(s) for s in specs]
     probes = probes if probes is not None else availability({c.backend for c in plan})
@@ -193,13 +195,14 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
         pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
     if repeats.plan(processes)[1] > 1:
         ran = [i for idx in groups.values() for i in idx]
-        _more_processes(plan, done, ran, processes, seed, timeout, runner, store, lock)
+        _more_processes(plan, done, ran, processes, seed, timeout, runner, store, lock, on_repeat)
     return [r for r in done if r is not None]
 
 
 def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int], processes: int | str,
                     seed: int, timeout: float, runner: Callable[[Cell], Result] | None,
-                    store: Store | None, lock: threading.Lock) -> None:
+                    store: Store | None, lock: threading.Lock,
+                    on_repeat: Callable[[dict[str, Any]], None] | None = None) -> None:
     """The repeat processes of every cell of ``ran`` that finished ok (``compare.repeats``)."""
     first = {i: got[0].time for i in ran if (got := done[i]) is not None
              and got[0].status == "ok" and got[0].time is not None}
@@ -208,6 +211,8 @@ def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int],
         cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
         rec, _ = runner(cell) if runner is not None else cells.run(cell, timeout)
         rec = rec.to_json() if isinstance(rec, Record) else rec
+        if on_repeat is not None and rec.get("time"):
+            on_repeat(rec["time"])
         return rec.get("time") if rec.get("status") == "ok" else None
 
     def on_round(blocks: dict[int, dict[str, Any]]) -> None:

@@ -274,7 +274,8 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
                                store=store, resume=args.resume, on_record=on_record, refuse=refuse,
                                ahead=ahead, footprint=lambda c: cell_bytes(c)[0],
-                               processes=args.processes, seed=env.get("seed", 0))
+                               processes=args.processes, seed=env.get("seed", 0),
+                               on_repeat=lambda t: ran.append({"time": t}))
     spent["cells"], t0 = time.perf_counter() - t0, time.perf_counter()
     # the records of this plan, in plan order; with --resume also the kept records of other plans
     records = [r for r, _ in results]
