@@ -58,3 +58,15 @@ def test_a_tie_in_one_run_is_allowed_and_a_reversal_is_named():
 def test_rows_read_at_other_sizes_are_not_compared():
     small = [rec("warp", time=latency(1e-5), params={"n": 1000}), rec("cupy", time=latency(4e-5), params={"n": 1000})]
     assert agreement.compare_rows([row("latency", _two(10e-6, 20e-6, 40e-6))], [row("latency", small)]) == []
+
+
+def test_agree_refuses_what_is_not_a_store_with_one_line_and_exit_2(tmp_path):
+    import subprocess
+    import sys
+    from conftest import ROOT
+    bad = tmp_path / "x.json"
+    bad.write_text("[1, 2]")
+    for args in ([str(tmp_path / "missing"), str(bad)], [str(bad), str(bad)]):
+        p = subprocess.run([sys.executable, "-m", "compare", "agree", *args], cwd=ROOT, capture_output=True,
+                           text=True, timeout=120)
+        assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr, p.stderr
