@@ -210,7 +210,6 @@ def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int],
     def time_one(i: int) -> dict[str, Any] | None:
         cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
         rec, _ = runner(cell) if runner is not None else cells.run(cell, timeout)
-        rec = rec.to_json() if isinstance(rec, Record) else rec
         if on_repeat is not None and rec.get("time"):
             on_repeat(rec["time"])
         return rec.get("time") if rec.get("status") == "ok" else None

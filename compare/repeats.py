@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import random
+import statistics
 from typing import Any, Callable, Mapping, Sequence
 
 CONFIDENCE = 0.95
@@ -40,12 +41,6 @@ def interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[f
             break
         best = (x[j - 1], x[n - j], cover)
     return best
-
-
-def median(values: Sequence[float]) -> float:
-    x = sorted(values)
-    n = len(x)
-    return x[n // 2] if n % 2 else 0.5 * (x[n // 2 - 1] + x[n // 2])
 
 
 def figures(t: Mapping[str, Any]) -> dict[str, float]:
@@ -73,7 +68,7 @@ def summary(times: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         if not vals:
             continue
         lo, hi, cover = interval(vals)
-        out[name] = {"values": vals, "median_s": median(vals), "ci_lo_s": lo, "ci_hi_s": hi,
+        out[name] = {"values": vals, "median_s": statistics.median(vals), "ci_lo_s": lo, "ci_hi_s": hi,
                      "confidence": round(cover, 4)}
     return out
 

@@ -90,7 +90,7 @@ def row(rec: Record) -> list[str]:
     return [rec.backend, device, rec.precision, rec.variant,
             rec.status, fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")) + mark("latency"),
             fmt_time(lat.get("iqr_s")), fmt_time(lat.get("min_s")),
-            fmt_time((timing.events_of(t) or {}).get("median_s")) or "-",
+            fmt_time((timing.events_of(t) or {}).get("median_s")),
             fmt_time(thr.get("median_s")) + mark("throughput"), fmt_time(thr.get("host_s")),
             fmt_time(graph.get("median_s")) + mark("graph"),
             f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 import scenarios
-from compare import noise
+from compare import noise, repeats
 from compare.record import Record
 from compare.spec import BUSY_TAG
 from compare.store import SUITES, Store, StoreError
@@ -205,14 +205,11 @@ def across_processes(rec: Record, regime: str) -> Timing | None:
     cover = num(block.get("confidence")) or 0.0
     why = []
     if lo < (1 - PROCESS_SPREAD) * med or hi > (1 + PROCESS_SPREAD) * med:
-        why.append(f"processes disagree: interval {fmt_pct(lo / med - 1)} to {fmt_pct(hi / med - 1)} of the median")
-    if cover < 0.95:
+        why.append(f"processes disagree: interval {100 * (lo / med - 1):+.0f} % to {100 * (hi / med - 1):+.0f} % "
+                   "of the median")
+    if cover < repeats.CONFIDENCE:
         why.append(f"{n} processes: interval at {100 * cover:.0f} % confidence")
     return Timing(med, lo, hi, n, "; ".join(why), processes=n, ci=(lo, hi))
-
-
-def fmt_pct(x: float) -> str:
-    return f"{100 * x:+.0f} %"
 
 
 def per_call(rec: Record, regime: str) -> Timing | None:
