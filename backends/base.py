@@ -24,6 +24,8 @@ import numpy as np
 
 from scenarios.base import Precision
 
+OWN_TIMER_S = 0.1     # one stretch of a framework's own timer (``Backend.own_latency``), seconds
+
 
 class Device(enum.StrEnum):
     """Where a cell runs. A ``StrEnum``: it equals, prints and serialises as its name ("cpu")."""
@@ -143,8 +145,10 @@ class Backend:
 
     def own_latency(self, device: str, call: Any) -> dict[str, Any] | None:
         """The framework's own timing utility around ``call`` (one ``run()`` and the framework's
-        synchronise), as its users would time it: ``{"tool", "median_s", "calls"}``; a cross-check
-        of the harness's latency regime. None where the framework ships no such utility."""
+        synchronise), as its users would time it: ``{"tool", "median_s", "calls", "block"}``, where
+        ``block`` is how many calls each of the samples the median is taken over averages (1: a
+        time per call); a cross-check of the harness's latency regime, compared in the same
+        statistic. None where the framework ships no such utility."""
         return None
 
     def available(self) -> dict[str, str | None]:

@@ -146,7 +146,8 @@ TIME = Obj({"first_call_s": SECONDS, "median_s": POSITIVE, "iqr_s": SECONDS, "mi
             "latency": REGIME, "throughput": THROUGHPUT, "graph": REGIME, "null": REGIME,
             "events": Obj({**REGIME.fields, "clock": TEXT}), "events_error": TEXT,
             "own_timer": Obj({"tool": TEXT, "median_s": OPT_SECONDS, "calls": OPT_COUNT, "failed": TEXT,
-                              "ours_s": OPT_SECONDS, "rounds": OPT_COUNT}),
+                              "ours_s": OPT_SECONDS, "rounds": OPT_COUNT, "block": OPT_COUNT,
+                              "ours_call_s": OPT_SECONDS, "ratio": OPT_POSITIVE}),
             # the cell's figures over several worker processes (compare.repeats)
             "processes": Obj({"count": COUNT, "order": TEXT, "interval": TEXT, "failed": COUNT},
                              rest=Obj({"values": Seq(POSITIVE, null=False), "median_s": POSITIVE,

@@ -27,7 +27,7 @@ import numpy as np
 
 import backends
 import scenarios
-from backends.base import Backend
+from backends.base import OWN_TIMER_S, Backend
 from compare import noise, phases, scaleout, timing
 from compare.gate import Gate
 from compare.nvml import open_nvml
@@ -108,25 +108,39 @@ def graph_regime(be: Backend, device: str, kernel: Any, sync: Any, max_time: flo
 OWN_TIMER_BELOW_S = 0.01     # the framework's own timer cross-checks per-call cells, not long ones
 
 
-CROSS_ROUNDS = 3     # our clock and the framework's own, alternated: the same minutes of the process
+CROSS_ROUNDS = 7     # our clock and the framework's own, alternated: the same minutes of the process
+
+
+def in_blocks(times: list[float], block: int) -> float:
+    """The median of the means of ``block`` consecutive calls: a tool's statistic (a timer that
+    reports blocks' means, as torch.utils.benchmark does) applied to our own per-call times."""
+    block = max(1, min(block, len(times)))
+    means = [float(np.mean(times[i:i + block])) for i in range(0, len(times) - block + 1, block)]
+    return float(np.median(means))
 
 
 def own_latency(be: Backend, device: str, run: Any, sync: Any) -> dict[str, Any] | None:
     """The framework's own timing of one call + synchronise (``Backend.own_latency``) alternated
-    with our latency clock over the same call, ``CROSS_ROUNDS`` times each, so the two are
-    compared in the same stretch of the process: the medians of both, or why not."""
-    theirs, ours = [], []
+    with our latency clock over the same call, ``CROSS_ROUNDS`` stretches each, so the two are
+    compared in the same minutes of the process, and in the same statistic (a timer's median of
+    blocks' means against ours in blocks of its size: a long tail of slow calls moves a mean, not
+    a median). Returns the tool's median, ours in its statistic (``ours_s``), our latency's own
+    statistic in those stretches (``ours_call_s``) and the median of the rounds' ratios."""
+    theirs, ours, per_call, ratios = [], [], [], []
     try:
         for _ in range(CROSS_ROUNDS):
             got = be.own_latency(device, lambda: sync(run()))
             if got is None:             # the framework ships no timer: nothing more to time
                 return None
+            times = timing.until(lambda: timing.call(run, sync), 10, OWN_TIMER_S, 1.0, 100_000)
             theirs.append(got["median_s"])
-            ours.append(timing.summarise(timing.until(lambda: timing.call(run, sync), 10, 0.05, 1.0,
-                                                       100_000))["median_s"])
+            ours.append(in_blocks(times, int(got.get("block") or 1)))
+            per_call.append(float(np.median(times)))
+            ratios.append(ours[-1] / theirs[-1])
     except Exception as exc:  # a cross-check failing is a note, never the cell
         return {"failed": f"{type(exc).__name__}: {str(exc).strip()[:200]}"}
     return {**got, "median_s": float(np.median(theirs)), "ours_s": float(np.median(ours)),
+            "ours_call_s": float(np.median(per_call)), "ratio": float(np.median(ratios)),
             "rounds": CROSS_ROUNDS}
 
 

@@ -194,3 +194,32 @@ def test_cpu_cells_are_judged_against_a_copy_of_their_own_size():
     assert "same size (1 MiB per array" in small["throughput"]["floor"]
     assert big["throughput"]["floor_s"] == pytest.approx(3 * 4 * 2**27 / 20e9)
     assert "same size" not in big["throughput"]["floor"]
+
+
+def test_the_own_timer_is_compared_in_its_own_statistic():
+    """A timer that reports blocks' means is compared with our calls in blocks of its size: a
+    tail of slow calls (one in ten, 10x) moves a mean, not a median."""
+    from compare.worker import in_blocks
+    times = [1.0] * 9 + [10.0]
+    assert in_blocks(times * 10, 1) == 1.0
+    assert in_blocks(times * 10, 10) == pytest.approx(1.9)
+    assert in_blocks(times, 50) == pytest.approx(1.9)      # fewer calls than a block: one block
+
+
+def test_the_own_timer_alternates_with_our_clock_round_by_round():
+    from compare import worker
+
+    class Timed:                    # the framework's own timer: a fixed figure in blocks of 4
+        def own_latency(self, device, call):
+            call()
+            return {"tool": "fake", "median_s": 0.002, "calls": 8, "block": 4}
+
+    out = worker.own_latency(Timed(), "cpu", lambda: time.sleep(0.001), lambda r: None)
+    assert out["rounds"] == worker.CROSS_ROUNDS and out["block"] == 4 and out["tool"] == "fake"
+    assert 0.001 <= out["ours_call_s"] <= out["ours_s"] * 1.5
+    assert out["ratio"] == pytest.approx(out["ours_s"] / 0.002, rel=0.5)
+
+    class Failing:
+        def own_latency(self, device, call):
+            raise RuntimeError("no timer today")
+    assert worker.own_latency(Failing(), "cpu", lambda: None, lambda r: None)["failed"].startswith("RuntimeError")

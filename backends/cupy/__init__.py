@@ -27,7 +27,7 @@ import numpy as np
 
 from scenarios.base import dtype_of
 
-from ..base import Backend, Precision, not_installed
+from ..base import OWN_TIMER_S, Backend, Precision, not_installed
 
 # One CUDA 12 wheel; on a CUDA 13 driver/toolkit install cupy-cuda13x instead (same import name,
 # same code here): pick the wheel whose major version matches `nvidia-smi`'s "CUDA Version".
@@ -150,9 +150,9 @@ class CupyBackend(Backend):
         if device != "cuda":
             return None
         from cupyx.profiler import benchmark
-        r = benchmark(call, n_repeat=100_000, n_warmup=10, max_duration=0.2)
+        r = benchmark(call, n_repeat=100_000, n_warmup=10, max_duration=OWN_TIMER_S)
         return {"tool": "cupyx.profiler.benchmark (cpu_times)", "median_s": float(np.median(r.cpu_times)),
-                "calls": int(len(r.cpu_times))}
+                "calls": int(len(r.cpu_times)), "block": 1}
 
     def capture(self, device: str, run: Any) -> Any:
         """One ``run()`` recorded on a non-blocking stream (``Stream.begin_capture`` /

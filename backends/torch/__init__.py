@@ -28,7 +28,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..base import Backend, Precision, not_installed, visible_gpus
+from ..base import OWN_TIMER_S, Backend, Precision, not_installed, visible_gpus
 
 CPU_WHEEL = "pip install torch --index-url https://download.pytorch.org/whl/cpu"
 
@@ -139,14 +139,15 @@ class TorchCuda(Backend):
         return TorchEvents() if device == "cuda" else None
 
     def own_latency(self, device: str, call: Any) -> dict[str, Any] | None:
-        """``torch.utils.benchmark.Timer`` (blocks of calls on the wall clock, median per call)."""
+        """``torch.utils.benchmark.Timer.blocked_autorange``: the median of its blocks' mean call
+        (``block`` calls a block), not of single calls."""
         import torch
         from torch.utils import benchmark
         # the Timer runs on one thread unless told: the cell's own thread count (CPU cells)
         m = benchmark.Timer(stmt="call()", globals={"call": call},
-                            num_threads=torch.get_num_threads()).blocked_autorange(min_run_time=0.2)
+                            num_threads=torch.get_num_threads()).blocked_autorange(min_run_time=OWN_TIMER_S)
         return {"tool": "torch.utils.benchmark.Timer.blocked_autorange", "median_s": float(m.median),
-                "calls": int(m.number_per_run * len(m.times))}
+                "calls": int(m.number_per_run * len(m.times)), "block": int(m.number_per_run)}
 
     def memory(self, device: str) -> dict[str, Any]:
         return allocator_memory(torch_device(device)) if device == "cuda" else {}

@@ -21,11 +21,17 @@ def harness_table(recs: list[Record]) -> Table:
         ev = data.num((events_of(t) or {}).get("median_s"))
         own = t.get("own_timer") or {}
         own_s = data.num(own.get("median_s"))
-        # ours in the same process: alternated with the own timer where recorded, else that
-        # process's latency regime (never the median across processes)
-        ours = data.num(own.get("ours_s")) or data.num((t.get("latency") or {}).get("median_s"))
-        ratio = f"{ours / own_s:.2f}" if ours and own_s else "-"
+        # ours in the same process: alternated with the own timer where recorded (in its statistic
+        # since the record has ``block``), else that process's latency regime (never the median
+        # across processes)
+        ours = (data.num(own.get("ours_s")) or data.num((t.get("latency") or {}).get("median_s"))) if own_s else None
+        ratio = data.num(own.get("ratio")) or (ours / own_s if ours and own_s else None)
+        how = (f"{own['rounds']} rounds" if own.get("rounds") else "once") + \
+            (f", blocks of {own['block']}" if own.get("block") else "")
         rows.append((r.backend, r.variant, fmt.seconds(lat.median if lat else None), fmt.seconds(null),
-                     fmt.seconds(ev), fmt.seconds(own_s), str(own.get("tool") or own.get("failed") or "-"), ratio))
+                     fmt.seconds(ev), fmt.seconds(own_s), str(own.get("tool") or own.get("failed") or "-"),
+                     fmt.seconds(ours), f"{ratio:.2f}" if ratio else "-", how if own_s else "-",
+                     fmt.seconds(data.num(own.get("ours_call_s")))))
     return Table(("framework", "variant", "latency (ours)", "null call", "device events", "own timer",
-                  "own timer's tool", "ours / own, one process"), tuple(rows))
+                  "own timer's tool", "ours, its statistic", "ours / own", "alternated",
+                  "ours per call, same stretches"), tuple(rows))

@@ -109,8 +109,12 @@ def per_call(c: Ctx) -> Page:
                      "synchronise, in the same worker) is the floor that regime can show; device events "
                      "are a separate pass of calls (the GPU's own time of one call, never mixed into the "
                      "latency); the framework's own timing utility, where it ships one, times the same "
-                     "call + synchronise as its users would: 'ours / own' near 1 says the harness adds "
-                     "nothing."), harness_table(mine)]
+                     "call + synchronise as its users would, alternated with our clock in one stretch of "
+                     "the worker and compared in the tool's own statistic (torch.utils.benchmark "
+                     "reports the median of blocks' means: ours in blocks of its size); 'ours / own' "
+                     "(the median of the rounds' ratios) near 1 says the harness adds nothing. The "
+                     "last column is our latency's statistic, the median single call, in the same "
+                     "stretches: a tail of slow calls lifts a mean above it."), harness_table(mine)]
     return blocks
 
 
