@@ -9,6 +9,8 @@
 #   device call N:     ... && COMMIT=<this checkout's HEAD> bash docs/results/h100/percall.sh start
 #   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT)
 #   next calls:        bash docs/results/h100/percall.sh          (until it says "ended")
+# RUNS names the runs (default "a b"); they run in a copy of the tree (/root/tree), so that a later
+# call's fresh copy of the working tree cannot change a module under a running worker.
 set -u
 W=/root/percall
 WAIT=${WAIT:-540}
@@ -16,9 +18,11 @@ export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 COMPARE_GIT_COMMIT=${COMMIT:
 run="python -m compare run saxpy --devices cuda --precision float32 --variants all --processes 6 --no-plots"
 if [ "${1:-wait}" = start ]; then
   [ -n "${COMMIT:-}" ] || { echo "name the commit: COMMIT=<sha> bash $0 start"; exit 2; }
-  mkdir -p "$W"
+  mkdir -p "$W" && rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu . | tar -x -C /root/tree
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
-  setsid nohup bash -c "$run --out $W/a; $run --out $W/b; echo ALL-DONE" > "$W/log" 2>&1 &
+  script="cd /root/tree; export PYTHONPATH=/tmp/site:/root/tree; "
+  for r in ${RUNS:-a b}; do script+="$run --out $W/$r; "; done
+  setsid nohup bash -c "$script echo ALL-DONE" > "$W/log" 2>&1 &
   echo $! > "$W/pid"
 fi
 end=$((SECONDS + WAIT))
