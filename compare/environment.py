@@ -67,6 +67,15 @@ def gpus() -> list[dict[str, str]]:
     return rows
 
 
+DIRTY_PATHS_KEPT = 20     # a run names at most this many uncommitted paths (and how many more)
+
+
+def dirty_paths() -> list[str]:
+    """The tracked paths with uncommitted changes in this checkout (empty: clean, or no git)."""
+    out = _run(["git", "status", "--porcelain", "--untracked-files=no"])
+    return [line[3:].split(" -> ")[-1] for line in out.splitlines() if len(line) > 3]
+
+
 def collect(argv: list[str] | None = None) -> dict[str, Any]:
     versions = {}
     for pkg in packages():
@@ -78,6 +87,7 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
     import psutil
     cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []
     commit = os.environ.get("COMPARE_GIT_COMMIT", "").strip()
+    dirty = [] if commit else dirty_paths()
     return {
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "hostname": platform.node(),
@@ -90,7 +100,10 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
         # A copied tree (e.g. on a lent GPU machine) may carry a stale or no .git: the caller then
         # names the commit it copied in COMPARE_GIT_COMMIT, and dirtiness is unknown (None).
         "git_commit": commit or _run(["git", "rev-parse", "--short", "HEAD"]),
-        "git_dirty": None if commit else bool(_run(["git", "status", "--porcelain", "--untracked-files=no"])),
+        "git_dirty": None if commit else bool(dirty),
+        **({"git_dirty_paths": dirty[:DIRTY_PATHS_KEPT] + ([f"... and {len(dirty) - DIRTY_PATHS_KEPT} more"]
+                                                         if len(dirty) > DIRTY_PATHS_KEPT else [])}
+           if dirty else {}),
         "command": " ".join(["python -m compare"] + (argv if argv is not None else sys.argv[1:])),
     }
 

@@ -1,7 +1,7 @@
 """Run what a machine's report needs, then build its site (``python -m compare publish``).
 
     compare publish --out DIR [--part NAME[,NAME...]] [--list] [--devices ...] [--backends ...]
-                    [--timeout S] [--quick] [--budget S]
+                    [--timeout S] [--quick] [--budget S] [--allow-dirty]
 
 DIR is one machine's store, as docs/results/h100/ and cpu/ are: results.json, sweep.json,
 stress.json, and the site in DIR/report/. The parts, in order (``--list`` prints each command):
@@ -43,28 +43,19 @@ publish logs the attempt. A failed part does not stop later ones. --budget S: af
 is interrupted (its finished cells are kept) and none starts; the same command continues (under
 a 10-minute call limit, --budget 540 leaves time to copy DIR out).
 
+A checkout with uncommitted changes is refused (exit 2) unless --allow-dirty: a published store
+names the commit that measured it (each run keeps ``git_dirty_paths``). A copied tree whose .git
+may be stale names its commit in COMPARE_GIT_COMMIT and is taken on its word.
+
 Exit: 0 every selected part done with 0; 1 some part ended with 1 or failed (rerun); 2 bad usage
 (one line, nothing written); 3 stopped by --budget with parts left; 130 Ctrl-C.
 
-DIR/publish.json, the progress log (the site's machine page reads it; written atomically):
-
-    {"format_version": 1,
-     "parts": [{"name": "all",                    one entry per attempt, oldest first
-                "argv": ["all", "--devices", ...], the command after ``python -m compare``
-                "started": "2026-01-01T00:00:00+00:00",   ISO 8601, UTC
-                "seconds": 123.4,                  wall time (so far, updated each minute)
-                "exit_code": 0,                    null then; negative: ended by that signal
-                "interrupted": false,              true: publish stopped it (--budget, Ctrl-C)
-                "host": {"hostname", "cpu", "cores", "gpus": [{name, driver, memory}]}}]}
-
-Run time: the sum of ``seconds`` over ``parts``. History: 1, the first.
+DIR/publish.json, the progress log, and its format: compare/publish_log.py.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
-import json
 import os
 import shlex
 import signal
@@ -78,11 +69,10 @@ import backends
 import scenarios
 from compare import environment, options
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
-from compare.store import StoreError, atomic_write
+from compare.publish_log import host, load_log, save_log, started, state
 
-FORMAT_VERSION, LOG = 1, "publish.json"
 LOCK = ".publish.lock"         # publish's own lock: each part locks DIR itself while it writes
-DONE_CODES, EXIT_BUDGET = (0, 1), 3
+EXIT_BUDGET = 3
 GRACE_S, HEARTBEAT_S = 30.0, 60.0   # a driver saves and exits within seconds of SIGINT
 HOST_PROFILE_TOP, CHECK_SAMPLE, STAGED = 12, 4096, "stress-parts"
 SWEEPS = ("bandwidth", "scaling", "error", "horizon")
@@ -107,6 +97,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backends", default="all", help="comma-separated backend names, or all")
     p.add_argument("--timeout", type=options.seconds, default=None, help="seconds before a cell is killed")
     p.add_argument("--quick", action="store_true", help="pass --quick to every part (small sizes: CI)")
+    p.add_argument("--allow-dirty", action="store_true",
+                   help="run from a checkout with uncommitted changes (its runs name the changed paths)")
     p.add_argument("--budget", type=options.seconds, default=None, metavar="S",
                    help="stop after S seconds (the running part keeps its finished cells)")
 
@@ -200,78 +192,6 @@ def select(parts: list[Part], spec: str | None) -> list[Part]:
     if bad:
         raise UsageError(f"unknown part {bad[0]!r} ({known})")
     return [p for p in parts if p.name in names or any(p.name.startswith(g + "-") for g in names if g in GROUPS)]
-
-
-# ---- the log ------------------------------------------------------------------------------
-def load_log(out: Path) -> dict[str, Any]:
-    """DIR/publish.json (an empty log when absent); a malformed one is refused in one line."""
-    path = Path(out) / LOG
-    if not path.exists():
-        return {"format_version": FORMAT_VERSION, "parts": []}
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise StoreError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
-    if not isinstance(data, dict) or data.get("format_version") != FORMAT_VERSION:
-        raise StoreError(f"{path}: not a publish log of format {FORMAT_VERSION}")
-    parts = data.get("parts")
-    if not isinstance(parts, list) or not all(
-            isinstance(e, dict) and isinstance(e.get("name"), str) and isinstance(e.get("argv"), list)
-            and (e.get("exit_code") is None or type(e["exit_code"]) is int) for e in parts):
-        raise StoreError(f"{path}: 'parts' must be a list of objects with a name, an argv, an exit_code")
-    return data
-
-
-def identity(argv: Any, out: str) -> list[str]:
-    """A command as compared for 'the same part': --timeout aside, paths under DIR relative to it."""
-    base = Path(out).resolve()
-    words, skip = [], False
-    for w in map(str, argv):
-        if skip or w == "--timeout":
-            skip = not skip
-            continue
-        r = Path(w).resolve()
-        words.append(("DIR/" + str(r.relative_to(base))) if r == base or base in r.parents else w)
-    return words
-
-
-def cut_off(e: dict[str, Any]) -> bool:
-    code = e.get("exit_code")
-    return code is None or bool(e.get("interrupted")) or code == EXIT_INTERRUPTED or code < 0
-
-
-def state(part: Part, log: dict[str, Any], out: str) -> str:
-    """'done', 'done (exit 1 ...)', 'given up ...', or why the part is to run. A measuring part is
-    judged by its latest attempt with the same command, a derived one by its latest attempt."""
-    mine = [(i, e) for i, e in enumerate(log["parts"]) if e["name"] == part.name
-            and (part.reads or identity(e["argv"], out) == identity(part.argv, out))]
-    if not mine:
-        return "to run"
-    (i, e), code = mine[-1], mine[-1][1].get("exit_code")
-    if code in DONE_CODES and not cut_off(e):
-        newer = [r for r in part.reads if any(k > i and x["name"] == r for k, x in enumerate(log["parts"]))]
-        return (f"to run ({', '.join(newer)} ran since)" if newer else
-                "done" if code == 0 else "done (exit 1: some cells mismatch or error)")
-    if not part.resumes and len(mine) > 1 and all(cut_off(x) for _, x in mine[-2:]):
-        return (f"given up (cut off twice: longer than one call; run it per backend, "
-                f"--part {part.name} --backends B)")
-    return "to run (" + ("publish was killed during it" if code is None else "interrupted" if e.get("interrupted")
-                         else f"last attempt exited {code}") + ")"
-
-
-def host() -> dict[str, Any]:
-    import platform
-    cores = environment.usable_cores()
-    return {"hostname": platform.node(), "cpu": environment.cpu_model(), "cores": cores,
-            "gpus": environment.gpus()}
-
-
-def save_log(out: Path, log: dict[str, Any]) -> None:
-    atomic_write(Path(out) / LOG, json.dumps(log, indent=1))
-
-
-def started() -> str:
-    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
 # ---- running ------------------------------------------------------------------------------
@@ -377,6 +297,20 @@ def print_list(parts: list[Part], chosen: list[Part], log: dict[str, Any], out_s
         print(f"  {n}")
 
 
+def refuse_dirty(allowed: bool) -> None:
+    """A published store names the commit that measured it: a checkout with uncommitted changes
+    is refused unless allowed. A copied tree names its commit (COMPARE_GIT_COMMIT) and is taken
+    on its word: its .git may be stale."""
+    if allowed or os.environ.get("COMPARE_GIT_COMMIT", "").strip():
+        return
+    paths = environment.dirty_paths()
+    if paths:
+        more = f" and {len(paths) - 3} more" if len(paths) > 3 else ""
+        raise UsageError(f"the checkout has uncommitted changes ({', '.join(paths[:3])}{more}): a published "
+                         "store names the commit that measured it; commit them, or pass --allow-dirty "
+                         "(the runs then name the changed paths)")
+
+
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     options.check_output(args.out)
     devices = (options.names(args.devices, backends.DEVICES, "devices") if args.devices is not None
@@ -387,6 +321,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     if args.list:
         print_list(parts, chosen, log, args.out, devices, notes)
         return EXIT_OK
+    refuse_dirty(args.allow_dirty)
     from compare.lock import Busy, DirectoryLock
     out = options.output_directory(args.out)
     lock = DirectoryLock(out)

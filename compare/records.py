@@ -287,7 +287,7 @@ def _sweep_problem(rec: dict[str, Any]) -> str | None:
 RUN = Obj({
     "created": OPT_TEXT, "hostname": OPT_TEXT, "os": OPT_TEXT, "cpu": OPT_TEXT, "python": OPT_TEXT,
     "cuda_toolkit": OPT_TEXT, "command": OPT_TEXT, "git_commit": OPT_TEXT, "git_note": OPT_TEXT,
-    "git_dirty": FLAG, "cores": OPT_COUNT, "memory_gib": OPT_AMOUNT,
+    "git_dirty": FLAG, "git_dirty_paths": Seq(TEXT, null=False), "cores": OPT_COUNT, "memory_gib": OPT_AMOUNT,
     # readers write env.get("gpus", []) and index a GPU's three names: present means a list
     "gpus": Seq(Obj({"name": TEXT, "driver": TEXT, "memory": TEXT}, ("name", "driver", "memory"), null=False),
                 null=False),

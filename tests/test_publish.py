@@ -11,10 +11,11 @@ import time
 import pytest
 
 from conftest import ROOT
-from compare import cli, publish
+from compare import cli, environment, publish
 
 pytestmark = pytest.mark.cli
-NUMPY = ["--backends", "numpy", "--devices", "cpu", "--quick"]
+# --allow-dirty: a developer's checkout may hold uncommitted changes (the guard has its own test)
+NUMPY = ["--backends", "numpy", "--devices", "cpu", "--quick", "--allow-dirty"]
 H100 = {"cpu": 120 * 2**30, "cuda": 79 * 2**30}
 
 
@@ -95,6 +96,34 @@ def test_empty_out_and_a_bad_log_are_refused(tmp_path, capsys):
     assert cli.main(["publish", "--out", str(tmp_path), *NUMPY]) == 2
     assert "not a publish log" in capsys.readouterr().err
     assert sorted(os.listdir(tmp_path)) == ["publish.json"]
+
+
+def test_a_dirty_checkout_is_refused_unless_allowed(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(environment, "dirty_paths", lambda: ["compare/x.py", "b.py", "c.py", "d.py"])
+    monkeypatch.delenv("COMPARE_GIT_COMMIT", raising=False)
+    out = tmp_path / "m"
+    args = ["publish", "--out", str(out), "--backends", "numpy", "--devices", "cpu", "--quick"]
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "uncommitted changes (compare/x.py, b.py, c.py and 1 more)" in err[0], err
+    assert "--allow-dirty" in err[0] and not out.exists()
+    assert cli.main([*args, "--list"]) == 0 and not out.exists()      # listing runs nothing
+    publish.refuse_dirty(allowed=True)                                 # allowed: the runs name the paths
+    monkeypatch.setenv("COMPARE_GIT_COMMIT", "abc1234")                # a copied tree names its commit
+    publish.refuse_dirty(allowed=False)
+
+
+def test_a_run_names_its_uncommitted_paths(monkeypatch):
+    monkeypatch.delenv("COMPARE_GIT_COMMIT", raising=False)
+    many = [f"f{i}.py" for i in range(environment.DIRTY_PATHS_KEPT + 5)]
+    monkeypatch.setattr(environment, "dirty_paths", lambda: many)
+    env = environment.collect([])
+    assert env["git_dirty"] is True and env["git_dirty_paths"][:2] == ["f0.py", "f1.py"]
+    assert env["git_dirty_paths"][-1] == "... and 5 more"
+    monkeypatch.setattr(environment, "dirty_paths", lambda: [])
+    assert environment.collect([])["git_dirty"] is False and "git_dirty_paths" not in environment.collect([])
+    monkeypatch.setenv("COMPARE_GIT_COMMIT", "abc1234")
+    assert environment.collect([])["git_dirty"] is None
 
 
 def test_states_of_the_log():

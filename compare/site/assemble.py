@@ -101,13 +101,23 @@ def machine(c: qp.Ctx) -> list[Any]:
         blocks.append(P("No publish log (publish.json) beside these records: they were assembled from "
                         "the runs below, not by one `python -m compare publish`."))
     blocks += [H("Runs that produced these records"),
-               Table(("created", "commit", "command"), tuple(
-                   (str(e.get("created", "?"))[:19], str(e.get("git_commit", "?")), str(e.get("command", "?")))
+               Table(("created", "commit", "tree", "command"), tuple(
+                   (str(e.get("created", "?"))[:19], str(e.get("git_commit", "?")), _tree(e), str(e.get("command", "?")))
                    for e in envs))]
     blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
                              + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "
                              + pages.doc_link(c.out, "findings.md") + ".")]
     return blocks
+
+
+def _tree(env: dict) -> str:
+    """Whether the run's checkout was committed: clean, its uncommitted paths, or not known."""
+    if env.get("git_dirty") is None:
+        return "not known" + (f" ({env['git_note']})" if env.get("git_note") else "")
+    if not env["git_dirty"]:
+        return "clean"
+    paths = env.get("git_dirty_paths") or []
+    return "uncommitted changes" + (f": {', '.join(paths)}" if paths else "")
 
 
 BUILDERS = {**{k: build for k, (_, build) in topics.PAGES.items()},

@@ -5,7 +5,9 @@
 # copies what it has so far to $OUT:
 #
 #   device calls 1..N: bash .gpu/pK/install.sh   (wheels the GPU image lacks: ../shared/gpu/stage-wheels)
-#   device call N:     ... && bash docs/results/h100/publish.sh start "BACKENDS:PARTS" ["BACKENDS:PARTS" ...]
+#   device call N:     ... && COMMIT=<this checkout's HEAD> bash docs/results/h100/publish.sh start "BACKENDS:PARTS" ...
+#   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT; commit first,
+#   as publish refuses uncommitted changes)
 #   (a later machine: unpack the last publish.tgz into .pubstate/ and carry it in that call)
 #   next calls:        bash docs/results/h100/publish.sh wait     (until it says "publish ended")
 #
@@ -16,9 +18,10 @@
 set -u
 W=/root/publish
 WAIT=${WAIT:-540}
-export PYTHONPATH=/tmp/site:$PWD
+export PYTHONPATH=/tmp/site:$PWD COMPARE_GIT_COMMIT=${COMMIT:-}
 if [ "${1:-wait}" = start ]; then
   shift
+  [ -n "${COMMIT:-}" ] || { echo "name the commit: COMMIT=<sha> bash $0 start ..."; exit 2; }
   mkdir -p "$W"
   # a carried .pubstate/ (an earlier machine's --out, unpacked) lets --resume skip what it finished
   [ -d .pubstate ] && cp -r .pubstate/. "$W"/ && rm -f "$W"/.*.lock
