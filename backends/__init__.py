@@ -6,8 +6,12 @@ driver can list backends without paying framework start-up; frameworks load insi
 from __future__ import annotations
 
 import importlib
+import importlib.util
+import os
 import pkgutil
+import sys
 from pathlib import Path
+from types import ModuleType
 
 from scenarios.base import ParamError
 
@@ -29,26 +33,49 @@ class Broken(Backend):
 PROBLEMS: list[str] = []
 
 
+EXTRA = "COMPARE_BACKENDS_EXTRA"   # folders of further backend packages (the tests' own: tests/extra_backends)
+
+
+def _packages() -> list[tuple[str, Path]]:
+    """(name, folder) of every backend package: this folder's, then those of the EXTRA folders."""
+    roots = [Path(__file__).parent] + [Path(p) for p in os.environ.get(EXTRA, "").split(os.pathsep) if p]
+    return [(m.name, root) for root in roots
+            for m in sorted(pkgutil.iter_modules([str(root)]), key=lambda m: m.name) if m.ispkg]
+
+
+def _import(name: str, root: Path) -> ModuleType:
+    if root == Path(__file__).parent:
+        return importlib.import_module(f"{__name__}.{name}")
+    qualified = f"compare_extra_backends.{name}"     # never shadows a framework's own package name
+    spec = importlib.util.spec_from_file_location(qualified, root / name / "__init__.py",
+                                                  submodule_search_locations=[str(root / name)])
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no package at {root / name}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[qualified] = module
+    spec.loader.exec_module(module)
+    return module
+
+
 def _discover() -> dict[str, Backend]:
     found: dict[str, Backend] = {}
-    for mod in sorted(pkgutil.iter_modules([str(Path(__file__).parent)]), key=lambda m: m.name):
-        if not mod.ispkg:
-            continue
-        where = f"backends/{mod.name}"
+    for name, root in _packages():
+        where = f"backends/{name}" if root == Path(__file__).parent else str(root / name)
+        mod_name = name
         try:
-            pkg = importlib.import_module(f"{__name__}.{mod.name}")
+            pkg = _import(name, root)
             backend = getattr(pkg, "BACKEND", None)
         except Exception as exc:  # a broken port must not take the driver down: list it as unusable
-            backend = Broken(mod.name, f"backend package failed to import: {type(exc).__name__}: {exc}")
+            backend = Broken(mod_name, f"{where}: backend package failed to import: {type(exc).__name__}: {exc}")
         if backend is None:
             continue                          # a helper package, not a backend
         if not isinstance(backend, Backend):
-            backend = Broken(mod.name, f"{where}: BACKEND is a {type(backend).__name__}, not a Backend")
+            backend = Broken(mod_name, f"{where}: BACKEND is a {type(backend).__name__}, not a Backend")
         name = getattr(backend, "name", None)
         if not isinstance(name, str) or not name:
-            backend = Broken(mod.name, f"{where}: BACKEND has no name (set the class attribute 'name')")
+            backend = Broken(mod_name, f"{where}: BACKEND has no name (set the class attribute 'name')")
         elif name in found:
-            backend = Broken(mod.name, f"{where}: BACKEND calls itself {name!r}, which "
+            backend = Broken(mod_name, f"{where}: BACKEND calls itself {name!r}, which "
                                        f"{found[name].__module__.replace('.', '/')} already is; rename one")
         elif not isinstance(getattr(backend, "package", None), str):
             backend = Broken(name, f"{where}: BACKEND has no package (the pip distribution it needs)")

@@ -65,17 +65,6 @@ def peak_rss_bytes() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * scale
 
 
-def injected_fault(cell: Cell) -> str | None:
-    """Test hook: COMPARE_FAULT="<scenario>/<backend>:<kind>" (kind: crash, hang, raise, mismatch, oom)
-    makes matching cells misbehave, so the driver's handling of each failure can be tested."""
-    rule = os.environ.get("COMPARE_FAULT", "")
-    if ":" not in rule:
-        return None
-    target, kind = rule.rsplit(":", 1)
-    return kind if target == f"{cell.scenario}/{cell.backend}" else None
-
-
-
 def apply_cache_policy(policy: str, backend: Backend, out_dir: Path) -> str:
     """Point the backend's on-disk kernel caches at empty directories inside the cell's own
     temporary directory (deleted with it), so first_call_s always includes compilation; set before
@@ -233,20 +222,6 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     if not isinstance(got, dict):
         raise ContractError(f"contract: outputs() returned {type(got).__name__}, not a dict of arrays")
     outputs = {k: np.asarray(v) for k, v in got.items()}
-
-    fault = injected_fault(cell)
-    if fault == "crash":
-        os.abort()
-    if fault == "hang":
-        time.sleep(10**6)
-    if fault == "raise":
-        raise RuntimeError("injected fault")
-    if fault == "oom":   # out of memory, safely: cap this process's address space, then exceed it
-        import resource
-        resource.setrlimit(resource.RLIMIT_AS, (2**31, resource.getrlimit(resource.RLIMIT_AS)[1]))
-        np.ones(2**31, dtype=np.float64)
-    if fault == "mismatch":
-        outputs = {k: v + np.asarray(1, v.dtype) if v.dtype.kind == "f" else v for k, v in outputs.items()}
 
     if cell.throughput:     # after the download: a failed capture cannot touch the outputs
         regimes["graph"] = graph_regime(be, device, kernel, sync, cell.max_time)

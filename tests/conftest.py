@@ -12,6 +12,7 @@ import pytest
 pytest.register_assert_rewrite("hand_adjoint", "oracle_checks", "reliability_checks")
 
 ROOT = Path(__file__).resolve().parent.parent
+FAULTY = ROOT / "tests" / "extra_backends"    # COMPARE_BACKENDS_EXTRA: the tests' faulty backend
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

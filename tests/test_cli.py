@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from compare.hardware import matched_copy
-from conftest import ROOT
+from conftest import FAULTY, ROOT
 
 pytestmark = pytest.mark.cli
 
@@ -180,9 +180,11 @@ def test_report_page_links_tables_and_pictures_and_leaves_the_source(quick_run, 
     ("oom", "error", "MemoryError"),
 ])
 def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, status, needle):
-    # the driver's handling is the same for every backend: NumPy's cells start without compiling
-    monkeypatch.setenv("COMPARE_FAULT", f"saxpy/numpy:{fault}")
-    p = compare("run", "saxpy", "sdf", "--quick", "--backends", "numpy", "--devices", "cpu", "--precision",
+    # the driver's handling is the same for every backend: the tests' faulty backend (NumPy's
+    # kernels, which start without compiling) fails saxpy's cell on request
+    monkeypatch.setenv("COMPARE_BACKENDS_EXTRA", str(FAULTY))
+    monkeypatch.setenv("COMPARE_FAULT", f"saxpy:{fault}")
+    p = compare("run", "saxpy", "sdf", "--quick", "--backends", "faulty", "--devices", "cpu", "--precision",
                 "float32", "--repeat", "1", "--timeout", "8", "--out", str(tmp_path), "--no-plots")
     assert p.returncode == 1, p.stderr
     recs = json.loads((tmp_path / "results.json").read_text())["records"]

@@ -11,6 +11,7 @@ A copy of the repository gets backends written by following README's steps alone
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -183,6 +184,29 @@ def test_list_names_problems_in_one_line_each(repo):
     assert "backends/twin: BACKEND calls itself 'tiny'" in problems
     assert "tiny: no optional" in problems and "launch.py" in problems     # optional: listed
     assert "tiny " in p.stdout.split("problems:")[0]        # the first 'tiny' is the one used
+
+
+def test_extra_backend_folders_are_discovered_and_their_problems_listed(tmp_path):
+    """COMPARE_BACKENDS_EXTRA (the tests' own backends): a package there is a backend like any
+    other; one that fails to import or takes a taken name is a listed problem, not a crash."""
+    extra = tmp_path / "extra"
+    shutil.copytree(ROOT / "tests" / "extra_backends" / "faulty", extra / "faulty")
+    (extra / "boom").mkdir()
+    (extra / "boom" / "__init__.py").write_text("raise RuntimeError('no such framework')\n")
+    (extra / "again").mkdir()
+    (extra / "again" / "__init__.py").write_text(
+        "from backends.numpy import NumpyBackend\nBACKEND = NumpyBackend()\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "COMPARE_BACKENDS_EXTRA": str(extra)}
+    p = subprocess.run([sys.executable, "-m", "compare", "list"], cwd=ROOT, capture_output=True, text=True,
+                       env=env, timeout=300)
+    assert p.returncode == 0 and "Traceback" not in p.stderr, p.stderr
+    listed, problems = p.stdout.split("problems:", 1)
+    assert "\n  faulty " in listed
+    assert "boom" in problems and "RuntimeError: no such framework" in problems
+    assert f"{extra / 'again'}: BACKEND calls itself 'numpy'" in problems
+    plain = subprocess.run([sys.executable, "-m", "compare", "list"], cwd=ROOT, capture_output=True, text=True,
+                           env={k: v for k, v in env.items() if k != "COMPARE_BACKENDS_EXTRA"}, timeout=300)
+    assert "faulty" not in plain.stdout                        # only where the tests install it
 
 
 @pytest.mark.xdist_group("repo")

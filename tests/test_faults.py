@@ -17,6 +17,7 @@ import pytest
 from compare import options
 from compare.lock import Busy, DirectoryLock
 from compare.store import Store, atomic_write
+from conftest import FAULTY
 from reliability_checks import FIGURES, QUICK, compare_proc
 
 pytestmark = pytest.mark.cli
@@ -102,15 +103,17 @@ def test_sigkilled_driver_leaves_no_worker_no_temp_dir_and_a_stale_lock(tmp_path
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     out = tmp_path / "out"
-    env = {"TMPDIR": str(tmp), "COMPARE_FAULT": "saxpy/numba:hang"}
+    # the tests' faulty backend as Numba (a compiled worker), its saxpy cell hanging after the run
+    env = {"TMPDIR": str(tmp), "COMPARE_BACKENDS_EXTRA": str(FAULTY), "COMPARE_FAULTY_WRAPS": "numba"}
     args = ["saxpy", *QUICK, "--set", "n=1000", "--repeat", "1", "--min-time", "0", "--no-plots", "--out", str(out)]
-    driver = compare_proc(*args, env=env)
+    args[args.index("numba")] = "faulty"
+    driver = compare_proc(*args, env={**env, "COMPARE_FAULT": "saxpy:hang"})
     deadline = time.monotonic() + 120
     while not worker_pids(str(tmp)) and time.monotonic() < deadline:
         assert driver.poll() is None, driver.communicate()
         time.sleep(0.1)
     assert worker_pids(str(tmp)), "no worker started"
-    second = compare_proc(*args, env={"TMPDIR": str(tmp)})
+    second = compare_proc(*args, env=env)
     _, err = second.communicate(timeout=120)
     assert second.returncode == 2 and err.strip() == (
         f"error: --out {out}: in use by another compare driver (PID {driver.pid}); "
@@ -123,7 +126,7 @@ def test_sigkilled_driver_leaves_no_worker_no_temp_dir_and_a_stale_lock(tmp_path
     assert not worker_pids(str(tmp)), "a worker outlived its driver"
     assert not list(tmp.iterdir()), f"temporary files left: {list(tmp.iterdir())}"
     assert (out / ".compare.lock").read_text().strip() == str(driver.pid)       # stale
-    again = compare_proc(*args, "--resume", env={"TMPDIR": str(tmp)})
+    again = compare_proc(*args, "--resume", env=env)
     _, err = again.communicate(timeout=300)
     assert again.returncode == 0, err
     assert [r.status for r in Store.read(out / "results.json").records] == ["ok"]

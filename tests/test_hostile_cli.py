@@ -28,6 +28,7 @@ from compare.options import UsageError
 from compare.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
+FAULTY = ROOT / "tests" / "extra_backends"     # COMPARE_BACKENDS_EXTRA: the tests' faulty backend
 NUMPY = ("--backends", "numpy", "--devices", "cpu", "--quick", "--precision", "float32")
 FAST = ("--repeat", "1", "--min-time", "0", "--no-plots")
 pytestmark = pytest.mark.cli
@@ -272,7 +273,8 @@ def _tables(out: Path) -> tuple[list[tuple], list[tuple], str]:
 def test_tables_agree_with_results_json_after_a_kill_and_resume(tmp_path: Path) -> None:
     out = tmp_path / "out"
     args = ["run", "saxpy", "sdf", *NUMPY, *FAST, "--out", str(out)]
-    driver = compare_proc(*args, env={"COMPARE_FAULT": "sdf/numpy:hang"})
+    args[args.index("numpy")] = "faulty"          # the tests' backend: NumPy's kernels, sdf's hangs
+    driver = compare_proc(*args, env={"COMPARE_BACKENDS_EXTRA": str(FAULTY), "COMPARE_FAULT": "sdf:hang"})
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:            # saxpy saved; the sdf worker hangs
         if (out / "results.md").exists() and "\n## saxpy (" in (out / "results.md").read_text():
@@ -282,9 +284,9 @@ def test_tables_agree_with_results_json_after_a_kill_and_resume(tmp_path: Path) 
     driver.send_signal(signal.SIGKILL)
     driver.communicate()
     js, rows, md = _tables(out)
-    assert js == rows == [("saxpy", "numpy", "cpu", "float32", "ok")]
+    assert js == rows == [("saxpy", "faulty", "cpu", "float32", "ok")]
     assert "\n## saxpy (" in md and "\n## sdf (" not in md
-    rc, err = finished(compare_proc(*args, "--resume"))
+    rc, err = finished(compare_proc(*args, "--resume", env={"COMPARE_BACKENDS_EXTRA": str(FAULTY)}))
     assert rc == 0, err
     js, rows, md = _tables(out)
     assert js == rows and [c[0] for c in js] == ["saxpy", "sdf"] and "\n## sdf (" in md

@@ -26,6 +26,9 @@ for b in sys.argv[1].split(","):
     args = [sys.executable, "-m", "compare", "saxpy", "--quick", "--devices", "cuda", "--backends", b,
             "--precision", "float32", "--repeat", "1", "--min-time", "0", "--no-plots", "--out", str(out)]
     env = {**os.environ, "TMPDIR": str(tmp)}
+    # (2026-11-27: the fault hook moved from the worker to the tests' backend `faulty`: rerun with
+    # env COMPARE_BACKENDS_EXTRA=tests/extra_backends, COMPARE_FAULTY_WRAPS=b, COMPARE_FAULT=saxpy:hang
+    # and --backends faulty)
     drv = subprocess.Popen(args, env={**env, "COMPARE_FAULT": f"saxpy/{b}:hang"}, stdout=subprocess.DEVNULL,
                            stderr=subprocess.PIPE, text=True)
     t0 = time.monotonic()
