@@ -3,7 +3,7 @@
 A worker splits its cell's life into the parts below (seconds, wall clock); the driver adds the
 run's parts (probing the frameworks, the yardstick, the cells, writing tables and pictures) and
 prints one summary line, so a slow run says which part to cut. Only the timed parts (warm-up and
-latency, throughput, graph, host profile, null call) are measurement; the rest is what a run pays to get there.
+latency, throughput, graph, host profile, null call, own timer) are measurement; the rest is what a run pays to get there.
 """
 from __future__ import annotations
 
@@ -27,11 +27,12 @@ CELL_PARTS = {
     "graph": "graph",
     "host_profile": "host profile",
     "null": "null call",
+    "own_timer": "the framework's own timer (cross-check)",
     "check": "oracle and check",
     "record": "the record (kernel facts, versions, memory)",
     "save": "saving arrays",
 }
-TIMED = ("steady", "throughput", "graph", "host_profile", "null")
+TIMED = ("steady", "throughput", "graph", "host_profile", "null", "own_timer")
 
 
 class Laps:

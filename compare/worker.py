@@ -231,10 +231,13 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, cell.host_profile)
         laps.lap("host_profile")
     regimes["null"] = timing.null_call(sync)   # the harness's floor, on the now idle device
-    if regimes["latency"]["median_s"] < OWN_TIMER_BELOW_S:   # the framework's own clock, to cross-check
+    laps.lap("null")
+    # the framework's own clock, to cross-check ours: once per cell (the first process), in the
+    # same stretch of that process; a repeat process (compare.repeats) times the figures alone
+    if cell.check and regimes["latency"]["median_s"] < OWN_TIMER_BELOW_S:
         if (own := own_latency(be, device, kernel.run, sync)) is not None:
             regimes["own_timer"] = own
-    laps.lap("null")
+        laps.lap("own_timer")
     gate.release()
     times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
              "clock": timing.CLOCK, "timer": "wall",
