@@ -142,6 +142,14 @@ TEMP_MARK = ".compare-"       # in every temporary's name: clean-up touches no f
 OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
 
 
+def probe_write(directory: Path) -> None:
+    """Create and remove a temporary file in ``directory`` (named as the other temporaries, so a
+    killed probe's is cleaned up); an OSError where the directory takes no file."""
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".probe{TEMP_MARK}", suffix=TEMP_SUFFIX)
+    os.close(fd)
+    os.unlink(tmp)
+
+
 def remove_stale_temps(directory: Path) -> list[Path]:
     """Temporary files of atomic writes (``.NAME.compare-XXXX.tmp``) left in ``directory`` (and its
     arrays/ and plots/) by a driver that was killed mid-write; only call while holding the
