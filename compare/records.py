@@ -91,12 +91,10 @@ def too_deep(v: Any, limit: int = MAX_DEPTH) -> bool:
     stack = [(v, 1)]
     while stack:
         x, depth = stack.pop()
-        items = x.values() if isinstance(x, dict) else x if isinstance(x, (list, tuple)) else None
-        if items is None:
-            continue
-        if depth > limit:
-            return True
-        stack.extend((y, depth + 1) for y in items)
+        if isinstance(x, (dict, list, tuple)):
+            if depth > limit:
+                return True
+            stack.extend((y, depth + 1) for y in (x.values() if isinstance(x, dict) else x))
     return False
 
 
@@ -319,8 +317,9 @@ RUN = Obj({
     "gpus": Seq(Obj({"name": TEXT, "driver": TEXT, "memory": TEXT}, ("name", "driver", "memory"), null=False),
                 null=False),
     "packages": Obj(rest=TEXT, null=False), "hardware": Obj(rest=HARDWARE), "merged_from": Seq(TEXT, null=False),
-    "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT), "environments": Seq(Obj(null=False))},
-    null=False)
+    "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT)}, null=False)
+# a merged report's entry holds the runs it merged (its header shows each): runs, checked alike
+RUN.fields["environments"] = Seq(RUN)     # type: ignore[index]
 ROW_FIELDS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 ROW = Obj({**{k: TEXT for k in ROW_FIELDS}, "value": SCALAR}, ROW_FIELDS, null=False)
 PROVENANCE_RUN = Obj({"command": OPT_TEXT, "created": OPT_TEXT, "git_commit": OPT_TEXT,
@@ -335,13 +334,12 @@ def store_problem(data: dict[str, Any]) -> str | None:
     """The first problem of a parsed file's ``runs`` and ``analysis`` (its records are checked one
     by one as they load, ``compare.record.Record.from_json``), as 'runs[0].cores must be ...', or
     None."""
+    for where, block in [*((f"runs[{i}]", env) for i, env in enumerate(data["runs"])), ("analysis", data["analysis"])]:
+        if too_deep(block):             # first: the checks below recurse
+            return f"{where} is nested more than {MAX_DEPTH} levels deep"
     for i, env in enumerate(data["runs"]):
-        if too_deep(env):
-            return f"runs[{i}] is nested more than {MAX_DEPTH} levels deep"
         if (p := problem(RUN, env, f"runs[{i}]")) is not None:
             return p
-    if too_deep(data["analysis"]):
-        return f"analysis is nested more than {MAX_DEPTH} levels deep"
     if (p := problem(ANALYSIS, data["analysis"], "analysis")) is not None:
         return p
     return _rows_problem(data["analysis"].get("rows") or [])

@@ -142,6 +142,21 @@ TEMP_MARK = ".compare-"       # in every temporary's name: clean-up touches no f
 OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
 
 
+def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    """The run environments one entry of a store's ``runs`` stands for: the entry itself, or for
+    a merged report's entry (``merged_from``, written by ``compare report``) those it merged, in
+    order (a merge of merges flattened; the store bounds their nesting)."""
+    out: list[Mapping[str, Any]] = []
+    todo = [env]
+    while todo:
+        e = todo.pop(0)
+        if "merged_from" in e or "environments" in e:
+            todo[:0] = list(e.get("environments") or [])
+        else:
+            out.append(e)
+    return out
+
+
 def probe_write(directory: Path) -> None:
     """Create and remove a temporary file in ``directory`` (named as the other temporaries, so a
     killed probe's is cleaned up); an OSError where the directory takes no file."""

@@ -130,6 +130,8 @@ CASES: list[tuple[str, str, Callable[[dict[str, Any]], Any], Any, Any, str]] = [
      "runs[0].hardware.cuda.copy_bytes_per_s"),
     ("git-dirty-text", "run", at("runs", 0), ("git_dirty",), "yes", "runs[0].git_dirty"),
     ("command-list", "run", at("runs", 0), ("command",), ["python"], "runs[0].command must be a string"),
+    ("merged-run-gpus-text", "run", at("runs", 0), ("environments",), [{"gpus": "H100"}],
+     "runs[0].environments[0].gpus must be a list"),
     ("run-list", "run", at("runs"), (0,), [], "'runs' must be a list of objects"),
     ("records-object", "run", at(), ("records",), {}, "'records' must be a list"),
     ("knob-text", "sweep", ok("scaling"), ("tags", "knob"), "batch", "tags.knob must be an object"),
