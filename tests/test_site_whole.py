@@ -126,6 +126,12 @@ def test_a_rebuild_replaces_the_old_site_whole(site: Path) -> None:
     assert siblings(site) == []
 
 
+def test_the_rebuilt_folder_keeps_its_permissions(site: Path) -> None:
+    site.chmod(0o750)
+    assert run_main(["site", str(site.parent / "store"), "--out", str(site)]) == (0, [])
+    assert site.stat().st_mode & 0o777 == 0o750
+
+
 def test_without_an_atomic_exchange_two_renames_replace_it(site: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(whole, "_exchange", lambda a, b: False)
     assert run_main(["site", str(site.parent / "store"), "--out", str(site), "--title", "new"]) == (0, [])

@@ -21,6 +21,7 @@ import os
 import re
 import shutil
 import signal
+import stat
 import sys
 from pathlib import Path
 from typing import Callable
@@ -175,6 +176,8 @@ def write_whole(out: str | Path, write: Callable[[Path], list[Path]]) -> list[Pa
     remove_stale(out)
     tmp = temp_folder(out)
     tmp.mkdir()
+    if out.is_dir():            # the new folder keeps the old one's permissions
+        os.chmod(tmp, stat.S_IMODE(out.stat().st_mode))
     try:
         written = write(tmp)
         swap_in(tmp, out)
