@@ -158,7 +158,7 @@ def test_temporaries_of_dead_builds_are_removed_and_nothing_else(site: Path) -> 
     outside = site.parent / "outside"
     outside.mkdir()
     (outside / "keep.txt").write_text("keep")
-    for name in (f".site.building-{dead}", f".site.building-{dead}.old"):
+    for name in (f".site.building-{dead}", f".site.building-{dead}.old", f".site.building-{10**30}"):
         (site.parent / name / "figures").mkdir(parents=True)
         (site.parent / name / "index.html").write_text("half")
     (site.parent / f".site.building-{dead + 1}").symlink_to(outside)

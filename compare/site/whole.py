@@ -92,7 +92,7 @@ def temp_folder(out: Path, pid: int | None = None) -> Path:
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
-    except ProcessLookupError:
+    except (ProcessLookupError, OverflowError):     # gone, or a number no PID can be
         return False
     except OSError:                  # someone else's process (or not ours to ask): alive
         return True
