@@ -160,7 +160,7 @@ def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, aga
     site = {"index": (title, pages.index(c, title, empty))}
     for key, label in questions.PAGES.items():
         site[key] = (f"{label} — {m.name()}", BUILDERS[key](c))
-    if against:
+    if against and reference is not None:
         from compare.site import against as vs
         nav.append(("Against reference", "against.html"))
         site["against"] = (f"This machine against the reference — {m.name()}", vs.page(c, reference))

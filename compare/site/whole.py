@@ -4,11 +4,12 @@ A rebuild over an existing site must never leave the old pages linking figures t
 not drawn yet (or has deleted). So the build writes into ``.NAME.building-<pid>`` beside
 ``--out`` (the same parent: one filesystem, where a rename is atomic), then the two folders trade
 places in one step (``renameat2(RENAME_EXCHANGE)`` on Linux, ``renamex_np(RENAME_SWAP)`` on
-macOS; where neither exists the old is renamed away and the new one in, with Ctrl-C and SIGTERM
-held off between the two), and the old site, now under the temporary name, is deleted. A Ctrl-C
+macOS; where neither exists the old is renamed away and the new one in, a Ctrl-C or SIGTERM
+held until both are done), and the old site, now under the temporary name, is deleted. A Ctrl-C
 or crash at any point leaves the complete old site or the complete new one at ``--out``, and at
 most that temporary folder, which the next build of the same site removes (when its PID no longer
-runs). Nothing is followed through a symbolic link: ``--out`` itself must not be one, a temporary
+runs); only a SIGKILL between the two renames, where there is no exchange, leaves ``--out``
+missing (the old site is then ``.NAME.building-<pid>.old``). Nothing is followed through a symbolic link: ``--out`` itself must not be one, a temporary
 name that is one is unlinked, and only names of exactly that pattern are removed. A folder that
 holds anything but a site (no ``site.json``) is refused: it would be replaced whole.
 """
@@ -24,7 +25,7 @@ import signal
 import stat
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from compare.options import UsageError
 from compare.store import TEMP_MARK, TEMP_SUFFIX
@@ -141,12 +142,17 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 def _rename_twice(new: Path, out: Path) -> None:
-    """The old ``out`` renamed to ``new``'s sibling ``<new>.old`` and ``new`` into ``out``, with
-    Ctrl-C and SIGTERM held between the two; the old one then under ``new``'s name (deleted next)."""
+    """The old ``out`` renamed to ``<new>.old``, ``new`` into ``out``, the old one then under
+    ``new``'s name (deleted next). A Ctrl-C or SIGTERM between the renames is held (its Python
+    handler, which runs in the main thread, only noted) and delivered once both are done."""
     old = new.with_name(new.name + ".old")
-    held = {signal.SIGINT, signal.SIGTERM}
-    blocked = hasattr(signal, "pthread_sigmask")
-    mask = signal.pthread_sigmask(signal.SIG_BLOCK, held) if blocked else None
+    caught: list[int] = []
+    held: dict[signal.Signals, Any] = {}
+    try:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            held[sig] = signal.signal(sig, lambda signum, frame: caught.append(signum))
+    except ValueError:                  # not the main thread: its signals are not ours to hold
+        pass
     try:
         os.rename(out, old)
         try:
@@ -156,8 +162,10 @@ def _rename_twice(new: Path, out: Path) -> None:
             raise
         os.rename(old, new)
     finally:
-        if blocked:
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        for held_sig, handler in held.items():
+            signal.signal(held_sig, handler)
+        if caught:
+            signal.raise_signal(caught[0])
 
 
 def swap_in(new: Path, out: Path) -> None:
