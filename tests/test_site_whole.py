@@ -139,6 +139,24 @@ def test_without_an_atomic_exchange_two_renames_replace_it(site: Path, monkeypat
     assert siblings(site) == []
 
 
+def test_a_ctrl_c_between_the_two_renames_waits_until_both_are_done(site: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without an exchange, a Ctrl-C that arrives after the old site was renamed away is held
+    until the new one is in place: --out is never left missing by it."""
+    monkeypatch.setattr(whole, "_exchange", lambda a, b: False)
+    real = os.rename
+
+    def rename(a: Any, b: Any) -> None:
+        real(a, b)
+        if Path(a) == site:
+            os.kill(os.getpid(), signal.SIGINT)
+    monkeypatch.setattr(os, "rename", rename)
+    rc, lines = run_main(["site", str(site.parent / "store"), "--out", str(site), "--title", "new"])
+    assert rc == 130 and lines == ["interrupted"], (rc, lines)
+    assert "<title>new</title>" in (site / "index.html").read_text()
+    assert siblings(site) == []
+
+
 def _dead_pid() -> int:
     pid = 4_000_000
     while True:
