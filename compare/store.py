@@ -144,13 +144,14 @@ OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --
 
 def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:
     """The run environments one entry of a store's ``runs`` stands for: the entry itself, or for
-    a merged report's entry (``merged_from``, written by ``compare report``) those it merged, in
-    order (a merge of merges flattened; the store bounds their nesting)."""
+    a merged report's entry (``environments``, written by ``compare report``) those it merged, in
+    order (a merge of merges flattened; the store bounds their nesting). A ``stress --merge``
+    entry is its own run's environment that also names its inputs (``merged_from``): kept."""
     out: list[Mapping[str, Any]] = []
     todo = [env]
     while todo:
         e = todo.pop(0)
-        if "merged_from" in e or "environments" in e:
+        if "environments" in e:
             todo[:0] = list(e.get("environments") or [])
         else:
             out.append(e)

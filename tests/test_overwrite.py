@@ -72,6 +72,8 @@ def test_a_merged_report_names_its_inputs_and_each_run_in_its_header(tmp_path: P
             assert f"- command: `{env['command']}`" in head and f"- run {env['created']} on {env['hostname']}" in head
         heads.append(head.split("\n", 3)[3])
     assert heads[0] == heads[1]          # the runs of a merge of a merge: the same lines
+    from compare.site import data        # and the site's machine page lists the same runs
+    assert [dict(e) for e in data.load([tmp_path / "two"]).runs] == runs
 
 
 def test_a_cold_cache_creates_only_cache_directories(tmp_path, monkeypatch):
