@@ -191,5 +191,6 @@ def write_whole(out: str | Path, write: Callable[[Path], list[Path]]) -> list[Pa
         swap_in(tmp, out)
     finally:
         _remove(tmp)            # the half-built site on failure, the old one after the swap
-        _remove(tmp.with_name(tmp.name + ".old"))
+        if out.is_dir():        # an old site renamed away is removed only once --out stands again
+            _remove(tmp.with_name(tmp.name + ".old"))
     return [out / p.relative_to(tmp) for p in written]
