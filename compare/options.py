@@ -348,6 +348,12 @@ def check_page(page: str | None, title: str | None = None) -> None:
     if p.exists() and not p.is_file():
         raise UsageError(f"--page {page}: not a regular file")
     check_output(str(p.parent), "--page's directory")
+    if p.parent.is_dir():       # permissions do not tell (root on /proc): create a file there
+        from compare.store import probe_write
+        try:
+            probe_write(p.parent)
+        except OSError as exc:
+            raise UsageError(f"--page {page}: cannot write there ({exc.strerror or exc})") from None
 
 
 def free_bytes(path: Path) -> int:

@@ -41,11 +41,15 @@ class RecordError(ValueError):
     """A record no reader could use: one line naming the first field that is wrong."""
 
 
-def _freeze(v: Any) -> Any:
+def _freeze(v: Any, field: str, depth: int = 1) -> Any:
+    """``v`` read-only; a block nested past ``records.MAX_DEPTH`` is refused here, where the
+    recursion would otherwise end in a RecursionError (this and every later reader recurse)."""
+    if isinstance(v, (Mapping, list, tuple)) and depth > records.MAX_DEPTH:
+        raise RecordError(f"{field} is nested more than {records.MAX_DEPTH} levels deep")
     if isinstance(v, Mapping):
-        return types.MappingProxyType({k: _freeze(x) for k, x in v.items()})
+        return types.MappingProxyType({k: _freeze(x, field, depth + 1) for k, x in v.items()})
     if isinstance(v, (list, tuple)):
-        return tuple(_freeze(x) for x in v)
+        return tuple(_freeze(x, field, depth + 1) for x in v)
     return v
 
 
@@ -95,7 +99,11 @@ class Record:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            object.__setattr__(self, f.name, _freeze(getattr(self, f.name)))
+            v = getattr(self, f.name)
+            # a key this version does not name is refused by its own name
+            v = (types.MappingProxyType({k: _freeze(x, records.show_key(k)) for k, x in v.items()})
+                 if f.name == "extra" else _freeze(v, f.name))
+            object.__setattr__(self, f.name, v)
         if not self.layout:         # built in code: the fields it has, in declaration order
             have = tuple(f for f in NAMED if getattr(self, f) is not None)
             object.__setattr__(self, "layout", have + tuple(self.extra))

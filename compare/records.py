@@ -76,8 +76,26 @@ def show(v: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def _key(k: str) -> str:
+def show_key(k: str) -> str:
+    """A JSON object's key in a refusal (quoted where it is not a plain name)."""
     return k if re.fullmatch(r"[A-Za-z0-9_]{1,40}", k) else repr(k)[:40]
+
+
+# Levels of objects and lists a stored block may nest: the stores hold at most 7, and every
+# reader and writer recurses through them (Python stops near 1000, JSON's parser a little sooner).
+MAX_DEPTH = 64
+
+
+def too_deep(v: Any, limit: int = MAX_DEPTH) -> bool:
+    """Whether ``v`` nests objects and lists more than ``limit`` levels (found without recursing)."""
+    stack = [(v, 1)]
+    while stack:
+        x, depth = stack.pop()
+        if isinstance(x, (dict, list, tuple)):
+            if depth > limit:
+                return True
+            stack.extend((y, depth + 1) for y in (x.values() if isinstance(x, dict) else x))
+    return False
 
 
 def problem(node: Any, v: Any, where: str) -> str | None:
@@ -107,7 +125,7 @@ def problem(node: Any, v: Any, where: str) -> str | None:
             return f"{where}.{k} is missing"
     for k, x in v.items():
         sub = node.fields.get(k, node.rest)
-        if sub is not None and (p := problem(sub, x, f"{where}.{_key(k)}")) is not None:
+        if sub is not None and (p := problem(sub, x, f"{where}.{show_key(k)}")) is not None:
             return p
     return None
 
@@ -159,6 +177,10 @@ TIME = Obj({"first_call_s": SECONDS, "median_s": POSITIVE, "iqr_s": SECONDS, "mi
            ("first_call_s", "median_s", "iqr_s", "min_s", "repeats"))
 ERROR = Obj({"vs_oracle": FIGURE, "tolerance": FIGURE, "vs_reference": FIGURE, "reference": TEXT,
              "vs_reference_device": TEXT, "metric": TEXT, "checked_items": TEXT, "ill_conditioned": COUNT})
+# a checked cell's block (compare/worker.py writes both figures for every ok or mismatch record)
+CHECKED = Leaf("a number, 'nan', 'inf' or '-inf'", lambda v: v is not None and FIGURE.ok(v))
+CHECKED_ERROR = Obj({**ERROR.fields, "vs_oracle": CHECKED, "tolerance": CHECKED}, ("vs_oracle", "tolerance"),
+                    null=False)
 HARDWARE = Obj({"copy_bytes_per_s": POSITIVE, "copy_how": TEXT, "launch_latency_s": OPT_SECONDS,
                 "launch_pipelined_s": OPT_SECONDS, "gpu": TEXT, "copy_bytes": OPT_AMOUNT,
                 "copy_median_s": OPT_SECONDS, "error": TEXT})
@@ -247,6 +269,9 @@ def record_problem(rec: dict[str, Any]) -> str | None:
         # a measured cell carries both; a placeholder (every reader skips it) neither
         only = "time" if rec.get("time") is not None else "error"
         return f"a {rec['status']} record needs both time and error (or neither), got only {only}"
+    if rec["status"] in ("ok", "mismatch") and rec.get("error") is not None:
+        if (p := problem(CHECKED_ERROR, rec["error"], "error")) is not None:
+            return f"{p} (a checked {rec['status']} record holds its distance to the oracle and the tolerance)"
     return _sweep_problem(rec)
 
 
@@ -292,8 +317,9 @@ RUN = Obj({
     "gpus": Seq(Obj({"name": TEXT, "driver": TEXT, "memory": TEXT}, ("name", "driver", "memory"), null=False),
                 null=False),
     "packages": Obj(rest=TEXT, null=False), "hardware": Obj(rest=HARDWARE), "merged_from": Seq(TEXT, null=False),
-    "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT), "environments": Seq(Obj(null=False))},
-    null=False)
+    "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT)}, null=False)
+# a merged report's entry holds the runs it merged (its header shows each): runs, checked alike
+RUN.fields["environments"] = Seq(RUN)     # type: ignore[index]
 ROW_FIELDS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 ROW = Obj({**{k: TEXT for k in ROW_FIELDS}, "value": SCALAR}, ROW_FIELDS, null=False)
 PROVENANCE_RUN = Obj({"command": OPT_TEXT, "created": OPT_TEXT, "git_commit": OPT_TEXT,
@@ -308,6 +334,9 @@ def store_problem(data: dict[str, Any]) -> str | None:
     """The first problem of a parsed file's ``runs`` and ``analysis`` (its records are checked one
     by one as they load, ``compare.record.Record.from_json``), as 'runs[0].cores must be ...', or
     None."""
+    for where, block in [*((f"runs[{i}]", env) for i, env in enumerate(data["runs"])), ("analysis", data["analysis"])]:
+        if too_deep(block):             # first: the checks below recurse
+            return f"{where} is nested more than {MAX_DEPTH} levels deep"
     for i, env in enumerate(data["runs"]):
         if (p := problem(RUN, env, f"runs[{i}]")) is not None:
             return p

@@ -13,7 +13,7 @@ from tabulate import tabulate
 
 from compare import noise, timing
 from compare.record import Record, plain
-from compare.store import atomic_write
+from compare.store import atomic_write, run_environments
 
 NOISY_MARK = noise.MARK
 
@@ -258,7 +258,16 @@ def images_in(plots: Path, relative_to: Path) -> dict[str, str]:
     return {p.stem: os.path.relpath(p, relative_to) for p in sorted(plots.glob("*.png"))}
 
 
-def environment_lines(env: dict[str, Any]) -> list[str]:
+def header_lines(env: Mapping[str, Any]) -> list[str]:
+    """results.md's opening: each run's environment and yardstick, a merge's inputs first."""
+    merged = env.get("merged_from")
+    lines = [f"- merged from: {', '.join(f'`{f}`' for f in merged)}"] if merged else []
+    for e in run_environments(env):
+        lines += ([""] if lines else []) + environment_lines(e) + yardstick_lines(e)
+    return lines
+
+
+def environment_lines(env: Mapping[str, Any]) -> list[str]:
     gpus = ", ".join(f"{g.get('name')} ({g.get('memory')}, driver {g.get('driver')})" for g in env.get("gpus") or [])
     pkgs = ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items())
     dirty = {True: " (with uncommitted changes)", None: " (copied tree: dirtiness not known)"}.get(env.get("git_dirty"), "")
@@ -269,7 +278,7 @@ def environment_lines(env: dict[str, Any]) -> list[str]:
             f"- OS: {env.get('os')}; Python {env.get('python')}", f"- packages: {pkgs}"]
 
 
-def yardstick_lines(env: dict[str, Any]) -> list[str]:
+def yardstick_lines(env: Mapping[str, Any]) -> list[str]:
     """The run's hardware yardstick per device, in words (``env['hardware']``)."""
     out = []
     for device, hw in (env.get("hardware") or {}).items():
@@ -296,8 +305,8 @@ def page(title: str, envs: list[dict[str, Any]], records: list[Record], images: 
     if rebuild:
         out += ["Page rebuilt, without rerunning, by:", "", f"    {rebuild}", ""]
     out += ["## Environment", ""]
-    for env in envs:
-        out += environment_lines(env) + [""]
+    for e in (e for env in envs for e in run_environments(env)):
+        out += environment_lines(e) + [""]
     import backends
     base = backends.cpu_baseline()
     if base and f"speedup_vs_{base}_cpu" in images:
@@ -317,7 +326,7 @@ def write_tables(out: Path, environment: dict[str, Any], records: list[Record],
     w.writeheader()
     w.writerows(tidy(r) for r in records)
     atomic_write(out / "results.csv", buf.getvalue())
-    env_lines = "\n".join(environment_lines(environment) + yardstick_lines(environment))
+    env_lines = "\n".join(header_lines(environment))
     closing = "\n".join(noise_lines(records))
     atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n\n"
                  + tables(records, "github", images) + (f"\n```\n{closing}\n```\n" if closing else ""))

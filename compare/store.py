@@ -142,6 +142,30 @@ TEMP_MARK = ".compare-"       # in every temporary's name: clean-up touches no f
 OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
 
 
+def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    """The run environments one entry of a store's ``runs`` stands for: the entry itself, or for
+    a merged report's entry (``environments``, written by ``compare report``) those it merged, in
+    order (a merge of merges flattened; the store bounds their nesting). A ``stress --merge``
+    entry is its own run's environment that also names its inputs (``merged_from``): kept."""
+    out: list[Mapping[str, Any]] = []
+    todo = [env]
+    while todo:
+        e = todo.pop(0)
+        if "environments" in e:
+            todo[:0] = list(e.get("environments") or [])
+        else:
+            out.append(e)
+    return out
+
+
+def probe_write(directory: Path) -> None:
+    """Create and remove a temporary file in ``directory`` (named as the other temporaries, so a
+    killed probe's is cleaned up); an OSError where the directory takes no file."""
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".probe{TEMP_MARK}", suffix=TEMP_SUFFIX)
+    os.close(fd)
+    os.unlink(tmp)
+
+
 def remove_stale_temps(directory: Path) -> list[Path]:
     """Temporary files of atomic writes (``.NAME.compare-XXXX.tmp``) left in ``directory`` (and its
     arrays/ and plots/) by a driver that was killed mid-write; only call while holding the

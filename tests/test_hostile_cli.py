@@ -166,6 +166,17 @@ def test_a_page_naming_a_directory_is_refused_before_out_exists(work: Path, argv
 
 
 @pytest.mark.parametrize("argv", [
+    ["report", "run.json", "--out", "out", "--page", "/proc/x.md"],
+    ["sweep", "report", "sweep.json", "--out", "out", "--page", "/proc/x.md"],
+], ids=["report", "sweep-report"])
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="no /proc on this system")
+def test_a_page_in_a_directory_that_takes_no_file_is_refused_before_out_exists(work: Path, argv: list) -> None:
+    """/proc passes a permission check (as root) but creates no file: tried, not assumed."""
+    refused(argv, work, "--page /proc/x.md: cannot write there")
+    assert not (work / "out").exists()
+
+
+@pytest.mark.parametrize("argv", [
     ["sweep", "scaling", "--scenarios", "saxpy", "--devices", "cuda", "--quick"],      # no points
     ["sweep", "horizon", "--backends", "numpy", "--devices", "cuda", "--quick"],       # every cell skipped
     ["saxpy", "--backends", "numpy", "--devices", "cuda", "--quick"],

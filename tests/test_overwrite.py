@@ -58,6 +58,24 @@ def test_report_never_rewrites_its_input(tmp_path: Path) -> None:
     assert main(["report", str(out / "results.json"), "--out", str(tmp_path / "merged")])[0] == 0
 
 
+def test_a_merged_report_names_its_inputs_and_each_run_in_its_header(tmp_path: Path) -> None:
+    """report FILE --out DIR: results.md opens with the runs the input records (not the merge
+    entry's empty fields: 'command: `None`'), and so does a report of that report."""
+    store = Path(__file__).parent / "data" / "site" / "results.json"
+    runs = json.loads(store.read_text())["runs"]
+    heads = []
+    for src, out in ((store, tmp_path / "one"), (tmp_path / "one" / "results.json", tmp_path / "two")):
+        assert main(["report", str(src), "--out", str(out)])[0] == 0
+        head = (out / "results.md").read_text().split("\n## ")[0]
+        assert f"- merged from: `{src}`" in head and "None" not in head, head
+        for env in runs:
+            assert f"- command: `{env['command']}`" in head and f"- run {env['created']} on {env['hostname']}" in head
+        heads.append(head.split("\n", 3)[3])
+    assert heads[0] == heads[1]          # the runs of a merge of a merge: the same lines
+    from compare.site import data        # and the site's machine page lists the same runs
+    assert [dict(e) for e in data.load([tmp_path / "two"]).runs] == runs
+
+
 def test_a_cold_cache_creates_only_cache_directories(tmp_path, monkeypatch):
     """The cold-cache policy makes the backend's cache directories inside the cell's own folder
     and nothing else: a flag's value (JAX's JAX_ENABLE_COMPILATION_CACHE=false) is not a path to

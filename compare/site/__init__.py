@@ -8,7 +8,8 @@ matrix), one page per question, a machine-and-method page, ``figures/`` with eac
 as CSV beside its PNG, a Markdown twin of every page (``*.md``, for GitHub) and ``matrix.md`` (the
 matrix alone, as README embeds it). Pages are self-contained: relative links, no server, nothing
 fetched from the network. ``--against`` adds ``against.html``: this run's cells against a
-reference machine's, per cell the ratio and whether it lies within both runs' spread.
+reference machine's, per cell the ratio and whether it lies within both runs' spread. DIR is
+written whole: a rebuild over an earlier site swaps the new one in (compare/site/whole.py).
 
 Nothing here is written by hand: every number, verdict and colour is derived from the records by
 the rules printed on the pages (compare/site/matrix.py).
@@ -17,9 +18,13 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from compare import options
 from compare.options import EXIT_OK, UsageError
+
+if TYPE_CHECKING:
+    from compare.site.data import Machine
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -31,25 +36,32 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a reference machine's results folder or files: adds against.html")
 
 
-def build(inputs: list[Path], out: Path, title: str | None = None,
-          against: list[Path] | None = None) -> list[Path]:
-    """Write the site for the stores ``inputs`` into ``out``; the files written."""
-    from compare.site import assemble
-    return assemble.write_site([Path(p) for p in inputs], Path(out), title,
-                            [Path(p) for p in against or []])
+def build(inputs: list[Path], out: Path, title: str | None = None, against: list[Path] | None = None,
+          machine: Machine | None = None, reference: Machine | None = None) -> list[Path]:
+    """Write the site for the stores ``inputs`` at ``out``, whole (built beside it, then swapped
+    in: compare/site/whole.py); the files written. ``machine`` and ``reference``: the stores of
+    ``inputs`` and ``against`` where the caller has loaded them already (each file is read once)."""
+    from compare.site import assemble, data, whole
+    inputs, against = [Path(p) for p in inputs], [Path(p) for p in against or []]
+    m = machine if machine is not None else data.load(inputs)
+    ref = reference if reference is not None or not against else data.load(against)
+    return whole.write_whole(out, lambda into: assemble.write_site(inputs, Path(out), into, title, against, m, ref))
 
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
+    from compare.site import data, whole
     options.no_duplicates(args.files, "site")
-    from compare.site import data
-    data.load([Path(f) for f in args.files])          # a bad file refused before anything is written
-    if args.against:
-        data.load([Path(f) for f in args.against])
-        if same := sorted({f.resolve() for p in args.files for f in data._suite_files(Path(p))}
-                          & {f.resolve() for p in args.against for f in data._suite_files(Path(p))}):
+    files, against = [Path(f) for f in args.files], [Path(f) for f in args.against]
+    m = data.load(files)          # a bad file refused before anything is written; loaded once
+    ref = data.load(against) if against else None
+    if against:
+        if same := sorted({f.resolve() for p in files for f in data._suite_files(p)}
+                          & {f.resolve() for p in against for f in data._suite_files(p)}):
             raise UsageError(f"--against {same[0]} is also one of the RESULTS: compare against another machine's")
+    options.check_output(args.out)
+    whole.check_replaceable(args.out)         # before the claim creates or locks anything
     out, lock = options.claim_output(args.out, 64 * 2**20, "the site")
     with lock:
-        written = build([Path(f) for f in args.files], out, args.title, [Path(f) for f in args.against])
+        written = build(files, out, args.title, against, m, ref)
     print(f"wrote {len(written)} files in {out}; open {out / 'index.html'}")
     return EXIT_OK

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 from typing import Any
 
@@ -147,36 +146,36 @@ def _where(p: Path) -> str:
         return str(Path(p).resolve())
 
 
-def write_site(inputs: list[Path], out: Path, title: str | None, against: list[Path]) -> list[Path]:
-    m = data.load(inputs)
-    out = Path(out)
-    figures = out / "figures"
-    if figures.is_dir() and not figures.is_symlink():
-        shutil.rmtree(figures)         # pictures of an earlier build never stay beside new pages
+def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, against: list[Path],
+               m: Machine, reference: Machine | None) -> list[Path]:
+    """Every page, figure and the manifest of the site that will stand at ``out``, written into
+    the empty folder ``into`` (compare/site/whole.py swaps it in); ``m`` is the stores ``inputs``
+    loaded, ``reference`` those of ``against``."""
+    figures = into / "figures"
     rows, empty = pages.evaluate(m)
-    c = qp.Ctx(m, rows, out, store_label(inputs))
+    c = qp.Ctx(m, rows, Path(out), store_label(inputs), into)
     title = title or f"Framework comparison: {m.name()}"
     nav = [("Overview", "index.html")] + [(t, f"{k}.html") for k, t in questions.PAGES.items()]
     written: list[Path] = []
     site = {"index": (title, pages.index(c, title, empty))}
     for key, label in questions.PAGES.items():
         site[key] = (f"{label} — {m.name()}", BUILDERS[key](c))
-    if against:
+    if against and reference is not None:
         from compare.site import against as vs
         nav.append(("Against reference", "against.html"))
-        site["against"] = (f"This machine against the reference — {m.name()}", vs.page(c, data.load(against)))
+        site["against"] = (f"This machine against the reference — {m.name()}", vs.page(c, reference))
     for stem, (t, blocks) in site.items():
         for suffix, render in ((".html", page_html), (".md", page_md)):
-            path = out / f"{stem}{suffix}"
+            path = into / f"{stem}{suffix}"
             atomic_write(path, render(t, nav, blocks))
             written.append(path)
-    atomic_write(out / "matrix.md", pages.matrix_md(rows, m.frameworks) + "\n")
-    written.append(out / "matrix.md")
-    pages.matrix_png(out / OVERVIEW, rows, m.frameworks, title)      # README's picture of the matrix
-    written.append(out / OVERVIEW)
-    atomic_write(out / MANIFEST, json.dumps({"inputs": [_where(p) for p in inputs], "title": title,
+    atomic_write(into / "matrix.md", pages.matrix_md(rows, m.frameworks) + "\n")
+    written.append(into / "matrix.md")
+    pages.matrix_png(into / OVERVIEW, rows, m.frameworks, title)      # README's picture of the matrix
+    written.append(into / OVERVIEW)
+    atomic_write(into / MANIFEST, json.dumps({"inputs": [_where(p) for p in inputs], "title": title,
                                              "against": [_where(p) for p in against]}, indent=1) + "\n")
-    written.append(out / MANIFEST)
+    written.append(into / MANIFEST)
     written += sorted(figures.glob("*")) if figures.is_dir() else []
     return written
 

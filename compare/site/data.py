@@ -17,7 +17,7 @@ import scenarios
 from compare import noise, repeats
 from compare.record import Record
 from compare.spec import BUSY_TAG
-from compare.store import SUITES, Store, StoreError
+from compare.store import SUITES, Store, StoreError, run_environments
 from compare.sweep.points import sweeps
 
 PUBLISH_LOG = "publish.json"
@@ -111,7 +111,7 @@ def load(paths: Iterable[Path]) -> Machine:
                 raise StoreError(f"cannot read {log}: {exc}") from None
             if not isinstance(publish, dict) or not isinstance(publish.get("parts", []), list):
                 raise StoreError(f"{log}: not a publish log (an object with a list of parts)")
-    runs = [env for s in merged.values() for env in s.runs]
+    runs = [e for s in merged.values() for env in s.runs for e in run_environments(env)]     # a merge: its runs
     run = tuple(merged["run"].records) if "run" in merged else ()
     return Machine(tuple(sources), tuple(r for r in run if tag(r, BUSY_TAG) is None),
                    tuple(merged["sweep"].records) if "sweep" in merged else (),

@@ -18,19 +18,22 @@ Page = list[Block]
 
 
 class Ctx:
-    """What every page builder needs: the machine, its rows, where figures go."""
+    """What every page builder needs: the machine, its rows, where the site will stand (``out``:
+    links are relative to it) and the folder it is written into (``into``, its sibling while it
+    is built: compare/site/whole.py)."""
 
-    def __init__(self, m: Machine, rows: list[Row], out: Path, store_arg: str) -> None:
+    def __init__(self, m: Machine, rows: list[Row], out: Path, store_arg: str, into: Path | None = None) -> None:
         self.m, self.rows, self.out, self.store_arg = m, rows, out, store_arg
+        self.into = into or out
         self.device = m.primary_device
-        (out / "figures").mkdir(parents=True, exist_ok=True)
+        (self.into / "figures").mkdir(parents=True, exist_ok=True)
 
     def rows_of(self, page: str) -> list[Row]:
         return [r for r in self.rows if r.rule.page == page]
 
     def fig(self, name: str) -> tuple[Path, str, str]:
         """The PNG's path, and the PNG's and CSV's paths relative to the pages."""
-        return self.out / "figures" / f"{name}.png", f"figures/{name}.png", f"figures/{name}.csv"
+        return self.into / "figures" / f"{name}.png", f"figures/{name}.png", f"figures/{name}.csv"
 
     def cmd(self, *words: str, resume: bool = True) -> str:
         """The commands that remeasure a figure's cells into the store and rebuild the site."""
