@@ -17,6 +17,7 @@ from __future__ import annotations
 import enum
 import importlib
 import importlib.util
+import os
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
@@ -199,6 +200,12 @@ def visible_gpus() -> int:
     a driver or library."""
     try:
         import pynvml
+    except ImportError:   # NVML's binding comes with the cuda extras: the driver's own listing
+        try:
+            return len(os.listdir("/proc/driver/nvidia/gpus"))
+        except OSError:
+            return 0
+    try:
         pynvml.nvmlInit()
         try:
             return int(pynvml.nvmlDeviceGetCount())

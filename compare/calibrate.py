@@ -52,6 +52,11 @@ def _items(sc: Any, params: Any, precision: str) -> float:
     return 0.0
 
 
+def items(cell: Cell) -> float:
+    """The cell's size in its scenario's work units (what a miniature scales down)."""
+    return _items(scenarios.get(cell.scenario), cell.params, str(cell.precision))
+
+
 def predict(cell: Cell, small: Cell, record: dict[str, Any]) -> tuple[float, float]:
     """(seconds the big cell's protocol takes, seconds of one of its calls) from its miniature's
     record."""
@@ -63,10 +68,10 @@ def predict(cell: Cell, small: Cell, record: dict[str, Any]) -> tuple[float, flo
     return compile_s + per_call * (1 + protocol_calls(per_call, cell)), per_call
 
 
-def miniature(cell: Cell) -> Cell | None:
-    """The cell at 1/FACTOR of its size, timed with two calls and not checked; None for a cell
-    not big."""
-    params = scenarios.get(cell.scenario).scaled(cell.params, FACTOR)
+def miniature(cell: Cell, factor: int = FACTOR) -> Cell | None:
+    """The cell at 1/``factor`` of its size, timed with two calls and not checked; None for a
+    cell not big."""
+    params = scenarios.get(cell.scenario).scaled(cell.params, factor)
     if params is None:
         return None
     return dataclasses.replace(cell, params=params, warmup=0, repeat=2, min_time=0.0, throughput=False,
@@ -78,26 +83,41 @@ def _when(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
+Miniatures = dict[tuple[Any, ...], tuple[Cell, dict[str, Any]]]
+
+
+def run_miniatures(plan: list[Cell], timeout: float | None, factor: int = FACTOR,
+                   run: Callable[[Cell], cells.Result] | None = None) -> Miniatures:
+    """(miniature, its record) of every big cell of ``plan`` at 1/``factor`` of its size, by
+    the big cell's key (``key``), one at a time."""
+    pairs = [(c, m) for c in plan if (m := miniature(c, factor)) is not None]
+    run = run or (lambda c: cells.run(c, timeout))
+    return {key(cell): (small, run(small)[0]) for cell, small in pairs}
+
+
 def time_refusal(plan: list[Cell], timeout: float | None,
-                 run: Callable[[Cell], cells.Result] | None = None) -> Refusal:
+                 run: Callable[[Cell], cells.Result] | None = None,
+                 minis: Miniatures | None = None) -> Refusal:
     """A ``refuse`` for ``engine.run_cells``: the big cells of ``plan`` (those not refused
-    otherwise: pass only runnable cells) whose predicted protocol outlasts ``timeout``."""
+    otherwise: pass only runnable cells) whose predicted protocol outlasts ``timeout``.
+    ``minis``: their miniatures already run (``run_miniatures``), else run here."""
     if timeout is None:
         return lambda cell: None
-    pairs = [(c, m) for c in plan if (m := miniature(c)) is not None]
-    run = run or (lambda c: cells.run(c, timeout))
-    results = [run(small) for _, small in pairs]
+    minis = run_miniatures(plan, timeout, run=run) if minis is None else minis
     verdicts: dict[tuple[Any, ...], tuple[str, str]] = {}
-    for (cell, small), (rec, _) in zip(pairs, results):
+    for cell in plan:
+        if key(cell) not in minis:
+            continue
+        small, rec = minis[key(cell)]
         if rec.get("status") not in ("ok", "mismatch") or not rec.get("time"):
             continue                  # the cell itself will say what is wrong
         total, per_call = predict(cell, small, rec)
         if total > timeout:
-            verdicts[_key(cell)] = ("skipped", (
+            verdicts[key(cell)] = ("skipped", (
                 f"predicted to take about {_when(total)} here (one call about {_when(per_call)}, from a "
                 f"1/{FACTOR}-size run), over --timeout {timeout:g} s; --timeout {math.ceil(total * 1.5)} runs it"))
-    return lambda cell: verdicts.get(_key(cell))
+    return lambda cell: verdicts.get(key(cell))
 
 
-def _key(cell: Cell) -> tuple[Any, ...]:
+def key(cell: Cell) -> tuple[Any, ...]:
     return (cell.scenario, cell.backend, str(cell.device), str(cell.precision), cell.variant, repr(cell.params))

@@ -22,7 +22,8 @@ import numpy as np
 import backends
 import scenarios
 from compare import calibrate, engine, environment, hardware, options, overlap, phases, report, run_plots, scaleout
-from compare.preflight import PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, disk_need, memory_refusal
+from compare.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
+                               measured_need, memory_refusal)
 from compare.record import Record, plain
 from compare.spec import BUSY_TAG, Cell, as_cell, key
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
@@ -102,7 +103,7 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[Cel
         raise UsageError(f"nothing to run: no chosen backend ({', '.join(sel['backends'])}) has "
                          f"variant(s) {', '.join(sel['variants'])}")
     if args.scheduler in (None, "local"):      # the worker runs here: refused when no cell fits
-        check_memory([min(specs, key=lambda s: cell_bytes(s)[0])], driver=False)
+        check_smallest(specs)
     return specs
 
 
@@ -168,7 +169,7 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     cells = plan(args, chosen)
     options.check_output(args.out)                    # a bad --out is refused before the probes
     refuse_overwrite(args)
-    Store.open(args.out, "run", keep=args.resume)     # and a bad results.json to resume (read only)
+    kept = Store.open(args.out, "run", keep=args.resume)   # and a bad results.json to resume (read only)
     began = time.perf_counter()
     probes = engine.availability(sorted({c.backend for c in cells}))
     spent = {"probes": time.perf_counter() - began}
@@ -178,6 +179,11 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     runnable = [c for c, b in zip(cells, blocked) if not b]
     nothing_to_run(cells, blocked)
     check_memory(runnable, worker=local)
+    judged = None
+    if not args.scheduler:      # a Dask worker's machine is not this one: neither preflight
+        t0 = time.perf_counter()
+        judged = preflight_cells(args, [c for c in runnable if not (args.resume and kept.done(key(c.identity())))])
+        spent["miniatures"] = time.perf_counter() - t0
     need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
     client = scaleout.client(args.scheduler) if args.scheduler else None
     try:
@@ -187,7 +193,22 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
             client.close()
         raise
     with lock:
-        return run_claimed(args, argv, cells, out, probes, client, spent)
+        return run_claimed(args, argv, cells, out, probes, client, spent, judged)
+
+
+def preflight_cells(args: argparse.Namespace, runnable: list[Cell]) -> calibrate.Refusal:
+    """Big cells run in miniature first (``compare.calibrate``), before anything is written: one
+    predicted to outlast --timeout, or whose own framework's estimated memory exceeds what is
+    available (``preflight.measured_need``), is skipped saying so; a plan none of whose cells
+    fits is refused."""
+    minis = calibrate.run_miniatures(runnable, args.timeout) if args.timeout is not None else {}
+    slow = calibrate.time_refusal(runnable, args.timeout, minis=minis)
+    memory = memory_refusal(measured_need(runnable, args.timeout, minis))
+    if runnable and all(memory(c) for c in runnable):
+        c = min(runnable, key=lambda c: cell_bytes(c)[0])
+        raise UsageError(f"nothing fits this machine's memory: {c.backend} on {c.device}, {c.precision}, "
+                         f"{memory(c)[1]}")    # type: ignore[index]
+    return lambda c: memory(c) or slow(c)
 
 
 def nothing_to_run(cells: list[Cell], blocked: list[tuple[str, str] | None]) -> None:
@@ -224,9 +245,10 @@ def arrays_saved(out: Path, rec: Record) -> bool:
 
 def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], out: Path,
                 probes: dict[str, dict[str, Any]], client: Any = None,
-                spent: dict[str, float] | None = None) -> int:
+                spent: dict[str, float] | None = None, judged: calibrate.Refusal | None = None) -> int:
     """The run, once its output directory is checked, has room and is locked by this driver.
-    ``spent``: seconds the run's parts so far took (``compare.phases``)."""
+    ``spent``: seconds the run's parts so far took (``compare.phases``); ``judged``: the
+    preflight's reason not to start a cell (``preflight_cells``)."""
     spent = dict(spent or {})
     store = RunStore.open(out, "run", keep=args.resume)
     env = store.env = environment.collect(argv)
@@ -261,18 +283,9 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
         if args.save_arrays and outs is not None:        # before its record is saved: a failed
             save_arrays(out, rec, outs)                  # write leaves the cell to be run again
         show(i, rec, outs)
-    refuse = None
-    if client is None:          # a Dask worker's machine is not this one: neither preflight
-        t0 = time.perf_counter()
-        memory = memory_refusal()
-        runnable = [c for c in cells if not engine.not_runnable(c, probes) and not memory(c)
-                    and not (args.resume and store.done(key(c.identity())))]
-        slow = calibrate.time_refusal(runnable, args.timeout)
-        spent["miniatures"] = time.perf_counter() - t0
-        refuse = lambda c: memory(c) or slow(c)    # noqa: E731
     t0 = time.perf_counter()
     results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
-                               store=store, resume=args.resume, on_record=on_record, refuse=refuse,
+                               store=store, resume=args.resume, on_record=on_record, refuse=judged,
                                ahead=ahead, footprint=lambda c: cell_bytes(c)[0],
                                processes=args.processes, seed=env.get("seed", 0),
                                on_repeat=lambda t: ran.append({"time": t}))

@@ -246,7 +246,9 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     times["noise"] = noise.verdict(times, host)
     if not cell.check:      # a repeat process (compare.repeats): the first process checked the cell
         times["phases"] = {k: round(v, 4) for k, v in laps.spent.items()}
-        return {"status": "ok", "reason": "", "params": dataclasses.asdict(params), "time": times}
+        # a miniature's (compare.calibrate) peak, which the memory preflight scales to its big cell
+        return {"status": "ok", "reason": "", "params": dataclasses.asdict(params), "time": times,
+                "memory": {"peak_host_rss_bytes": run_peak}}
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)

@@ -246,3 +246,19 @@ def test_new_backend_runs_through_all_sweep_and_stress(repo, tmp_path):
                 "--only", "particles-dt,projectile-gradient,ulps,races", "--out", str(tmp_path / "stress"))
     assert p.returncode == 0, p.stderr[-3000:]
     assert (tmp_path / "stress" / "stress.md").exists()
+
+
+def test_without_nvml_the_gpu_hint_counts_the_drivers_gpus(monkeypatch):
+    """NVML's binding is in the cuda extras: on a base install the driver's own listing still
+    tells a GPU machine to install them (a framework's CPU-only build names the extra)."""
+    from backends import base
+    monkeypatch.setitem(sys.modules, "pynvml", None)             # not installed
+    monkeypatch.setattr(base.os, "listdir", lambda path: ["0000:01:00.0", "0000:02:00.0"]
+                        if path == "/proc/driver/nvidia/gpus" else [])
+    assert base.visible_gpus() == 2
+    assert "2 NVIDIA GPU(s)" in base.cuda_build_hint("no GPU") and "'.[cuda]'" in base.cuda_build_hint("no GPU")
+
+    def no_driver(path):
+        raise FileNotFoundError(path)
+    monkeypatch.setattr(base.os, "listdir", no_driver)
+    assert base.visible_gpus() == 0 and base.cuda_build_hint("no GPU") == "no GPU"

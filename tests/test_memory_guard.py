@@ -65,6 +65,110 @@ def test_cells_over_the_available_memory_are_skipped_and_the_rest_run(work, monk
     assert "host memory" in recs["float64"]["reason"] and "available" in recs["float64"]["reason"]
 
 
+# ---- each big cell judged by its own framework's miniatures ---------------------------------------
+GIB = float(1 << 30)
+
+
+def fake_miniatures(per_item: dict[str, float], seen: list | None = None, fixed: float = 200 * 2**20):
+    """A miniature runner: the peak of ``fixed`` bytes plus ``per_item[backend]`` per work item."""
+    from compare import calibrate
+
+    def run(small):
+        if seen is not None:
+            seen.append((small.backend, small.params.batch))
+        peak = fixed + per_item[small.backend] * calibrate.items(small)
+        return {"status": "ok", "time": {"median_s": 1e-3, "first_call_s": 2e-3},
+                "memory": {"peak_host_rss_bytes": peak}}, None
+    return run
+
+
+def available_memory(monkeypatch, have: float) -> None:
+    import psutil
+
+    class Mem:
+        total, available = 1 << 50, int(have)
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: Mem())
+
+
+def test_big_cells_are_judged_by_their_own_frameworks_miniatures(monkeypatch):
+    """At B = 2^20 the scenario's model bounds every framework alike (the largest tape any port
+    keeps: 72 GiB): each cell is estimated instead from its own miniatures at 1/64 and 1/256 of
+    its size, and only the one whose estimate exceeds what is available is skipped, with it."""
+    from compare import calibrate, options
+    from compare.spec import Cell
+    have = 8 * GIB
+    available_memory(monkeypatch, have)
+    plan = [Cell.make("projectile", b, "cpu", "float32", params={"batch": 1 << 20}) for b in ("numba", "torch")]
+    assert all(preflight.cell_bytes(c)[0] > 60 * GIB for c in plan)
+    assert [preflight.memory_refusal()(c) for c in plan] == [None, None]     # not judged yet
+    per_item = {"numba": 0.05, "torch": 1.0}
+    seen: list = []
+    need = preflight.measured_need(plan, 600.0, run=fake_miniatures(per_item, seen))
+    assert sorted(seen) == sorted((b, (1 << 20) // f) for b in per_item for f in (64, 256))
+    sc = run_suite.scenarios.get("projectile")
+    expected = {}
+    for c in plan:      # the 1/64 peak + twice the slope up to the full size + the check's arrays
+        n1, n = calibrate.items(calibrate.miniature(c, 64)), calibrate.items(c)
+        expected[c.backend] = (200 * 2**20 + per_item[c.backend] * n1 + 2.0 * per_item[c.backend] * (n - n1)
+                               + sc.footprint(c.params, "float32", "cuda"))
+        assert need(c) == pytest.approx(expected[c.backend])
+    assert expected["numba"] < have < expected["torch"]
+    refuse = preflight.memory_refusal(need)
+    assert refuse(plan[0]) is None
+    status, why = refuse(plan[1])
+    assert status == "skipped" and f"needs about {options.gib(expected['torch'])}" in why, why
+    assert f"{options.gib(have)} is available" in why and "1/64 and 1/256" in why, why
+
+
+def test_a_miniature_that_failed_leaves_the_model_bound_to_decide(monkeypatch):
+    from compare.spec import Cell
+    available_memory(monkeypatch, 8 * GIB)
+    cell = Cell.make("projectile", "numba", "cpu", "float32", params={"batch": 1 << 20})
+    need = preflight.measured_need([cell], 600.0, run=lambda small: ({"status": "error", "reason": "x"}, None))
+    assert need(cell) is None
+    status, why = preflight.memory_refusal(need)(cell)
+    assert status == "skipped" and preflight.options.gib(preflight.cell_bytes(cell)[0]) in why
+
+
+# a big cell (B >= 2^16) that runs in a second: the preflight judges it, the real cell runs
+CHEAP_BIG = ["projectile", "--set", "batch=65536", "--set", "steps=4", "--set", "iters=1", "--devices", "cpu",
+             "--precision", "float32", "--repeat", "3", "--no-plots"]
+
+
+def test_the_cells_that_fit_run_and_the_others_are_skipped_with_their_estimate(work, monkeypatch, capsys):
+    from compare import calibrate
+    from compare.spec import Cell
+    bound = preflight.cell_bytes(Cell.make("projectile", "numpy", "cpu", "float32",
+                                           params={"batch": 65536, "steps": 4, "iters": 1}))[0]
+    available_memory(monkeypatch, 0.9 * bound)        # the model's bound fits neither
+    real = calibrate.run_miniatures
+    runner = fake_miniatures({"numpy": 0.0, "numba": 2000.0}, fixed=2**20)
+    monkeypatch.setattr(calibrate, "run_miniatures",
+                        lambda plan, timeout, factor=64, run=None: real(plan, timeout, factor, runner))
+    out = work / "out"
+    code = cli.main([*CHEAP_BIG, "--backends", "numpy,numba", "--out", str(out)])
+    assert code == 0, capsys.readouterr()
+    recs = {r["backend"]: r for r in json.loads((out / "results.json").read_text())["records"]}
+    assert recs["numpy"]["status"] == "ok", recs["numpy"]
+    assert recs["numba"]["status"] == "skipped", recs["numba"]
+    assert "needs about" in recs["numba"]["reason"] and "1/64 and 1/256" in recs["numba"]["reason"]
+
+
+def test_a_plan_none_of_whose_cells_fits_is_refused_with_its_estimate(work, monkeypatch):
+    from compare import calibrate
+    from compare.spec import Cell
+    bound = preflight.cell_bytes(Cell.make("projectile", "numpy", "cpu", "float32",
+                                           params={"batch": 65536, "steps": 4, "iters": 1}))[0]
+    available_memory(monkeypatch, 0.9 * bound)
+    real = calibrate.run_miniatures
+    runner = fake_miniatures({"numpy": 2000.0, "numba": 2000.0}, fixed=2**20)
+    monkeypatch.setattr(calibrate, "run_miniatures",
+                        lambda plan, timeout, factor=64, run=None: real(plan, timeout, factor, runner))
+    line = assert_refused([*CHEAP_BIG, "--backends", "numpy,numba", "--out", str(work / "out")], work,
+                          "nothing fits this machine's memory")
+    assert "needs about" in line and "1/64 and 1/256" in line, line
+
+
 # ---- the memory estimate against measured peaks ---------------------------------------------------
 MEMORY_SIZES = {"saxpy": ({"n": 1 << 16}, {"n": 1 << 23}),
                 "sdf": ({"width": 256, "height": 256}, {"width": 2048, "height": 2048}),

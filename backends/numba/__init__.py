@@ -131,11 +131,14 @@ class NumbaBackend(Backend):
 
     @staticmethod
     def _cuda_reason() -> str | None:
-        if _simulator():
-            return SIMULATOR
-        reason = not_installed("numba.cuda", "numba-cuda")
+        # numba-cuda, Numba's CUDA target, comes with the cuda extras (a CPU-only install has no
+        # CUDA package); the numba.cuda that some Numba releases still ship is not the one this
+        # port is written for, so it never counts, simulator included
+        reason = not_installed("numba_cuda", "numba-cuda", extra="cuda")
         if reason:
             return reason
+        if _simulator():
+            return SIMULATOR
         from numba import cuda
         try:
             return None if cuda.is_available() else cuda_build_hint("no CUDA device visible to numba.cuda")
