@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare import charts, noise
+from compare import charts, colors, noise
 from compare.site import data, fmt, matrix, questions, ranking, shared_host
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
@@ -42,6 +42,8 @@ def matrix_html(rows: list[Row], frameworks: list[str]) -> str:
             txt = html.escape(fmt.cell_text(c))
             if f in r.tied:
                 txt = f"<strong>{txt}</strong>"
+            if fmt.variant_label(c):
+                txt += f'<span class="variant">{html.escape(fmt.variant_label(c))}</span>'
             tds.append(f'<td class="cell {c.band}" title="{html.escape(_title(r, c))}">{txt}</td>')
         q = f'<a href="{r.rule.page}.html">{html.escape(r.rule.question)}</a>'
         body.append(f"<tr><th>{q}</th>{''.join(tds)}<td>{html.escape(r.best_text())}</td></tr>")
@@ -56,17 +58,17 @@ def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "") -> 
         for f in frameworks:
             c = r.cells.get(f, matrix.Cell(f, None))
             t = f"{fmt.BAND_EMOJI[c.band]} {fmt.cell_text(c)}"
-            cells.append(f"**{t}**" if f in r.tied else t)
+            t = f"**{t}**" if f in r.tied else t
+            cells.append(t + (f" <sub>{fmt.variant_label(c)}</sub>" if fmt.variant_label(c) else ""))
         lines.append(f"| [{r.rule.question}]({link_prefix}{r.rule.page}.md) | " + " | ".join(cells)
                      + f" | {r.best_text()} |")
     return "\n".join(lines)
 
 
 def _band_colors(band: str) -> tuple[str, str]:
-    """(background, text) of a band, read from the pages' CSS so the picture matches them."""
-    from compare.site.render import CSS
-    m = re.search(r"\." + band + r"\{background:(#[0-9a-fA-F]+)(?:;color:(#[0-9a-fA-F]+))?", CSS)
-    return (m.group(1), m.group(2) or "#1b1f24") if m else ("#ffffff", "#1b1f24")
+    """(background, text) of a band: the pages' own (compare.colors.BANDS)."""
+    b = colors.BAND[band]
+    return b.background, b.text
 
 
 def matrix_png(path: Path, rows: list[Row], frameworks: list[str], title: str) -> None:
@@ -100,10 +102,10 @@ def matrix_png(path: Path, rows: list[Row], frameworks: list[str], title: str) -
             + [width - margin]
 
         def box(i: int, y: float, h: float, text: str, bg: str, fg: str = "#1b1f24", bold: bool = False,
-                left: bool = False) -> None:
+                left: bool = False, dy: float = 0.0) -> None:
             ax.add_patch(Rectangle((xs[i], y), xs[i + 1] - xs[i], h, facecolor=bg, edgecolor="#d0d7de",
                                    linewidth=0.8))
-            ax.text(xs[i] + 0.06 if left else (xs[i] + xs[i + 1]) / 2, y + h / 2, text, color=fg,
+            ax.text(xs[i] + 0.06 if left else (xs[i] + xs[i + 1]) / 2, y + h / 2 + dy, text, color=fg,
                     ha="left" if left else "center", va="center", fontweight="bold" if bold else "normal")
 
         y = title_in
@@ -116,7 +118,11 @@ def matrix_png(path: Path, rows: list[Row], frameworks: list[str], title: str) -
             for i, f in enumerate(frameworks, start=1):
                 c = r.cells.get(f, matrix.Cell(f, None))
                 bg, fg = _band_colors(c.band)
-                box(i, y, h, fmt.cell_text(c), bg, fg, bold=f in r.tied)
+                label = fmt.variant_label(c)
+                box(i, y, h, fmt.cell_text(c), bg, fg, bold=f in r.tied, dy=-0.05 if label else 0.0)
+                if label:      # the winning variant, small, under the ratio
+                    ax.text((xs[i] + xs[i + 1]) / 2, y + h / 2 + 0.03, label, color=fg, fontsize=6,
+                            ha="center", va="top")
             box(len(frameworks) + 1, y, h, r.best_text() or "—", "#ffffff")
             y += h
         ax.text(margin, y + foot_in / 2, "\n".join(foot), fontsize=7, color="#57606a", va="center")
@@ -135,15 +141,14 @@ LEGEND = ("Each cell is the framework's figure divided by the leading framework'
           f"(no interval), at least {ranking.ONE_PROCESS_GAP:g}× apart; deterministic figures "
           f"(memory, error shares) at least {100 * (ranking.SEPARATED_GAP - 1):.0f} % apart. "
           "Otherwise the row is a tie, and everyone not separated from the leader shares it "
-          "(`tie: …`). Colours: 🟩 **bold**: the best, or tied with it; 🟨 within 2× of the "
-          "leader; 🟧 within 5×; 🟥 beyond; 🟦 `✎` a hand-written adjoint on a gradient row: "
-          "its ratio to the best automatic differentiation, shown as a reference and "
-          f"never ranked. `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
+          "(`tie: …`). Colours: " + "; ".join(f"{b.emoji} {colors.band_words(b)}" for b in colors.BANDS) +
+          f". `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
           f"median, under {noise.MIN_REPEATS} repeats, other processes busy on the host while it was "
           "timed, or pipelined calls slower than one synchronised call); `✗` a cell that failed its check or crashed; `skipped` a framework or "
           "device not available (the reason is in the tooltip and on the question's page); `—` "
-          "not measured. A framework's cell is its fastest variant; the variant and the raw "
-          "figure are in the tooltip and on the pages.")
+          "not measured. A framework's cell is its fastest variant; a variant other than the "
+          "default is named under the ratio, and the default variant's figure is in the tooltip "
+          "and on the row's page; the raw figure is in the tooltip.")
 
 
 def legend() -> Raw:

@@ -45,7 +45,23 @@ def verdicts(rows: list[Row]) -> list[Block]:
         runs = f" {provenance.words(r.runs)}" if provenance.one_run(r.runs) else ""
         out += [H(r.rule.question, r.rule.key), P(f"**{r.verdict}**"),
                 P(f"Rule: {r.rule.text} Read here: {r.scope or 'no records'}, device {r.device}.{runs}")]
+        out += not_default(r)
     return out
+
+
+def not_default(r: Row) -> list[Block]:
+    """The cells whose figure is a variant other than the framework's default, with the
+    default's figure beside it: what the plain call costs."""
+    won = [c for c in r.cells.values() if c.winner_not_default]
+    if not won:
+        return []
+    unit = r.rule.unit
+    return [P("Where a framework's cell is a variant other than its default, the default variant's "
+              "figure on the same row:"),
+            Table(("framework", "cell's variant", "its figure", "ratio", "default variant's figure"),
+                  tuple((c.framework, c.variant, fmt.value(c.value, unit),
+                         fmt.ratio(c.ratio) if c.ratio is not None else "-", fmt.default_text(c, unit))
+                        for c in sorted(won, key=lambda c: c.framework)), sortable=False)]
 
 
 def _bar(r: Record, fig: Callable[[Record], Any], note: str = "") -> charts.Bar:
