@@ -3,9 +3,6 @@ method; every page written as HTML and as its Markdown twin."""
 from __future__ import annotations
 
 import html
-import math
-import os
-import re
 from pathlib import Path
 from typing import Any
 
@@ -13,23 +10,12 @@ import backends
 from compare import charts, colors, noise
 from compare.site import data, fmt, matrix, questions, ranking, shared_host
 from compare.site import questions_pages as qp
+from compare.site.questions_pages import REPO_DOCS, doc_link  # noqa: F401 (assemble reads them here)
 from compare.site.data import Machine
 from compare.site.matrix import Row
+from compare.site.pages_stability import stability  # noqa: F401 (a page of the site)
 from compare.site.render import Figure, H, Items, P, Raw, Table
 from compare.sweep.rows import wall_s
-
-REPO_DOCS = Path(__file__).resolve().parents[2] / "docs"
-
-
-def doc_link(out: Path, name: str) -> str:
-    """A relative link to docs/NAME when the site lies inside this repository, else its name."""
-    target = REPO_DOCS / name
-    try:
-        Path(out).resolve().relative_to(REPO_DOCS.parent)
-    except ValueError:
-        return f"`docs/{name}` in the repository"
-    return f"[docs/{name}]({os.path.relpath(target, Path(out).resolve())})"
-
 
 # ---- the matrix -------------------------------------------------------------------------------
 def matrix_html(rows: list[Row], frameworks: list[str]) -> str:
@@ -286,46 +272,3 @@ def cpu(c: qp.Ctx) -> list[Any]:
                              c.cmd("all --devices cpu --precision float32"), csv))
     blocks += [H("Every CPU cell at the defaults"), qp.timing_table(recs, ("latency", "throughput"))]
     return blocks + shared_host.section(c.m)
-
-
-def stability(c: qp.Ctx) -> list[Any]:
-    if c.m.stress is None:
-        return [P("No stability records (stress.json) in this store: `python -m compare stress`.")]
-    from compare.stress import plots
-    from compare.stress.registry import experiments
-    a = c.m.stress.analysis
-    blocks: list[Any] = [P("The stability stress suite: long rollouts, dt sweeps, overflow, learning-rate "
-                           "divergence, gradient quality through contact, float32 error distributions and "
-                           "run-to-run races. How each verdict is decided: " + doc_link(c.out, "stress.md")
-                           + ". Verdicts in capitals flag a problem or a limit found.")]
-    reg = experiments()
-    for name, exp in reg.items():
-        rows = [r for r in a.get("rows", []) if r.get("experiment") == name]
-        if not rows:
-            continue
-        counts: dict[str, int] = {}
-        for r in rows:
-            v = re.sub(r"(?<![\w.])\d[\d.e+-]*%?", "#", str(r.get("verdict", "")).split(" (")[0])
-            counts[v] = counts.get(v, 0) + 1
-        blocks += [H(f"{name}: {exp.title}"), P("Verdicts: " + "; ".join(f"{v} ×{k}" for v, k in counts.items()))]
-        series = (a.get("series") or {}).get(name)
-        png, rel, _ = c.fig(f"stability-{name}")
-        if series and exp.plot is not None:
-            plots.draw(exp, series, png)
-            if png.exists():
-                charts.write_csv(png.with_suffix(".csv"), ("backend", "device", "precision", "setting", "figure", "value"),
-                                 [(r["backend"], r["device"], r["precision"], r["setting"], r["figure"], r["value"])
-                                  for r in rows])
-                blocks.append(Figure(rel, exp.title, c.cmd(f"stress --only {name}", resume=False), rel[:-4] + ".csv"))
-        shown = exp.table_rows(rows) if exp.table_rows is not None else rows
-        blocks.append(Table(("framework", "device", "precision", "setting", "figure", "value", "verdict", "detail"),
-                            tuple((r["backend"], r["device"], r["precision"], str(r["setting"]), str(r["figure"]),
-                                   _value(r.get("value")), str(r["verdict"]), str(r.get("detail", ""))[:200])
-                                  for r in shown)))
-    return blocks
-
-
-def _value(v: Any) -> str:
-    if isinstance(v, float) and math.isfinite(v) and v != 0:
-        return f"{v:.4g}"
-    return "-" if v is None else str(v)

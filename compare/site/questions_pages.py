@@ -4,6 +4,7 @@ under each figure the command that reproduces its data. The pages of one scenari
 are in compare/site/topics/, the pages over every scenario in compare/site/pages.py."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Callable
 
@@ -15,6 +16,18 @@ from compare.site.matrix import Row
 from compare.site.render import Block, Figure, H, P, Table
 
 Page = list[Block]
+
+REPO_DOCS = Path(__file__).resolve().parents[2] / "docs"
+
+
+def doc_link(out: Path, name: str) -> str:
+    """A relative link to docs/NAME when the site lies inside this repository, else its name."""
+    target = REPO_DOCS / name
+    try:
+        Path(out).resolve().relative_to(REPO_DOCS.parent)
+    except ValueError:
+        return f"`docs/{name}` in the repository"
+    return f"[docs/{name}]({os.path.relpath(target, Path(out).resolve())})"
 
 
 class Ctx:
