@@ -25,8 +25,6 @@ from compare.site.data import Machine, Timing
 
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
 NOT_SAME_WORK = ("fastmath",)
-# Ratio upper bounds below the top band; beyond: "poor". The top band ("best") is the tie's alone.
-BANDS = tuple((b.bound, b.name) for b in colors.BANDS if b.bound is not None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,9 +44,10 @@ class Cell:
     reference: bool = False       # set apart by the rule (a hand adjoint): shown, never ranked
     default_value: float | None = None   # the default variant's figure, where another variant won
     default_ratio: float | None = None   # ... and its ratio to the row's leader
+    why: str = ""                 # a far ratio's reason, read from its records (site/pages_why.py)
 
     @property
-    def winner_not_default(self) -> bool:     # the plain call gets the default's figure instead
+    def winner_not_default(self) -> bool:   # the plain call gets the default's figure instead
         return self.value is not None and self.variant not in ("", "default")
 
     @property
@@ -59,7 +58,8 @@ class Cell:
             return "ref"
         if self.tied:
             return "best"
-        return next((name for bound, name in BANDS if self.ratio <= bound), "poor")
+        # ranked bands by their upper bound (compare.colors.BANDS); beyond the last: "poor"
+        return next((b.name for b in colors.BANDS if b.bound and self.ratio <= b.bound), "poor")
 
 
 @dataclasses.dataclass(frozen=True)

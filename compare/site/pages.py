@@ -8,7 +8,7 @@ from typing import Any
 
 import backends
 from compare import charts, colors, noise
-from compare.site import data, fmt, matrix, questions, ranking, shared_host
+from compare.site import data, fmt, matrix, pages_why, questions, ranking, shared_host
 from compare.site import questions_pages as qp
 from compare.site.questions_pages import REPO_DOCS, doc_link  # noqa: F401 (assemble reads them here)
 from compare.site.data import Machine
@@ -149,7 +149,7 @@ def legend() -> Raw:
 
 def evaluate(m: Machine) -> tuple[list[Row], list[Row]]:
     """(rows with at least one figure, rows with none on this machine)."""
-    rows = [matrix.evaluate(r, m, fmt.value) for r in questions.RULES]
+    rows = [pages_why.explain(matrix.evaluate(r, m, fmt.value), m) for r in questions.RULES]
     return [r for r in rows if r.top], [r for r in rows if not r.top]
 
 

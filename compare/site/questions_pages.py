@@ -10,10 +10,10 @@ from typing import Any, Callable
 
 from compare import charts
 from compare.record import Record
-from compare.site import data, fmt, provenance
+from compare.site import data, fmt, pages_why, provenance
 from compare.site.data import Machine
 from compare.site.matrix import Row
-from compare.site.render import Block, Figure, H, P, Table
+from compare.site.render import Block, Figure, H, Items, P, Table
 
 Page = list[Block]
 
@@ -59,6 +59,10 @@ def verdicts(rows: list[Row]) -> list[Block]:
         out += [H(r.rule.question, r.rule.key), P(f"**{r.verdict}**"),
                 P(f"Rule: {r.rule.text} Read here: {r.scope or 'no records'}, device {r.device}.{runs}")]
         out += not_default(r)
+        far = pages_why.lines(r)
+        if far:
+            out += [P(f"Ratios above {pages_why.WHY_ABOVE:g}×, and what the slow port does differently, "
+                      "from its record (`info`, `time`):"), Items(tuple(far))]
     return out
 
 
