@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare import charts, colors, noise
+from compare import charts, colors, figure_check, noise
 from compare.site import data, fmt, matrix, pages_why, questions, ranking, shared_host
 from compare.site import questions_pages as qp
 from compare.site.questions_pages import REPO_DOCS, doc_link  # noqa: F401 (assemble reads them here)
@@ -194,7 +194,7 @@ def accuracy(c: qp.Ctx) -> list[Any]:
         from compare.sweep import plots as sweep_plots
         from compare.sweep.metrics import error_points
         png, rel, csv = c.fig("accuracy-time-vs-error")
-        if sweep_plots.plot_time_vs_error(list(err), c.device, png):
+        if figure_check.checked(lambda: sweep_plots.plot_time_vs_error(list(err), c.device, png), png):
             # the plotted points and their coordinates: the wall clock (time.wall; time.median_s
             # is the CUDA events' where a framework has them) and the error against the
             # converged reference (converged.error, unfloored)

@@ -7,7 +7,7 @@ import math
 import re
 from typing import Any
 
-from compare import charts
+from compare import charts, figure_check
 from compare.site import questions_pages as qp
 from compare.site.questions_pages import doc_link
 from compare.site.render import Figure, H, P, Raw, Table, block_html, block_md
@@ -41,7 +41,7 @@ def stability(c: qp.Ctx) -> list[Any]:
         series = (a.get("series") or {}).get(name)
         png, rel, _ = c.fig(f"stability-{name}")
         if series and exp.plot is not None:
-            plots.draw(exp, series, png)
+            figure_check.checked(lambda: plots.draw(exp, series, png), png)
             if png.exists():
                 charts.write_csv(png.with_suffix(".csv"), ("backend", "device", "precision", "setting", "figure", "value"),
                                  [(r["backend"], r["device"], r["precision"], r["setting"], r["figure"], r["value"])
