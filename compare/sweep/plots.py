@@ -47,10 +47,14 @@ def _tidy_log(ax) -> None:
             axis.set_minor_formatter(NullFormatter())
         elif hi / lo >= 10:
             axis.set_minor_formatter(FuncFormatter(two_five))
-        else:       # under a decade: label the 1-2-3-5-7 ticks, plainly (all nine overprint)
-            def some(v: float, _pos: int) -> str:
+        else:       # under a decade: the 1-2-3-5-7 ticks where two are in range, else all
+            e0 = math.floor(math.log10(lo))
+            few = [m for e in (e0, e0 + 1) for m in (1, 2, 3, 5, 7) if lo <= m * 10.0**e <= hi]
+            keep = (1.0, 2.0, 3.0, 5.0, 7.0) if len(few) >= 2 else tuple(float(m) for m in range(1, 10))
+
+            def some(v: float, _pos: int, keep: tuple[float, ...] = keep) -> str:
                 m = round(v / 10**math.floor(math.log10(v) + 1e-9), 6)
-                return f"{v:.3g}" if m in (1.0, 2.0, 3.0, 5.0, 7.0) else ""
+                return f"{v:.3g}" if m in keep else ""
             axis.set_minor_formatter(FuncFormatter(some))
             axis.set_major_formatter(FuncFormatter(some))
 
@@ -185,8 +189,10 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
                 plt.Line2D([], [], color="0.3", lw=3, alpha=0.35, label="Pareto front, all backends"),
                 plt.Line2D([], [], color="k", lw=1, label="Pareto front per backend (its colour)")]
     fig.suptitle(f"Run time against error ({device})", y=0.99, fontsize=11)
-    fig.legend(handles=handles, loc="upper center", ncol=5, fontsize=8, bbox_to_anchor=(0.5, 0.965))
-    fig.tight_layout(rect=(0, 0, 1, 0.925 if rows_n > 1 else 0.82))
+    legend = fig.legend(handles=handles, loc="upper center", ncol=5 if cols > 1 else 3, fontsize=8,
+                        bbox_to_anchor=(0.5, 0.965))
+    under = legend.get_window_extent(fig.canvas.get_renderer()).y0 / fig.bbox.height   # axes below it
+    fig.tight_layout(rect=(0, 0, 1, under - 0.01))
     keep_apart(notes)
     save_figure(fig, path, dpi=110)
     plt.close(fig)
