@@ -66,7 +66,11 @@ def matrix_png(path: Path, rows: list[Row], frameworks: list[str], title: str) -
     import matplotlib
     from matplotlib.patches import Rectangle
     plt = charts.pyplot()
-    q_in, col_in, best_in, line_in, pad_in, margin = 2.7, 0.78, 0.85, 0.17, 0.08, 0.12
+    from matplotlib.textpath import TextPath
+    q_in, col_in, line_in, pad_in, margin = 2.7, 0.78, 0.17, 0.08, 0.12
+    # the last column as wide as its longest text (a tie names several), in the 8-point font
+    best_in = max([0.85] + [TextPath((0, 0), r.best_text() or "—", size=8).get_extents().width / 72 + 0.16
+                            for r in rows])
     labels = [textwrap.wrap(r.rule.question, 40) or [""] for r in rows]
     heights = [pad_in * 2 + line_in * len(lab) for lab in labels]
     width = 2 * margin + q_in + col_in * len(frameworks) + best_in
