@@ -242,11 +242,11 @@ def checked(draw: Callable[[], T], png: Path) -> T:
         saved.append(self)
         return original(self, *args, **kwargs)
 
-    Figure.savefig = spy             # for this draw only; the class's own method again after it
+    Figure.savefig = spy  # type: ignore[method-assign]   # for this draw only; restored below
     try:
         result = draw()
     finally:
-        Figure.savefig = original
+        Figure.savefig = original  # type: ignore[method-assign]
     if saved and Path(png).exists():
         data = Path(png).read_bytes()
         if data.startswith(_PNG) and read(png) is None:

@@ -71,8 +71,7 @@ def facts(r: Record, unit: str, leader: bool = False) -> list[str]:
 
 def first_result(recs: list[Record]) -> list[str]:
     """The time to first result of several scenarios: the first calls' sum and the largest."""
-    firsts = [(data.num((r.time or {}).get("first_call_s")), r.scenario) for r in recs]
-    firsts = [(v, sc) for v, sc in firsts if v is not None]
+    firsts = [(v, r.scenario) for r in recs if (v := data.num((r.time or {}).get("first_call_s"))) is not None]
     setup = sum(data.num((r.time or {}).get("setup_s")) or 0.0 for r in recs)
     if not firsts:
         return []
@@ -102,7 +101,7 @@ def reason(row: Row, m: Machine, c: Cell) -> str:
     lead = row.cells[row.top] if row.top else None
     theirs = said(lead.framework, lead.variant, True) if lead is not None else []
     text = "; ".join(mine)
-    if theirs:
+    if lead is not None and theirs:
         name = lead.framework + (f" {lead.variant}" if lead.winner_not_default else "")
         text += f" (leader {name}: {'; '.join(theirs)})"
     return text
