@@ -97,7 +97,7 @@ def worst(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
 
 def summary(rows: list[dict[str, Any]], experiments: Registry) -> list[tuple[str, ...]]:
     """One line per experiment with rows: (experiment, title, cases, skipped, flagged, worst)."""
-    out = []
+    out: list[tuple[str, ...]] = []
     for name, exp in experiments.items():
         mine = [r for r in rows if r["experiment"] == name]
         if not mine:
