@@ -55,3 +55,30 @@ def test_stress_md_leads_with_the_summary(tmp_path):
     rows = [row("a", "EXCEEDS derived bound", 3.0), row("b", "within derived bound", 0.2)]
     md = page.markdown({"environment": {}, "rows": rows, "_out": str(tmp_path)}, REG)
     assert md.index("## Summary") < md.index("| a ") < md.index("## a: first")
+
+
+# ---- the stability page: a summary first, the rows folded ------------------------------------
+@pytest.mark.xdist_group("site")
+def test_stability_page_leads_with_one_line_per_experiment_and_folds_the_rows(tmp_path_factory):
+    import json
+    import re
+
+    from test_site import STORE, built_site
+    site = built_site(tmp_path_factory)
+
+    from compare.stress.registry import experiments
+    rows = json.loads((STORE / "stress.json").read_text())["analysis"]["rows"]
+    ran = [e for e in experiments() if any(r["experiment"] == e for r in rows)]
+    assert ran, "the committed store has stability rows"
+    html = (site / "stability.html").read_text()
+    summary = html.index("<h2>Summary</h2>")
+    table = html[summary:html.index("</table>", summary)]
+    assert [re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<tr><td[^>]*>(.*?)</td>", table)] == ran
+    # every experiment's rows under its own heading, folded, after the summary
+    assert html.count("<details><summary>") == len(ran)
+    for e in ran:
+        head = html.index(f'<h2 id="{e}">')
+        assert summary < head < html.index("<details><summary>", head)
+    md = (site / "stability.md").read_text()
+    assert md.index("## Summary") < min(md.index(f"## {e}: ") for e in ran)
+    assert "<details>" not in md
