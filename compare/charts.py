@@ -22,13 +22,12 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
         points = (framework, label, x, y), both axes lower-is-better; the front is the step line
     write_csv(path, headers, rows)        floats as format(x, ".6g"), None as ""
     front_of(points) -> the Pareto front; colors(frameworks) -> {framework: colour};
-    hatch(variant) -> hatch pattern; tidy_log(ax, fmt=None) (1-2-5 labels on log axes);
-    pyplot() (Agg); save(fig, path) (atomic, deterministic, closes the figure); RC (rcParams)
+    hatch(variant) -> hatch pattern; tidy_log(ax, fmt=None) (1-2-5 labels on log axes); pyplot()
+    (Agg); save(fig, path) (atomic, deterministic, layout checked, closes the figure); RC (rcParams)
 
 Colours: a registered backend keeps ``compare.colors.backend_color`` in every figure; any other
-framework gets a spare colour chosen from its name (so the same in every figure) and moved on
-only when that colour is already taken in the figure. Variants never get colours of their own:
-bars are hatched per variant, curves and points get markers.
+framework a spare colour chosen from its name (the same in every figure), moved on only when taken
+in the figure. Variants never get colours: bars are hatched per variant, curves get markers.
 """
 from __future__ import annotations
 
@@ -40,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+from compare import figure_check
 from compare.colors import backend_color
 from compare.store import atomic_write, save_figure
 
@@ -168,8 +168,8 @@ def tidy_log(ax: Any, fmt: Callable[[float], str] | None = None) -> None:
 
 
 def save(fig: Any, path: Path) -> None:
-    """Atomically, at the fixed dpi, without the metadata that would make bytes differ; closed."""
-    save_figure(fig, path, dpi=DPI, metadata={"Software": None})
+    """Atomically, fixed dpi, no metadata that makes bytes differ, layout checked; closed."""
+    figure_check.checked(lambda: save_figure(fig, path, dpi=DPI, metadata={"Software": None}), path)
     pyplot().close(fig)
 
 

@@ -11,8 +11,8 @@ reads NUL-terminated JSON messages on its fd 3 and writes them on its fd 4.
 
 ``check`` loads one page in a fresh tab (every http(s) request blocked, so a test never waits on
 the network) and reports console errors and uncaught exceptions, failed loads (an error or HTTP
-status >= 400), every http(s) request, images that did not load and relative links whose
-target is not on disk. Every wait is bounded: a page that does not load in ``timeout`` seconds
+status >= 400), every http(s) request, images that did not load, relative links whose
+target is not on disk, and each shown PNG's layout verdict (compare/figure_check.py). Every wait is bounded: a page that does not load in ``timeout`` seconds
 is reported as timed out, and the browser is killed (the next call starts a fresh one).
 """
 from __future__ import annotations
@@ -43,6 +43,7 @@ FLAGS = ("--headless=new", "--remote-debugging-pipe", "--no-sandbox", "--disable
 # images not loaded (or loaded but undecodable), and every link's raw href and resolved URL
 BROKEN_IMAGES_JS = "[...document.images].filter(i => !i.complete || i.naturalWidth === 0).map(i => i.src)"
 LINKS_JS = "[...document.querySelectorAll('a[href]')].map(a => [a.getAttribute('href'), a.href])"
+IMAGES_JS = "[...document.images].map(i => i.src)"
 
 
 def find_chromium() -> str | None:
@@ -69,6 +70,7 @@ class PageCheck:
     broken_images: list[str] = dataclasses.field(default_factory=list)
     broken_links: list[str] = dataclasses.field(default_factory=list)
     external_links: list[str] = dataclasses.field(default_factory=list)      # <a href="https://...">: allowed
+    figure_problems: list[str] = dataclasses.field(default_factory=list)     # a shown PNG's layout
     values: dict[str, Any] = dataclasses.field(default_factory=dict)         # check(evaluate=...)'s answers
     timed_out: bool = False
 
@@ -76,7 +78,8 @@ class PageCheck:
         out = [f"timed out loading {self.url}"] if self.timed_out else []
         for label, items in (("console error", self.console_errors), ("failed load", self.failed_loads),
                              ("network request", self.network_requests),
-                             ("broken image", self.broken_images), ("broken link", self.broken_links)):
+                             ("broken image", self.broken_images), ("broken link", self.broken_links),
+                             ("figure", self.figure_problems)):
             out += [f"{label}: {x}" for x in items]
         return out
 
@@ -265,6 +268,7 @@ class Browser:
             time.sleep(settle)                        # errors of scripts run right after load
             result.broken_images = self._evaluate(BROKEN_IMAGES_JS, session, deadline) or []
             links = self._evaluate(LINKS_JS, session, deadline) or []
+            images = self._evaluate(IMAGES_JS, session, deadline) or []
             result.title = self._evaluate("document.title", session, deadline) or ""
             for name, expression in (evaluate or {}).items():
                 result.values[name] = self._evaluate(expression, session, deadline)
@@ -278,6 +282,7 @@ class Browser:
         self._pending = [e for e in self._pending if e.get("sessionId") != session]
         self._collect(events, result)
         result.failed_loads = list(dict.fromkeys(result.failed_loads))   # navigate and Network both report a missing page
+        result.figure_problems = figure_problems(images)
         for raw, resolved in links:
             if _relative(raw):
                 path = local_path(resolved)
@@ -350,6 +355,23 @@ class Browser:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_bytes(base64.b64decode(data))
         return out
+
+
+def figure_problems(srcs: list[str]) -> list[str]:
+    """The layout problems of the PNGs a page shows, as stamped where they were saved
+    (compare/figure_check.py: texts inside the canvas, no two overlapping, no legend over
+    data); a PNG saved without that check is a problem too."""
+    from compare import figure_check          # the standard library only, at import
+    out = []
+    for src in dict.fromkeys(srcs):
+        path = local_path(src)
+        if path is None or path.suffix.lower() != ".png" or not path.is_file():
+            continue                          # not a local PNG, or broken (reported as such)
+        found = figure_check.read(path)
+        if found is None:
+            out.append(f"{path.name}: layout never checked (saved without compare.figure_check)")
+        out += [f"{path.name}: {p}" for p in found or ()]
+    return out
 
 
 def check_pages(pages: list[Path], timeout: float = 30.0) -> dict[Path, PageCheck]:

@@ -227,3 +227,65 @@ def test_a_fraction_above_the_copy_beyond_the_l2_is_labelled_too():
     assert data.fraction_label(fraction(0.9, 3.2e9)) == ""
     unknown = rec("warp", work={"bytes": 24e6}, throughput={"hw_fraction": 1.3}, hardware={"gpu": "Some GPU"})
     assert data.fraction_label(unknown) == "cache"          # above the copy, no L2 known: cache
+
+
+# ---- a winning variant that is not the default ------------------------------------------------
+def test_a_winning_variant_other_than_the_default_is_named_and_the_default_shown_beside_it():
+    from compare.site import questions_pages
+    r = row("latency", [rec("warp", variant="record_cmd", time=latency(10e-6)),
+                        rec("warp", variant="default", time=latency(48e-6)),
+                        rec("cupy", variant="default", time=latency(30e-6))])
+    warp, cupy = r.cells["warp"], r.cells["cupy"]
+    assert warp.variant == "record_cmd" and warp.winner_not_default and not cupy.winner_not_default
+    assert warp.default_value == pytest.approx(48e-6) and warp.default_ratio == pytest.approx(4.8)
+    md, html = pages.matrix_md([r], ["warp", "cupy"]), pages.matrix_html([r], ["warp", "cupy"])
+    assert "**🟩 1.00×** <sub>record_cmd</sub>" in md and md.count("<sub>") == 1
+    assert '<span class="variant">record_cmd</span>' in html and html.count('class="variant"') == 1
+    assert "fastest variant record_cmd; the default variant: 48 µs (4.80×)" in html
+    table = next(b for b in questions_pages.verdicts([r]) if isinstance(b, pages.Table))
+    assert table.rows == (("warp", "record_cmd", "10 µs", "1.00×", "48 µs (4.80×)"),)
+
+
+def test_a_winning_variant_without_a_default_figure_says_so():
+    r = row("latency", [rec("warp", variant="record_cmd", time=latency(10e-6)),
+                        rec("warp", variant="default", status="error", reason="boom"),
+                        rec("cupy", time=latency(30e-6))])
+    assert r.cells["warp"].default_value is None and r.cells["warp"].default_ratio is None
+    assert "the default variant: not measured for this row" in fmt.cell_title(r.cells["warp"], "s")
+
+
+# ---- one definition of the bands in every format ----------------------------------------------
+# The colour squares as emoji fonts draw them (Twemoji): the Markdown matrix's meaning of a band.
+EMOJI_RGB = {"🟩": "#78b159", "🟨": "#fdcb58", "🟧": "#f4900c", "🟥": "#dd2e44", "🟦": "#55acee"}
+
+
+def _hue(hex_rgb: str) -> float:
+    import colorsys
+    r, g, b = (int(hex_rgb[i:i + 2], 16) / 255 for i in (1, 3, 5))
+    return 360 * colorsys.rgb_to_hsv(r, g, b)[0]
+
+
+def test_the_markdown_legend_and_the_html_classes_name_the_same_bands():
+    import re
+
+    from compare import colors
+    from compare.site.render import CSS, inline_html
+    legend = pages.legend()
+    for b in colors.BANDS:
+        words = colors.band_words(b)
+        # the Markdown legend puts the band's emoji before its words; the HTML one its class
+        assert f"{b.emoji} {words}" in legend.markdown
+        assert re.search(rf'<span class="cell {b.name}"[^>]*>&nbsp;</span> {re.escape(inline_html(words))}',
+                         legend.html), b.name
+        css = re.search(r"\." + b.name + r"\{background:(#[0-9a-f]{6})", CSS)
+        assert css and css.group(1) == b.background
+        if b.emoji in EMOJI_RGB:           # the swatch is the emoji's colour, not a neighbour's
+            near = min(EMOJI_RGB, key=lambda e: min(abs(_hue(EMOJI_RGB[e]) - _hue(b.background)),
+                                                    360 - abs(_hue(EMOJI_RGB[e]) - _hue(b.background))))
+            assert near == b.emoji, (b.name, b.background)
+    # a cell within a band's bound is drawn with that band's emoji and class in both formats
+    for ratio, band in ((1.9, "near"), (4.9, "far"), (5.1, "poor")):
+        r = row("latency", [rec("warp", time=latency(10e-6)), rec("cupy", time=latency(ratio * 10e-6))])
+        assert r.cells["cupy"].band == band
+        assert f"{colors.BAND[band].emoji} {fmt.ratio(ratio)}" in pages.matrix_md([r], ["warp", "cupy"])
+        assert f'class="cell {band}"' in pages.matrix_html([r], ["warp", "cupy"])

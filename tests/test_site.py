@@ -376,3 +376,6 @@ def test_overview_picture_is_drawn_from_the_matrix_and_reproducible(site: Path, 
     again = tmp_path / "overview.png"
     pages.matrix_png(again, rows, m.frameworks, title)
     assert again.read_bytes() == png.read_bytes()
+    from compare import figure_check       # no page shows it: its layout is checked here
+    assert figure_check.read(png) == []
+

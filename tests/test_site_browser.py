@@ -1,7 +1,9 @@
 """The report site in a real browser: every page of the site built from tests/data/site loaded in
 headless Chromium (tests/browser.py, one browser for all pages): no console error or uncaught
-exception, no failed load, no request to the network, no broken image or link, and the
-overview's matrix has one column per framework of the store. The harness's own tests load
+exception, no failed load, no request to the network, no broken image or link, no figure whose
+layout check (compare/figure_check.py, stamped in the PNG where it was saved) found a text outside
+the canvas, two texts overlapping or a legend over data, and the overview's matrix has one
+column per framework of the store. The harness's own tests load
 hand-written pages, one per fault, and show each fault is caught and a good page passes.
 
 Chromium missing is a skip whose reason is the install command (CI installs it: .ci/run).
@@ -58,7 +60,10 @@ def html(body: str, title: str = "fixture") -> str:
 
 @pytest.fixture
 def fixtures(tmp_path: Path) -> Path:
-    (tmp_path / "fig.png").write_bytes(PNG)
+    from compare import figure_check
+    (tmp_path / "fig.png").write_bytes(figure_check.stamp(PNG, '{"problems": []}'))
+    (tmp_path / "plain.png").write_bytes(PNG)
+    (tmp_path / "crowded.png").write_bytes(figure_check.stamp(PNG, '{"problems": ["text \'a\' overlaps text \'b\'"]}'))
     (tmp_path / "other.html").write_text(html("<p>other</p>"))
     pages = {
         "ok": '<img src="fig.png"><a href="other.html#top">other</a><a href="#here">here</a>'
@@ -69,6 +74,8 @@ def fixtures(tmp_path: Path) -> Path:
         "broken-link": '<a href="nowhere.html">nowhere</a>',
         "network": '<img src="https://example.invalid/a.png"><script src="http://example.invalid/a.js"></script>',
         "hang": "<script>while (true) {}</script>",
+        "figure-overlap": '<img src="crowded.png">',
+        "figure-unchecked": '<img src="plain.png">',
     }
     for name, body in pages.items():
         (tmp_path / f"{name}.html").write_text(html(body, name))
@@ -91,6 +98,8 @@ def test_harness_passes_a_good_page(chromium: browser.Browser, fixtures: Path):
     ("network", "network_requests", "https://example.invalid/a.png"),
     ("network", "network_requests", "http://example.invalid/a.js"),
     ("missing-page", "failed_loads", "net::ERR_FILE_NOT_FOUND"),
+    ("figure-overlap", "figure_problems", "crowded.png: text 'a' overlaps text 'b'"),
+    ("figure-unchecked", "figure_problems", "plain.png: layout never checked"),
 ])
 def test_harness_catches_each_fault(chromium: browser.Browser, fixtures: Path, page: str, field: str, expect: str):
     r = chromium.check(fixtures / f"{page}.html")

@@ -4,10 +4,11 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
+from compare.colors import BANDS
 from compare.noise import MARK as NOISY_MARK
 from compare.site.matrix import Cell
 
-BAND_EMOJI = {"best": "🟩", "near": "🟨", "far": "🟧", "poor": "🟥", "ref": "🟦", "none": "⬜"}
+BAND_EMOJI = {b.name: b.emoji for b in BANDS}
 REFERENCE_MARK = "✎"           # a cell shown beside the ranking, never in it (a hand adjoint)
 
 
@@ -75,6 +76,18 @@ def cell_text(c: Cell) -> str:
     return "skipped" if c.status == "skipped" else "—"
 
 
+def variant_label(c: Cell) -> str:
+    """The winning variant's name where it is not the default (the matrix's small label)."""
+    return c.variant if c.winner_not_default else ""
+
+
+def default_text(c: Cell, unit: str) -> str:
+    """The default variant's figure beside a winning other variant: ``40 µs (4.80×)``."""
+    if c.default_value is None:
+        return "not measured for this row"
+    return value(c.default_value, unit) + (f" ({ratio(c.default_ratio)})" if c.default_ratio else "")
+
+
 def cell_title(c: Cell, unit: str, reference: str = "a reference") -> str:
     """The cell's tooltip: the figure itself, its variant and spread, or the reason;
     ``reference`` names what a reference cell is (the rule's words)."""
@@ -85,8 +98,8 @@ def cell_title(c: Cell, unit: str, reference: str = "a reference") -> str:
         parts.append(f"{reference}: beside the ranking, never ranked")
     elif c.tied:
         parts.append("shares the top of the row")
-    if c.variant and c.variant != "default":
-        parts.append(f"variant {c.variant}")
+    if c.winner_not_default:
+        parts.append(f"fastest variant {c.variant}; the default variant: {default_text(c, unit)}")
     if c.lo is not None and c.hi is not None and c.hi > c.lo:
         parts.append(f"quartiles {value(c.lo, unit)} – {value(c.hi, unit)}")
     if c.ci is not None:

@@ -18,14 +18,13 @@ import math
 from typing import Any, Callable
 
 import scenarios
+from compare import colors
 from compare.record import Record
 from compare.site import data, provenance, ranking
 from compare.site.data import Machine, Timing
 
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
 NOT_SAME_WORK = ("fastmath",)
-# Ratio upper bounds below the top band; beyond: "poor". The top band ("best") is the tie's alone.
-BANDS = ((2.0, "near"), (5.0, "far"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,6 +42,13 @@ class Cell:
     processes: int = 1
     tied: bool = False            # shares the top of the row (the best, or tied with it)
     reference: bool = False       # set apart by the rule (a hand adjoint): shown, never ranked
+    default_value: float | None = None   # the default variant's figure, where another variant won
+    default_ratio: float | None = None   # ... and its ratio to the row's leader
+    why: str = ""                 # a far ratio's reason, read from its records (site/pages_why.py)
+
+    @property
+    def winner_not_default(self) -> bool:   # the plain call gets the default's figure instead
+        return self.value is not None and self.variant not in ("", "default")
 
     @property
     def band(self) -> str:
@@ -52,7 +58,8 @@ class Cell:
             return "ref"
         if self.tied:
             return "best"
-        return next((name for bound, name in BANDS if self.ratio <= bound), "poor")
+        # ranked bands by their upper bound (compare.colors.BANDS); beyond the last: "poor"
+        return next((b.name for b in colors.BANDS if b.bound and self.ratio <= b.bound), "poor")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -285,10 +292,13 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
     if rule.key in AGGREGATES:
         return _aggregate(rule, recs)
     cells: dict[str, Cell] = {}
+    plain: dict[str, float] = {}     # each framework's default-variant figure
     for r in recs:
         fw = r.backend
         fig = rule.figure(r) if r.status == "ok" else None
         val = fig.median if isinstance(fig, Timing) else fig
+        if val is not None and r.variant == "default":
+            plain[fw] = val
         if fig is None or val is None:
             if fw not in cells:      # keep why a framework has no figure, unless it has one
                 cells[fw] = Cell(fw, None, status=r.status if r.status != "ok" else "absent",
@@ -299,7 +309,8 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
             val < cur.value if rule.better == "lower" else val > cur.value)
         if better:
             cells[fw] = _cell(fw, fig, r.variant, rule.reference is not None and rule.reference.test(r))
-    return cells
+    return {fw: dataclasses.replace(c, default_value=plain.get(fw)) if c.winner_not_default else c
+            for fw, c in cells.items()}
 
 
 def _than(ratio: float, rule: Rule) -> str:
@@ -352,8 +363,10 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
     tied: tuple[str, ...] = ()
     if top is not None:
         b = values[top]
-        cells = {f: dataclasses.replace(c, ratio=(c.value / b if rule.better == "lower" else b / c.value)
-                                        if c.value is not None and c.value > 0 else None)
+
+        def to_top(v: float | None) -> float | None:
+            return (v / b if rule.better == "lower" else b / v) if v is not None and v > 0 else None
+        cells = {f: dataclasses.replace(c, ratio=to_top(c.value), default_ratio=to_top(c.default_value))
                  for f, c in cells.items()}
         ranked = sorted((cells[f] for f in values), key=lambda c: (c.ratio, c.framework != top))
         tied = ranking.tie(ranked, rule.exact)

@@ -4,17 +4,30 @@ under each figure the command that reproduces its data. The pages of one scenari
 are in compare/site/topics/, the pages over every scenario in compare/site/pages.py."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Callable
 
 from compare import charts
 from compare.record import Record
-from compare.site import data, fmt, provenance
+from compare.site import data, fmt, pages_why, provenance
 from compare.site.data import Machine
 from compare.site.matrix import Row
-from compare.site.render import Block, Figure, H, P, Table
+from compare.site.render import Block, Figure, H, Items, P, Table
 
 Page = list[Block]
+
+REPO_DOCS = Path(__file__).resolve().parents[2] / "docs"
+
+
+def doc_link(out: Path, name: str) -> str:
+    """A relative link to docs/NAME when the site lies inside this repository, else its name."""
+    target = REPO_DOCS / name
+    try:
+        Path(out).resolve().relative_to(REPO_DOCS.parent)
+    except ValueError:
+        return f"`docs/{name}` in the repository"
+    return f"[docs/{name}]({os.path.relpath(target, Path(out).resolve())})"
 
 
 class Ctx:
@@ -48,7 +61,27 @@ def verdicts(rows: list[Row]) -> list[Block]:
         runs = f" {provenance.words(r.runs)}" if provenance.one_run(r.runs) else ""
         out += [H(r.rule.question, r.rule.key), P(f"**{r.verdict}**"),
                 P(f"Rule: {r.rule.text} Read here: {r.scope or 'no records'}, device {r.device}.{runs}")]
+        out += not_default(r)
+        far = pages_why.lines(r)
+        if far:
+            out += [P(f"Ratios above {pages_why.WHY_ABOVE:g}×, and what the slow port does differently, "
+                      "from its record (`info`, `time`):"), Items(tuple(far))]
     return out
+
+
+def not_default(r: Row) -> list[Block]:
+    """The cells whose figure is a variant other than the framework's default, with the
+    default's figure beside it: what the plain call costs."""
+    won = [c for c in r.cells.values() if c.winner_not_default]
+    if not won:
+        return []
+    unit = r.rule.unit
+    return [P("Where a framework's cell is a variant other than its default, the default variant's "
+              "figure on the same row:"),
+            Table(("framework", "cell's variant", "its figure", "ratio", "default variant's figure"),
+                  tuple((c.framework, c.variant, fmt.value(c.value, unit),
+                         fmt.ratio(c.ratio) if c.ratio is not None else "-", fmt.default_text(c, unit))
+                        for c in sorted(won, key=lambda c: c.framework)), sortable=False)]
 
 
 def _bar(r: Record, fig: Callable[[Record], Any], note: str = "") -> charts.Bar:

@@ -12,6 +12,8 @@ import html
 import re
 from typing import Union
 
+from compare.colors import band_css
+
 
 @dataclasses.dataclass(frozen=True)
 class H:
@@ -97,13 +99,11 @@ table{border-collapse:collapse;margin:.6em 0;font-size:14px}
 th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:left;vertical-align:top}
 th{background:#f3f5f7}th.sort{cursor:pointer}td.num{text-align:right;font-variant-numeric:tabular-nums}
 table#matrix td.cell{text-align:center;min-width:5.5em;font-variant-numeric:tabular-nums}
-.best{background:#1a7f37;color:#fff;font-weight:600}.near{background:#a6e3b0}
-.far{background:#f6d776}.poor{background:#f2a09a}.ref{background:#b6d4f2}
-.none{background:#eceff1;color:#57606a}
+table#matrix td.cell span.variant{display:block;font-size:11px;font-weight:400;opacity:.85}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #e1e4e8}
 figcaption{font-size:13px;color:#444}pre{background:#f6f8fa;padding:.5em;overflow-x:auto;font-size:13px}
 code{font-size:13px}.legend span{display:inline-block;padding:1px 8px;margin-right:.4em}
-"""
+""" + band_css() + "\n"
 
 SORT_JS = """
 document.querySelectorAll('table.sortable').forEach(function(t){

@@ -12,6 +12,7 @@ import numpy as np
 
 import backends
 import scenarios
+from compare.figure_check import place_legends
 from compare.stress.numerics import (Experiment, Result, StressContext, Style, bitwise_differences, log_floor,
                                      ulps)
 from compare.stress.ulp_cases import ulp_cases
@@ -154,8 +155,9 @@ def plot_ulps(series: dict[str, Any], path: Path, style: Style) -> None:
                 **{**style(lbl), "marker": None})
     ax.set_xscale("log"); ax.set_xlabel("error [ulps of the correctly rounded pixel] (0 drawn at 1e-3)")
     ax.set_ylabel("fraction of pixels with error <= x"); ax.set_title("image outputs, float32", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3); ax.legend(fontsize=6)
-    fig.tight_layout(); fig.savefig(path, dpi=110, format="png"); plt.close(fig)
+    ax.grid(True, which="both", alpha=0.3)
+    place_legends([ax], fontsize=6)     # clear of the curves, else below the axes
+    fig.savefig(path, dpi=110, format="png"); plt.close(fig)
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (

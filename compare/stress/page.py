@@ -63,6 +63,56 @@ def produced_by(data: dict[str, Any]) -> list[str]:
     return lines
 
 
+# A verdict flags a problem or a limit found in CAPITALS (docs/stress.md); these capitals are
+# names, never a flag.
+ACRONYMS = frozenset({"GD", "FD", "AD", "CPU", "GPU", "CUDA", "ULP", "SDF", "NaN"})
+# A figure whose larger value is the worse one: an error, a share of a bound, a count of
+# differing elements (the others, e.g. the first step that overflowed, have no "worst" here).
+WORSE_HIGHER = re.compile(r"\b(error|bound|ulps|differing|flips|changed|distance)\b", re.I)
+
+
+def flagged(verdict: str) -> bool:
+    """The verdict flags a problem or a limit (a word in capitals that is not a name)."""
+    return any(w not in ACRONYMS for w in re.findall(r"\b[A-Z]{2,}\b", str(verdict)))
+
+
+def skipped(r: dict[str, Any]) -> bool:
+    return str(r.get("verdict")) == "skipped"
+
+
+def worst(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """An experiment's worst row: among its flagged rows (else all it measured), the largest
+    value of the most common figure whose larger value is worse; a flagged row without such a
+    figure: the first flagged."""
+    flags = [r for r in rows if flagged(r["verdict"])]
+    pool = [r for r in flags or rows if not skipped(r) and isinstance(r.get("value"), (int, float))
+            and not isinstance(r.get("value"), bool) and math.isfinite(r["value"])
+            and WORSE_HIGHER.search(str(r["figure"]))]
+    if pool:
+        figs = [r["figure"] for r in pool]
+        top = max(dict.fromkeys(figs), key=figs.count)
+        return max((r for r in pool if r["figure"] == top), key=lambda r: r["value"])
+    return flags[0] if flags else None
+
+
+def summary(rows: list[dict[str, Any]], experiments: Registry) -> list[tuple[str, ...]]:
+    """One line per experiment with rows: (experiment, title, cases, skipped, flagged, worst)."""
+    out: list[tuple[str, ...]] = []
+    for name, exp in experiments.items():
+        mine = [r for r in rows if r["experiment"] == name]
+        if not mine:
+            continue
+        w = worst(mine)
+        words = "-" if w is None else (f"{w['backend']} {w['device']} {w['precision']} {w['setting']}: "
+                                       f"{w['figure']} = {fmt_value(w['value'])} ({w['verdict']})")
+        out.append((name, exp.title, str(sum(not skipped(r) for r in mine)), str(sum(skipped(r) for r in mine)),
+                    str(sum(flagged(r["verdict"]) for r in mine)), words))
+    return out
+
+
+SUMMARY_HEADERS = ("experiment", "what", "cases", "skipped", "flagged (CAPITALS)", "worst")
+
+
 def markdown(data: dict[str, Any], experiments: Registry) -> str:
     from tabulate import tabulate
     env = data.get("environment", {})
@@ -71,7 +121,9 @@ def markdown(data: dict[str, Any], experiments: Registry) -> str:
              f"CPU {env.get('cpu', '?')}, GPUs: {', '.join(g.get('name', '?') for g in env.get('gpus', [])) or 'none'}",
              f"- Python {env.get('python', '?')}; " + ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items()),
              "- How each verdict is decided: docs/stress.md. Verdicts in CAPITALS flag a problem or a "
-             "limit found; 'skipped' rows say why.", "", "## Verdicts per experiment", ""]
+             "limit found; 'skipped' rows say why.", "", "## Summary", "",
+             tabulate(summary(data["rows"], experiments), headers=SUMMARY_HEADERS, tablefmt="github",
+                      disable_numparse=True), "", "## Verdicts per experiment", ""]
     counts: dict[str, dict[str, int]] = {}
     for r in data["rows"]:
         v = re.sub(r"(?<![\w.])\d[\d.e+-]*%?", "#", r["verdict"].split(" (")[0])    # numbers apart: one class

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from compare.figure_check import place_legends
 from compare.stress.numerics import ORACLE, Row, Style, log_floor
 from compare.stress.projectile_rules import CONTACTS, FD_AGREE
 from compare.stress.projectile_tasks import OPTIMISERS
@@ -51,11 +52,10 @@ def plot_projectile_lr(series: dict[str, Any], path: Path, style: Style) -> None
         for j, c in enumerate(CONTACTS):
             ax = axes[i][j]
             ax.set_yscale("log"); ax.set_title(f"{m}, contact={c}", fontsize=9); ax.grid(True, alpha=0.3)
-            if ax.lines:
-                ax.legend(fontsize=5)
     for ax in axes[-1]:
         ax.set_xlabel("iteration")
-    fig.tight_layout(); fig.savefig(path, dpi=100); plt.close(fig)
+    place_legends([ax for row in axes for ax in row if ax.lines], fontsize=5)    # clear of the curves
+    fig.savefig(path, dpi=100); plt.close(fig)
 
 
 def plot_projectile_gradient(series: dict[str, Any], path: Path, style: Style) -> None:
@@ -71,7 +71,7 @@ def plot_projectile_gradient(series: dict[str, Any], path: Path, style: Style) -
         if c in series.get("gd_step", {}):
             ax.axvline(series["gd_step"][c], color="r", lw=0.8, label="one GD step at lr 0.01")
         ax.set_xscale("log"); ax.set_yscale("log"); ax.set_title(f"contact={c}: |g - g_FD(h)|/|g|", fontsize=9)
-        ax.set_xlabel("FD step h"); ax.grid(True, which="both", alpha=0.3); ax.legend(fontsize=5)
+        ax.set_xlabel("FD step h"); ax.grid(True, which="both", alpha=0.3)
     for j, c in enumerate(("hard", "soft")):
         ax = axes[1][j]
         for lbl, s in sorted(series["scans"].items()):
@@ -83,7 +83,8 @@ def plot_projectile_gradient(series: dict[str, Any], path: Path, style: Style) -
             if lbl.endswith("/" + c):
                 ax2.plot(s["vy"], s["dvy"], lw=1, ls="-" if c == "soft" else "--", label=f"{c} {lbl.rsplit('/', 1)[0]}")
         ax2.set_title("d loss / d vy0 along the scan (AD)", fontsize=9); ax2.set_xlabel("vy0"); ax2.legend(fontsize=6)
-    fig.tight_layout(); fig.savefig(path, dpi=100); plt.close(fig)
+    place_legends(list(axes[0]), fontsize=5)          # the FD panels' legends clear of the curves
+    fig.savefig(path, dpi=100); plt.close(fig)
 
 
 def plot_projectile_horizon(series: dict[str, Any], path: Path, style: Style) -> None:
@@ -96,5 +97,6 @@ def plot_projectile_horizon(series: dict[str, Any], path: Path, style: Style) ->
     axes[0].set_ylabel("|grad| (float32)"); axes[1].set_ylabel("float32 gradient rel. error vs float64")
     for ax in axes:
         ax.set_xscale("log"); ax.set_yscale("log"); ax.set_xlabel("steps (dt = 0.025)")
-        ax.grid(True, which="both", alpha=0.3); ax.legend(fontsize=5)
-    fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
+        ax.grid(True, which="both", alpha=0.3)
+    place_legends(list(axes), fontsize=5)             # clear of the curves
+    fig.savefig(path, dpi=110); plt.close(fig)

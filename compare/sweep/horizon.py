@@ -21,6 +21,7 @@ from typing import Any
 
 from compare.record import Record
 from compare.report import fmt_bytes, fmt_time
+from compare.figure_check import place_legends
 from compare.store import save_figure
 from compare.sweep.points import sweeps
 from compare.sweep.rows import knob, label, ok, throughput_s, wall_s
@@ -144,7 +145,6 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
         ax.set_xscale("log")
         ax.set_xlabel(f"{kname} (log)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6, ncol=2)
     a1.set_yscale("log"); a2.set_yscale("log")
     a1.set_ylabel(f"{'host' if device == 'cpu' else 'device'} memory above baseline [MiB] (log)")
     a1.set_title(f"memory against the horizon ({where}, {device})", fontsize=9)
@@ -153,7 +153,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     a3.set_ylabel("gradients agreeing with float64 FD [%]")
     a3.set_ylim(-5, 105)
     a3.set_title("gradient quality: mean over backends, band = min..max", fontsize=9)
-    fig.tight_layout()
+    place_legends([a1, a2, a3], fontsize=6, ncol=2)    # each clear of its data, else below its axes
     save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True

@@ -11,6 +11,7 @@ from typing import Any
 
 import backends
 from compare.colors import backend_color
+from compare.figure_check import keep_apart
 from compare.record import Record
 from compare.store import save_figure
 from compare.sweep import horizon
@@ -30,7 +31,8 @@ def _plt():
 
 def _tidy_log(ax) -> None:
     """Readable base-10 log axes: with two or more powers of ten in range, label only those;
-    with fewer, label the 2x and 5x minor ticks too (matplotlib's default overprints there)."""
+    with fewer, label the 2x and 5x minor ticks too; under a decade, the 1-2-3-5-7 ticks
+    (matplotlib's default, or every tick, overprints there)."""
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
     def two_five(v: float, _pos: int) -> str:
@@ -45,9 +47,16 @@ def _tidy_log(ax) -> None:
             axis.set_minor_formatter(NullFormatter())
         elif hi / lo >= 10:
             axis.set_minor_formatter(FuncFormatter(two_five))
-        else:                                 # under a decade: label every tick, plainly
-            axis.set_minor_formatter(FuncFormatter(lambda v, _pos: f"{v:.3g}"))
-            axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:.3g}"))
+        else:       # under a decade: the 1-2-3-5-7 ticks where two are in range, else all
+            e0 = math.floor(math.log10(lo))
+            few = [m for e in (e0, e0 + 1) for m in (1, 2, 3, 5, 7) if lo <= m * 10.0**e <= hi]
+            keep = (1.0, 2.0, 3.0, 5.0, 7.0) if len(few) >= 2 else tuple(float(m) for m in range(1, 10))
+
+            def some(v: float, _pos: int, keep: tuple[float, ...] = keep) -> str:
+                m = round(v / 10**math.floor(math.log10(v) + 1e-9), 6)
+                return f"{v:.3g}" if m in keep else ""
+            axis.set_minor_formatter(FuncFormatter(some))
+            axis.set_major_formatter(FuncFormatter(some))
 
 
 def colors(records: list[Record]) -> dict[str, str]:
@@ -135,6 +144,7 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
     cols = min(2, len(scen))
     rows_n = -(-len(scen) // cols)
     fig, axes = plt.subplots(rows_n, cols, figsize=(6.2 * cols, 4.6 * rows_n), squeeze=False)
+    notes: list[Any] = []           # the front's knob labels, dropped where they would overlap
     for ax, s in zip(axes.flat, scen):
         pts = error_points(records, device, s)
         for p in pts:
@@ -162,8 +172,8 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
             if p["front_all"] and k.get("value") is not None and k["value"] not in labelled \
                     and not crowded:
                 labelled[k["value"]] = at
-                ax.annotate(f"{k['name']}={k['value']}", (p["time"], p["error"]), fontsize=6,
-                            color="0.25", xytext=(4, 3), textcoords="offset points")
+                notes.append(ax.annotate(f"{k['name']}={k['value']}", (p["time"], p["error"]), fontsize=6,
+                                         color="0.25", xytext=(4, 3), textcoords="offset points"))
         ax.set_xlabel("median wall time per run [s] (log)")
         metric = pts[0]["rec"].converged.get("metric", "error")
         ax.set_ylabel(label(s, "error_axis", metric).format(floor=ERROR_FLOOR), fontsize=8)
@@ -179,8 +189,11 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
                 plt.Line2D([], [], color="0.3", lw=3, alpha=0.35, label="Pareto front, all backends"),
                 plt.Line2D([], [], color="k", lw=1, label="Pareto front per backend (its colour)")]
     fig.suptitle(f"Run time against error ({device})", y=0.99, fontsize=11)
-    fig.legend(handles=handles, loc="upper center", ncol=5, fontsize=8, bbox_to_anchor=(0.5, 0.965))
-    fig.tight_layout(rect=(0, 0, 1, 0.925 if rows_n > 1 else 0.82))
+    legend = fig.legend(handles=handles, loc="upper center", ncol=5 if cols > 1 else 3, fontsize=8,
+                        bbox_to_anchor=(0.5, 0.965))
+    under = legend.get_window_extent(fig.canvas.get_renderer()).y0 / fig.bbox.height   # axes below it
+    fig.tight_layout(rect=(0, 0, 1, under - 0.01))
+    keep_apart(notes)
     save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True

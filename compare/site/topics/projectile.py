@@ -1,7 +1,7 @@
 """The batched differentiable projectile on the site: gradients through a simulation at scale."""
 from __future__ import annotations
 
-from compare import charts
+from compare import charts, figure_check
 from compare.record import Record
 from compare.site import data
 from compare.site.matrix import Reference, Rule, largest_of, rate
@@ -68,7 +68,7 @@ def page(c: Ctx) -> Page:
     if hz:
         from compare.sweep import plots as sweep_plots
         png, rel, _ = c.fig("gradients-horizon")
-        if sweep_plots.plot_horizon(list(hz), c.device, png, SCENARIO):
+        if figure_check.checked(lambda: sweep_plots.plot_horizon(list(hz), c.device, png, SCENARIO), png):
             charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "steps", "device bytes",
                                                        "gradient fd agreement"),
                              [(r.backend, r.variant, r.precision,

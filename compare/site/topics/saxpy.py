@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from compare import charts
-from compare.site import data, fmt, matrix
+from compare.site import data, datasheet, fmt, matrix
 from compare.site.harness import harness_table
 from compare.site.matrix import Rule, defaults_of, largest_of, regime
 from compare.site.questions_pages import Ctx, Page, _bar, _group, _label, _launch_yardstick, _host_share, \
@@ -53,6 +53,8 @@ def bandwidth(c: Ctx) -> Page:
               and data.tag(r, "sweep") in (None, "bandwidth")]
     allvar = matrix.latest(_variants(allvar))
     if allvar:
+        gpu = next((g for r in allvar if (g := datasheet.gpu_of(r, c.m.runs))), None)
+        copy = next((v for r in allvar if (v := data.num((r.hardware or {}).get("copy_bytes_per_s")))), None)
         png, rel, csv = c.fig("bandwidth-largest")
         charts.bars(png, f"SAXPY at the largest n ({matrix.scope(allvar)}), {c.device}, float32: per call, "
                     "throughput regime", "seconds per call (whiskers: quartiles)",
@@ -60,9 +62,11 @@ def bandwidth(c: Ctx) -> Page:
         n = int(data.size(allvar[0]))
         blocks += [Figure(rel, "Every framework and variant at the largest n; bars sorted fastest first.",
                           c.cmd(f"run {SCENARIO} --devices {c.device} --precision float32 --variants all --set n={n}"), csv),
+                   P(datasheet.words(c.device, gpu, copy)),
                    timing_table(allvar, ("latency", "throughput"),
-                                lambda r: [fmt.fraction(data.hw_fraction(r), data.fraction_label(r, c.m.runs))],
-                                ("hw fraction",))]
+                                lambda r: [fmt.fraction(data.hw_fraction(r), data.fraction_label(r, c.m.runs)),
+                                           fmt.pct(datasheet.fraction(r, c.m.runs))],
+                                ("hw fraction (of the copy)", "of the datasheet peak"))]
     sweep = [r for r in c.m.sweep if data.tag(r, "sweep") == "bandwidth" and r.scenario == SCENARIO
              and r.device == c.device and r.status == "ok"]
     if sweep:
