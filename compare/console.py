@@ -66,9 +66,9 @@ def _names(items: Iterable[str]) -> str:
 
 def _fit(text: str, keep: str = "") -> str:
     """``text`` cut to one line of WIDTH with ``keep`` (a command) whole after it."""
-    room = WIDTH - len(keep)
+    room = max(WIDTH - len(keep), 60)      # a long command makes the line longer, never the cause shorter
     if len(text) > room:
-        text = text[:max(room - 1, 20)].rstrip() + "…"
+        text = text[:room - 1].rstrip() + "…"
     return text + keep
 
 
@@ -101,17 +101,21 @@ def skip_lines(records: list[Record], gpu_here: bool) -> list[str]:
                      "frameworks)")
     for (dev, cause, cmd), recs in sorted(other.items(), key=lambda kv: -len(kv[1])):
         who = _names(r.backend if r.variant == "default" else f"{r.backend}/{r.variant}" for r in recs)
-        lines.append(_fit(f"  {who} on {dev} ({len(recs)} cells): {cause}", f": {cmd}" if cmd else ""))
+        lines.append(_fit(f"  {who} on {dev} ({len(recs)} cell{'' if len(recs) == 1 else 's'}): {cause}",
+                          f": {cmd}" if cmd else ""))
     if len(lines) > MAX_CAUSES:
         rest = len(lines) - MAX_CAUSES + 1
         lines = lines[:MAX_CAUSES - 1] + [f"  ... and {rest} more causes (results.md gives every cell's reason)"]
     return [f"{len(skipped)} cells skipped (each with its reason in results.md):"] + lines
 
 
+# a noise reason's kind, from the wording of compare/noise.py (a figure left out)
+KINDS = ((re.compile(r"^host busy"), "host busy"), (re.compile(r"^spread "), "wide spread"),
+         (re.compile(r"^\d+ repeats?$"), "few repeats"), (re.compile(r"taken between calls"), "host taken between calls"))
+
+
 def _kind(why: str) -> str:
-    """A noise reason's kind: its words before a colon or a figure ('host busy', 'spread')."""
-    m = re.match(r"[A-Za-z ]+?(?=\s*[:\d(]|$)", why)
-    return m[0].strip() if m else why[:20]
+    return next((kind for pattern, kind in KINDS if pattern.search(why)), " ".join(why.split()[:3]))
 
 
 def noise_brief(records: list[Record]) -> list[str]:
