@@ -228,33 +228,47 @@ def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int],
     repeats.run_rounds(first, processes, seed, time_one, on_round)
 
 
+QUIET_LINE_S = 120.0     # not a terminal: a progress line at least this often while cells run
+
+
 def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None, every: bool = True
              ) -> Callable[[int, dict[str, Any], Outputs | None], None]:
     """An ``on_record`` that reports each finished cell on stderr: a tqdm bar on a terminal, one
     line per cell otherwise (CI logs). ``label``: a record's name (default: its identity).
-    ``every=False`` (not a terminal): a line per quarter of the cells, and each failed cell's."""
+    ``every=False`` (not a terminal): a line per quarter of the cells that run (the skipped ones
+    come first, all at once, and are only counted), one at least every QUIET_LINE_S, and one per
+    failed cell."""
     import os
     import sys
+    import time
     quiet = bool(os.environ.get("CI")) or not sys.stderr.isatty()
     bar = None
     if not quiet:
         from tqdm import tqdm
         bar = tqdm(total=total, unit="cell", file=sys.stderr)
-    seen = {"n": 0, "part": 0}
+    seen = {"skipped": 0, "ran": 0, "part": 0, "at": time.monotonic()}
 
     def on_record(i: int, rec: dict[str, Any], out: Outputs | None) -> None:
         name = label(rec) if label else "/".join(str(rec.get(k)) for k in IDENTITY)
-        seen["n"] += 1
         if bar is not None:
             bar.set_description(name)
             bar.update(1)
             if bar.n >= total:
                 bar.close()
-        elif every or rec["status"] in ("error", "mismatch"):
+            return
+        if every or rec["status"] in ("error", "mismatch"):
             print(f"  [{i + 1}/{total}] {name}: {rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr,
                   flush=True)
-        elif seen["n"] * 4 // max(total, 1) > seen["part"]:
-            # skipped cells finish all at once at the start: one line for the quarters they pass
-            seen["part"] = seen["n"] * 4 // max(total, 1)
-            print(f"  {seen['n']}/{total} cells done (last: {name}: {rec['status']})", file=sys.stderr, flush=True)
+            if every:
+                return
+        if rec["status"] == "skipped" and not seen["ran"]:
+            seen["skipped"] += 1
+            return
+        seen["ran"] += 1
+        runs = max(total - seen["skipped"], 1)
+        part, now = seen["ran"] * 4 // runs, time.monotonic()
+        if part > seen["part"] or now - seen["at"] >= QUIET_LINE_S:
+            seen["part"], seen["at"] = part, now
+            print(f"  {seen['ran']}/{runs} cells run ({seen['skipped']} skipped; last: {name}: {rec['status']})",
+                  file=sys.stderr, flush=True)
     return on_record
