@@ -123,7 +123,9 @@ def block(records: list[Record], env: dict[str, Any], out: Path, against: str | 
     for c in per.values():
         groups.setdefault((c.rec.device, c.rec.scenario), []).append(c)
     devices = sorted({d for d, _ in groups}, key=lambda d: (d != "cuda", d))
-    lines = [f"This run against {label}: {ref.name()}; {len(per)} timed cells matched.",
+    noisy = sum(bool(c.mine.noisy) for c in per.values())
+    lines = [f"This run against {label}: {ref.name()}; {len(per)} timed cells matched"
+             + (f", {noisy} of them noisy here (~: their ratios say little)." if noisy else "."),
              "  ratio = this run's per-call time / the reference's (below 1: faster here); per scenario "
              "the median and its quartiles:"]
     for (dev, scenario), cs in sorted(groups.items(), key=lambda kv: (devices.index(kv[0][0]), kv[0][1])):
