@@ -127,8 +127,8 @@ def noise_brief(records: list[Record]) -> list[str]:
     kinds = Counter(k for r in noisy for k in {_kind(x["why"]) for x in
                                                ((r.time or {}).get("noise") or {}).get("reasons") or []})
     why = ", ".join(f"{k} {n}" for k, n in kinds.most_common())
-    head = (f"{noise.MARK} {len(noisy)} of {sum(r.status == 'ok' for r in records)} timed cells are noisy "
-            f"(marked {noise.MARK}; by cause: {why}; each cell's reasons: results.md or --verbose)")
+    head = (f"{noise.MARK} {len(noisy)} of {sum(r.status == 'ok' for r in records)} timed cells are noisy: "
+            f"{why} (why: results.md)")
     return textwrap.wrap(head, WIDTH, subsequent_indent="    ") + [full[-1]]
 
 

@@ -228,7 +228,7 @@ def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int],
     repeats.run_rounds(first, processes, seed, time_one, on_round)
 
 
-QUIET_LINE_S = 120.0     # not a terminal: a progress line at least this often while cells run
+QUIET_LINE_S = 300.0     # not a terminal: a progress line at least this often while cells run
 
 
 def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None, every: bool = True

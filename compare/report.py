@@ -199,7 +199,8 @@ def compact(records: list[Record], brief: bool = False) -> list[list[str]]:
     """The terminal view (COMPACT columns, at most 120 wide): backend, device, precision and
     variant in one column, the hardware fraction with its floor's short name, and one line per
     backend and device whose cells were all skipped for the same reason. ``brief``: a noisy
-    cell's note leaves out its reasons (its figures carry the mark; ``compare.console`` counts them)."""
+    cell's note leaves out its reasons (its figures carry the mark; ``compare.console`` counts them)
+    and the particles not checked are said in one line."""
     idx = [COLUMNS.index(c) for c in COMPACT[1:]]
     out, seen = [], set()
     for r in records:
@@ -220,6 +221,9 @@ def compact(records: list[Record], brief: bool = False) -> list[list[str]]:
         cut = cells[-1].find("noisy: ")
         if brief and cut >= 0 and r.status == "ok" and noise.reasons_for(r):
             cells[-1] = cells[-1][:cut].rstrip("; ")
+        ill = (r.error or {}).get("ill_conditioned")
+        if brief and ill:               # one line of the note column (results.md has the words)
+            cells[-1] = cells[-1].replace(f"{ill} ill-conditioned particles not checked", f"{ill} ill-cond. unchecked")
         out.append([" ".join([r.backend, full[1], r.precision.replace("float", "f"), full[3]])] + cells)
     return out
 

@@ -195,7 +195,7 @@ def test_default_end_is_brief_and_verbose_keeps_the_full_listing() -> None:
     full = "\n".join(console.closing(recs, {"gpus": []}, verbose=True, wide=False))
     assert "torch cpu" not in brief and "torch cpu" in full           # the skipped rows
     assert brief.count("host busy: 1.2 other cores") == 0 and full.count("host busy: 1.2 other cores") >= 4
-    assert "~ 4 of 4 timed cells are noisy (marked ~; by cause: host busy 4;" in brief
+    assert "~ 4 of 4 timed cells are noisy: host busy 4 (why: results.md)" in brief
     assert "torch not installed: pip install -e '.[torch]'" in brief
     assert "4 skipped" in brief and "4 skipped" in full                # the summary in both
     assert len(brief.splitlines()) < len(full.splitlines())
