@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import statistics
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -78,7 +79,8 @@ def _hardware(env: dict[str, Any], ref_runs: tuple[dict[str, Any], ...], devices
             parts.append(f"{dev} {name} {a * scale:.3g} {unit} here, {b * scale:.3g} {unit} there ({_ratio(a / b)})")
     cores = sorted({e.get("cores") for e in ref_runs if isinstance(e.get("cores"), int)})
     if isinstance(env.get("cores"), int) and cores:
-        parts.append(f"cores {env['cores']} here, {'/'.join(map(str, cores))} there")
+        parts.append(f"cores {env['cores']} on both" if cores == [env["cores"]]
+                     else f"cores {env['cores']} here, {'/'.join(map(str, cores))} there")
     return "; ".join(parts)
 
 
@@ -125,7 +127,7 @@ def block(records: list[Record], env: dict[str, Any], out: Path, against: str | 
     devices = sorted({d for d, _ in groups}, key=lambda d: (d != "cuda", d))
     noisy = sum(bool(c.mine.noisy) for c in per.values())
     lines = [f"This run against {label}: {ref.name()}; {len(per)} timed cells matched"
-             + (f", {noisy} of them noisy here (~: their ratios say little)." if noisy else "."),
+             + (f" ({noisy} noisy here ~)." if noisy else "."),
              "  ratio = this run's per-call time / the reference's (below 1: faster here); per scenario "
              "the median and its quartiles:"]
     for (dev, scenario), cs in sorted(groups.items(), key=lambda kv: (devices.index(kv[0][0]), kv[0][1])):
@@ -133,9 +135,12 @@ def block(records: list[Record], env: dict[str, Any], out: Path, against: str | 
         within = sum(c.verdict == vs.WITHIN for c in cs)
         lines.append(f"    {scenario:<11} {dev:<5} {_ratio(q2):>7}  (quartiles {_ratio(q1)} – {_ratio(q3)}; "
                      f"{len(cs)} cells, {within} within both runs' spread)")
-    hw = _hardware(env, ref.runs, devices)
+    hw = [_hardware(env, ref.runs, devices)] if _hardware(env, ref.runs, devices) else []
+    loads = [vs.host_load(x) for x in (mine, ref)]        # a busy host slows every cell alike
+    if all(v is not None for v in loads):
+        hw.append(f"host load {loads[0]:.1f} here, {loads[1]:.1f} there")
     if hw:
-        lines.append(f"  the machines: {hw}")
+        lines += textwrap.wrap(f"  the machines: {'; '.join(hw)}", 118, subsequent_indent="    ")
     write_page(Path(out) / PAGE, label, mine, ref, mm)
     lines.append(f"  every matched cell: {_shown(Path(out) / PAGE)}")
     return lines

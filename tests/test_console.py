@@ -110,11 +110,12 @@ def test_reference_block_on_a_tiny_store(base_run, tmp_path: Path, monkeypatch: 
     mine.mkdir()
     lines = versus.block(records, env, mine)
     assert lines[0].startswith("This run against the CPU report (refs/cpu)") and "8 timed cells matched" in lines[0]
-    rows = {ln.split()[0]: ln for ln in lines if ln.startswith("    ")}
+    machines = next(i for i, ln in enumerate(lines) if ln.startswith("  the machines:"))
+    rows = {ln.split()[0]: ln for ln in lines[2:machines]}
     assert set(rows) == {"saxpy", "sdf", "particles", "projectile"}
     for row in rows.values():        # this run's time / twice it, in every cell
         assert row.split()[1:3] == ["cpu", "0.50×"] and "quartiles 0.50× – 0.50×; 2 cells" in row, row
-    hw = next(ln for ln in lines if ln.startswith("  the machines:"))
+    hw = " ".join(" ".join(lines[machines:-1]).split())
     copy_here = env["hardware"]["cpu"]["copy_bytes_per_s"]
     assert f"cpu copy {copy_here * 1e-9:.3g} GB/s here, {copy_here * 0.5e-9:.3g} GB/s there (2.00×)" in hw
     assert f"cores {env['cores']} here, 64 there" in hw

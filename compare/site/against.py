@@ -68,12 +68,13 @@ def _env_rows(m: Machine) -> dict[str, str]:
             "CUDA toolkit": _distinct(e.get("cuda_toolkit") for e in envs),
             "commits": _distinct(str(e.get("git_commit")) + (" (dirty)" if e.get("git_dirty") else "")
                                  for e in envs if e.get("git_commit"))}
-    load = _load(m)
+    load = host_load(m)
     rows["host load while timing (1-min average, median over cells)"] = f"{load:.1f}" if load is not None else "-"
     return rows
 
 
-def _load(m: Machine) -> float | None:
+def host_load(m: Machine) -> float | None:
+    """The median 1-minute host load over the cells timed (None where no record has it)."""
     # a busy host slows every cell alike: the first thing to rule out when all ratios move together
     load = [v for r in m.records if (v := data.num(r.host_load_1m)) is not None]
     return statistics.median(load) if load else None
@@ -231,7 +232,7 @@ def yardstick_line(m: Machine, ref: Machine, devices: Iterable[str]) -> str:
                          f"{fmt.rate(mb, 'B/s')} (same-run copy yardstick, medians over runs)"
                          + ("" if same else f": a byte takes {fmt.ratio(mb / ma)} the reference's time "
                             "here, and a bandwidth-bound cell may differ by as much for that alone"))
-    la, lb = _load(m), _load(ref)
+    la, lb = host_load(m), host_load(ref)
     if la is not None and lb is not None:
         parts.append(f"the host's load while timing (1-min average, median over cells) was {la:.1f} here "
                      f"and {lb:.1f} on the reference"
