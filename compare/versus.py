@@ -128,8 +128,8 @@ def block(records: list[Record], env: dict[str, Any], out: Path, against: str | 
     noisy = sum(bool(c.mine.noisy) for c in per.values())
     lines = [f"This run against {label}: {ref.name()}; {len(per)} timed cells matched"
              + (f" ({noisy} noisy here ~)." if noisy else "."),
-             "  ratio = this run's per-call time / the reference's (below 1: faster here); per scenario "
-             "the median and its quartiles:"]
+             f"  ratio = per-call time here / there (below 1: faster here), median and quartiles; every cell: "
+             f"{_shown(Path(out) / PAGE)}"]
     for (dev, scenario), cs in sorted(groups.items(), key=lambda kv: (devices.index(kv[0][0]), kv[0][1])):
         q1, q2, q3 = _quartiles(sorted(c.ratio for c in cs))
         within = sum(c.verdict == vs.WITHIN for c in cs)
@@ -142,7 +142,6 @@ def block(records: list[Record], env: dict[str, Any], out: Path, against: str | 
     if hw:
         lines += textwrap.wrap(f"  the machines: {'; '.join(hw)}", 118, subsequent_indent="    ")
     write_page(Path(out) / PAGE, label, mine, ref, mm)
-    lines.append(f"  every matched cell: {_shown(Path(out) / PAGE)}")
     return lines
 
 
