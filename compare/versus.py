@@ -77,7 +77,7 @@ def _hardware(env: dict[str, Any], ref_runs: tuple[dict[str, Any], ...], devices
             b = statistics.median(bs)
             scale = 1e-9 if unit == "GB/s" else 1e6
             parts.append(f"{dev} {name} {a * scale:.3g} {unit} here, {b * scale:.3g} {unit} there ({_ratio(a / b)})")
-    cores = sorted({e.get("cores") for e in ref_runs if isinstance(e.get("cores"), int)})
+    cores = sorted({int(c) for e in ref_runs if isinstance(c := e.get("cores"), int)})
     if isinstance(env.get("cores"), int) and cores:
         parts.append(f"cores {env['cores']} on both" if cores == [env["cores"]]
                      else f"cores {env['cores']} here, {'/'.join(map(str, cores))} there")
