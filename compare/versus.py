@@ -148,14 +148,14 @@ def block(records: list[Record], env: dict[str, Any], out: Path, against: str | 
 def write_page(path: Path, label: str, mine: Any, ref: Any, mm: Any) -> None:
     """``against.md``: the site's --against page from the same match, without its figure."""
     from compare.site import against as vs
-    from compare.site.render import H, P, page_md
+    from compare.site.render import H, P, block_md
     from compare.store import atomic_write
     yard = vs.yardstick_line(mine, ref, sorted({x.rec.device for x in mm.compared}))
     blocks = [P(f"This run ({_shown(path.parent)}) against {label}: {ref.name()}. Ratio = this run's "
                 "per-call time / the reference's: below 1, faster here. The full page, with a figure: "
                 f"`{vs.COMMAND}`."),
               H("Summary", "summary"), *vs.summary(mm), *([P(yard)] if yard else []), *vs.tables(mm), *vs.environments(mine, ref)]
-    atomic_write(path, page_md("This run against the reference", [], blocks))
+    atomic_write(path, "\n\n".join(["# This run against the reference", *map(block_md, blocks)]) + "\n")
 
 
 __all__ = ["REFERENCES", "block", "check", "chosen", "write_page"]
