@@ -228,17 +228,25 @@ def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int],
     repeats.run_rounds(first, processes, seed, time_one, on_round)
 
 
-def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None
+QUIET_LINE_S = 300.0     # not a terminal: a progress line at least this often while cells run
+
+
+def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None, every: bool = True
              ) -> Callable[[int, dict[str, Any], Outputs | None], None]:
     """An ``on_record`` that reports each finished cell on stderr: a tqdm bar on a terminal, one
-    line per cell otherwise (CI logs). ``label``: a record's name (default: its identity)."""
+    line per cell otherwise (CI logs). ``label``: a record's name (default: its identity).
+    ``every=False`` (not a terminal): a line per quarter of the cells that run (the skipped ones
+    come first, all at once, and are only counted), one at least every QUIET_LINE_S, and one per
+    failed cell."""
     import os
     import sys
+    import time
     quiet = bool(os.environ.get("CI")) or not sys.stderr.isatty()
     bar = None
     if not quiet:
         from tqdm import tqdm
         bar = tqdm(total=total, unit="cell", file=sys.stderr)
+    seen = {"skipped": 0, "ran": 0, "part": 0, "at": time.monotonic()}
 
     def on_record(i: int, rec: dict[str, Any], out: Outputs | None) -> None:
         name = label(rec) if label else "/".join(str(rec.get(k)) for k in IDENTITY)
@@ -247,7 +255,20 @@ def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None
             bar.update(1)
             if bar.n >= total:
                 bar.close()
-        else:
+            return
+        if every or rec["status"] in ("error", "mismatch"):
             print(f"  [{i + 1}/{total}] {name}: {rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr,
                   flush=True)
+            if every:
+                return
+        if rec["status"] == "skipped" and not seen["ran"]:
+            seen["skipped"] += 1
+            return
+        seen["ran"] += 1
+        runs = max(total - seen["skipped"], 1)
+        part, now = seen["ran"] * 4 // runs, time.monotonic()
+        if part > seen["part"] or now - seen["at"] >= QUIET_LINE_S:
+            seen["part"], seen["at"] = part, now
+            print(f"  {seen['ran']}/{runs} cells run ({seen['skipped']} skipped; last: {name}: {rec['status']})",
+                  file=sys.stderr, flush=True)
     return on_record

@@ -195,10 +195,12 @@ def noise_lines(records: list[Record]) -> list[str]:
 SHORT_KIND = {"bandwidth": "bw", "serial latency": "lat", "launch": "launch", "flops": "flops"}
 
 
-def compact(records: list[Record]) -> list[list[str]]:
+def compact(records: list[Record], brief: bool = False) -> list[list[str]]:
     """The terminal view (COMPACT columns, at most 120 wide): backend, device, precision and
     variant in one column, the hardware fraction with its floor's short name, and one line per
-    backend and device whose cells were all skipped for the same reason."""
+    backend and device whose cells were all skipped for the same reason. ``brief``: a noisy
+    cell's note leaves out its reasons (its figures carry the mark; ``compare.console`` counts them)
+    and the particles not checked are said in one line."""
     idx = [COLUMNS.index(c) for c in COMPACT[1:]]
     out, seen = [], set()
     for r in records:
@@ -216,6 +218,12 @@ def compact(records: list[Record]) -> list[list[str]]:
         cells = [full[i] for i in idx]
         cells[COMPACT.index("hw fraction") - 1] = (f"{hw:.2g} {SHORT_KIND.get(kind, kind)}"
                                                    if isinstance(hw, (int, float)) else "-")
+        cut = cells[-1].find("noisy: ")
+        if brief and cut >= 0 and r.status == "ok" and noise.reasons_for(r):
+            cells[-1] = cells[-1][:cut].rstrip("; ")
+        ill = (r.error or {}).get("ill_conditioned")
+        if brief and ill:               # one line of the note column (results.md has the words)
+            cells[-1] = cells[-1].replace(f"{ill} ill-conditioned particles not checked", f"{ill} ill-cond. unchecked")
         out.append([" ".join([r.backend, full[1], r.precision.replace("float", "f"), full[3]])] + cells)
     return out
 
@@ -233,19 +241,19 @@ def params_line(recs: list[Record]) -> str:
 
 
 def tables(records: list[Record], fmt: str = "simple", images: dict[str, str] | None = None,
-           wide: bool = True) -> str:
+           wide: bool = True, brief: bool = False) -> str:
     """One table per scenario; in Markdown, each followed by its picture when ``images`` has one.
     ``wide=False``: the terminal's compact view (``compact``)."""
     parts = []
     for scenario, recs in by_scenario(records).items():
         head = f"{scenario} ({params_line(recs)})"
         pics = [(name, (images or {}).get(name)) for name in (f"speed_{scenario}", scenario)]
-        body, headers = ([row(r) for r in recs], COLUMNS) if wide else (compact(recs), COMPACT_HEADERS)
+        body, headers = ([row(r) for r in recs], COLUMNS) if wide else (compact(recs, brief), COMPACT_HEADERS)
         if not wide:
             head = textwrap.fill(head, 120, subsequent_indent="    ", break_on_hyphens=False)
         # the terminal's note column wraps a long reason under its row (an install command whole)
         widths = None if wide else [None] * (len(COMPACT) - 1) + [NOTE_WIDTH]
-        parts.append(("## " if fmt == "github" else "") + head + "\n\n" +
+        parts.append(("## " if fmt == "github" else "") + head + ("\n" if brief else "\n\n") +
                      tabulate(body, headers=headers, tablefmt=fmt, disable_numparse=True, maxcolwidths=widths)
                      + "".join(f"\n\n![{name}]({img})" for name, img in pics if img))
     return "\n\n".join(parts) + "\n"

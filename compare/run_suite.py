@@ -21,7 +21,8 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import calibrate, engine, environment, hardware, options, overlap, phases, report, run_plots, scaleout
+from compare import (calibrate, console, engine, environment, hardware, options, overlap, phases, report,
+                     run_plots, scaleout, versus)
 from compare.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
                                measured_need, memory_refusal)
 from compare.record import Record, plain
@@ -79,6 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="replace the results of an earlier run in --out (default: refuse them)")
     options.add_scheduler(p)
     p.add_argument("--wide", action="store_true", help="print every column (default: a view that fits 120)")
+    console.add_arguments(p)
 
 
 def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[Cell]:
@@ -168,6 +170,7 @@ def refuse_overwrite(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
     cells = plan(args, chosen)
     options.check_output(args.out)                    # a bad --out is refused before the probes
+    versus.check(args.against)
     refuse_overwrite(args)
     kept = Store.open(args.out, "run", keep=args.resume)   # and a bad results.json to resume (read only)
     began = time.perf_counter()
@@ -272,7 +275,7 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     runner = scaleout.runner(client, args.timeout, cells, probes) if client is not None else None
     if client is not None:
         env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
-    show = engine.progress(len(cells))
+    show = engine.progress(len(cells), every=args.verbose)
 
     ran: list[dict[str, Any]] = []        # the cells this run ran (not those --resume kept)
 
@@ -305,10 +308,12 @@ def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], ou
     spent["tables and pictures"] = time.perf_counter() - t0
     env["phases"] = {"run": spent, "cells": phases.cell_parts(ran)}
     store.save()                # the run's parts beside its records
-    print(report.tables(records, wide=args.wide))
-    print("\n".join(report.summary_lines(records) + report.noise_lines(records) + [""]), end="")
+    print("\n".join(console.closing(records, env, args.verbose, args.wide)))
     print(phases.summary_line(spent, env["phases"]["cells"], len(ran)))
     print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
+    against = versus.block(records, env, out, args.against, args.quick)
+    if against:
+        print("\n".join(["", *against]))
     missing = [r for r, _ in results if args.save_arrays and r.status in ("ok", "mismatch")
                and not arrays_saved(out, r)]
     if missing:

@@ -156,10 +156,10 @@ def test_full_disk_mid_run_keeps_every_saved_record_and_resume_finishes(tmp_path
     kept = Store.read(out / "results.json").records
     assert [r.scenario for r in kept] == ["saxpy", "sdf"] and all(r.status == "ok" for r in kept)
     assert sorted(p.name for p in out.iterdir()) == ["results.csv", "results.json", "results.md"]
-    p = compare_proc(*args, "--resume", env={"CI": "1"})
+    p = compare_proc(*args, "--resume", "--verbose", env={"CI": "1"})     # --verbose: a line per cell
     _, err = p.communicate(timeout=600)
     assert p.returncode == 0, err
-    ran = [ln for ln in err.splitlines() if ln.startswith("  ") and ": ok" in ln]
+    ran = [ln for ln in err.splitlines() if ln.startswith("  [") and ": ok" in ln]
     assert len(ran) == 1 and "projectile/numba" in ran[0], err
     recs = Store.read(out / "results.json").records
     FIGURES["records_lost"] += sum(1 for r in kept if r.scenario not in {q.scenario for q in recs})

@@ -339,7 +339,7 @@ def test_full_disk_while_saving_arrays_then_resume_recreates_them_and_fills_the_
     assert sorted(p.name for p in arrays.iterdir()) == ["saxpy-numpy-cpu-float32.npz", "saxpy-numpy-cpu-float64.npz"]
 
     (arrays / "saxpy-numpy-cpu-float32.npz").unlink()              # a kept cell's arrays gone: run again
-    rc, err = finished(compare_proc(*args, "--resume"))
+    rc, err = finished(compare_proc(*args, "--resume", "--verbose"))
     ran = [ln.split("] ", 1)[-1] for ln in err.splitlines() if ": ok" in ln]     # "  [i/n] cell: ok"
     assert rc == 0 and ran == ["saxpy/numpy/cpu/float32/default: ok"], err
     assert (arrays / "saxpy-numpy-cpu-float32.npz").is_file()

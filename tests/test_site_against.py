@@ -98,14 +98,16 @@ def test_against_page(stores: dict[str, Any]) -> None:
     assert _row(md, *cell[:-1], "throughput")[-2:] == ["1.00×", "within spread"]   # untouched
     row = _row(md, "cuda", "saxpy", "cupy", "default", "float32", "defaults", "latency")
     assert row[-2:] == [f"{1 / 1.05:.2f}×", "within spread"]
-    # the status change is listed (first), the removed cell only counted
+    # the page opens with what matched; the status change follows, the removed cell only counted
     status = md.index("## Status changes")
-    assert status < md.index("## Every matched cell")
-    assert "perturbed: failed on the reference" in md[status:md.index("## Every matched cell")]
+    assert md.index("## Every matched cell") < status
+    assert "perturbed: failed on the reference" in md[status:md.index("## The two environments")]
+    row = _row(md, "cuda", "taichi", "default")
+    assert row[3].startswith("1: saxpy float32") and row[4] == "ok"
     assert not any(ln.startswith("| cuda | saxpy | torch | default | float32 | defaults |")
                    for ln in md.splitlines())
     assert re.search(r"1 only in this run \(saxpy\), 0 only in the reference", md)
-    summary = md[md.index("## Summary"):md.index("## Status changes")]
+    summary = md[md.index("## Summary"):md.index("## Every matched cell")]
     assert re.search(r"\*\*\d+ cells matched\*\*", summary) and "Median ratio on cuda" in summary
     # the environments: the package that differs is marked and named
     row = _row(md, "numpy")

@@ -5,7 +5,8 @@ parameters, and a sweep's tags), run-suite and sweep-suite records separately, t
 of each identity. Per matched cell and per regime both measured: the ratio this / reference of
 the per-call time, called "within spread" when the two quartile ranges overlap (the difference
 lies inside both runs' own spread), else faster or slower. Cells whose status changed (ok on one
-side only) come first. Beside them, the two environments side by side, differences marked.
+side only) follow, one row per framework and cause. Beside them, the two environments side by
+side, differences marked.
 """
 from __future__ import annotations
 
@@ -67,12 +68,13 @@ def _env_rows(m: Machine) -> dict[str, str]:
             "CUDA toolkit": _distinct(e.get("cuda_toolkit") for e in envs),
             "commits": _distinct(str(e.get("git_commit")) + (" (dirty)" if e.get("git_dirty") else "")
                                  for e in envs if e.get("git_commit"))}
-    load = _load(m)
+    load = host_load(m)
     rows["host load while timing (1-min average, median over cells)"] = f"{load:.1f}" if load is not None else "-"
     return rows
 
 
-def _load(m: Machine) -> float | None:
+def host_load(m: Machine) -> float | None:
+    """The median 1-minute host load over the cells timed (None where no record has it)."""
     # a busy host slows every cell alike: the first thing to rule out when all ratios move together
     load = [v for r in m.records if (v := data.num(r.host_load_1m)) is not None]
     return statistics.median(load) if load else None
@@ -230,7 +232,7 @@ def yardstick_line(m: Machine, ref: Machine, devices: Iterable[str]) -> str:
                          f"{fmt.rate(mb, 'B/s')} (same-run copy yardstick, medians over runs)"
                          + ("" if same else f": a byte takes {fmt.ratio(mb / ma)} the reference's time "
                             "here, and a bandwidth-bound cell may differ by as much for that alone"))
-    la, lb = _load(m), _load(ref)
+    la, lb = host_load(m), host_load(ref)
     if la is not None and lb is not None:
         parts.append(f"the host's load while timing (1-min average, median over cells) was {la:.1f} here "
                      f"and {lb:.1f} on the reference"
@@ -252,7 +254,7 @@ def summary(mm: Matching) -> list[Block]:
         lines.append(f"Median ratio on {dev}: **{fmt.ratio(statistics.median(c.ratio for c in on))}** "
                      f"over {len(on)} pairs ({'; '.join(per)}).")
     if mm.changed:
-        lines.append(f"**{_n(len(mm.changed), 'cell')} changed status** (listed first, below).")
+        lines.append(f"**{_n(len(mm.changed), 'cell')} changed status** (listed after the matched cells).")
     skipped = [f"{_n(k, 'cell')} {why}" for k, why in ((mm.both_failed, "failed or skipped on both sides"),
                                                        (mm.untimed, "without a timed regime in common")) if k]
     if skipped:
@@ -312,14 +314,21 @@ def _cell_words(r: Record) -> tuple[str, ...]:
     return (r.device, r.scenario, r.backend, r.variant, r.precision, _where(r))
 
 
+def _changed_rows(mm: Matching) -> tuple[tuple[str, ...], ...]:
+    """The status changes folded: one row per device, framework, variant and the two statuses
+    (a framework not installed on one side is one row, not one per cell)."""
+    groups: dict[tuple[str, ...], list[Record]] = {}
+    for _, a, b in mm.changed:
+        groups.setdefault((a.device, a.backend, a.variant, _status_text(a), _status_text(b)), []).append(a)
+    return tuple((dev, fw, var, f"{len(recs)}: " + ", ".join(dict.fromkeys(
+                      f"{r.scenario} {r.precision}" + (f" ({_where(r)})" if _where(r) != "defaults" else "")
+                      for r in recs)), mine, ref)
+                 for (dev, fw, var, mine, ref), recs in groups.items())
+
+
 def tables(mm: Matching) -> list[Block]:
+    """Every matched cell first (what a reader came for), then the status changes, folded."""
     blocks: list[Block] = []
-    if mm.changed:
-        blocks += [H("Status changes", "status"),
-                   P("Cells ok on one side and failed, mismatched or skipped on the other."),
-                   Table(("device", "scenario", "framework", "variant", "precision", "parameters",
-                          "this run", "reference"),
-                         tuple((*_cell_words(a), _status_text(a), _status_text(b)) for _, a, b in mm.changed))]
     rows = []
     for x in mm.compared:
         noisy = (fmt.NOISY_MARK if x.mine.noisy else "", fmt.NOISY_MARK if x.ref.noisy else "")
@@ -334,6 +343,11 @@ def tables(mm: Matching) -> list[Block]:
                      "header to sort."),
                    Table(("device", "scenario", "framework", "variant", "precision", "parameters", "regime",
                           "this run", "reference", "ratio", "verdict"), tuple(rows))]
+    if mm.changed:
+        blocks += [H("Status changes", "status"),
+                   P("Cells ok on one side and failed, mismatched or skipped on the other, one row per "
+                     "framework, variant and pair of statuses (its cells: scenario and precision)."),
+                   Table(("device", "framework", "variant", "cells", "this run", "reference"), _changed_rows(mm))]
     return blocks
 
 
