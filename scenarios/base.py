@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import typing
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -246,7 +247,7 @@ class Scenario:
         """The scenario's error metric between two backends' outputs (e.g. a port vs Warp)."""
         raise NotImplementedError
 
-    def output_shapes(self, params) -> dict[str, tuple[int, ...] | None]:
+    def output_shapes(self, params) -> Mapping[str, tuple[int, ...] | None]:
         """The contract a kernel's ``outputs()`` must meet: exactly these names, each an array of
         this shape (None: any shape) with the cell's precision as dtype. The worker checks it and
         turns a violation into an ``error`` record naming it."""

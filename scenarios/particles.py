@@ -179,7 +179,7 @@ class Particles(Scenario):
         return out
 
     def output_shapes(self, params: ParticlesParams) -> dict[str, tuple[int, ...]]:
-        shapes = {k: (params.n,) for k in self.outputs}
+        shapes: dict[str, tuple[int, ...]] = {k: (params.n,) for k in self.outputs}
         if params.record_every:      # trajectory frames only when asked for (no history otherwise)
             shapes.update(traj_x=(n_frames(params), params.n), traj_y=(n_frames(params), params.n))
         return shapes

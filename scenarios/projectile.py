@@ -201,18 +201,18 @@ class Projectile(Scenario):
         # change along the oracle's path (from consecutive iterates). Past the first iteration
         # that breaks it, a trajectory's history is outside the analysis (a rounding difference
         # may send the descent to another attractor) and is not checked.
-        hs, dvs, vs = np.array(hs), np.array(dvs), np.array(vs)
+        hs_arr, dvs_arr, vs_arr = np.array(hs), np.array(dvs), np.array(vs)
         if params.iters:
-            dh = spectral_norm_sym(hs[1:] - hs[:-1])
-            step = np.linalg.norm(vs[1:] - vs[:-1], axis=-1)
+            dh = spectral_norm_sym(hs_arr[1:] - hs_arr[:-1])
+            step = np.linalg.norm(vs_arr[1:] - vs_arr[:-1], axis=-1)
             rate = np.divide(dh, step, out=np.full(dh.shape, np.inf), where=step > 0)
             rate = np.where((dh == 0), 0.0, rate)
             rate = np.concatenate([rate, rate[-1:]])
             with np.errstate(invalid="ignore"):
-                gain = np.maximum(spectral_norm_sym(np.eye(2) - lr * hs), 1.0)
-                linear = np.logical_and.accumulate(lr * rate * dvs <= LINEAR_MARGIN * gain, axis=0)
+                gain = np.maximum(spectral_norm_sym(np.eye(2) - lr * hs_arr), 1.0)
+                linear = np.logical_and.accumulate(lr * rate * dvs_arr <= LINEAR_MARGIN * gain, axis=0)
         else:
-            linear = np.ones(dvs.shape, bool)
+            linear = np.ones(dvs_arr.shape, bool)
         return {"loss": np.asarray(hist[0], np.float64), "grad": grads[0], "grad_fd": fd, "grad_fd_error": fd_err,
                 "loss_history": np.array(hist), "v_final": v, "grad_history": np.array(grads),
                 "tol_loss": np.array(tol_l), "tol_grad": np.array(tol_g), "tol_history": np.array(tol_h),

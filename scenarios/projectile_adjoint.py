@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import UNIT_ROUNDOFF
+from .base import UNIT_ROUNDOFF, Precision
 
 # The float64 functions below take one trajectory (vx, vy scalars, v of shape (2,)) or a batch
 # (arrays of shape (B,), v of shape (B, 2)); the constants in ``c`` are scalars except the targets,
@@ -75,16 +75,16 @@ def adjoint(c: dict[str, float], tape, ax, ay, record: bool = False):
             ay = np.where(hit, 0.0, ay)
             avy = np.where(hit, -c["bounce"] * avy, avy)
             avx = np.where(hit, c["damping"] * avx, avx)
-            if record:
+            if r is not None:      # (r is set exactly when record is)
                 r[2] += np.where(hit, np.abs(avx), 0.0); r[3] += np.where(hit, np.abs(avy), 0.0)
         avy = avy + ay * dt          # y1 = y + vy1*dt
         avx = avx + ax * dt          # x1 = x + vx*dt
-        if record:
+        if r is not None:
             r[2] += np.abs(ax * dt) + np.abs(avx); r[3] += np.abs(ay * dt) + np.abs(avy)
         if dacc is not None:
             live = dacc != 0.0
             ay = np.where(live, ay + avy * dacc * dt, ay)    # vy1 = vy + acc(y)*dt
-            if record:
+            if r is not None:
                 r[1] += np.where(live, 2.0 * np.abs(avy * dacc * dt) + np.abs(ay), 0.0)
         if record:
             trace.append((avy, r))
@@ -234,14 +234,14 @@ def finite_difference_gradient(c: dict[str, float], contact: str, steps: int, v,
     # every displaced point in one batch (leading axis): step (h, h/2) x direction x sign, and v
     pts = np.stack([v + e * step * sign for step in (h, h / 2) for e in np.eye(2) for sign in (1.0, -1.0)] + [v])
     f = loss_of(c, contact, steps, pts)
-    full, half = ([(f[j] - f[j + 1]) / (2 * step), (f[j + 2] - f[j + 3]) / (2 * step)]
-                  for j, step in ((0, h), (4, h / 2)))
-    full, half = np.stack(full, axis=-1), np.stack(half, axis=-1)
+    full_cols, half_cols = ([(f[j] - f[j + 1]) / (2 * step), (f[j + 2] - f[j + 3]) / (2 * step)]
+                            for j, step in ((0, h), (4, h / 2)))
+    full, half = np.stack(full_cols, axis=-1), np.stack(half_cols, axis=-1)
     rich = (4.0 * half - full) / 3.0
     if not with_error:
         return rich
     loss = np.abs(f[8])[..., None]
-    return rich, np.abs(rich - half) + 8.0 * UNIT_ROUNDOFF["float64"] * loss / h
+    return rich, np.abs(rich - half) + 8.0 * UNIT_ROUNDOFF[Precision.FLOAT64] * loss / h
 
 
 def hessian(c: dict[str, float], contact: str, steps: int, v, rel_step: float = 1e-6) -> np.ndarray:

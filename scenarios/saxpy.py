@@ -69,7 +69,7 @@ class Saxpy(Scenario):
 
     def check(self, params, inputs, outputs, reference, precision) -> Check:
         u = UNIT_ROUNDOFF[precision]
-        u64 = UNIT_ROUNDOFF["float64"]
+        u64 = UNIT_ROUNDOFF[Precision.FLOAT64]
         tol = 2.0 * u * (1.0 + u) + 2.0 * u64 * (1.0 + u64)
         err = self.normalised_error(inputs, outputs["out"], reference["out"])
         return Check(err, tol, err <= tol, {"metric": "max |err|/(|a x|+|y|)", "ulps": err / u})

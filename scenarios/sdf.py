@@ -76,7 +76,7 @@ class Sdf(Scenario):
     def check(self, params, inputs, outputs, reference, precision) -> Check:
         u = UNIT_ROUNDOFF[precision]
         err = self._max_abs(outputs["image"], reference["image"])
-        tol = TOLERANCE_ULPS * (u + UNIT_ROUNDOFF["float64"])
+        tol = TOLERANCE_ULPS * (u + UNIT_ROUNDOFF[Precision.FLOAT64])
         return Check(err, tol, err <= tol, {"metric": "max |v - v_ref|", "ulps": err / u})
 
     def distance(self, params, inputs, outputs, other) -> float:
