@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from typing import Any
+from typing import Any, TypeVar
 
 import scenarios
 from backends.base import Device
@@ -32,6 +32,25 @@ class SpecError(ValueError):
 
 
 BUSY_TAG = "busy_cores"     # tags: a cell timed while this many other processes keep cores busy
+
+_E = TypeVar("_E", Device, Precision)
+
+
+def _enum(kind: type[_E], f: str, value: Any) -> _E:
+    try:
+        return kind(value)
+    except ValueError:
+        raise SpecError(f"cell spec: {f} must be one of {', '.join(kind)}, got {str(value)!r}") from None
+
+
+def _identity(scenario: Any, backend: Any, device: Any, precision: Any, variant: Any) -> tuple[Device, Precision]:
+    """The cell's identity (``IDENTITY``, in its order) checked, and its device and precision as
+    enums: the first bad field is a SpecError naming it. ``Cell.__post_init__`` runs it, and
+    ``Cell.make`` where strings become a cell (so the enums it builds with are typed)."""
+    for f, v in zip(IDENTITY, (scenario, backend, device, precision, variant)):
+        if not isinstance(v, str) or not v:
+            raise SpecError(f"cell spec: {f} must be a non-empty string, got {v!r}")
+    return _enum(Device, "device", device), _enum(Precision, "precision", precision)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,15 +78,9 @@ class Cell:
     check: bool = True                  # False: a repeat process of a checked cell, its timings alone
 
     def __post_init__(self) -> None:
-        for f in IDENTITY:
-            if not isinstance(getattr(self, f), str) or not getattr(self, f):
-                raise SpecError(f"cell spec: {f} must be a non-empty string, got {getattr(self, f)!r}")
-        for f, kind in (("device", Device), ("precision", Precision)):
-            try:
-                object.__setattr__(self, f, kind(getattr(self, f)))
-            except ValueError:
-                raise SpecError(f"cell spec: {f} must be one of {', '.join(kind)}, "
-                                f"got {str(getattr(self, f))!r}") from None
+        device, precision = _identity(*(getattr(self, f) for f in IDENTITY))
+        object.__setattr__(self, "device", device)
+        object.__setattr__(self, "precision", precision)
         try:
             sc = scenarios.get(self.scenario)
         except ParamError as exc:
@@ -98,14 +111,17 @@ class Cell:
         """A cell whose ``params`` may be overrides (a mapping: the scenario's defaults, then its
         quick overrides with ``quick``, then these; coerced and validated) or already resolved."""
         if not isinstance(params, (dict, type(None))) and not quick:
-            return cls(scenario, backend, device, precision, variant, params, **settings)
+            return cls(scenario, backend, *_identity(scenario, backend, device, precision, variant),
+                       variant, params, **settings)
         try:
             sc = scenarios.get(scenario)
         except ParamError as exc:
             raise SpecError(f"cell spec: {exc}") from None
         if params is not None and not isinstance(params, dict):
             params = dataclasses.asdict(params)
-        return cls(scenario, backend, device, precision, variant, sc.params(params, quick=quick), **settings)
+        resolved = sc.params(params, quick=quick)
+        return cls(scenario, backend, *_identity(scenario, backend, device, precision, variant),
+                   variant, resolved, **settings)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Cell":

@@ -24,7 +24,7 @@ from compare.report import fmt_bytes, fmt_time
 from compare.figure_check import place_legends
 from compare.store import save_figure
 from compare.sweep.points import sweeps
-from compare.sweep.rows import knob, label, ok, throughput_s, wall_s
+from compare.sweep.rows import knob, label, need, ok, throughput_s, wall_s
 
 
 def memory(rec: Record) -> tuple[float | None, str]:
@@ -36,13 +36,13 @@ def memory(rec: Record) -> tuple[float | None, str]:
 
 
 def items(rec: Record) -> int:
-    return int(rec.params.get(label(rec.scenario, "horizon_items"), 1) or 1)
+    return int(need(rec, "params").get(label(rec.scenario, "horizon_items"), 1) or 1)
 
 
 def group_key(rec: Record) -> tuple:
     """Cells that differ only in the horizon: same backend, variant, precision, other params."""
     name = knob(rec).get("name")
-    other = {k: v for k, v in rec.params.items() if k != name}
+    other = {k: v for k, v in need(rec, "params").items() if k != name}
     return rec.backend, rec.variant, rec.precision, json.dumps(other, sort_keys=True)
 
 
@@ -65,8 +65,8 @@ def slopes(rows: list[Record]) -> list[float | None]:
 
 def varying(rows: list[Record], knob_name: str) -> list[str]:
     """Parameters other than the knob that differ between the sweep's cells (e.g. contact)."""
-    keys = {k for r in rows for k in r.params if k != knob_name}
-    return sorted(k for k in keys if len({json.dumps(r.params.get(k)) for r in rows}) > 1)
+    keys = {k for r in rows for k in need(r, "params") if k != knob_name}
+    return sorted(k for k in keys if len({json.dumps(need(r, "params").get(k)) for r in rows}) > 1)
 
 
 def table(records: list[Record], device: str, scenario: str) -> str:
@@ -83,12 +83,12 @@ def table(records: list[Record], device: str, scenario: str) -> str:
             mem, what = memory(r)
             g = r.gradient or {}
             share = g.get("fd_agreement")
-            out.append([r.backend, r.variant, r.precision, *(r.params.get(k) for k in extra),
+            out.append([r.backend, r.variant, r.precision, *(need(r, "params").get(k) for k in extra),
                         knob(r)["value"], fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
                         f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
                         f"{slope:.3g}" if slope is not None else "-",
                         f"{100 * share:.0f} %" if isinstance(share, (int, float)) else "-",
-                        r.error.get("checked_items", "all")])
+                        need(r, "error").get("checked_items", "all")])
     unit = label(scenario, "horizon_items", "item")
     return tabulate(out, headers=["backend", "variant", "precision", *extra, kname, "latency median",
                                   "throughput: per call", "memory", f"bytes per {unit}-step (slope)",
@@ -109,7 +109,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     every = [r for rows in groups.values() for r in rows]
     kname = knob(every[0]).get("name", "size")
     for (backend, variant, prec, _), rows in groups.items():
-        if any(rows[0].params.get(k) != v for k, v in want.items()):
+        if any(need(rows[0], "params").get(k) != v for k, v in want.items()):
             continue
         style = "-" if variant == "default" else ":"
         mark = "^" if prec == "float32" else "o"
@@ -131,7 +131,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
         for r in rows:
             s = (r.gradient or {}).get("fd_agreement")
             if isinstance(s, (int, float)):
-                key = (", ".join(f"{k}={r.params.get(k)}" for k in extra), r.precision)
+                key = (", ".join(f"{k}={need(r, 'params').get(k)}" for k in extra), r.precision)
                 shares.setdefault(key, {}).setdefault(knob(r)["value"], []).append(s)
     for (what, prec), pts in sorted(shares.items()):
         n = sorted(pts)

@@ -13,7 +13,7 @@ from typing import Any
 
 from compare.record import Record
 from compare.report import fmt_bytes
-from compare.sweep.rows import ok, wall_s
+from compare.sweep.rows import need, ok, wall_s
 
 OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
 BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
@@ -37,10 +37,11 @@ def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
                 "precision": "bytes", "n": hw.get("copy_how", ""), "clock": "same-run"}
     best = None
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        bw = gbps(r.work["bytes"], r.time["median_s"])
+        t = need(r, "time")
+        bw = gbps(need(r, "work")["bytes"], t["median_s"])
         if best is None or bw > best["gbps"]:
             best = {"gbps": bw, "backend": r.backend, "precision": r.precision,
-                    "n": r.params["n"], "clock": r.time.get("timer", "wall")}
+                    "n": need(r, "params")["n"], "clock": t.get("timer", "wall")}
     return best
 
 
@@ -61,8 +62,8 @@ def regime(launch_share: float | None, roof_share: float | None) -> str:
 
 def bandwidth_row(rec: Record, records: list[Record]) -> dict[str, Any]:
     """Achieved GB/s, % of the copy roofline, launch share and regime of one bandwidth cell."""
-    nbytes = rec.work["bytes"]
-    bw = gbps(nbytes, rec.time["median_s"])
+    nbytes = need(rec, "work")["bytes"]
+    bw = gbps(nbytes, need(rec, "time")["median_s"])
     roof = roofline(records, rec.device)
     lw = launch_wall(records, rec.backend, rec.device, rec.precision)
     share = lw / wall_s(rec) if lw else None
@@ -83,7 +84,7 @@ def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
 
 def error_points(records: list[Record], device: str, scenario: str) -> list[dict[str, Any]]:
     """Time-against-error points (ok cells with a finite error), with Pareto flags."""
-    pts = []
+    pts: list[dict[str, Any]] = []
     for r in ok(records, sweep="error", device=device, scenario=scenario):
         e = (r.converged or {}).get("error")
         if isinstance(e, (int, float)) and math.isfinite(e):

@@ -24,7 +24,7 @@ from compare.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
 from compare.sweep.metrics import bandwidth_row, device_bytes, error_points, gbps, roofline
 from compare.sweep.points import sweeps
-from compare.sweep.rows import event_s, knob, label, ok, tag, throughput_s, wall_s
+from compare.sweep.rows import event_s, knob, label, need, ok, tag, throughput_s, wall_s
 
 # ---- records and scenarios --------------------------------------------------------------------
 def with_role(role: str) -> list[str]:
@@ -81,7 +81,7 @@ def _img(written: dict[str, Path], name: str, page: Path, alt: str) -> str:
 def launch_table(records, device) -> str:
     rows = []
     for r in ok(records, sweep="bandwidth", role="launch", device=device):
-        t = r.time
+        t = need(r, "time")
         ev = event_s(r)
         rows.append([r.backend, r.precision, fmt_time(wall_s(r)), fmt_time(t["wall"]["iqr_s"]
                      if t.get("wall") else t["iqr_s"]), fmt_time(t["wall"]["min_s"] if t.get("wall")
@@ -93,10 +93,11 @@ def launch_table(records, device) -> str:
 def copy_table(records, device) -> str:
     rows = []
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        rows.append([r.backend, r.precision, r.params["n"], fmt_bytes(r.work["bytes"]),
+        t, w = need(r, "time"), need(r, "work")
+        rows.append([r.backend, r.precision, need(r, "params")["n"], fmt_bytes(w["bytes"]),
                      fmt_time(wall_s(r)), fmt_time(event_s(r)),
-                     f"{gbps(r.work['bytes'], r.time['median_s']):.3g}",
-                     r.time.get("timer", "wall")])
+                     f"{gbps(w['bytes'], t['median_s']):.3g}",
+                     t.get("timer", "wall")])
     return _table(rows, ["backend", "precision", "n", "bytes/call (read + write)", "wall median",
                          "CUDA-event median", "GB/s", "clock of GB/s"]) if rows else ""
 
@@ -110,11 +111,12 @@ def size_table(records, device, scenario) -> str:
     for r in mine:
         b = bandwidth_row(r, records)
         thr = throughput_s(r)
+        w = need(r, "work")
         rows.append([r.backend, r.variant, r.precision,
                      f"2^{int(math.log2(knob(r)['value']))}",
-                     fmt_bytes(r.work["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
+                     fmt_bytes(w["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
                      f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"],
-                     fmt_time(thr), f"{gbps(r.work['bytes'], thr):.3g}" if thr else "-",
+                     fmt_time(thr), f"{gbps(w['bytes'], thr):.3g}" if thr else "-",
                      pct((r.throughput or {}).get("hw_fraction"))])
     return _table(rows, ["backend", "variant", "precision", knob(mine[0]).get("name", "size"), "bytes/call",
                          "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
@@ -129,7 +131,7 @@ def error_table(records, device, scenario) -> str:
                                         p["rec"].precision, knob(p["rec"]).get("value") or 0)):
         r = p["rec"]
         rows.append([r.backend, r.variant, r.precision, knob_text(r),
-                     fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(r.converged["error"]),
+                     fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(need(r, "converged")["error"]),
                      "yes" if p["front_backend"] else "", "yes" if p["front_all"] else ""])
     return _table(rows, ["backend", "variant", "precision", "knob", "wall median",
                          "CUDA-event median", "error", "on backend's front",
@@ -144,7 +146,7 @@ def front_table(records, device, scenario) -> str:
                     key=lambda p: p["time"]):
         r = p["rec"]
         iqr = ((r.time or {}).get("wall") or {}).get("iqr_s")
-        rows.append([fmt_num(r.converged["error"]), fmt_time(p["time"]), fmt_time(iqr),
+        rows.append([fmt_num(need(r, "converged")["error"]), fmt_time(p["time"]), fmt_time(iqr),
                      r.backend, r.variant, r.precision, knob_text(r)])
     return _table(rows, ["error reached", "wall median", "wall IQR", "backend", "variant",
                          "precision", "knob"]) if rows else ""
@@ -161,13 +163,13 @@ def scaling_table(records, device, scenario) -> str:
     for r in mine:
         t = wall_s(r)
         db, src = device_bytes(r)
-        rates = [fmt_rate(r.params[per_run] / t, f"{per_run}/s")] if per_run else []
+        rates = [fmt_rate(need(r, "params")[per_run] / t, f"{per_run}/s")] if per_run else []
         thr = throughput_s(r)
         rows.append([r.backend, r.precision, knob(r).get("value"), fmt_time(t),
-                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(r.work[work] / (thr or t), "/s"),
-                     fmt_bytes(r.memory["peak_host_rss_bytes"]),
+                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(need(r, "work")[work] / (thr or t), "/s"),
+                     fmt_bytes(need(r, "memory")["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
-                     r.error.get("checked_items", "all")])
+                     need(r, "error").get("checked_items", "all")])
     return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "wall median",
                          "CUDA-event median", "throughput: per call", *([f"{per_run}/s"] if per_run else []),
                          f"{items}/s (throughput regime where measured)",

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import backends
 from compare.colors import backend_color
@@ -17,7 +17,7 @@ from compare.store import save_figure
 from compare.sweep import horizon
 from compare.sweep.metrics import ERROR_FLOOR, device_bytes, error_points, gbps, launch_wall, roofline
 from compare.sweep.page import error_scenarios, plot_key, swept, with_role
-from compare.sweep.rows import event_s, knob, label, ok, wall_s
+from compare.sweep.rows import event_s, knob, label, need, ok, wall_s
 
 MARKERS = {"float64": "o", "float32": "^"}
 
@@ -85,7 +85,7 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
     for backend, c in colors(records).items():
         for prec in ("float32", "float64"):
             mine = sorted((r for r in rows if r.backend == backend and r.precision == prec),
-                          key=lambda r: r.work["bytes"])
+                          key=lambda r: need(r, "work")["bytes"])
             if not mine:
                 continue
             tag = "" if prec == "float32" else " f64"
@@ -93,16 +93,16 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
             for v in dict.fromkeys(r.variant for r in mine):
                 if v != "default":
                     vs = [r for r in mine if r.variant == v]
-                    ax.plot([r.work["bytes"] for r in vs], [gbps(r.work["bytes"], wall_s(r)) for r in vs],
+                    ax.plot([need(r, "work")["bytes"] for r in vs], [gbps(need(r, "work")["bytes"], wall_s(r)) for r in vs],
                             "--s", color=c, ms=4, label=f"{backend}{tag} {v} (wall clock)")
             mine = [r for r in mine if r.variant == "default"]
             if not mine:
                 continue
-            x = [r.work["bytes"] for r in mine]
-            ax.plot(x, [gbps(r.work["bytes"], wall_s(r)) for r in mine], "-o", color=c, ms=4,
+            x = [need(r, "work")["bytes"] for r in mine]
+            ax.plot(x, [gbps(need(r, "work")["bytes"], wall_s(r)) for r in mine], "-o", color=c, ms=4,
                     label=f"{backend}{tag} (wall clock)")
             if any(event_s(r) for r in mine):
-                ax.plot(x, [gbps(r.work["bytes"], event_s(r) or math.nan) for r in mine], "-.x",
+                ax.plot(x, [gbps(need(r, "work")["bytes"], event_s(r) or math.nan) for r in mine], "-.x",
                         color=c, ms=5, label=f"{backend}{tag} (CUDA events)")
             lw = launch_wall(records, backend, device, prec)
             if lw:
@@ -119,7 +119,7 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
     ax.set_ylabel("achieved bandwidth [GB/s] (log)")
     ax.set_title(f"{label(scenario, 'name')} achieved bandwidth against size ({device})")
     ax.grid(True, which="both", alpha=0.3)
-    seen = [gbps(r.work["bytes"], wall_s(r)) for r in rows]
+    seen = [gbps(need(r, "work")["bytes"], wall_s(r)) for r in rows]
     ax.set_ylim(bottom=max(min(seen) / 3, 1e-6), top=max(roof["gbps"] * 3 if roof else 0, max(seen) * 2))
     ax.legend(fontsize=7, ncol=2, loc="lower right")
     _tidy_log(ax)
@@ -215,9 +215,9 @@ def plot_scaling(records: list[Record], device: str, path: Path, scenario: str) 
                 continue
             tag = "" if prec == "float32" else " f64"
             n = [knob(r)["value"] for r in mine]
-            a1.plot(n, [r.work[label(scenario, "rate_work", "items")] / wall_s(r) for r in mine], "-o",
+            a1.plot(n, [need(r, "work")[label(scenario, "rate_work", "items")] / wall_s(r) for r in mine], "-o",
                     color=c, ms=4, label=f"{backend}{tag}")
-            a2.plot(n, [r.memory["peak_host_rss_bytes"] / 2**20 for r in mine], "-o", color=c,
+            a2.plot(n, [need(r, "memory")["peak_host_rss_bytes"] / 2**20 for r in mine], "-o", color=c,
                     ms=4, label=f"{backend}{tag}: peak host RSS")
             dev = [device_bytes(r)[0] for r in mine]
             if any(d is not None for d in dev):
@@ -231,7 +231,7 @@ def plot_scaling(records: list[Record], device: str, path: Path, scenario: str) 
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
         _tidy_log(ax)
-    per = f"{rows[0].params[per_run]} {per_run} per run, " if per_run else ""
+    per = f"{need(rows[0], 'params')[per_run]} {per_run} per run, " if per_run else ""
     a1.set_ylabel(f"{label(scenario, 'item_rate', 'items')} per second [1/s] (log)")
     a1.set_title(f"{name} throughput, {per}wall clock ({device})", fontsize=10)
     a2.set_ylabel("memory [MiB] (log)")
@@ -254,7 +254,8 @@ def write_plots(records: list[Record], out: Path) -> dict[str, Path]:
     for device in sorted({r.device for r in records}):
         sized = with_role("bandwidth")
         scaled = swept(records, "scaling", device)
-        jobs = [(plot_key("bandwidth", device, s, sized), plot_bandwidth, (s,)) for s in sized]
+        jobs: list[tuple[str, Callable[..., bool], tuple[str, ...]]] = [
+            (plot_key("bandwidth", device, s, sized), plot_bandwidth, (s,)) for s in sized]
         jobs += [(f"time_vs_error-{device}", plot_time_vs_error, ())]
         jobs += [(plot_key("scaling", device, s, scaled), plot_scaling, (s,)) for s in scaled]
         long = swept(records, "horizon", device)

@@ -3,10 +3,10 @@ helpers the page, the horizon section and the plots share (compare/sweep/page.py
 plots.py), kept apart so that none of those imports another only for these."""
 from __future__ import annotations
 
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Literal, Mapping
 
 import scenarios
-from compare.record import Record
+from compare.record import Block, Record
 from compare.timing import events_of
 from compare.sweep.points import sweeps
 
@@ -17,6 +17,16 @@ def tag(rec: Record, name: str) -> Any:
 
 def knob(rec: Record) -> Mapping[str, Any]:
     return tag(rec, "knob") or {}
+
+
+def need(rec: Record, block: Literal["params", "time", "error", "work", "memory", "converged"]) -> Block:
+    """``rec``'s ``block`` where a sweep reader indexes it directly: an ok, timed sweep record has
+    it (``compare.records`` refuses one without it on load; the callers filter on what they
+    read), so a missing one is a bug upstream, raised here by name."""
+    b = getattr(rec, block)
+    if b is None:
+        raise TypeError(f"{rec.key}: a sweep record without its {block} block, where one is read")
+    return b
 
 
 def ok(records: Iterable[Record], sweep: str | None = None, role: str | None = None,
@@ -36,8 +46,9 @@ def label(scenario: str, what: str, default: str = "") -> str:
 
 
 def wall_s(rec: Record) -> float:
-    t = rec.time
-    return float((t.get("wall") or {}).get("median_s", t["median_s"]))
+    t = need(rec, "time")
+    wall: Mapping[str, Any] = t.get("wall") or {}
+    return float(wall.get("median_s", t["median_s"]))
 
 
 def event_s(rec: Record) -> float | None:

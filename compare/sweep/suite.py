@@ -22,6 +22,7 @@ file (compare/sweep/page.py, compare/sweep/plots.py).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shlex
 from pathlib import Path
@@ -29,6 +30,7 @@ from typing import Any
 
 import backends
 import scenarios
+from backends.base import Device
 from compare import engine, environment, hardware, options, overlap, preflight, run_suite, scaleout
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.spec import Cell
@@ -36,7 +38,7 @@ from compare.store import UPGRADES, Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
 from compare.sweep.points import sweeps
-from scenarios.base import PRECISIONS, ParamError
+from scenarios.base import PRECISIONS, ParamError, Precision
 
 KINDS = ("bandwidth", "error", "scaling", "horizon")
 PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32",
@@ -86,7 +88,7 @@ def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scena
     if args.scenarios is not None and kind != "bandwidth":
         wanted = options.names(args.scenarios, list(scenarios.SCENARIOS), "scenarios")
         found = [sc for sc in found if sc.name in wanted]
-    rank = {role: i for i, role in enumerate(ROLE_ORDER)}
+    rank: dict[str | None, int] = {role: i for i, role in enumerate(ROLE_ORDER)}
     return sorted(found, key=lambda sc: rank.get(sweeps(sc.name).measures, len(rank)))
 
 
@@ -96,7 +98,7 @@ def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str,
     'reference'}."""
     raw = sweeps(sc.name).points(kind, device, args.quick)
     over = dict(sets)
-    if kind == "scaling" and args.record_every and "record_every" in sc.Params.__dataclass_fields__:
+    if kind == "scaling" and args.record_every and "record_every" in {f.name for f in dataclasses.fields(sc.Params)}:
         over["record_every"] = args.record_every
     for k in over:
         if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
@@ -137,7 +139,7 @@ def plan(args: argparse.Namespace) -> list[tuple[Cell, dict[str, Any] | None]]:
                             measures = sweeps(sc.name).measures
                             role = measures if kind == "bandwidth" and measures else sc.name
                             for pt in pts[sc.name]:
-                                cell = Cell(sc.name, be, dev, prec, variant, pt["params"],
+                                cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, pt["params"],
                                             tags={"sweep": kind, "role": role, "knob": dict(pt["knob"])},
                                             repeat=repeat, min_time=min_time, cache=args.cache, **pt["options"])
                                 out.append((cell, pt["reference"]))
@@ -170,7 +172,7 @@ def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
         return rec
     new = {k: v for k, v in rec.items() if k not in ("sweep", "role", "knob")}
     role = rec.get("role")
-    measures = sweeps(rec.get("scenario")).measures
+    measures = sweeps(rec["scenario"]).measures     # a string: from_json upgrades after shape_problem
     if rec.get("sweep") == "bandwidth" and measures:
         role = measures
     new["tags"] = {"sweep": rec.get("sweep"), "role": role, "knob": rec.get("knob") or {}}

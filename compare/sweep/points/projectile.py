@@ -26,9 +26,9 @@ BATCH_SWEEP_PARAMS = {"contact": "hard", "iters": 20}
 # step and the share of gradients that agree with finite differences, per contact model. Soft
 # contact stops at 2000 steps: its oracle bound costs O(steps^2) per checked trajectory.
 HORIZON_BATCH = {("cuda", False): 4096, ("cpu", False): 256, ("cuda", True): 256, ("cpu", True): 16}
-HORIZON_STEPS = {False: {"none": (180, 1000, 3000, 10000), "hard": (180, 1000, 3000, 10000),
-                         "soft": (180, 600, 2000)},
-                 True: {"none": (180, 600), "hard": (180, 600), "soft": (180, 300)}}
+HORIZON_STEPS: dict[bool, dict[str, tuple[int, ...]]] = {
+    False: {"none": (180, 1000, 3000, 10000), "hard": (180, 1000, 3000, 10000), "soft": (180, 600, 2000)},
+    True: {"none": (180, 600), "hard": (180, 600), "soft": (180, 300)}}
 
 
 class ProjectileSweeps(Sweeps):
