@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -16,6 +16,7 @@ from compare.figure_check import place_legends
 from compare.stress.numerics import (Experiment, Result, StressContext, Style, bitwise_differences, log_floor,
                                      ulps)
 from compare.stress.ulp_cases import ulp_cases
+from scenarios.base import Precision
 
 
 def race_verdict(device: str, differing: int, oracle_ok: tuple[bool, bool]) -> str:
@@ -41,7 +42,7 @@ def exp_ulps(ctx: StressContext) -> Result:
     for scn, prm, key, _ in cases:
         sc = scenarios.get(scn)
         p = sc.params(prm)
-        refs[(scn, json.dumps(prm))] = sc.oracle(p, sc.inputs(p, "float32"), "float32")[key]
+        refs[(scn, json.dumps(prm))] = sc.oracle(p, sc.inputs(p, "float32"), Precision.FLOAT32)[key]
     results = ctx.run_cells([s for _, s in planned])
     rows, series = ctx.skip_rows(name, variants=True), {}
     defaults = {}
@@ -147,7 +148,7 @@ def exp_races(ctx: StressContext) -> Result:
     return rows, {}
 
 
-def plot_ulps(series: dict[str, Any], path: Path, style: Style) -> None:
+def plot_ulps(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for lbl, s in sorted(series.items()):

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from compare.stress.numerics import Experiment, Result, StressContext, Style, bitwise_differences, log_floor
-from scenarios.base import UNIT_ROUNDOFF, dtype_of
+from scenarios.base import UNIT_ROUNDOFF, Precision, dtype_of
 from scenarios.particles import Particles, ParticlesParams, energy, energy_bound, simulate
 
 SC = Particles()
@@ -72,16 +72,17 @@ def exp_particles_dt(ctx: StressContext) -> Result:
     steps = {dt: int(round(T / dt)) for dt in dts}
     # discretisation error: float64 oracle at dt against one at dt_min/4 (median over particles)
     pf, inf = particle_inputs({"n": n, "steps": 4 * steps[dts[-1]], "dt": dts[-1] / 4}, "float64")
-    fine = SC.oracle(pf, inf, "float64")
+    fine = SC.oracle(pf, inf, Precision.FLOAT64)
     disc, ref32 = {}, {}
     for dt in dts:
         p, i64 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, "float64")
-        disc[dt] = float(np.median(state_error(SC.oracle(p, i64, "float64"), fine)))
+        disc[dt] = float(np.median(state_error(SC.oracle(p, i64, Precision.FLOAT64), fine)))
         p, i32 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, "float32")
-        ref32[dt] = SC.oracle(p, i32, "float32")
+        ref32[dt] = SC.oracle(p, i32, Precision.FLOAT32)
     specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": steps[dt], "dt": dt})
              for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions) for dt in dts]
-    rows, lines = ctx.skip_rows(name, precisions=precisions), {}
+    rows = ctx.skip_rows(name, precisions=precisions)
+    lines: dict[str, dict[str, list[float]]] = {}
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         dt = s["params"]["dt"]
         setting = f"dt={dt:g}, steps={steps[dt]}, T={T:g} s"
@@ -120,7 +121,8 @@ def exp_particles_long(ctx: StressContext) -> Result:
     specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": st, "bounce": bo})
              for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions)
              for bo in bounces for st in lengths]
-    rows, series = ctx.skip_rows(name, precisions=precisions), {}
+    rows = ctx.skip_rows(name, precisions=precisions)
+    series: dict[str, dict[str, list[Any]]] = {}
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         prm = s["params"]
         setting = f"bounce={prm['bounce']}, steps={prm['steps']}"
@@ -230,7 +232,7 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
     refs = {}
     for prec in ("float32", "float64"):
         p, inp = particle_inputs(prm, prec)
-        ref = SC.oracle(p, inp, prec)
+        ref = SC.oracle(p, inp, Precision(prec))
         refs[prec] = (ref, contacts(ref["traj_x"][1:], ref["traj_y"][1:], float(inp["radius"]), np.float64),
                       float(inp["radius"]))
     specs = [ctx.spec(SC.name, b, d, prec, prm) for b, d, _ in ctx.targets()
@@ -239,12 +241,14 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
     rows, series = [], {}
     setting = f"bounce={prm['bounce']:g}, n={n}, steps={steps}"
     flags: dict[tuple[str, str, str], np.ndarray] = {}
+    outs: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}     # the outputs flags were drawn from
     for (b, d, prec), (rec, out) in res.items():
         if rec.status == "error" or out is None or "traj_x" not in out:
             rows.append(ctx.row(name, b, d, prec, setting, "cell", None, "error", rec.reason))
             continue
         ref, cref, radius = refs[prec]
         flags[(b, d, prec)] = c = contacts(out["traj_x"][1:], out["traj_y"][1:], radius, dtype_of(prec))
+        outs[(b, d, prec)] = out
         flips = first_flips(c, cref)
         ill = ref["ill_conditioned"]
         bad = int(np.sum((flips >= 0) & ~ill))
@@ -256,10 +260,9 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
                             f"{int(ill.sum())} particles ill-conditioned; first flip at step "
                             f"{int(flips[flips >= 0].min()) + 1 if nflip else '-'}"))
     for b, d, _ in ctx.targets():
-        r32, r64 = res.get((b, d, "float32")), res.get((b, d, "float64"))
         if (b, d, "float32") not in flags or (b, d, "float64") not in flags:
             continue
-        o32, o64 = r32[1], r64[1]
+        o32, o64 = outs[(b, d, "float32")], outs[(b, d, "float64")]
         with np.errstate(invalid="ignore"):
             dpos = np.maximum(np.abs(o32["traj_x"].astype(np.float64) - o64["traj_x"]),
                               np.abs(o32["traj_y"].astype(np.float64) - o64["traj_y"]))
@@ -282,8 +285,8 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
         flips = first_flips(c, flags[(ref_name, d, prec)])
         ill = refs[prec][0]["ill_conditioned"]
         nflip, bad = int(np.sum(flips >= 0)), int(np.sum((flips >= 0) & ~ill))
-        same = bitwise_differences({k: res[(b, d, prec)][1][k] for k in ("traj_x", "traj_y")},
-                                   {k: res[(ref_name, d, prec)][1][k] for k in ("traj_x", "traj_y")})
+        same = bitwise_differences({k: outs[(b, d, prec)][k] for k in ("traj_x", "traj_y")},
+                                   {k: outs[(ref_name, d, prec)][k] for k in ("traj_x", "traj_y")})
         verdict = ("bitwise identical trajectory" if same == 0 else
                    "same contact timing, trajectories differ in rounding" if nflip == 0 else
                    "flips only in derived ill-conditioned particles" if bad == 0 else
@@ -295,7 +298,7 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
 
 # ---- plots (from the series kept in stress.json) -------------------------------------------------
 
-def plot_particles_dt(series: dict[str, Any], path: Path, style: Style) -> None:
+def plot_particles_dt(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for lbl, line in sorted(series["lines"].items()):
@@ -308,7 +311,7 @@ def plot_particles_dt(series: dict[str, Any], path: Path, style: Style) -> None:
     fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
 
 
-def plot_particles_long(series: dict[str, Any], path: Path, style: Style) -> None:
+def plot_particles_long(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     bounces = sorted({float(k.rsplit("bounce=", 1)[1]) for k in series})
     fig, axes = plt.subplots(1, len(bounces), figsize=(5.2 * len(bounces), 4.2), squeeze=False)
@@ -326,7 +329,7 @@ def plot_particles_long(series: dict[str, Any], path: Path, style: Style) -> Non
     fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
 
 
-def plot_particles_divergence(series: dict[str, Any], path: Path, style: Style) -> None:
+def plot_particles_divergence(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     bounces = sorted({k.rsplit("bounce=", 1)[1] for k in series}, key=float)
     fig, axes = plt.subplots(1, len(bounces), figsize=(6 * len(bounces), 4.5), squeeze=False)

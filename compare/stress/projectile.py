@@ -20,6 +20,7 @@ from compare.stress.projectile_plots import (lr_matrix, lr_table_rows, plot_proj
                                              plot_projectile_horizon, plot_projectile_lr)
 from compare.stress.projectile_rules import (CONTACTS, FD_AGREE, FD_STEPS, SC, classify, fd_gradient,
                                              loss_mispredictions, observed_boundary, predicted_lr)
+from scenarios.base import Precision
 from scenarios.projectile import CONSTANTS
 from scenarios.projectile_adjoint import gradient
 
@@ -47,7 +48,8 @@ def exp_projectile_lr(ctx: StressContext) -> Result:
     lrs = lr_grid(ctx.quick)
     iters = SC.params({}, quick=ctx.quick).iters
     budget = 60.0 if ctx.quick else 300.0
-    rows, series = ctx.skip_rows(name), {"lrs": list(lrs), "histories": {}}
+    rows = ctx.skip_rows(name)
+    series: dict[str, Any] = {"lrs": list(lrs), "histories": {}}
     pred = {c: predicted_lr(c, iters) for c in CONTACTS}
     for c, (lr_star, info) in pred.items():
         rows.append(ctx.row(name, "physics", "host", "float64", f"contact={c}", "predicted GD boundary lr* = 2/lambda_max(H)",
@@ -124,7 +126,8 @@ def exp_projectile_gradient(ctx: StressContext) -> Result:
     precisions = ("float32",) if ctx.quick else ("float32", "float64")
     specs = [ctx.spec(SC.name, b, d, prec, {"contact": c, "iters": 0}) for b, d, _ in ctx.targets()
              for prec in ctx.precisions(b, d, precisions) for c in CONTACTS]
-    rows, series = ctx.skip_rows(name, precisions=precisions), {"h": list(FD_STEPS), "lines": {}, "scans": {}}
+    rows = ctx.skip_rows(name, precisions=precisions)
+    series: dict[str, Any] = {"h": list(FD_STEPS), "lines": {}, "scans": {}}
     step_len = {c: 0.01 * gsize[c] for c in CONTACTS}       # one GD step at the seed's lr = 0.01
     for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
         c, prec = s["params"]["contact"], s["precision"]
@@ -159,7 +162,7 @@ def exp_projectile_gradient(ctx: StressContext) -> Result:
     for prec in ("float32", "float64"):
         for c in ("hard", "soft"):
             p = SC.params({"contact": c, "iters": 0})
-            ref = SC.oracle(p, SC.inputs(p, prec), prec)
+            ref = SC.oracle(p, SC.inputs(p, prec), Precision(prec))
             loss_noise[(prec, c)] = float(ref["tol_loss"][0] / abs(ref["loss"]))
     npts = 41 if ctx.quick else 81
     scans = {"coarse": np.linspace(6.3, 6.7, npts).tolist(), "fine": np.linspace(6.48, 6.52, npts).tolist()}

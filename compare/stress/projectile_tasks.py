@@ -19,7 +19,9 @@ from typing import Any, Callable
 import numpy as np
 
 import backends
+from backends.base import Device
 from compare.stress.numerics import ORACLE
+from scenarios.base import Precision
 from scenarios.projectile import CONSTANTS, Projectile
 from scenarios.projectile_adjoint import loss_and_gradient
 
@@ -92,7 +94,7 @@ def backend_evaluator(backend: str, device: str, precision: str, params: dict[st
             except NotImplementedError:
                 reusable = False
         if kernel is None or not reusable:
-            kernel = kernel_cls(p, {**base, "v0": v0}, device, precision, "default")
+            kernel = kernel_cls(p, {**base, "v0": v0}, Device(device), Precision(precision), "default")
         k = kernel
         be.synchronize(device, k.run())
         out = k.outputs()
@@ -115,8 +117,9 @@ def oracle_evaluator(params: dict[str, Any], precision: str = "float64") -> Eval
     return evaluate
 
 
-def scan(evaluate: Evaluate, vx: float, vys: list[float]) -> dict[str, list[float]]:
-    losses, grads = [], []
+def scan(evaluate: Evaluate, vx: float, vys: list[float]) -> dict[str, list[float] | list[list[float]]]:
+    losses: list[float] = []
+    grads: list[list[float]] = []
     for vy in vys:
         loss, g = evaluate(np.array([vx, vy]))
         losses.append(loss); grads.append([float(g[0]), float(g[1])])
