@@ -188,7 +188,7 @@ class Scenario:
     item: ClassVar[str] = ""               # what one item is, for a sampled check's record
 
     # ---- parameters -------------------------------------------------------------------------
-    def params(self, overrides: dict[str, Any] | None = None, quick: bool = False):
+    def params(self, overrides: Mapping[str, Any] | None = None, quick: bool = False):
         """Defaults, then quick overrides, then user overrides; coerced and validated."""
         fields = {f.name: f for f in dataclasses.fields(self.Params)}
         hints = typing.get_type_hints(self.Params)

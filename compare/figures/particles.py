@@ -2,14 +2,17 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 import scenarios
 from compare.figures.runs import Runs, pick_runs, run_label
+from scenarios.base import Precision
+from scenarios.particles import Particles
 
-SC = scenarios.get(__name__.rpartition(".")[2])    # this module draws the scenario it is named after
+# this module draws the scenario it is named after (the registry's "particles" is a Particles)
+SC = cast(Particles, scenarios.get(__name__.rpartition(".")[2]))
 
 
 def figure(runs: Runs) -> Any:
@@ -23,7 +26,7 @@ def figure(runs: Runs) -> Any:
     if p.n * (p.steps + 1) > 5e7:              # the oracle would be too big for a picture
         return None
     # one float64 oracle per precision (with every frame), for the trajectories and the errors
-    refs = {prec: SC.oracle(dataclasses.replace(p, record_every=1), SC.inputs(p, prec), prec)
+    refs = {prec: SC.oracle(dataclasses.replace(p, record_every=1), SC.inputs(p, prec), Precision(prec))
             for prec in {r.precision for r, _ in runs}}
     ref = refs[rec0.precision]
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.6))

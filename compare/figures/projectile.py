@@ -8,6 +8,7 @@ import numpy as np
 
 import scenarios
 from compare.figures.runs import Runs, run_label
+from scenarios.base import Precision
 
 SC = scenarios.get(__name__.rpartition(".")[2])    # this module draws the scenario it is named after
 
@@ -23,7 +24,7 @@ def figure(runs: Runs) -> Any:
         p = dataclasses.replace(p, batch=1)
         runs = [(r, {k: np.asarray(v)[:, 0] if k == "loss_history" else np.asarray(v)[0]
                      for k, v in o.items()}) for r, o in runs]
-    refs = {prec: SC.oracle(p, SC.inputs(p, prec), prec) for prec in {r.precision for r, _ in runs}}
+    refs = {prec: SC.oracle(p, SC.inputs(p, prec), Precision(prec)) for prec in {r.precision for r, _ in runs}}
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
     ref = refs.get("float64", next(iter(refs.values())))["loss_history"]
     ax.plot(np.arange(ref.size), np.maximum(ref, 1e-30), "k--", lw=2, alpha=0.5, label="float64 oracle")

@@ -7,6 +7,7 @@ import numpy as np
 
 import scenarios
 from compare.figures.runs import Runs, run_label
+from scenarios.base import Precision
 
 SC = scenarios.get(__name__.rpartition(".")[2])    # this module draws the scenario it is named after
 
@@ -24,13 +25,13 @@ def figure(runs: Runs) -> Any:
         return None
     for r, o in runs:
         inputs = SC.inputs(p, r.precision)
-        ref = SC.oracle(p, inputs, r.precision)["out"]
+        ref = SC.oracle(p, inputs, Precision(r.precision))["out"]
         out = np.asarray(o["out"], np.float64)
         if out.shape != ref.shape:
             continue
         ulp = np.spacing(np.abs(ref).astype(np.float32)).astype(np.float64)
         ulps = np.abs(out - ref) / np.maximum(ulp, np.finfo(np.float64).tiny)
-        ax.hist(np.clip(ulps, 0, edges[-1]), bins=edges, histtype="step", lw=1.2,
+        ax.hist(np.clip(ulps, 0, edges[-1]), bins=edges, histtype="step", lw=1.2,  # type: ignore[arg-type]  # stubs: bins as a Sequence, not an array
                 weights=np.full(ulps.size, 100.0 / max(ulps.size, 1)),
                 label=f"{run_label(r)} (max {ulps.max():.2f})")
     ax.axvline(0.5, color="0.4", ls=":", lw=1)

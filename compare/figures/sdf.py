@@ -7,7 +7,7 @@ import numpy as np
 
 import scenarios
 from compare.figures.runs import Runs, pick_runs, run_label
-from scenarios.base import UNIT_ROUNDOFF
+from scenarios.base import UNIT_ROUNDOFF, Precision
 from scenarios.sdf import TOLERANCE_ULPS
 
 SC = scenarios.get(__name__.rpartition(".")[2])    # this module draws the scenario it is named after
@@ -18,11 +18,11 @@ def figure(runs: Runs) -> Any:
     all panels, the maximum also as a fraction of the derived tolerance)."""
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
-    runs = [(r, o) for r, o in pick_runs(runs, 8) if np.ndim(o.get("image")) == 2]
+    runs = [(r, o) for r, o in pick_runs(runs, 8) if "image" in o and np.ndim(o["image"]) == 2]
     if not runs:
         return None
     p = SC.params(runs[0][0].params)
-    ref = SC.oracle(p, {}, runs[0][0].precision)["image"]
+    ref = SC.oracle(p, {}, Precision(runs[0][0].precision))["image"]
     diffs = []
     for r, o in runs:
         img = np.asarray(o["image"], np.float64)
@@ -36,13 +36,14 @@ def figure(runs: Runs) -> Any:
     im = ax.imshow(ref, origin="lower", cmap="magma")
     fig.colorbar(im, ax=ax, label="exp(-18|d|)", shrink=0.85)
     ax.set_title(f"float64 oracle, {p.width}x{p.height}", fontsize=8)
-    norm = LogNorm(vmin=max(tiny, top * 1e-6), vmax=top)
+    vmin = max(tiny, top * 1e-6)
+    norm = LogNorm(vmin=vmin, vmax=top)
     for ax, (r, _), d in zip(axes.flat[1:], runs, diffs):
         if d is None:
             ax.set_title(f"{run_label(r)}: shape differs", fontsize=8); continue
-        im = ax.imshow(np.maximum(d, norm.vmin), origin="lower", cmap="viridis", norm=norm)
+        im = ax.imshow(np.maximum(d, vmin), origin="lower", cmap="viridis", norm=norm)
         fig.colorbar(im, ax=ax, label="|image - oracle|", shrink=0.85)
-        tol = TOLERANCE_ULPS * (UNIT_ROUNDOFF[r.precision] + UNIT_ROUNDOFF["float64"])
+        tol = TOLERANCE_ULPS * (UNIT_ROUNDOFF[Precision(r.precision)] + UNIT_ROUNDOFF[Precision.FLOAT64])
         ax.set_title(f"{run_label(r)}\nmax {d.max():.2g} = {d.max() / tol:.2g} x derived tolerance",
                      fontsize=8)
     for ax in axes.flat:
