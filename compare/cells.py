@@ -9,7 +9,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -62,7 +62,7 @@ def collect(cell_dir: Path, cell: Cell) -> Result:
     return record, outputs
 
 
-def run_batch(specs: list[Cell | dict[str, Any]], timeout: float | None = 600.0,
+def run_batch(specs: Sequence[Cell | dict[str, Any]], timeout: float | None = 600.0,
               on_result: Callable[[int, Result], None] | None = None) -> list[Result]:
     """Run cells one after another in ONE fresh interpreter; returns (record, outputs) per spec.
 

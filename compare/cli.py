@@ -112,10 +112,11 @@ def parse(argv: list[str]) -> argparse.Namespace:
     args, extra = build_parser().parse_known_args(argv)
     words = [w for w in extra if not w.startswith("-")]
     listed = next((k for k in ("files", "scenarios") if isinstance(getattr(args, k, None), list)), None)
-    if extra and (listed is None or len(words) != len(extra)):
+    if not extra:
+        return args
+    if listed is None or len(words) != len(extra):
         raise UsageError(f"unrecognized arguments: {' '.join(extra)}")
-    if words:
-        setattr(args, listed, getattr(args, listed) + words)
+    setattr(args, listed, getattr(args, listed) + words)
     return args
 
 

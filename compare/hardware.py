@@ -174,11 +174,11 @@ def measure_cuda() -> dict[str, Any]:
         ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
         piped.append((time.perf_counter() - t0) / k)
     t = _median(copies)
-    out = {"copy_bytes_per_s": 2.0 * n / t, "copy_bytes": n, "copy_median_s": t,
-           "copy_how": "cuMemcpyDtoDAsync of 1 GiB, CUDA events, median of 20 (2 x bytes / time)",
-           "launch_latency_s": _median(lat), "launch_pipelined_s": _median(piped[1:]),
-           "launch_how": "empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize "
-                         "(median of 2000); pipelined = 2000 launches, one synchronise, / 2000"}
+    out: dict[str, Any] = {"copy_bytes_per_s": 2.0 * n / t, "copy_bytes": n, "copy_median_s": t,
+                           "copy_how": "cuMemcpyDtoDAsync of 1 GiB, CUDA events, median of 20 (2 x bytes / time)",
+                           "launch_latency_s": _median(lat), "launch_pipelined_s": _median(piped[1:]),
+                           "launch_how": "empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize "
+                                         "(median of 2000); pipelined = 2000 launches, one synchronise, / 2000"}
     try:
         import pynvml
         pynvml.nvmlInit()
@@ -218,7 +218,8 @@ def annotate(records: list[dict[str, Any]], hardware: dict[str, dict[str, Any]])
     import scenarios
     for r in records:
         thr = (r.get("time") or {}).get("throughput")
-        hw = hardware.get(r.get("device"), {})
+        device = r.get("device")
+        hw = hardware.get(device, {}) if isinstance(device, str) else {}     # (no str key is another type)
         if r.get("status") not in ("ok", "mismatch") or not thr or "error" in hw or not hw:
             continue
         sc = scenarios.SCENARIOS.get(r["scenario"])

@@ -132,7 +132,7 @@ def _stale(path: Path) -> bool:
 def clean_stale(base: str | Path | None = None) -> list[Path]:
     """Delete the temporary roots of drivers that are gone; returns them."""
     base = Path(base or tempfile.gettempdir())
-    removed = []
+    removed: list[Path] = []
     try:
         found = [p for p in base.iterdir() if p.name.startswith(PREFIX) and p.is_dir()]
     except OSError:

@@ -101,6 +101,8 @@ def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[
                     if _advance(job, now, timeout):
                         active.remove(job)
                         job.close()
+                        if job.result is None:      # _advance finishes a job only once it has one
+                            raise RuntimeError(f"overlap: cell {job.i} finished without a result")
                         on_result(job.i, job.result)
                         _remove(job.dir)
                 _grant(active)

@@ -69,7 +69,7 @@ import backends
 import scenarios
 from compare import environment, options
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
-from compare.publish_log import host, load_log, save_log, started, state
+from compare.publish_log import Part, host, load_log, save_log, started, state
 
 LOCK = ".publish.lock"         # publish's own lock: each part locks DIR itself while it writes
 EXIT_BUDGET = 3
@@ -78,14 +78,6 @@ HOST_PROFILE_TOP, CHECK_SAMPLE, STAGED = 12, 4096, "stress-parts"
 SWEEPS = ("bandwidth", "scaling", "error", "horizon")
 GROUPS = ("large", "stress")
 MATRIX_PROCESSES = "auto"      # the matrix part: every figure from interleaved processes (compare.repeats)
-
-
-@dataclasses.dataclass(frozen=True)
-class Part:
-    name: str
-    argv: tuple[str, ...]
-    reads: tuple[str, ...] = ()     # a derived part: it reruns after any of these ran
-    resumes: bool = True            # a rerun continues where a cut-off attempt stopped
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -108,8 +100,8 @@ def memory() -> dict[str, float]:
     """Bytes free for one worker on the host, and on the smallest GPU (absent: none listed)."""
     import psutil
     have = {"cpu": float(psutil.virtual_memory().available)}
-    sizes = [g.get("memory", "").split()[:1] for g in environment.gpus()]    # "81559 MiB"
-    sizes = [float(m[0]) * 2**20 for m in sizes if m and m[0].isdigit()]
+    heads = [g.get("memory", "").split()[:1] for g in environment.gpus()]    # "81559 MiB"
+    sizes = [float(m[0]) * 2**20 for m in heads if m and m[0].isdigit()]
     return {**have, "cuda": min(sizes)} if sizes else have
 
 

@@ -17,6 +17,7 @@ Run time: the sum of ``seconds`` over ``parts``. History: 1, the first.
 """
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import json
 from pathlib import Path
@@ -60,6 +61,16 @@ def identity(argv: Any, out: str) -> list[str]:
         r = Path(w).resolve()
         words.append(("DIR/" + str(r.relative_to(base))) if r == base or base in r.parents else w)
     return words
+
+
+@dataclasses.dataclass(frozen=True)
+class Part:
+    """One part of a publish run: the command after ``python -m compare``; compare/publish.py
+    plans them."""
+    name: str
+    argv: tuple[str, ...]
+    reads: tuple[str, ...] = ()     # a derived part: it reruns after any of these ran
+    resumes: bool = True            # a rerun continues where a cut-off attempt stopped
 
 
 def cut_off(e: dict[str, Any]) -> bool:

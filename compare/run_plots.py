@@ -16,7 +16,7 @@ from compare.report import by_scenario, call_time, fmt_time
 from compare.store import save_figure
 
 
-def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
+def plot_time_vs_error(records: list[Record], path: Path) -> None:
     """Latency-regime time against error, one panel per scenario (two columns)."""
     from compare import charts
     plt = charts.pyplot()
@@ -26,15 +26,18 @@ def plot_time_vs_error(records: list[dict[str, Any]], path: Path) -> None:
     cmap = charts.colors(r.backend for rs in groups.values() for r in rs)
     cols, rows = min(2, len(groups)), -(-len(groups) // 2)
     import matplotlib
-    with matplotlib.rc_context(charts.RC):
+    # (matplotlib's stubs key rc_context's dict by a Literal of every rcParam, not by str)
+    with matplotlib.rc_context(charts.RC):  # type: ignore[arg-type]
         fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.9 * rows + 0.9), squeeze=False,
                                  layout="constrained")
         for ax, (scenario, recs) in zip(axes.flat, groups.items()):
             for r in recs:
                 c, err = cmap[r.backend], (r.error or {}).get("vs_oracle")
-                lat = r.time.get("latency") or r.time.get("wall") or r.time
+                t = r.time or {}        # (a timed record: by_scenario was given those only)
+                lat = t.get("latency") or t.get("wall") or t
                 x = lat.get("median_s") if isinstance(lat, Mapping) else None
-                if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (err, x)) or x <= 0:
+                if not (isinstance(err, (int, float)) and math.isfinite(err)
+                        and isinstance(x, (int, float)) and math.isfinite(x)) or x <= 0:
                     continue
                 ax.scatter(x, max(err, 1e-17), color=c,
                            marker="o" if r.device == "cpu" else "^",
@@ -72,6 +75,8 @@ def speed_bar(rec: Record, base: Record | None = None) -> Any:
     marks = ([rec.status] if rec.status != "ok" else []) + (["latency regime"] if regime == "latency" else [])
     if base is not None and t:
         bt, bi, _ = call_time(base)
+        if bt is None:      # plot_speedup_vs_baseline picks a base with a time per call
+            raise ValueError(f"speed_bar: the base {base.key} has no time per call")
         blo, bhi = _spread(bt, bi)
         t, lo, hi = bt / t, (blo or bt) / hi if hi else None, (bhi or bt) / lo if lo else None
     return charts.Bar(rec.backend, rec.variant, t or None, lo, hi, ", ".join(marks))

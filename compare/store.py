@@ -324,7 +324,7 @@ def array_file(directory: Path, cell: Mapping[str, Any]) -> Path:
     """``DIR/arrays/<scenario>-<backend>-<device>-<precision>[-<variant>].npz`` of a cell (a loaded
     record's ``identity``, or the JSON of one being written); the parts come from a record, so each
     must be a plain name (letters, digits, '_'): no path can leave arrays/."""
-    parts = [cell.get(f) for f in ("scenario", "backend", "device", "precision")]
+    parts: list[Any] = [cell.get(f) for f in ("scenario", "backend", "device", "precision")]   # checked below
     variant = cell.get("variant", "default")
     if variant != "default":
         parts.append(variant)
@@ -337,7 +337,8 @@ def array_file(directory: Path, cell: Mapping[str, Any]) -> Path:
 def save_arrays(directory: Path, cell: Mapping[str, Any], arrays: dict[str, np.ndarray]) -> None:
     import io
     buf = io.BytesIO()
-    np.savez(buf, **arrays)
+    # (numpy's stubs read ** as possibly setting savez's allow_pickle: bool)
+    np.savez(buf, **arrays)  # type: ignore[arg-type]
     atomic_write(array_file(directory, cell), buf.getvalue())
 
 

@@ -199,7 +199,9 @@ def host_profile(run: Callable[[], Any], sync: Callable[[Any], None], calls: int
     prof.disable()
     issued = time.perf_counter() - t0
     sync(r)
-    stats = pstats.Stats(prof).stats  # (file, line, name) -> (primitive calls, calls, own, cumulative, callers)
+    # (file, line, name) -> (primitive calls, calls, own, cumulative, callers); the stdlib stubs
+    # (typeshed) leave this attribute of pstats.Stats out
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
     rows = sorted(stats.items(), key=lambda kv: kv[1][2], reverse=True)[:top]
     total_own = sum(v[2] for v in stats.values())
     return {"calls": calls, "host_s": issued / calls, "profiled_s": total_own / calls,

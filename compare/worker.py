@@ -121,6 +121,7 @@ def own_latency(be: Backend, device: str, run: Any, sync: Any) -> dict[str, Any]
             got = be.own_latency(device, lambda: sync(run()))
             if got is None:             # the framework ships no timer: nothing more to time
                 return None
+            last: dict[str, Any] = got
             times = timing.until(lambda: timing.call(run, sync), 10, OWN_TIMER_S, 1.0, 100_000)
             theirs.append(got["median_s"])
             ours.append(in_blocks(times, int(got.get("block") or 1)))
@@ -128,7 +129,7 @@ def own_latency(be: Backend, device: str, run: Any, sync: Any) -> dict[str, Any]
             ratios.append(ours[-1] / theirs[-1])
     except Exception as exc:  # a cross-check failing is a note, never the cell
         return {"failed": f"{type(exc).__name__}: {str(exc).strip()[:200]}"}
-    return {**got, "median_s": float(np.median(theirs)), "ours_s": float(np.median(ours)),
+    return {**last, "median_s": float(np.median(theirs)), "ours_s": float(np.median(ours)),
             "ours_call_s": float(np.median(per_call)), "ratio": float(np.median(ratios)),
             "rounds": CROSS_ROUNDS}
 
@@ -294,10 +295,11 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
                if f"gradient_{k}" in check.details},
         }
     laps.lap("record")
+    # (numpy's stubs read ** as possibly setting savez's allow_pickle: bool)
     if cell.save_outputs:
-        np.savez(out_dir / "outputs.npz", **outputs)
+        np.savez(out_dir / "outputs.npz", **outputs)  # type: ignore[arg-type]
     if cell.save_inputs:
-        np.savez(out_dir / "inputs.npz", **inputs)
+        np.savez(out_dir / "inputs.npz", **inputs)  # type: ignore[arg-type]
     if cell.save_outputs or cell.save_inputs:
         laps.lap("save")
     times["phases"] = {k: round(v, 4) for k, v in laps.spent.items()}

@@ -31,7 +31,8 @@ def figure(runs: Runs) -> Any:
             continue
         ulp = np.spacing(np.abs(ref).astype(np.float32)).astype(np.float64)
         ulps = np.abs(out - ref) / np.maximum(ulp, np.finfo(np.float64).tiny)
-        ax.hist(np.clip(ulps, 0, edges[-1]), bins=edges, histtype="step", lw=1.2,  # type: ignore[arg-type]  # stubs: bins as a Sequence, not an array
+        # (matplotlib's stubs type bins as a Sequence, which an ndarray is not)
+        ax.hist(np.clip(ulps, 0, edges[-1]), bins=edges, histtype="step", lw=1.2,  # type: ignore[arg-type]
                 weights=np.full(ulps.size, 100.0 / max(ulps.size, 1)),
                 label=f"{run_label(r)} (max {ulps.max():.2f})")
     ax.axvline(0.5, color="0.4", ls=":", lw=1)

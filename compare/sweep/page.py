@@ -166,7 +166,8 @@ def scaling_table(records, device, scenario) -> str:
         rates = [fmt_rate(need(r, "params")[per_run] / t, f"{per_run}/s")] if per_run else []
         thr = throughput_s(r)
         rows.append([r.backend, r.precision, knob(r).get("value"), fmt_time(t),
-                     fmt_time(event_s(r)), fmt_time(thr), *rates, fmt_rate(need(r, "work")[work] / (thr or t), "/s"),
+                     fmt_time(event_s(r)), fmt_time(thr), *rates,
+                     fmt_rate(need(r, "work")[work] / (thr or t), "/s"),
                      fmt_bytes(need(r, "memory")["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
                      need(r, "error").get("checked_items", "all")])

@@ -93,7 +93,8 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
             for v in dict.fromkeys(r.variant for r in mine):
                 if v != "default":
                     vs = [r for r in mine if r.variant == v]
-                    ax.plot([need(r, "work")["bytes"] for r in vs], [gbps(need(r, "work")["bytes"], wall_s(r)) for r in vs],
+                    ax.plot([need(r, "work")["bytes"] for r in vs],
+                            [gbps(need(r, "work")["bytes"], wall_s(r)) for r in vs],
                             "--s", color=c, ms=4, label=f"{backend}{tag} {v} (wall clock)")
             mine = [r for r in mine if r.variant == "default"]
             if not mine:

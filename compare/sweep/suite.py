@@ -98,7 +98,8 @@ def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str,
     'reference'}."""
     raw = sweeps(sc.name).points(kind, device, args.quick)
     over = dict(sets)
-    if kind == "scaling" and args.record_every and "record_every" in {f.name for f in dataclasses.fields(sc.Params)}:
+    fields = {f.name for f in dataclasses.fields(sc.Params)}
+    if kind == "scaling" and args.record_every and "record_every" in fields:
         over["record_every"] = args.record_every
     for k in over:
         if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
