@@ -1,6 +1,6 @@
 """Generic figures for the run's plots and the report site: legible with a dozen frameworks and
 their variants, and byte-for-byte the same PNG for the same input (fixed size and dpi, Agg, no
-software/date metadata). Every figure is saved atomically (``compare.store.save_figure``) and,
+software/date metadata). Every figure is saved atomically (``compare.files.save_figure``) and,
 unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``write_csv``).
 
     Bar(framework, variant, value, lo=None, hi=None, mark="")
@@ -41,7 +41,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from compare import figure_check
 from compare.colors import backend_color
-from compare.store import atomic_write, save_figure
+from compare.files import atomic_write, save_figure
 
 DPI = 110
 WIDTH = 9.0                                  # inches; heights follow the number of bars

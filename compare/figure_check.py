@@ -234,7 +234,7 @@ def checked(draw: Callable[[], T], png: Path) -> T:
     sweep and stress plots save themselves, so their figures are checked here, not changed."""
     from matplotlib.figure import Figure
 
-    from compare.store import atomic_write
+    from compare.files import atomic_write
     saved: list[Any] = []
     original = Figure.savefig
 

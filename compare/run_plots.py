@@ -13,7 +13,7 @@ import numpy as np
 
 from compare.record import Record, plain
 from compare.report import by_scenario, call_time, fmt_time
-from compare.store import save_figure
+from compare.files import save_figure
 
 
 def plot_time_vs_error(records: list[Record], path: Path) -> None:

@@ -52,11 +52,11 @@ def test_lock_refuses_a_second_holder_and_takes_over_a_stale_one(tmp_path, monke
 
 
 def test_atomic_write_on_a_full_disk_keeps_the_old_file_and_no_temporary(tmp_path, monkeypatch):
-    from compare import store
+    from compare import files
     f = tmp_path / "results.json"
     atomic_write(f, "old")
     monkeypatch.setenv("COMPARE_FAULT_DISK", "0")
-    monkeypatch.setattr(store, "_WRITES", [0])
+    monkeypatch.setattr(files, "_WRITES", [0])
     with pytest.raises(OSError) as exc:
         atomic_write(f, "new" * 1000)
     assert exc.value.errno == 28 and exc.value.filename == str(f)

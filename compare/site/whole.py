@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from compare.options import UsageError
-from compare.store import TEMP_MARK, TEMP_SUFFIX
+from compare.files import TEMP_MARK, TEMP_SUFFIX
 
 MANIFEST = "site.json"          # every site holds it (compare/site/assemble.py writes it)
 LOCK = ".compare.lock"          # the driver's lock (compare/lock.py), in --out while it runs

@@ -22,7 +22,7 @@ from typing import Any
 from compare.record import Record
 from compare.report import fmt_bytes, fmt_time
 from compare.figure_check import place_legends
-from compare.store import save_figure
+from compare.files import save_figure
 from compare.sweep.points import sweeps
 from compare.sweep.rows import knob, label, need, ok, throughput_s, wall_s
 

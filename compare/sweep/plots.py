@@ -13,7 +13,7 @@ import backends
 from compare.colors import backend_color
 from compare.figure_check import keep_apart
 from compare.record import Record
-from compare.store import save_figure
+from compare.files import save_figure
 from compare.sweep import horizon
 from compare.sweep.metrics import ERROR_FLOOR, device_bytes, error_points, gbps, launch_wall, roofline
 from compare.sweep.page import error_scenarios, plot_key, swept, with_role
