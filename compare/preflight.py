@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import scenarios
-from compare import calibrate, options
+from compare import calibrate, outdir
 from compare.spec import Cell, as_cell
 from scenarios.base import ParamError
 
@@ -79,11 +79,11 @@ def check_memory(specs: list[Cell | dict[str, Any]], driver: bool = True, worker
         s = as_cell(specs[big])
         sc = scenarios.get(s.scenario)
         what = f"{sc.name} with {sc.size_text(s.params)}"
-        parts = ([f"one {s.precision} cell's worker {options.gib(sizes[big][0])}"] if worker and workers else []) + \
-                ([f"outputs of {len(specs)} cells kept by the driver {options.gib(sum(b for _, b, _ in sizes))}"]
+        parts = ([f"one {s.precision} cell's worker {outdir.gib(sizes[big][0])}"] if worker and workers else []) + \
+                ([f"outputs of {len(specs)} cells kept by the driver {outdir.gib(sum(b for _, b, _ in sizes))}"]
                  if driver else [])
-        raise ParamError(f"{what} needs about {options.gib(need)} of memory ({' + '.join(parts)}); "
-                         f"{options.gib(have)} is available")
+        raise ParamError(f"{what} needs about {outdir.gib(need)} of memory ({' + '.join(parts)}); "
+                         f"{outdir.gib(have)} is available")
 
 
 def memory_refusal(measured: Callable[[Cell], float | None] | None = None
@@ -103,8 +103,8 @@ def memory_refusal(measured: Callable[[Cell], float | None] | None = None
                 if got <= have:
                     return None
                 need, how = got, f" (its {cell.backend} runs at 1/{MEMORY_FACTORS[0]} and 1/{MEMORY_FACTORS[1]} of its size, scaled)"
-        return "skipped", (f"needs about {options.gib(need)} of host memory for its worker{how}; "
-                           f"{options.gib(have)} is available on this machine")
+        return "skipped", (f"needs about {outdir.gib(need)} of host memory for its worker{how}; "
+                           f"{outdir.gib(have)} is available on this machine")
     return refuse
 
 

@@ -67,7 +67,7 @@ from typing import Any
 
 import backends
 import scenarios
-from compare import environment, options
+from compare import environment, options, outdir
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
 from compare.publish_log import Part, host, load_log, save_log, started, state
 
@@ -120,8 +120,8 @@ def large_parts(devices: list[str], chosen: list[str], common: list[str], quick:
             host = WORKER_BASELINE_BYTES[dev] + sc.footprint(p, "float32", dev)
             arrays = sc.input_bytes(p, "float32") + sc.output_bytes(p, "float32")
             if host > have.get("cpu", float("inf")) or (dev == "cuda" and arrays > have.get("cuda", float("inf"))):
-                left.append(f"large-{dev}-{name}{exp}: left out, needs {options.gib(host)} of host memory"
-                            + (f" and {options.gib(arrays)} on the GPU" if dev == "cuda" else ""))
+                left.append(f"large-{dev}-{name}{exp}: left out, needs {outdir.gib(host)} of host memory"
+                            + (f" and {outdir.gib(arrays)} on the GPU" if dev == "cuda" else ""))
                 continue
             variants = [v for v in sw.large_variants if any(
                 v in backends.get(b).variants_for(name) and not backends.get(b).variant_unavailable(v, dev)
@@ -304,7 +304,7 @@ def refuse_dirty(allowed: bool) -> None:
 
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
-    options.check_output(args.out)
+    outdir.check_output(args.out)
     devices = (options.names(args.devices, backends.DEVICES, "devices") if args.devices is not None
                else ["cuda"] if environment.gpus() else ["cpu"])
     parts, notes = plan(args.out, devices, args.backends, args.quick, args.timeout)
@@ -315,7 +315,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         return EXIT_OK
     refuse_dirty(args.allow_dirty)
     from compare.lock import Busy, DirectoryLock
-    out = options.output_directory(args.out)
+    out = outdir.output_directory(args.out)
     lock = DirectoryLock(out)
     lock.path = out / LOCK
     try:

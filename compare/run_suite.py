@@ -21,7 +21,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import (calibrate, console, engine, environment, hardware, options, overlap, phases, report,
+from compare import (calibrate, console, engine, environment, hardware, options, outdir, overlap, phases, report,
                      run_plots, scaleout, versus)
 from compare.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
                                measured_need, memory_refusal)
@@ -169,7 +169,7 @@ def refuse_overwrite(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
     cells = plan(args, chosen)
-    options.check_output(args.out)                    # a bad --out is refused before the probes
+    outdir.check_output(args.out)                    # a bad --out is refused before the probes
     versus.check(args.against)
     refuse_overwrite(args)
     kept = Store.open(args.out, "run", keep=args.resume)   # and a bad results.json to resume (read only)
@@ -190,7 +190,7 @@ def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenar
     need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
     client = scaleout.client(args.scheduler) if args.scheduler else None
     try:
-        out, lock = options.claim_output(args.out, need, "the results" + (" and arrays" if args.save_arrays else ""))
+        out, lock = outdir.claim_output(args.out, need, "the results" + (" and arrays" if args.save_arrays else ""))
     except UsageError:
         if client is not None:
             client.close()
@@ -343,12 +343,12 @@ def report_command(args: argparse.Namespace) -> int:
         saved_outputs(Path(f).parent, recs, mine)     # --save-arrays outputs redraw the pictures
         outputs.update({len(records) + i: o for i, o in mine.items()})
         records += recs
-    notes = options.read_notes(args.notes)
-    options.check_page(args.page, args.title)
+    notes = outdir.read_notes(args.notes)
+    outdir.check_page(args.page, args.title)
     written = Path(args.out) / "results.json"
     if not args.page and any(Path(f).resolve() == written.resolve() for f in args.files):
         raise UsageError(f"report would rewrite its input {written}: give another --out (or --page FILE)")
-    out, lock = options.claim_output(args.out, PAGE_BYTES + 2 * RECORD_BYTES * len(records))
+    out, lock = outdir.claim_output(args.out, PAGE_BYTES + 2 * RECORD_BYTES * len(records))
     with lock:
         return report_claimed(args, out, envs, records, outputs, notes)
 

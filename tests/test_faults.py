@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from compare import options
+from compare import outdir
 from compare.lock import Busy, DirectoryLock
 from compare.store import Store, atomic_write
 from conftest import FAULTY
@@ -73,7 +73,7 @@ def test_claiming_out_removes_temporaries_a_killed_driver_left(tmp_path):
     users = [tmp_path / "keep.tmp", tmp_path / ".notes.tmp", tmp_path / ".results.json.abc123.tmp"]
     for p in users:
         p.write_text("a user's file")
-    out, lock = options.claim_output(str(tmp_path))
+    out, lock = outdir.claim_output(str(tmp_path))
     with lock:
         assert not any(p.exists() for p in left) and all(p.exists() for p in users)
     FIGURES["faults"].append("temporaries left by a killed driver")

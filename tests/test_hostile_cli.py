@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from compare import cli, options
+from compare import cli, outdir
 from compare.options import UsageError
 from compare.store import Store
 
@@ -189,19 +189,19 @@ def test_nothing_to_run_is_exit_2_and_writes_nothing(work: Path, argv: list) -> 
 
 
 def test_a_refusal_under_the_lock_removes_the_directories_its_claim_made(work: Path) -> None:
-    out, lock = options.claim_output("new/a/b")
+    out, lock = outdir.claim_output("new/a/b")
     with pytest.raises(UsageError):
         with lock:
             assert (out / ".compare.lock").is_file()
             raise UsageError("refused after the claim")
     assert not (work / "new").exists()
     (work / "kept").mkdir()
-    out, lock = options.claim_output("kept/x")           # existing directories are never removed
+    out, lock = outdir.claim_output("kept/x")           # existing directories are never removed
     with pytest.raises(KeyboardInterrupt):
         with lock:
             raise KeyboardInterrupt
     assert sorted(os.listdir(work / "kept")) == []
-    out, lock = options.claim_output("done")              # a normal exit keeps what it made
+    out, lock = outdir.claim_output("done")              # a normal exit keeps what it made
     with lock:
         pass
     assert (work / "done").is_dir()

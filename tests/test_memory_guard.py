@@ -8,7 +8,7 @@ import json
 import pytest
 from pathlib import Path
 
-from compare import cli, preflight, run_suite
+from compare import cli, outdir, preflight, run_suite
 from reliability_checks import FIGURES, assert_refused, working_directory
 
 pytestmark = pytest.mark.cli
@@ -94,7 +94,7 @@ def test_big_cells_are_judged_by_their_own_frameworks_miniatures(monkeypatch):
     """At B = 2^20 the scenario's model bounds every framework alike (the largest tape any port
     keeps: 72 GiB): each cell is estimated instead from its own miniatures at 1/64 and 1/256 of
     its size, and only the one whose estimate exceeds what is available is skipped, with it."""
-    from compare import calibrate, options
+    from compare import calibrate
     from compare.spec import Cell
     have = 8 * GIB
     available_memory(monkeypatch, have)
@@ -116,8 +116,8 @@ def test_big_cells_are_judged_by_their_own_frameworks_miniatures(monkeypatch):
     refuse = preflight.memory_refusal(need)
     assert refuse(plan[0]) is None
     status, why = refuse(plan[1])
-    assert status == "skipped" and f"needs about {options.gib(expected['torch'])}" in why, why
-    assert f"{options.gib(have)} is available" in why and "1/64 and 1/256" in why, why
+    assert status == "skipped" and f"needs about {outdir.gib(expected['torch'])}" in why, why
+    assert f"{outdir.gib(have)} is available" in why and "1/64 and 1/256" in why, why
 
 
 def test_a_miniature_that_failed_leaves_the_model_bound_to_decide(monkeypatch):
@@ -127,7 +127,7 @@ def test_a_miniature_that_failed_leaves_the_model_bound_to_decide(monkeypatch):
     need = preflight.measured_need([cell], 600.0, run=lambda small: ({"status": "error", "reason": "x"}, None))
     assert need(cell) is None
     status, why = preflight.memory_refusal(need)(cell)
-    assert status == "skipped" and preflight.options.gib(preflight.cell_bytes(cell)[0]) in why
+    assert status == "skipped" and preflight.outdir.gib(preflight.cell_bytes(cell)[0]) in why
 
 
 # a big cell (B >= 2^16) that runs in a second: the preflight judges it, the real cell runs

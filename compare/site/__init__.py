@@ -20,7 +20,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from compare import options
+from compare import options, outdir
 from compare.options import EXIT_OK, UsageError
 
 if TYPE_CHECKING:
@@ -58,9 +58,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         if same := sorted({f.resolve() for p in files for f in data._suite_files(p)}
                           & {f.resolve() for p in against for f in data._suite_files(p)}):
             raise UsageError(f"--against {same[0]} is also one of the RESULTS: compare against another machine's")
-    options.check_output(args.out)
+    outdir.check_output(args.out)
     whole.check_replaceable(args.out)         # before the claim creates or locks anything
-    out, lock = options.claim_output(args.out, 64 * 2**20, "the site")
+    out, lock = outdir.claim_output(args.out, 64 * 2**20, "the site")
     with lock:
         written = build(files, out, args.title, against, m, ref)
     print(f"wrote {len(written)} files in {out}; open {out / 'index.html'}")

@@ -24,7 +24,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from compare import engine, environment, options, preflight
+from compare import engine, environment, options, outdir, preflight
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
 from compare.store import Store
 from compare.stress import page
@@ -69,13 +69,13 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         options.no_duplicates(args.merge, "--merge")
         for f in args.merge:                # every part validated before anything is written
             Store.read(f, "stress")
-        options.check_output(args.out)
+        outdir.check_output(args.out)
         Store.open(args.out, "stress")
-        out, lock = options.claim_output(args.out, 2 * sum(Path(f).stat().st_size for f in args.merge)
+        out, lock = outdir.claim_output(args.out, 2 * sum(Path(f).stat().st_size for f in args.merge)
                                          + preflight.PAGE_BYTES)
         with lock:
             return page.merge(args.merge, out, registry, plots_=not args.no_plots)
-    options.check_output(args.out)
+    outdir.check_output(args.out)
     Store.open(args.out, "stress")                 # a bad stress.json refused (read only)
     probes = engine.availability(chosen["backends"])
     usable = [(b, d) for b in chosen["backends"] for d in chosen["devices"] if probes[b]["available"].get(d) is None]
@@ -83,7 +83,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         b, d = chosen["backends"][0], chosen["devices"][0]
         raise UsageError(f"nothing to run: no chosen backend can use a chosen device "
                          f"(first: {b} on {d}: {probes[b]['available'].get(d)})")
-    out, lock = options.claim_output(args.out, RESERVE_BYTES)
+    out, lock = outdir.claim_output(args.out, RESERVE_BYTES)
     with lock:
         return run_claimed(args, argv, registry, chosen, only, Store.open(out, "stress"), probes)
 

@@ -31,7 +31,7 @@ from typing import Any
 import backends
 import scenarios
 from backends.base import Device
-from compare import engine, environment, hardware, options, overlap, preflight, run_suite, scaleout
+from compare import engine, environment, hardware, options, outdir, overlap, preflight, run_suite, scaleout
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.spec import Cell
 from compare.store import UPGRADES, Store, atomic_write
@@ -251,9 +251,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     if not planned:
         raise UsageError(f"nothing to run: the {args.kind} sweep has no points for the chosen "
                          "scenarios, backends and devices")
-    notes = options.read_notes(args.notes)
-    options.check_output(args.out)
-    options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
+    notes = outdir.read_notes(args.notes)
+    outdir.check_output(args.out)
+    outdir.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
     Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
     probes = engine.availability(dict.fromkeys(c.backend for c, _ in planned))
     blocked = [engine.not_runnable(c, probes) for c, _ in planned]
@@ -262,7 +262,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     # connected before the claim: an unreachable scheduler leaves no lock and no --out behind
     client = scaleout.client(args.scheduler) if args.scheduler else None
     try:
-        out, lock = options.claim_output(args.out, 2 * (preflight.RECORD_BYTES * len(runnable) + existing_bytes(args.out))
+        out, lock = outdir.claim_output(args.out, 2 * (preflight.RECORD_BYTES * len(runnable) + existing_bytes(args.out))
                                          + preflight.PAGE_BYTES)
     except UsageError:
         if client is not None:
@@ -307,12 +307,12 @@ def report(args: argparse.Namespace) -> int:
     options.refuse_inapplicable(args, add_arguments, ("kind", "files", "--out", "--no-plots", "--page",
                                                       "--title", "--notes"), "to sweep report", "report")
     options.no_duplicates(args.files, "sweep report")
-    notes = options.read_notes(args.notes)
+    notes = outdir.read_notes(args.notes)
     merged = Store(Path(args.out) / "sweep.json", "sweep")
     for f in args.files:                  # a later file's record of the same cell wins
         merged.merge(Store.read(f, "sweep"))
-    options.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
-    out, lock = options.claim_output(args.out, preflight.PAGE_BYTES)
+    outdir.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
+    out, lock = outdir.claim_output(args.out, preflight.PAGE_BYTES)
     with lock:
         rebuild(contents(merged), args, list(args.files), notes)
     print(pages.summary(merged.records))
