@@ -1,8 +1,6 @@
 """Tables (console, Markdown, CSV), results.json and plots from a list of records."""
 from __future__ import annotations
 
-import csv
-import json
 import math
 import os
 import textwrap
@@ -12,7 +10,8 @@ from typing import Any, Iterable, Mapping
 from tabulate import tabulate
 
 from compare import noise, timing
-from compare.record import Record, plain
+from compare.record import Record
+from compare.results_csv import csv_text, params_text
 from compare.store import atomic_write, run_environments
 
 NOISY_MARK = noise.MARK
@@ -173,10 +172,6 @@ def _lead(first: Record, second: Record) -> str:
     return f"fastest {first.backend} ({fmt_time(a)} a call), {b / a:.3g}x ahead of {second.backend}"
 
 
-def params_text(rec: Record) -> str:
-    return json.dumps(plain(rec.params), sort_keys=True)
-
-
 def noise_lines(records: list[Record]) -> list[str]:
     """The closing lines: which timed cells are noisy (``~`` in the tables), why, what to do."""
     noisy = [r for r in records if r.status == "ok" and noise.reasons_for(r)]
@@ -328,66 +323,11 @@ def page(title: str, envs: list[dict[str, Any]], records: list[Record], images: 
 def write_tables(out: Path, environment: dict[str, Any], records: list[Record],
                  images: dict[str, str] | None = None) -> None:
     """results.csv and results.md beside results.json (which the store writes), atomically."""
-    import io
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(CSV_COLUMNS))
-    w.writeheader()
-    w.writerows(tidy(r) for r in records)
-    atomic_write(out / "results.csv", buf.getvalue())
+    atomic_write(out / "results.csv", csv_text(records))
     env_lines = "\n".join(header_lines(environment))
     closing = "\n".join(noise_lines(records))
     atomic_write(out / "results.md", f"# Results\n\n{env_lines}\n\n"
                  + tables(records, "github", images) + (f"\n```\n{closing}\n```\n" if closing else ""))
-
-
-# results.csv: one row per cell, one column per quantity, plain numbers in SI units (seconds,
-# bytes) or empty; docs/commands.md "results.csv" documents each column. Loaded with pandas as is.
-CSV_COLUMNS = {
-    "scenario": ("scenario",), "backend": ("backend",), "device": ("device",),
-    "precision": ("precision",), "variant": ("variant",), "status": ("status",), "reason": ("reason",),
-    "params": None,                                    # JSON of the resolved parameters
-    "first_call_s": ("time", "first_call_s"),
-    "latency_median_s": ("time", "latency", "median_s"), "latency_iqr_s": ("time", "latency", "iqr_s"),
-    "latency_min_s": ("time", "latency", "min_s"), "latency_repeats": ("time", "latency", "repeats"),
-    "events_median_s": None,                           # CUDA events, where the backend has them
-    "throughput_median_s": ("time", "throughput", "median_s"),
-    "throughput_iqr_s": ("time", "throughput", "iqr_s"), "throughput_min_s": ("time", "throughput", "min_s"),
-    "throughput_k": ("time", "throughput", "k"), "throughput_host_s": ("time", "throughput", "host_s"),
-    "graph_median_s": ("time", "graph", "median_s"), "graph_host_s": ("time", "graph", "host_s"),
-    "floor_s": ("throughput", "floor_s"), "floor_kind": ("throughput", "floor_kind"),
-    "hw_fraction": ("throughput", "hw_fraction"),
-    "device_bytes": ("memory", "device_bytes"), "framework_device_peak_bytes": ("memory", "device_peak_bytes"),
-    "peak_host_rss_bytes": ("memory", "peak_host_rss_bytes"), "host_bytes": ("memory", "host_bytes"),
-    "gradients_per_s": ("throughput", "gradients_per_s"),
-    "err_vs_oracle": ("error", "vs_oracle"), "tolerance": ("error", "tolerance"),
-    "err_vs_reference": ("error", "vs_reference"), "reference": ("error", "reference"),
-    "gradient_method": ("gradient", "method"), "gradient_rel_error": ("gradient", "vs_oracle_rel"),
-    "gradient_fd_agreement": ("gradient", "fd_agreement"),
-    "setup_s": ("time", "setup_s"), "download_s": ("time", "download_s"), "machine": ("machine",),
-    "noisy": ("time", "noise", "noisy"), "noise_reasons": None,      # compare/noise.py
-    "others_cores": ("time", "noise", "others_cores"),
-}
-
-
-def tidy(rec: Record) -> dict[str, Any]:
-    """One results.csv row: every CSV_COLUMNS quantity of the record, or '' where it has none."""
-    out: dict[str, Any] = {}
-    for col, path in CSV_COLUMNS.items():
-        if col == "params":
-            out[col] = params_text(rec)
-            continue
-        if col == "noise_reasons":
-            out[col] = "; ".join(noise.reasons_for(rec))
-            continue
-        if col == "events_median_s":
-            t = rec.time or {}
-            out[col] = (timing.events_of(t) or {}).get("median_s", "")
-            continue
-        v: Any = getattr(rec, path[0])
-        for k in path[1:]:
-            v = v.get(k) if isinstance(v, Mapping) else None
-        out[col] = "" if v is None or isinstance(v, (Mapping, tuple)) else v
-    return out
 
 
 def call_time(rec: Record) -> tuple[float | None, float | None, str]:

@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from compare import cells, noise, report
+from compare import cells, noise, report, results_csv
 from compare.record import Record
 from compare.site import data
 
@@ -112,9 +112,9 @@ def test_a_cell_timed_while_every_core_is_busy_is_flagged_and_an_idle_one_is_not
     assert "saxpy/numpy/cpu/float32/default" in closing[1] and "host busy" in "\n".join(closing)
     assert "stop the other work" in closing[-1]
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(report.CSV_COLUMNS))
-    w.writerow(report.tidy(busy))
-    row = next(csv.DictReader(io.StringIO(",".join(report.CSV_COLUMNS) + "\n" + buf.getvalue())))
+    w = csv.DictWriter(buf, fieldnames=list(results_csv.CSV_COLUMNS))
+    w.writerow(results_csv.tidy(busy))
+    row = next(csv.DictReader(io.StringIO(",".join(results_csv.CSV_COLUMNS) + "\n" + buf.getvalue())))
     assert row["noisy"] == "True" and "host busy" in row["noise_reasons"]
     for regime in ("latency", "throughput"):
         t = data.timing(busy, regime)
