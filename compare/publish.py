@@ -142,10 +142,11 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     tmo = ["--timeout", f"{timeout:g}"] if timeout is not None else []
     tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
     procs = () if quick else ("--processes", MATRIX_PROCESSES)
+    alone = ("--against", "none")      # a store is a reference itself: no block against another
     parts = [Part("all", ("all", "--devices", devs, *sel, "--precision", "float32,float64",
-                          "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *procs, *tail))]
+                          "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *procs, *alone, *tail))]
     large, notes = large_parts(devices, chosen, sel, quick, have if have is not None else memory())
-    parts += [dataclasses.replace(p, argv=p.argv + tuple(tail)) for p in large]
+    parts += [dataclasses.replace(p, argv=p.argv + alone + tuple(tail)) for p in large]
     parts += [Part(k, ("sweep", k, "--devices", devs, *sel, *tail)) for k in SWEEPS]
     from compare.stress import generic
     from compare.stress.registry import experiments
