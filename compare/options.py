@@ -6,8 +6,9 @@ input is a one-line ``UsageError`` (exit 2) before any cell runs or any file is 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, NoReturn
 
 import backends
 import scenarios
@@ -21,7 +22,7 @@ class UsageError(Exception):
 
 
 class Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:   # one line, exit 2, no usage dump
+    def error(self, message: str) -> NoReturn:   # one line, exit 2, no usage dump
         raise UsageError(message)
 
     def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
@@ -247,7 +248,7 @@ def parse_sets(pairs: list[str]) -> dict[str, str]:
 def scenario_sets(raw: dict[str, str], chosen: list[scenarios.Scenario]) -> dict[str, dict[str, Any]]:
     """Split --set values among the chosen scenarios (a key applies to every scenario that has
     it); a key no chosen scenario knows is refused."""
-    known = {sc.name: set(sc.Params.__dataclass_fields__) for sc in chosen}
+    known = {sc.name: {f.name for f in dataclasses.fields(sc.Params)} for sc in chosen}
     unknown = [k for k in raw if not any(k in fields for fields in known.values())]
     if unknown:
         allk = sorted(set().union(*known.values())) if known else []

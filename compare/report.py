@@ -115,13 +115,13 @@ def summary_lines(records: list[Record]) -> list[str]:
         med = call_time(r)[0] if r.status == "ok" else None
         if med:
             fastest = groups.setdefault((r.scenario, r.device, r.precision, params_text(r)), {})
-            if r.backend not in fastest or med < call_time(fastest[r.backend])[0]:
+            if r.backend not in fastest or med < _median(fastest[r.backend]):
                 fastest[r.backend] = r      # a framework's best variant
     for (scenario, device, precision, _), fastest in groups.items():
         if len(fastest) < 2:
             continue
-        best = {b: call_time(r)[0] for b, r in fastest.items()}
-        order = sorted(best, key=best.get)
+        best = {b: _median(r) for b, r in fastest.items()}
+        order = sorted(best, key=lambda b: best[b])
         line = f"  {scenario} {device} {precision}: " + _lead(fastest[order[0]], fastest[order[1]])
         if device == "cpu" and base in best:
             ups = ", ".join(f"{b} {best[base] / best[b]:.3g}x" + (NOISY_MARK if _noisy(fastest[b]) else "")
@@ -132,6 +132,14 @@ def summary_lines(records: list[Record]) -> list[str]:
 
 
 TIE = 1.05          # two figures within 5 % are not ranked, whatever their spread
+
+
+def _median(rec: Record) -> float:
+    """The per-call median of a cell the summary ranks (only cells that have one are grouped)."""
+    med = call_time(rec)[0]
+    if med is None:
+        raise ValueError(f"{rec.key}: no per-call time to rank")
+    return float(med)
 
 
 def _noisy(rec: Record) -> bool:
@@ -146,12 +154,13 @@ def _noisy(rec: Record) -> bool:
 def _interval(rec: Record) -> tuple[float, float]:
     """Where the cell's per-call time lies: the interval across worker processes where several
     measured it (``time.processes.<regime>``), else the median's quartile range."""
-    med, iqr, regime = call_time(rec)
+    _, iqr, regime = call_time(rec)
+    med = _median(rec)
     procs = (rec.time or {}).get("processes")
     part = procs.get(regime) if isinstance(procs, Mapping) else None
     if isinstance(part, Mapping):
         lo, hi = part.get("ci_lo_s"), part.get("ci_hi_s")
-        if all(isinstance(x, (int, float)) and math.isfinite(x) for x in (lo, hi)):
+        if isinstance(lo, (int, float)) and isinstance(hi, (int, float)) and math.isfinite(lo) and math.isfinite(hi):
             return float(lo), float(hi)
     half = iqr / 2 if isinstance(iqr, (int, float)) and math.isfinite(iqr) else 0.0
     return med - half, med + half
@@ -160,7 +169,7 @@ def _interval(rec: Record) -> tuple[float, float]:
 def _lead(first: Record, second: Record) -> str:
     """The fastest cell's lead over the next, claimed only where the figures can tell them apart:
     neither noisy, their intervals apart and more than 5 % between them."""
-    a, b = call_time(first)[0], call_time(second)[0]
+    a, b = _median(first), _median(second)
     noisy = [r.backend for r in (first, second) if _noisy(r)]
     if noisy:
         return (f"noisy: rerun {' and '.join(noisy)} before ranking (the two fastest: {first.backend} "
@@ -334,7 +343,8 @@ def call_time(rec: Record) -> tuple[float | None, float | None, str]:
     """(median, IQR, regime) of one call: the throughput regime (k calls, one synchronize), or
     the cell's own clock where it has no throughput regime."""
     t = rec.time or {}
-    thr = t.get("throughput") if isinstance(t.get("throughput"), Mapping) else {}
+    raw = t.get("throughput")
+    thr: Mapping[str, Any] = raw if isinstance(raw, Mapping) else {}
     if isinstance(thr.get("median_s"), (int, float)):
         return thr["median_s"], thr.get("iqr_s"), "throughput"
     med = t.get("median_s")

@@ -57,6 +57,7 @@ def tidy(rec: Record) -> dict[str, Any]:
             t = rec.time or {}
             out[col] = (timing.events_of(t) or {}).get("median_s", "")
             continue
+        assert path is not None, col         # every column without a path is handled above
         v: Any = getattr(rec, path[0])
         for k in path[1:]:
             v = v.get(k) if isinstance(v, Mapping) else None
