@@ -37,11 +37,14 @@ import math
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence, cast
 
 from compare import figure_check
 from compare.colors import backend_color
 from compare.files import atomic_write, save_figure
+
+if TYPE_CHECKING:
+    from matplotlib.typing import RcKeyType
 
 DPI = 110
 WIDTH = 9.0                                  # inches; heights follow the number of bars
@@ -54,8 +57,9 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
 # colours no registered backend uses (matplotlib's C0..C9 are tab10), for unknown frameworks
 SPARE = ("#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#dbdb8d",
          "#9edae5", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#000000")
-RC = {"font.size": 9, "axes.titlesize": 9, "axes.labelsize": 9, "xtick.labelsize": 8,
-      "ytick.labelsize": 8, "legend.fontsize": 8, "hatch.linewidth": 0.8, "svg.hashsalt": "charts"}
+RC: dict[RcKeyType, Any] = {
+    "font.size": 9, "axes.titlesize": 9, "axes.labelsize": 9, "xtick.labelsize": 8,
+    "ytick.labelsize": 8, "legend.fontsize": 8, "hatch.linewidth": 0.8, "svg.hashsalt": "charts"}
 
 
 @dataclass(frozen=True)
@@ -196,7 +200,7 @@ def _sorted_bars(bars: list[Bar], better: str) -> list[Bar]:
     sign = -1.0 if better == "higher" else 1.0
     ok = [b for b in bars if b.value is not None and math.isfinite(b.value)]
     rest = [b for b in bars if b not in ok]
-    ok.sort(key=lambda b: (sign * b.value, _order(b.framework), b.variant))
+    ok.sort(key=lambda b: (sign * cast(float, b.value), _order(b.framework), b.variant))  # ok: value set
     rest.sort(key=lambda b: (_order(b.framework), b.variant))
     return ok + rest
 

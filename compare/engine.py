@@ -94,7 +94,7 @@ def not_runnable(cell: Cell, probes: dict[str, dict[str, Any]]) -> tuple[str, st
 def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
               probes: dict[str, dict[str, Any]] | None = None,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
-              runner: Callable[[Cell], Result] | None = None,
+              runner: Callable[[Cell], cells.Result] | None = None,
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
               refuse: Callable[[Cell], tuple[str, str] | None] | None = None,
@@ -162,7 +162,9 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     deferred = False
     for i, cell in enumerate(plan):
         if store is not None and resume and store.done(key(idents[i])):
-            finish(i, store.get(key(idents[i])).to_json(), None, save=False)
+            kept = store.get(key(idents[i]))
+            assert kept is not None               # done() is true only for a record it holds
+            finish(i, kept.to_json(), None, save=False)
             continue
         blocked = not_runnable(cell, probes) or (refuse(cell) if refuse is not None else None)
         if blocked:       # nothing ran: saved once with the others below, not a file write each
@@ -200,7 +202,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
 
 
 def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int], processes: int | str,
-                    seed: int, timeout: float, runner: Callable[[Cell], Result] | None,
+                    seed: int, timeout: float, runner: Callable[[Cell], cells.Result] | None,
                     store: Store | None, lock: threading.Lock,
                     on_repeat: Callable[[dict[str, Any]], None] | None = None) -> None:
     """The repeat processes of every cell of ``ran`` that finished ok (``compare.repeats``)."""

@@ -9,7 +9,7 @@ of its size are run, and their measured peaks extrapolated (``measured_need``)."
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import scenarios
 from compare import calibrate, outdir
@@ -62,7 +62,7 @@ def check_smallest(specs: list[Cell]) -> None:
         check_memory([min(specs, key=lambda s: cell_bytes(s)[0])], driver=False)
 
 
-def check_memory(specs: list[Cell | dict[str, Any]], driver: bool = True, worker: bool = True) -> None:
+def check_memory(specs: Sequence[Cell | dict[str, Any]], driver: bool = True, worker: bool = True) -> None:
     """Refuse a plan this machine's AVAILABLE memory cannot hold, before any worker starts: the
     largest cell's worker (interpreter and framework + Scenario.footprint, a bound checked
     against measured peaks by tests/test_memory_guard.py; a cell its miniatures judge later left
@@ -128,7 +128,9 @@ def measured_need(plan: list[Cell], timeout: float | None, minis: calibrate.Mini
 def _extrapolate(cell: Cell, a: tuple[Cell, dict] | None, b: tuple[Cell, dict] | None) -> float | None:
     points = []
     for got in (a, b):
-        peak = ((got[1].get("memory") or {}).get("peak_host_rss_bytes") if got else None)
+        if got is None:                   # a miniature that did not run
+            return None
+        peak = (got[1].get("memory") or {}).get("peak_host_rss_bytes")
         if not peak or got[1].get("status") not in ("ok", "mismatch"):
             return None
         points.append((calibrate.items(got[0]), float(peak)))
@@ -145,7 +147,7 @@ def disk_need(specs: list[Cell], save_arrays: bool, existing: Path | None = None
     """Bytes the run writes at most: results.json (rewritten through a temporary beside it, so
     twice), tables and plots, and with --save-arrays every cell's inputs and outputs."""
     old = existing.stat().st_size if existing is not None and existing.exists() else 0
-    need = 2 * (old + RECORD_BYTES * len(specs)) + PAGE_BYTES
+    need: float = 2 * (old + RECORD_BYTES * len(specs)) + PAGE_BYTES
     if save_arrays:
         need += sum(cell_bytes(s)[2] for s in specs)
     return need

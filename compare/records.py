@@ -364,7 +364,7 @@ def _rows_problem(rows: list[dict[str, Any]]) -> str | None:
 
 
 # ---- saved arrays -----------------------------------------------------------------------------
-def arrays_problem(rec: dict[str, Any], headers: dict[str, tuple[tuple[int, ...], int]]) -> str | None:
+def arrays_problem(rec: Mapping[str, Any], headers: dict[str, tuple[tuple[int, ...], int]]) -> str | None:
     """Why the saved arrays (name -> (shape, bytes), read from their headers) of a loaded record
     must not be used, or None: a picture or distance drawn from them allocates by the record's
     parameters, so the shapes must be the ones those parameters declare and the cell must fit in
@@ -377,8 +377,9 @@ def arrays_problem(rec: dict[str, Any], headers: dict[str, tuple[tuple[int, ...]
     p = sc.params(rec["params"] or {})
     want = sc.output_shapes(p)
     for name, (shape, _) in headers.items():
-        if want.get(name) is not None and tuple(want[name]) != shape:
-            return f"{name} has shape {shape}, the parameters declare {tuple(want[name])}"
+        w = want.get(name)
+        if w is not None and tuple(w) != shape:
+            return f"{name} has shape {shape}, the parameters declare {tuple(w)}"
     need = max(sc.footprint(p, rec["precision"], rec["device"]), sc.output_bytes(p, rec["precision"]))
     if sum(b for _, b in headers.values()) > max(need, 1 << 20):
         return "the arrays are larger than the cell's declared footprint"

@@ -26,8 +26,7 @@ def plot_time_vs_error(records: list[Record], path: Path) -> None:
     cmap = charts.colors(r.backend for rs in groups.values() for r in rs)
     cols, rows = min(2, len(groups)), -(-len(groups) // 2)
     import matplotlib
-    # (matplotlib's stubs key rc_context's dict by a Literal of every rcParam, not by str)
-    with matplotlib.rc_context(charts.RC):  # type: ignore[arg-type]
+    with matplotlib.rc_context(charts.RC):
         fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.9 * rows + 0.9), squeeze=False,
                                  layout="constrained")
         for ax, (scenario, recs) in zip(axes.flat, groups.items()):

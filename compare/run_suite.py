@@ -21,6 +21,7 @@ import numpy as np
 
 import backends
 import scenarios
+from backends.base import Device
 from compare import (calibrate, console, engine, environment, hardware, options, outdir, overlap, phases, report,
                      run_plots, scaleout, versus)
 from compare.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
@@ -29,7 +30,7 @@ from compare.record import Record, plain
 from compare.spec import BUSY_TAG, Cell, as_cell, key
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
-from scenarios.base import ParamError
+from scenarios.base import ParamError, Precision
 
 
 def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
@@ -94,7 +95,7 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[Cel
     for sc in chosen:
         for prec in sel["precisions"]:
             options.check_precision(sc, params[sc.name], prec)
-    specs = [Cell(sc.name, b, d, p, v, params[sc.name], repeat=args.repeat, min_time=args.min_time,
+    specs = [Cell(sc.name, b, Device(d), Precision(p), v, params[sc.name], repeat=args.repeat, min_time=args.min_time,
                   save_inputs=args.save_arrays, check_sample=args.check_sample, host_profile=args.host_profile)
              for sc in chosen for b in sel["backends"] for d in sel["devices"]
              for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants_for(sc.name)]

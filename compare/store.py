@@ -22,7 +22,7 @@ import re
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping, Self
 
 import numpy as np
 
@@ -195,7 +195,7 @@ class Store:
 
     # ---- reading --------------------------------------------------------------------------
     @classmethod
-    def read(cls, path: str | Path, suite: str | None = None) -> "Store":
+    def read(cls, path: str | Path, suite: str | None = None) -> Self:
         """An existing file, validated; a different suite than asked for is refused."""
         path = Path(path)
         try:
@@ -219,7 +219,7 @@ class Store:
                    data["upgraded_from"])
 
     @classmethod
-    def open(cls, directory: str | Path, suite: str, keep: bool = True) -> "Store":
+    def open(cls, directory: str | Path, suite: str, keep: bool = True) -> Self:
         """The suite's file in ``directory``: its records when ``keep`` and it exists, else empty."""
         path = Path(directory) / SUITES[suite]
         if keep and path.exists():

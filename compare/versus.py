@@ -16,7 +16,7 @@ import os
 import statistics
 import textwrap
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from compare.options import UsageError
 from compare.record import Record
@@ -62,7 +62,7 @@ def _ratio(r: float) -> str:
     return fmt.ratio(r)
 
 
-def _hardware(env: dict[str, Any], ref_runs: tuple[dict[str, Any], ...], devices: list[str]) -> str:
+def _hardware(env: dict[str, Any], ref_runs: tuple[Mapping[str, Any], ...], devices: list[str]) -> str:
     """The two machines before any framework: copy bandwidth and launch latency per device (this
     run's yardstick against the median of the reference runs'), and cores."""
     parts = []

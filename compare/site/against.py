@@ -182,8 +182,8 @@ def match(m: Machine, ref: Machine) -> Matching:
         if not ok_a:
             res.both_failed += 1
             continue
-        pairs = [(g, data.per_call(a, g), data.per_call(b, g)) for g in data.REGIMES]
-        pairs = [(g, ta, tb) for g, ta, tb in pairs if ta is not None and tb is not None]
+        per_regime = [(g, data.per_call(a, g), data.per_call(b, g)) for g in data.REGIMES]
+        pairs = [(g, ta, tb) for g, ta, tb in per_regime if ta is not None and tb is not None]
         res.compared += [Compared(k[0], a, ta, tb, g) for g, ta, tb in pairs]
         res.untimed += not pairs
     res.compared.sort(key=lambda x: (_order(x.rec), data.REGIMES.index(x.regime)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from compare.site import data, fmt, pages, questions, topics
 from compare.site import questions_pages as qp
@@ -109,7 +109,7 @@ def machine(c: qp.Ctx) -> list[Any]:
     return blocks
 
 
-def _tree(env: dict) -> str:
+def _tree(env: Mapping[str, Any]) -> str:
     """Whether the run's checkout was committed: clean, its uncommitted paths, or not known."""
     if env.get("git_dirty") is None:
         return "not known" + (f" ({env['git_note']})" if env.get("git_note") else "")

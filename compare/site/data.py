@@ -30,7 +30,7 @@ class Machine:
     run: tuple[Record, ...]
     sweep: tuple[Record, ...]
     stress: Store | None
-    runs: tuple[dict[str, Any], ...]
+    runs: tuple[Mapping[str, Any], ...]
     publish: dict[str, Any] | None
     # the shared-host experiment (``run --busy``): cells timed idle and with cores kept busy by
     # other processes, tagged ``busy_cores``; its row alone reads them, no other reader sees them

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import scenarios
 from compare import colors
@@ -202,9 +202,10 @@ def error_share(r: Record) -> float | None:
 
 def _error_geomean(recs: list[Record]) -> float | None:
     shares = [error_share(r) for r in recs]
-    if not shares or any(s is None for s in shares):
+    known = [s for s in shares if s is not None]
+    if not shares or len(known) < len(shares):       # some record has no error share
         return None
-    return math.exp(sum(math.log(max(s, ERROR_FLOOR)) for s in shares) / len(shares))
+    return math.exp(sum(math.log(max(s, ERROR_FLOOR)) for s in known) / len(known))
 
 
 def _sum_first(recs: list[Record]) -> Timing | None:
@@ -220,7 +221,8 @@ def _sum_first(recs: list[Record]) -> Timing | None:
     if not ts:
         return None
     v = sum(t.median for t in ts)
-    ci = (sum(t.ci[0] for t in ts), sum(t.ci[1] for t in ts)) if all(t.ci for t in ts) else None
+    cis = [t.ci for t in ts if t.ci]
+    ci = (sum(c[0] for c in cis), sum(c[1] for c in cis)) if len(cis) == len(ts) else None
     return Timing(v, v, v, None, "", min(t.processes for t in ts), ci)
 
 
@@ -327,6 +329,7 @@ def _verdict(rule: Rule, cells: dict[str, Cell], top: str | None, tied: tuple[st
     if top is None:
         return "No framework has a figure for this row in these records."
     lead = cells[top]
+    lead_value = cast(float, lead.value)    # evaluate picks top among the cells with a value
     ranked = sorted((c for c in cells.values() if c.ratio is not None and not c.reference),
                     key=lambda c: c.ratio or 0.0)
     best = f"Best {rule.reference.ranked}" if rule.reference else "Best"
@@ -334,13 +337,13 @@ def _verdict(rule: Rule, cells: dict[str, Cell], top: str | None, tied: tuple[st
         among = f" among {rule.reference.ranked}" if rule.reference else ""
         why = ranking.why_tied(lead, [cells[f] for f in tied[1:]], rule.exact)
         text = (f"Tie{among}: {', '.join(tied)} (not separated from {top}'s "
-                f"{fmt(lead.value, rule.unit)}: {why}).")
+                f"{fmt(lead_value, rule.unit)}: {why}).")
     elif len(ranked) > 1:
         runner = ranked[1]
         sep = ranking.separated(lead, runner, rule.exact)
-        text = f"{best}: {top} ({fmt(lead.value, rule.unit)}), separated from {runner.framework} ({sep.words()})."
+        text = f"{best}: {top} ({fmt(lead_value, rule.unit)}), separated from {runner.framework} ({sep.words()})."
     else:
-        text = f"{best}: {top} ({fmt(lead.value, rule.unit)}), the only one measured."
+        text = f"{best}: {top} ({fmt(lead_value, rule.unit)}), the only one measured."
     refs = sorted((c for c in cells.values() if c.reference and c.ratio is not None), key=lambda c: c.ratio or 0.0)
     if rule.reference and refs:
         text += (f" {rule.reference.words(all((c.ratio or 1.0) < 1 for c in refs))}: " + "; ".join(
@@ -359,7 +362,7 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
     device = rule.device or m.primary_device
     cells = _cells(rule, m, device)
     values = {f: c.value for f, c in cells.items() if c.value is not None and c.value > 0 and not c.reference}
-    top = (min if rule.better == "lower" else max)(values, key=values.get) if values else None
+    top = (min if rule.better == "lower" else max)(values, key=lambda f: values[f]) if values else None
     tied: tuple[str, ...] = ()
     if top is not None:
         b = values[top]

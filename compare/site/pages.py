@@ -193,23 +193,23 @@ def accuracy(c: qp.Ctx) -> list[Any]:
                      str(e.get("metric", "")) or r.reason))
     blocks += [H("float32 error per scenario (default sizes)"),
                Table(("scenario", "framework", "status", "error", "tolerance", "share", "metric"), tuple(rows))]
-    err = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r.device == c.device]
-    if err:
+    swept = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r.device == c.device]
+    if swept:
         from compare.sweep import plots as sweep_plots
         from compare.sweep.metrics import error_points
         png, rel, csv = c.fig("accuracy-time-vs-error")
-        if figure_check.checked(lambda: sweep_plots.plot_time_vs_error(list(err), c.device, png), png):
+        if figure_check.checked(lambda: sweep_plots.plot_time_vs_error(list(swept), c.device, png), png):
             # the plotted points and their coordinates: the wall clock (time.wall; time.median_s
             # is the CUDA events' where a framework has them) and the error against the
             # converged reference (converged.error, unfloored)
-            pts = [p["rec"] for sc in dict.fromkeys(r.scenario for r in err)
-                   for p in error_points(list(err), c.device, sc)]
+            pts = [p["rec"] for sc in dict.fromkeys(r.scenario for r in swept)
+                   for p in error_points(list(swept), c.device, sc)]
             charts.write_csv(png.with_suffix(".csv"), ("scenario", "framework", "variant", "precision", "params",
                                                        "wall median s", "error"),
                              [(r.scenario, r.backend, r.variant, r.precision,
                                fmt.params_text(r.params or {}, data.defaults(r.scenario)),
                                wall_s(r), r.converged["error"]) for r in pts])
-            fws = ", ".join(f for f in c.m.frameworks if any(r.backend == f for r in err))
+            fws = ", ".join(f for f in c.m.frameworks if any(r.backend == f for r in swept))
             blocks += [H("Run time against error"),
                        Figure(rel, "Time against error against a converged float64 reference, both "
                               "precisions and fast-math variants; the Pareto front is the fastest "

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 from compare import charts
 from compare.record import Record
@@ -210,7 +210,7 @@ def _longest_loop(hz: list[Record]) -> Page:
     ok = [r for r in hz if r.status == "ok" and r.precision == "float32"
           and (r.params or {}).get("contact") == "hard"]
     steps_of = lambda r: int((r.params or {}).get("steps") or 0)  # noqa: E731
-    ran = {}
+    ran: dict[int, set[str]] = {}
     for r in ok:
         ran.setdefault(steps_of(r), set()).add(r.backend)
     shared = [n for n, fws in ran.items() if len(fws) >= 2]
@@ -221,8 +221,9 @@ def _longest_loop(hz: list[Record]) -> Page:
     for r in (r for r in ok if steps_of(r) == n):
         t = data.per_call(r, "throughput") or data.timing(r, "latency")
         rows.append((t.median if t else None, data.device_bytes(r), r))
-    timed = sorted((x for x in rows if x[0] is not None), key=lambda x: x[0])
-    small = sorted((x for x in rows if x[1] is not None), key=lambda x: x[1])
+    # (cast: each sorts only the rows whose figure it filtered to be not None)
+    timed = sorted((x for x in rows if x[0] is not None), key=lambda x: cast(float, x[0]))
+    small = sorted((x for x in rows if x[1] is not None), key=lambda x: cast(float, x[1]))
     name = lambda r: _label(r.backend, r.variant)  # noqa: E731
     batch = (rows[0][2].params or {}).get("batch")
     text = f"A long loop: {n} steps, hard contact, float32, batch {batch}."

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Any, Callable, Iterable, Protocol
+from typing import Any, BinaryIO, Callable, Iterable, Protocol
 
 import numpy as np
 
@@ -58,7 +58,7 @@ class Experiment:
     name: str
     title: str
     run: Callable[[StressContext], Result]
-    plot: Callable[[dict[str, Any], Path, Style], None] | None = None
+    plot: Callable[[dict[str, Any], Path | BinaryIO, Style], None] | None = None
     extra_markdown: Callable[[list[Row]], str] | None = None
     table_rows: Callable[[list[Row]], list[Row]] | None = None
 

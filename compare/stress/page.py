@@ -154,7 +154,7 @@ def old_provenance(store: Store) -> dict[str, dict[str, Any]]:
 
 def write_outputs(store: Store, env: dict[str, Any], rows: list[dict[str, Any]], series: dict[str, Any],
                   ran: list[str], experiments: Registry, plots_: bool = True,
-                  prov: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+                  prov: dict[str, list[dict[str, Any]] | dict[str, Any]] | None = None) -> dict[str, Any]:
     """Findings of the experiments in ``ran`` replace the store's (the others are kept); save
     the store (stress.json), then stress.md and the plots beside it."""
     out = store.path.parent
@@ -211,7 +211,7 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     target = Store.open(out, "stress")
     rows: list[dict[str, Any]] = []
     series: dict[str, Any] = {}
-    envs = []
+    envs: list[dict[str, Any]] = []
     prov: dict[str, list[dict[str, Any]]] = {}
     seen: list[dict[str, Any]] = []
     for f in files:
@@ -238,8 +238,8 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
             target.put(r)
     # the page lists the packages of every part, each version that any part ran with
     versions: dict[str, list[str]] = {}
-    for e in envs:
-        for k, v in e.get("packages", {}).items():
+    for run_env in envs:
+        for k, v in run_env.get("packages", {}).items():
             if v not in versions.setdefault(k, []):
                 versions[k].append(v)
     env = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files}

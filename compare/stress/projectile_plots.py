@@ -4,7 +4,7 @@ parts redraw)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from compare.figure_check import place_legends
 from compare.stress.numerics import ORACLE, Row, Style, log_floor
@@ -39,7 +39,7 @@ def lr_table_rows(rows: list[Row]) -> list[Row]:
     return [r for r in rows if "lr=" not in r["setting"]]
 
 
-def plot_projectile_lr(series: dict[str, Any], path: Path, style: Style) -> None:
+def plot_projectile_lr(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     hist = series.get("histories", {})
     methods = OPTIMISERS
@@ -58,7 +58,7 @@ def plot_projectile_lr(series: dict[str, Any], path: Path, style: Style) -> None
     fig.savefig(path, dpi=100); plt.close(fig)
 
 
-def plot_projectile_gradient(series: dict[str, Any], path: Path, style: Style) -> None:
+def plot_projectile_gradient(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
     for j, c in enumerate(CONTACTS):
@@ -87,7 +87,7 @@ def plot_projectile_gradient(series: dict[str, Any], path: Path, style: Style) -
     fig.savefig(path, dpi=100); plt.close(fig)
 
 
-def plot_projectile_horizon(series: dict[str, Any], path: Path, style: Style) -> None:
+def plot_projectile_horizon(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for lbl, s in sorted(series.items()):
