@@ -15,7 +15,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -27,10 +27,10 @@ from compare import (calibrate, console, engine, environment, hardware, options,
 from compare.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
                                measured_need, memory_refusal)
 from compare.record import Record, plain
-from compare.spec import BUSY_TAG, Cell, as_cell, key
+from compare.spec import BUSY_TAG, Cell, key
 from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
-from scenarios.base import ParamError, Precision
+from scenarios.base import Precision
 
 
 def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
