@@ -9,6 +9,7 @@ import pytest
 from pathlib import Path
 
 from compare import cli, outdir, preflight, run_suite
+from scenarios.base import ParamError
 from reliability_checks import FIGURES, assert_refused, working_directory
 
 pytestmark = pytest.mark.cli
@@ -38,7 +39,7 @@ def test_memory_is_compared_with_available_not_total(monkeypatch):
         total, available = 1 << 50, 1 << 20
     monkeypatch.setattr(psutil, "virtual_memory", lambda: Mem())
     spec = {"scenario": "saxpy", "backend": "numba", "device": "cpu", "precision": "float32", "params": {}}
-    with pytest.raises(run_suite.ParamError, match="available"):
+    with pytest.raises(ParamError, match="available"):
         preflight.check_memory([spec])
 
 

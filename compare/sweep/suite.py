@@ -253,8 +253,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
                          "scenarios, backends and devices")
     notes = outdir.read_notes(args.notes)
     outdir.check_output(args.out)
-    outdir.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
     Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
+    # after every read-only refusal: the page's check creates (and removes) a file in its folder
+    outdir.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
     probes = engine.availability(dict.fromkeys(c.backend for c, _ in planned))
     blocked = [engine.not_runnable(c, probes) for c, _ in planned]
     run_suite.nothing_to_run([s for s, _ in planned], blocked)
