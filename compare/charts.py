@@ -9,10 +9,9 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
     Panel(title, bars)                    one axes of a multi-panel bar figure
     bars(path, title, xlabel, bars, *, log=False, better="lower", note="", fmt=None,
          reference=None, ratios=False, data=True)
-        horizontal bars, best first, value labels at the bar ends (``fmt``; ``ratios``: and the
-        ratio to the best), a dashed line at the best value, or at ``reference=(value, label)``
-        from which the bars then grow (the baseline of a speed-up); log=None: a log axis per
-        panel where its values span more than a factor 20
+        horizontal bars, best first, labelled at their ends (``fmt``; ``ratios``: and the ratio
+        to the best), a dashed line at the best or at ``reference=(value, label)`` (the bars grow
+        from it: a speed-up's baseline); log=None: a log axis where values span over 20x
     bar_panels(path, title, xlabel, panels, *, ...same keywords)    one panel per group
     Series(label, framework, xs, ys, lo=None, hi=None, dashed=False)
     curves(path, title, xlabel, ylabel, series, *, logx=True, logy=True, note="", data=True)
@@ -20,14 +19,11 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
     pareto(path, title, xlabel, ylabel, points, *, front=True, logx=True, logy=True, note="",
            data=True)
         points = (framework, label, x, y), both axes lower-is-better; the front is the step line
-    write_csv(path, headers, rows)        floats as format(x, ".6g"), None as ""
-    front_of(points) -> the Pareto front; colors(frameworks) -> {framework: colour};
-    hatch(variant) -> hatch pattern; tidy_log(ax, fmt=None) (1-2-5 labels on log axes); pyplot()
-    (Agg); save(fig, path) (atomic, deterministic, layout checked, closes the figure); RC (rcParams)
+    helpers: write_csv (floats to 6 digits, None as ""), front_of, colors, hatch, tidy_log (1-2-5
+    labels on log axes), pyplot (Agg), save (atomic, deterministic, layout checked), RC (rcParams)
 
-Colours: a registered backend keeps ``compare.colors.backend_color`` in every figure; any other
-framework a spare colour chosen from its name (the same in every figure), moved on only when taken
-in the figure. Variants never get colours: bars are hatched per variant, curves get markers.
+Colours: a registered backend keeps ``compare.colors.backend_color``; any other framework a spare
+colour chosen from its name, moved on only when taken. Variants are hatched or marked, never coloured.
 """
 from __future__ import annotations
 

@@ -1,15 +1,12 @@
 """The recommendation matrix: one row per user question, one column per framework.
 
-Each row is a ``Rule``: which records it reads (scenario, device, precision, sizes), which figure
-of a record it compares (a regime's per-call time, a rate, device memory, an error, a time to
-first result) and whether lower or higher is better. A framework's cell is its best figure over
-its variants (the variant named), and its ratio to the leading figure on the row: 1.0 for the
-leader, 2.0 for twice as slow (or half the rate, twice the memory). A row names a best only where
-the leader is separated from the runner-up (compare/site/ranking.py); else the leader and all
-not separated from it share the top as a tie. A rule may set some cells apart as a reference
-(the hand-written adjoints beside automatic differentiation): shown against the leader, never
-ranked. The rule's text is printed on the pages beside the row, and each row's verdict is
-derived here from the cells, never written by hand.
+Each row is a ``Rule``: the records it reads (scenario, device, precision, sizes), the figure it
+compares (a per-call time, a rate, device memory, an error, a time to first result) and which
+way is better. A framework's cell is its best figure over its variants (named), as a ratio to
+the row's leader (2.0: twice as slow, half the rate, twice the memory). A row names a best only
+where the leader is separated from the runner-up (compare/site/ranking.py), else a tie. A rule
+may set cells apart as a reference (hand-written adjoints beside automatic differentiation):
+shown, never ranked. The rule's text is printed beside the row; each verdict is derived here.
 """
 from __future__ import annotations
 
