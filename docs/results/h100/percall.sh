@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# How the per-call rows (SAXPY n = 10^6, float32, CUDA, every framework and variant) were
-# remeasured on a lent H100 under the repeats protocol (issues 40 and 43): two runs one after
+# How the per-call rows (SAXPY n = 10^6, float32, CUDA, every framework and variant) and the
+# gradient rows were remeasured on a lent H100 under the repeats protocol (issues 40 and 43): two runs one after
 # the other (a, then b), each timing every cell in 6 worker processes in seeded rounds. A call may
 # last 10 minutes, so the runs go on in the background (setsid) and each call waits up to WAIT
 # seconds, then copies what is finished to $OUT:
@@ -15,7 +15,13 @@ set -u
 W=/root/percall
 WAIT=${WAIT:-540}
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 COMPARE_GIT_COMMIT=${COMMIT:-}
-run="python -m compare run saxpy --devices cuda --precision float32 --variants all --processes 6 --no-plots"
+# ROW picks the rows: percall (SAXPY n = 10^6, every variant) or gradients (the batched projectile
+# at the scaling sweep's largest batch, 2^20, default variants: both gradient rows).
+case ${ROW:-percall} in
+  percall) run="python -m compare run saxpy --devices cuda --precision float32 --variants all --processes 6 --no-plots" ;;
+  gradients) run="python -m compare run projectile --devices cuda --precision float32 --set batch=1048576 --processes 6 --against none --no-plots" ;;
+  *) echo "ROW: percall or gradients"; exit 2 ;;
+esac
 if [ "${1:-wait}" = start ]; then
   [ -n "${COMMIT:-}" ] || { echo "name the commit: COMMIT=<sha> bash $0 start"; exit 2; }
   mkdir -p "$W" && rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu . | tar -x -C /root/tree
