@@ -38,6 +38,8 @@ class Ctx:
     timeout: float
     probes: dict[str, dict[str, Any]]
     store: Store | None = None
+    # the suite's per-record hook (``driver.Suite.on_record``): every cell's record passes it
+    on_record: Callable[[int, dict[str, Any], dict[str, np.ndarray] | None], None] | None = None
 
     @property
     def reference(self) -> str:
@@ -123,7 +125,7 @@ class Ctx:
         unless ``fresh_process`` (run-to-run comparisons want two separate processes). Every
         record also goes into the suite's store."""
         return engine.run_cells(specs, timeout=self.timeout, jobs=self.jobs, probes=self.probes,
-                                share_process=not fresh_process, store=self.store)
+                                share_process=not fresh_process, store=self.store, on_record=self.on_record)
 
     def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
         """``fn`` over ``items`` on threads, ``--jobs`` at a time, one GPU item per backend at a time
