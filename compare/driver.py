@@ -46,7 +46,7 @@ class Run:
     args: argparse.Namespace
     argv: list[str]
     planned: list[Planned[Any]]
-    probes: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    probes: engine.Probes = dataclasses.field(default_factory=dict)
     runnable: list[Cell] = dataclasses.field(default_factory=list)
     judged: Refusal | None = None             # the preflight's reason not to start a cell
     spent: dict[str, float] = dataclasses.field(default_factory=dict)   # seconds per part (compare.phases)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import threading
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, TypedDict, cast
 
 import numpy as np
 
@@ -26,6 +26,15 @@ from compare.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
 Result = tuple[Record, Outputs | None]
+
+
+class Probe(TypedDict):
+    """What probing one backend found (``cells.probe``): per device None (usable) or why not."""
+    available: dict[str, str | None]
+    versions: dict[str, Any]
+
+
+Probes = dict[str, Probe]       # backend -> its probe
 
 
 def gpu_lane(item: Cell | dict[str, Any]) -> Any:
@@ -64,19 +73,20 @@ def pool_map(fn: Callable[[Any], Any], items: list[Any], jobs: int = 1,
     return results
 
 
-def availability(names: Iterable[str]) -> dict[str, dict[str, Any]]:
+def availability(names: Iterable[str]) -> Probes:
     """backend -> {"available": {device: None | reason}, "versions": {...}}, probed in parallel
     (each backend in its own process: probing imports the framework)."""
     names = list(names)
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(names))) as pool:
-        return dict(zip(names, pool.map(cells.probe, names)))
+        return {n: cast(Probe, p) for n, p in zip(names, pool.map(cells.probe, names))}
 
 
-def not_runnable(cell: Cell, probes: dict[str, dict[str, Any]]) -> tuple[str, str] | None:
+def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
     """(status, reason) of a cell that must not start: its backend cannot use the device, or has
     no kernel file for the scenario (an error for a scenario every backend must have, a skip for
     a measurement-only one)."""
-    why = probes.get(cell.backend, {}).get("available", {}).get(cell.device, "device not probed")
+    available = probes[cell.backend].get("available", {}) if cell.backend in probes else {}
+    why = available.get(cell.device, "device not probed")
     if why:
         return "skipped", why
     be = backends.get(cell.backend)
@@ -92,7 +102,7 @@ def not_runnable(cell: Cell, probes: dict[str, dict[str, Any]]) -> tuple[str, st
 
 
 def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
-              probes: dict[str, dict[str, Any]] | None = None,
+              probes: Probes | None = None,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
               runner: Callable[[Cell], cells.Result] | None = None,
               store: Store | None = None, resume: bool = False,

@@ -94,10 +94,23 @@ def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scena
     return sorted(found, key=lambda sc: rank.get(sweeps(sc.name).measures, len(rank)))
 
 
-def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str, Any]) -> list[dict[str, Any]]:
+Reference = dict[str, Any] | None       # a point's converged-error reference (compare.sweep.converged)
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    """One sweep point of a scenario: its resolved parameters, the knob it sets (for the page),
+    its converged-error reference, and what it sets in its cell (``SPEC_OPTIONS``)."""
+    params: Any
+    knob: dict[str, Any]
+    reference: Reference
+    options: dict[str, Any]
+
+
+def points(sc: scenarios.Scenario, kind: str, device: str, args: argparse.Namespace,
+           sets: dict[str, Any]) -> list[Point]:
     """The scenario's points with --set (and, for scaling, --record-every) applied and the
-    parameters resolved (the scenario's Params, once): each {'params', 'knob', 'options',
-    'reference'}."""
+    parameters resolved (the scenario's Params, once)."""
     raw = sweeps(sc.name).points(kind, device, args.quick)
     over = dict(sets)
     fields = {f.name for f in dataclasses.fields(sc.Params)}
@@ -106,12 +119,11 @@ def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str,
     for k in over:
         if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
             raise ParamError(f"--set {k}: the {kind} sweep of {sc.name} varies it")
-    return [{"params": sc.params({**pt["params"], **over}),
-             "knob": pt.get("knob") or {}, "reference": pt.get("reference"),
-             "options": {k: pt[k] for k in SPEC_OPTIONS if k in pt}} for pt in raw]
+    return [Point(sc.params({**pt["params"], **over}), pt.get("knob") or {}, pt.get("reference"),
+                  {k: pt[k] for k in SPEC_OPTIONS if k in pt}) for pt in raw]
 
 
-def plan(args: argparse.Namespace) -> list[Planned[dict[str, Any] | None]]:
+def plan(args: argparse.Namespace) -> list[Planned[Reference]]:
     """Every cell of the requested sweeps as (cell, the point's converged-error reference), in
     run order: kind, device, backend, variant (error sweep only), precision, scenario, point."""
     sel = options.selection(args)
@@ -125,14 +137,14 @@ def plan(args: argparse.Namespace) -> list[Planned[dict[str, Any] | None]]:
     sets = options.scenario_sets(options.parse_sets(args.set), everyone)
     repeat = args.repeat or (3 if args.quick else 10)
     min_time = args.min_time if args.min_time is not None else (0.05 if args.quick else 0.2)
-    out: list[Planned[dict[str, Any] | None]] = []
+    out: list[Planned[Reference]] = []
     for kind in kinds:
         for dev in sel["devices"]:
             pts = {sc.name: points(sc, kind, dev, args, sets[sc.name]) for sc in chosen[kind]}
             for sc in chosen[kind]:          # --set values each swept precision can represent
                 for pt in pts[sc.name]:
                     for prec in precisions[kind]:
-                        options.check_precision(sc, pt["params"], prec)
+                        options.check_precision(sc, pt.params, prec)
             for be in sel["backends"]:
                 for variant in variants(kind, be, chosen[kind]):
                     for prec in precisions[kind]:
@@ -142,10 +154,10 @@ def plan(args: argparse.Namespace) -> list[Planned[dict[str, Any] | None]]:
                             measures = sweeps(sc.name).measures
                             role = measures if kind == "bandwidth" and measures else sc.name
                             for pt in pts[sc.name]:
-                                cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, pt["params"],
-                                            tags={"sweep": kind, "role": role, "knob": dict(pt["knob"])},
-                                            repeat=repeat, min_time=min_time, cache=args.cache, **pt["options"])
-                                out.append(Planned(cell, pt["reference"]))
+                                cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, pt.params,
+                                            tags={"sweep": kind, "role": role, "knob": dict(pt.knob)},
+                                            repeat=repeat, min_time=min_time, cache=args.cache, **pt.options)
+                                out.append(Planned(cell, pt.reference))
     return out
 
 
@@ -197,7 +209,7 @@ def label(rec: dict[str, Any]) -> str:
             f"{rec['variant']}{setting}")
 
 
-def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
+def rebuild(data: dict[str, Any], args: argparse.Namespace, sources: list[str], notes: str) -> Path:
     """Write the PNGs into --out and the Markdown page (--page); returns the page's path."""
     out = Path(args.out)
     page = Path(args.page) if args.page else out / "measurement.md"
@@ -225,7 +237,7 @@ class SweepSuite(Suite):
     record), each error-sweep record with its converged error attached first."""
     add_arguments = staticmethod(add_arguments)
 
-    def plan(self, args: argparse.Namespace) -> list[Planned[dict[str, Any] | None]]:
+    def plan(self, args: argparse.Namespace) -> list[Planned[Reference]]:
         if args.kind not in (*KINDS, "all"):
             raise UsageError(f"unknown sweep {args.kind!r} ({', '.join(KINDS)}, all, report)")
         if args.files:
@@ -279,7 +291,7 @@ class SweepSuite(Suite):
     def seed(self) -> int:
         return int(self.env.get("seed", 0))
 
-    def on_record(self, j: int, rec: dict[str, Any], outputs: dict[str, Any] | None) -> None:
+    def on_record(self, j: int, rec: dict[str, Any], outputs: engine.Outputs | None) -> None:
         if (rec.get("tags") or {}).get("sweep") == "error" and rec["status"] in ("ok", "mismatch"):
             conv = sweeps(rec["scenario"]).converged_error(rec["params"], outputs, rec, self.cache,
                                                            reference=self.references[j])
