@@ -1,8 +1,8 @@
-"""The one engine every suite runs on: plan -> run cells in processes -> store records -> render.
+"""The one engine every suite runs on: cells in worker processes -> records -> store.
 
-A suite (``compare.run_suite`` for all/<scenario>, ``compare.sweep``, ``compare.stress``) makes a
-list of cells (``compare.spec.Cell``: parameters resolved, typed), hands them to ``run_cells``, and
-renders what comes back. ``run_cells`` is the only place that starts worker processes: it skips cells whose
+A suite (``compare.driver.Suite``: all/<scenario>, sweep, stress) plans a list of cells
+(``compare.spec.Cell``: parameters resolved, typed); the driver (``compare.driver.drive``) hands
+them to ``run_cells`` and the suite renders what comes back. ``run_cells`` is the only place that starts worker processes: it skips cells whose
 backend cannot use the device (a ``skipped`` record with the reason, never a run), runs the rest
 one at a time (timed suites) or ``jobs`` at a time with one lane per backend and GPU (the stress
 suite, whose figures are not timings), and hands every record to ``on_record`` as it finishes, so
