@@ -164,7 +164,16 @@ def refuse_overwrite(args: argparse.Namespace) -> None:
                          "--force replaces them, or choose another --out")
 
 
-def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
+def chosen_scenarios(args: argparse.Namespace) -> list[scenarios.Scenario]:
+    """The scenarios of ``all``, ``run S...`` or ``<S>``."""
+    if args.command == "all":
+        return [sc for sc in scenarios.SCENARIOS.values() if sc.in_all]
+    if args.command == "run":
+        return [scenarios.get(n) for n in options.no_duplicates(args.scenarios, "run")]
+    return [scenarios.get(args.command)]
+
+
+def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario] | None = None) -> int:
     return drive(RunSuite(chosen), args, argv)
 
 
@@ -209,14 +218,15 @@ def arrays_saved(out: Path, rec: Record) -> bool:
 class RunSuite(Suite):
     """all / run S... / <S>: every chosen scenario's cells timed, checked and tabled."""
 
-    def __init__(self, chosen: list[scenarios.Scenario]) -> None:
-        self.chosen = chosen
+    def __init__(self, chosen: list[scenarios.Scenario] | None = None) -> None:
+        self.chosen = chosen            # None: from the command (``chosen_scenarios``)
         self.ran: list[dict[str, Any]] = []     # the cells this run ran (not those --resume kept)
 
     add_arguments = staticmethod(add_arguments)
 
     def plan(self, args: argparse.Namespace) -> list[Planned[None]]:
-        return [Planned(c, None) for c in plan(args, self.chosen)]
+        chosen = self.chosen if self.chosen is not None else chosen_scenarios(args)
+        return [Planned(c, None) for c in plan(args, chosen)]
 
     def check_output(self, args: argparse.Namespace) -> None:
         outdir.check_output(args.out)                    # a bad --out is refused before the probes
