@@ -132,13 +132,7 @@ def main(argv: list[str]) -> int:
             return run_suite.report_command(args)
         if args.command in suite_modules():
             return suite_modules()[args.command].run(args, argv)
-        if args.command == "all":
-            chosen = [sc for sc in scenarios.SCENARIOS.values() if sc.in_all]
-        elif args.command == "run":
-            chosen = [scenarios.get(n) for n in options.no_duplicates(args.scenarios, "run")]
-        else:
-            chosen = [scenarios.get(args.command)]
-        return run_suite.run(args, argv, chosen)
+        return run_suite.run(args, argv)      # all, run S..., <S>
     except (UsageError, ParamError, StoreError, SpecError) as exc:
         print(f"error: {options.shown(str(exc))}", file=sys.stderr)   # a path's newline stays escaped
         return EXIT_USAGE

@@ -1,8 +1,8 @@
-"""The one engine every suite runs on: plan -> run cells in processes -> store records -> render.
+"""The one engine every suite runs on: cells in worker processes -> records -> store.
 
-A suite (``compare.run_suite`` for all/<scenario>, ``compare.sweep``, ``compare.stress``) makes a
-list of cells (``compare.spec.Cell``: parameters resolved, typed), hands them to ``run_cells``, and
-renders what comes back. ``run_cells`` is the only place that starts worker processes: it skips cells whose
+A suite (``compare.driver.Suite``: all/<scenario>, sweep, stress) plans a list of cells
+(``compare.spec.Cell``: parameters resolved, typed); the driver (``compare.driver.drive``) hands
+them to ``run_cells`` and the suite renders what comes back. ``run_cells`` is the only place that starts worker processes: it skips cells whose
 backend cannot use the device (a ``skipped`` record with the reason, never a run), runs the rest
 one at a time (timed suites) or ``jobs`` at a time with one lane per backend and GPU (the stress
 suite, whose figures are not timings), and hands every record to ``on_record`` as it finishes, so
@@ -13,7 +13,7 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import threading
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, TypedDict, cast
 
 import numpy as np
 
@@ -26,6 +26,15 @@ from compare.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
 Result = tuple[Record, Outputs | None]
+
+
+class Probe(TypedDict):
+    """What probing one backend found (``cells.probe``): per device None (usable) or why not."""
+    available: dict[str, str | None]
+    versions: dict[str, Any]
+
+
+Probes = dict[str, Probe]       # backend -> its probe
 
 
 def gpu_lane(item: Cell | dict[str, Any]) -> Any:
@@ -64,19 +73,20 @@ def pool_map(fn: Callable[[Any], Any], items: list[Any], jobs: int = 1,
     return results
 
 
-def availability(names: Iterable[str]) -> dict[str, dict[str, Any]]:
+def availability(names: Iterable[str]) -> Probes:
     """backend -> {"available": {device: None | reason}, "versions": {...}}, probed in parallel
     (each backend in its own process: probing imports the framework)."""
     names = list(names)
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(names))) as pool:
-        return dict(zip(names, pool.map(cells.probe, names)))
+        return {n: cast(Probe, p) for n, p in zip(names, pool.map(cells.probe, names))}
 
 
-def not_runnable(cell: Cell, probes: dict[str, dict[str, Any]]) -> tuple[str, str] | None:
+def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
     """(status, reason) of a cell that must not start: its backend cannot use the device, or has
     no kernel file for the scenario (an error for a scenario every backend must have, a skip for
     a measurement-only one)."""
-    why = probes.get(cell.backend, {}).get("available", {}).get(cell.device, "device not probed")
+    available = probes[cell.backend].get("available", {}) if cell.backend in probes else {}
+    why = available.get(cell.device, "device not probed")
     if why:
         return "skipped", why
     be = backends.get(cell.backend)
@@ -92,7 +102,7 @@ def not_runnable(cell: Cell, probes: dict[str, dict[str, Any]]) -> tuple[str, st
 
 
 def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
-              probes: dict[str, dict[str, Any]] | None = None,
+              probes: Probes | None = None,
               on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
               runner: Callable[[Cell], cells.Result] | None = None,
               store: Store | None = None, resume: bool = False,

@@ -46,9 +46,9 @@ def _read_pid(path: Path) -> int | None:
 class DirectoryLock:
     """``with DirectoryLock(out):`` or ``acquire()`` / ``release()``; raises ``Busy``."""
 
-    def __init__(self, directory: str | Path, made: list[Path] | tuple[Path, ...] = ()) -> None:
+    def __init__(self, directory: str | Path, made: list[Path] | tuple[Path, ...] = (), name: str = NAME) -> None:
         self.directory = Path(directory)
-        self.path = self.directory / NAME
+        self.path = self.directory / name     # another name: a lock beside the writers' (publish's)
         self.made = list(made)        # directories created for this claim, deepest first
         self._fd: int | None = None
         self._exclusive = False       # the no-flock fallback holds the file itself

@@ -155,6 +155,17 @@ def add_timing(p: argparse.ArgumentParser, repeat: int | None = 10, min_time: fl
                    "docs/measurement.md, 'Overlapped set-ups')")
 
 
+def add_processes(p: argparse.ArgumentParser) -> None:
+    """--processes: the repeats across worker processes (``compare.repeats``), which the driver
+    runs for every timed suite."""
+    p.add_argument("--processes", type=processes_count, default=1, metavar="N",
+                   help="time every cell in N independent worker processes (auto: until each "
+                        "figure's 95 %% interval is within 5 %% of its median, 6 to 10), in seeded "
+                        "interleaved rounds; the record keeps every process's figure, the median "
+                        "and its interval (time.processes; docs/measurement.md). Default 1: one "
+                        "process per cell, a figure no ranking relies on")
+
+
 def add_output(p: argparse.ArgumentParser, out: str) -> None:
     p.add_argument("--out", default=out, help=f"output directory (default {out})")
     p.add_argument("--no-plots", action="store_true", help="write no PNG files")

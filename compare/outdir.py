@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 from compare.options import UsageError, shown
 
@@ -118,17 +119,20 @@ def output_directory(path: str, need_bytes: float = 0.0, what: str = "the result
     return out
 
 
-def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results"):
+def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results", lock_name: str | None = None
+                 ) -> tuple[Path, Any]:
     """``output_directory`` and then this driver's lock on it (compare.lock; a second driver on
     the same --out is refused with one line naming the holder's PID), with the temporary files
-    a killed driver left there removed. Returns (directory, lock): release the lock when done
+    a killed driver left there removed. ``lock_name``: a lock other than the writers' (publish
+    holds its own while its parts lock DIR themselves; it removes no temporary file of theirs).
+    Returns (directory, lock): release the lock when done
     (``with lock:``); the kernel releases it if the driver dies."""
     from compare.lock import Busy, DirectoryLock
     from compare.store import remove_stale_temps
     made = _missing_dirs(Path(path))
     out = output_directory(path, need_bytes, what)
     # a refusal or failure under the lock removes the directories made here if still empty
-    lock = DirectoryLock(out, made=made)
+    lock = DirectoryLock(out, made=made) if lock_name is None else DirectoryLock(out, made=made, name=lock_name)
     try:
         lock.acquire()
     except Busy as exc:
@@ -137,7 +141,8 @@ def claim_output(path: str, need_bytes: float = 0.0, what: str = "the results"):
     except OSError as exc:          # creating the lock file is the first write: the write test
         lock.remove_made()
         raise UsageError(f"--out {path}: cannot write there ({exc.strerror or exc})") from None
-    remove_stale_temps(out)
+    if lock_name is None:
+        remove_stale_temps(out)
     return out, lock
 
 

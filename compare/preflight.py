@@ -30,6 +30,9 @@ SLOPE_MARGIN = 2.0
 WORKER_BASELINE_BYTES = {"cpu": 512 * 2**20, "cuda": 1024 * 2**20}
 RECORD_BYTES = 64 * 2**10          # one record in results.json, generously (params, info, gradients)
 PAGE_BYTES = 32 * 2**20            # results.csv, results.md and the plots of one run
+# the stress suite's cell records and findings, generously (the CPU suite's stress.json is ~1 MB),
+# and its page and plots
+STRESS_BYTES = 256 * 2**20
 
 
 def cell_bytes(spec: Cell | dict[str, Any]) -> tuple[float, float, float]:

@@ -68,6 +68,7 @@ from typing import Any
 import backends
 import scenarios
 from compare import environment, options, outdir
+from compare.driver import Command, claim
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
 from compare.publish_log import Part, host, load_log, save_log, started, state
 
@@ -304,25 +305,28 @@ def refuse_dirty(allowed: bool) -> None:
                          "(the runs then name the changed paths)")
 
 
+class Publish(Command):
+    """publish: its arguments (``add_arguments``), then its run. It runs no cell itself (each part
+    is a suite's own command, in a subprocess), so it shares the driver's claim and lock, not its
+    cell sequence."""
+    add_arguments = staticmethod(add_arguments)
+
+    def run(self, args: argparse.Namespace, argv: list[str]) -> int:
+        outdir.check_output(args.out)
+        devices = (options.names(args.devices, backends.DEVICES, "devices") if args.devices is not None
+                   else ["cuda"] if environment.gpus() else ["cpu"])
+        parts, notes = plan(args.out, devices, args.backends, args.quick, args.timeout)
+        chosen = select(parts, args.part)
+        log = load_log(Path(args.out))            # a bad log refused before anything is written
+        if args.list:
+            print_list(parts, chosen, log, args.out, devices, notes)
+            return EXIT_OK
+        refuse_dirty(args.allow_dirty)
+        out, lock = claim(args, 0.0, lock_name=LOCK)
+        catch_signals()
+        with lock:
+            return run_parts(chosen, args.part is not None, args.out, out, args.budget)
+
+
 def run(args: argparse.Namespace, argv: list[str]) -> int:
-    outdir.check_output(args.out)
-    devices = (options.names(args.devices, backends.DEVICES, "devices") if args.devices is not None
-               else ["cuda"] if environment.gpus() else ["cpu"])
-    parts, notes = plan(args.out, devices, args.backends, args.quick, args.timeout)
-    chosen = select(parts, args.part)
-    log = load_log(Path(args.out))            # a bad log refused before anything is written
-    if args.list:
-        print_list(parts, chosen, log, args.out, devices, notes)
-        return EXIT_OK
-    refuse_dirty(args.allow_dirty)
-    from compare.lock import Busy, DirectoryLock
-    out = outdir.output_directory(args.out)
-    lock = DirectoryLock(out)
-    lock.path = out / LOCK
-    try:
-        lock.acquire()
-    except Busy as exc:
-        raise UsageError(str(exc)) from None
-    catch_signals()
-    with lock:
-        return run_parts(chosen, args.part is not None, args.out, out, args.budget)
+    return Publish().run(args, argv)

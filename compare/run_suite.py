@@ -22,8 +22,9 @@ import numpy as np
 import backends
 import scenarios
 from backends.base import Device
-from compare import (calibrate, console, engine, environment, hardware, options, outdir, overlap, phases, report,
-                     run_plots, scaleout, versus)
+from compare import (calibrate, console, engine, environment, hardware, options, outdir, phases, report, run_plots,
+                     scaleout, versus)
+from compare.driver import Planned, Run, Suite, drive
 from compare.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
                                measured_need, memory_refusal)
 from compare.record import Record, plain
@@ -65,12 +66,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--host-profile", type=options.nonnegative_int, default=0, metavar="TOP",
                    help="also profile the host side of the throughput regime (cProfile) and keep "
                         "the TOP functions by own time in each record (time.host_profile)")
-    p.add_argument("--processes", type=options.processes_count, default=1, metavar="N",
-                   help="time every cell in N independent worker processes (auto: until each "
-                        "figure's 95 %% interval is within 5 %% of its median, 6 to 10), in seeded "
-                        "interleaved rounds; the record keeps every process's figure, the median "
-                        "and its interval (time.processes; docs/measurement.md). Default 1: one "
-                        "process per cell, a figure no ranking relies on")
+    options.add_processes(p)
     p.add_argument("--busy", type=options.nonnegative_int, default=0, metavar="N",
                    help="the shared-host experiment: time every CPU cell idle, then right after with N "
                         "cores kept busy by other processes (a laptop or CI runner; tags.busy_cores 0 "
@@ -168,36 +164,17 @@ def refuse_overwrite(args: argparse.Namespace) -> None:
                          "--force replaces them, or choose another --out")
 
 
-def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario]) -> int:
-    cells = plan(args, chosen)
-    outdir.check_output(args.out)                    # a bad --out is refused before the probes
-    versus.check(args.against)
-    refuse_overwrite(args)
-    kept = Store.open(args.out, "run", keep=args.resume)   # and a bad results.json to resume (read only)
-    began = time.perf_counter()
-    probes = engine.availability(sorted({c.backend for c in cells}))
-    spent = {"probes": time.perf_counter() - began}
-    local = args.scheduler in (None, "local")
-    refuse = memory_refusal() if local else None
-    blocked = [engine.not_runnable(c, probes) or (refuse(c) if refuse else None) for c in cells]
-    runnable = [c for c, b in zip(cells, blocked) if not b]
-    nothing_to_run(cells, blocked)
-    check_memory(runnable, worker=local)
-    judged = None
-    if not args.scheduler:      # a Dask worker's machine is not this one: neither preflight
-        t0 = time.perf_counter()
-        judged = preflight_cells(args, [c for c in runnable if not (args.resume and kept.done(key(c.identity())))])
-        spent["miniatures"] = time.perf_counter() - t0
-    need = disk_need(runnable, args.save_arrays, Path(args.out) / "results.json")
-    client = scaleout.client(args.scheduler) if args.scheduler else None
-    try:
-        out, lock = outdir.claim_output(args.out, need, "the results" + (" and arrays" if args.save_arrays else ""))
-    except UsageError:
-        if client is not None:
-            client.close()
-        raise
-    with lock:
-        return run_claimed(args, argv, cells, out, probes, client, spent, judged)
+def chosen_scenarios(args: argparse.Namespace) -> list[scenarios.Scenario]:
+    """The scenarios of ``all``, ``run S...`` or ``<S>``."""
+    if args.command == "all":
+        return [sc for sc in scenarios.SCENARIOS.values() if sc.in_all]
+    if args.command == "run":
+        return [scenarios.get(n) for n in options.no_duplicates(args.scenarios, "run")]
+    return [scenarios.get(args.command)]
+
+
+def run(args: argparse.Namespace, argv: list[str], chosen: list[scenarios.Scenario] | None = None) -> int:
+    return drive(RunSuite(chosen), args, argv)
 
 
 def preflight_cells(args: argparse.Namespace, runnable: list[Cell]) -> calibrate.Refusal:
@@ -213,15 +190,6 @@ def preflight_cells(args: argparse.Namespace, runnable: list[Cell]) -> calibrate
         raise UsageError(f"nothing fits this machine's memory: {c.backend} on {c.device}, {c.precision}, "
                          f"{memory(c)[1]}")    # type: ignore[index]
     return lambda c: memory(c) or slow(c)
-
-
-def nothing_to_run(cells: list[Cell], blocked: list[tuple[str, str] | None]) -> None:
-    """Refuse a plan whose every cell would be skipped (no chosen backend can use a chosen
-    device): exit 2 with the first reason, before anything is written."""
-    if cells and all(b is not None and b[0] == "skipped" for b in blocked):
-        c, why = cells[0], blocked[0][1]         # type: ignore[index]
-        raise UsageError(f"nothing to run: every one of the {len(cells)} cells would be skipped "
-                         f"(first: {c.backend} on {c.device}: {why})")
 
 
 class RunStore(Store):
@@ -247,81 +215,121 @@ def arrays_saved(out: Path, rec: Record) -> bool:
         return False
 
 
-def run_claimed(args: argparse.Namespace, argv: list[str], cells: list[Cell], out: Path,
-                probes: dict[str, dict[str, Any]], client: Any = None,
-                spent: dict[str, float] | None = None, judged: calibrate.Refusal | None = None) -> int:
-    """The run, once its output directory is checked, has room and is locked by this driver.
-    ``spent``: seconds the run's parts so far took (``compare.phases``); ``judged``: the
-    preflight's reason not to start a cell (``preflight_cells``)."""
-    spent = dict(spent or {})
-    store = RunStore.open(out, "run", keep=args.resume)
-    env = store.env = environment.collect(argv)
-    env["backends"] = probes
-    env["overlap"] = ahead = overlap.ahead(args)
-    env["processes"] = args.processes
-    # the framework-neutral yardstick of every device some backend can use, in this same run
-    t0 = time.perf_counter()
-    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in cells)
-                       if any(p["available"].get(d) is None for p in probes.values())}
-    spent["yardstick"] = time.perf_counter() - t0
-    store.runs = [*store.runs, env] if args.resume else [env]
-    if args.resume:
-        # kept cells keep their own run's yardstick (each record is judged before it is saved):
-        # never this run's, which did not measure them
-        if args.save_arrays:        # a kept cell whose arrays were never written runs again
-            store.rerun = frozenset(r.key for r in store.records
-                                    if r.status in ("ok", "mismatch") and not arrays_saved(out, r))
-        if store.records:
-            store.save()            # tables rebuilt from the kept records before any cell runs
-    runner = scaleout.runner(client, args.timeout, cells, probes) if client is not None else None
-    if client is not None:
-        env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
-    show = engine.progress(len(cells), every=args.verbose)
+class RunSuite(Suite):
+    """all / run S... / <S>: every chosen scenario's cells timed, checked and tabled."""
 
-    ran: list[dict[str, Any]] = []        # the cells this run ran (not those --resume kept)
+    def __init__(self, chosen: list[scenarios.Scenario] | None = None) -> None:
+        self.chosen = chosen            # None: from the command (``chosen_scenarios``)
+        self.ran: list[dict[str, Any]] = []     # the cells this run ran (not those --resume kept)
 
-    def on_record(i: int, rec: dict[str, Any], outs: dict[str, np.ndarray] | None) -> None:
-        ran.append({"time": rec.get("time")})
-        hardware.annotate([rec], env["hardware"])        # judged against this run's yardstick
-        rec["run"] = environment.run_stamp(env)          # and named as this run's
-        if args.save_arrays and outs is not None:        # before its record is saved: a failed
-            save_arrays(out, rec, outs)                  # write leaves the cell to be run again
-        show(i, rec, outs)
-    t0 = time.perf_counter()
-    results = engine.run_cells(cells, timeout=args.timeout, probes=probes, runner=runner,
-                               store=store, resume=args.resume, on_record=on_record, refuse=judged,
-                               ahead=ahead, footprint=lambda c: cell_bytes(c)[0],
-                               processes=args.processes, seed=env.get("seed", 0),
-                               on_repeat=lambda t: ran.append({"time": t}))
-    spent["cells"], t0 = time.perf_counter() - t0, time.perf_counter()
-    # the records of this plan, in plan order; with --resume also the kept records of other plans
-    records = [r for r, _ in results]
-    outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
-    mine = {r.key for r in records}
-    records += [r for r in store.records if r.key not in mine]
-    if args.save_arrays or args.resume:
-        saved_outputs(out, records, outputs)
-    fill_vs_reference(records, outputs, cells)
-    for r in records:
-        store.put(r)
-    store.save()
-    render(out, env, records, outputs, plots=not args.no_plots, clean=not args.resume)
-    spent["tables and pictures"] = time.perf_counter() - t0
-    env["phases"] = {"run": spent, "cells": phases.cell_parts(ran)}
-    store.save()                # the run's parts beside its records
-    print("\n".join(console.closing(records, env, args.verbose, args.wide)))
-    print(phases.summary_line(spent, env["phases"]["cells"], len(ran)))
-    print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
-    against = versus.block(records, env, out, args.against, args.quick)
-    if against:
-        print("\n".join(["", *against]))
-    missing = [r for r, _ in results if args.save_arrays and r.status in ("ok", "mismatch")
-               and not arrays_saved(out, r)]
-    if missing:
-        print(f"error: the arrays of {len(missing)} cells are missing (first: {array_file(out, missing[0].identity)}); "
-              "rerun with --resume --save-arrays", file=sys.stderr)
-    bad = missing or any(r.status in ("mismatch", "error") for r in records)
-    return options.EXIT_FAIL if bad else options.EXIT_OK
+    add_arguments = staticmethod(add_arguments)
+
+    def plan(self, args: argparse.Namespace) -> list[Planned[None]]:
+        chosen = self.chosen if self.chosen is not None else chosen_scenarios(args)
+        return [Planned(c, None) for c in plan(args, chosen)]
+
+    def check_output(self, args: argparse.Namespace) -> None:
+        outdir.check_output(args.out)                    # a bad --out is refused before the probes
+        versus.check(args.against)
+        refuse_overwrite(args)
+        self.kept = Store.open(args.out, "run", keep=args.resume)   # and a bad results.json to resume
+
+    def refusal(self, run: Run) -> calibrate.Refusal | None:
+        return memory_refusal() if run.args.scheduler in (None, "local") else None
+
+    def preflight(self, run: Run) -> calibrate.Refusal | None:
+        args = run.args
+        check_memory(run.runnable, worker=args.scheduler in (None, "local"))
+        if args.scheduler:      # a Dask worker's machine is not this one: neither preflight
+            return None
+        t0 = time.perf_counter()
+        judged = preflight_cells(args, [c for c in run.runnable
+                                        if not (args.resume and self.kept.done(key(c.identity())))])
+        run.spent["miniatures"] = time.perf_counter() - t0
+        return judged
+
+    def disk_need(self, run: Run) -> float:
+        return disk_need(run.runnable, run.args.save_arrays, Path(run.args.out) / "results.json")
+
+    def what(self, args: argparse.Namespace) -> str:
+        return "the results" + (" and arrays" if args.save_arrays else "")
+
+    def open(self, run: Run) -> None:
+        """The store, and the run's environment with the framework-neutral yardstick of every
+        device some backend can use, measured in this same run."""
+        args, out, probes = run.args, run.out, run.probes
+        self.store_ = store = RunStore.open(out, "run", keep=args.resume)
+        env = self.env = store.env = environment.collect(run.argv)
+        env["backends"] = probes
+        env["overlap"] = run.ahead
+        env["processes"] = args.processes
+        t0 = time.perf_counter()
+        env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
+                           if any(p["available"].get(d) is None for p in probes.values())}
+        run.spent["yardstick"] = time.perf_counter() - t0
+        store.runs = [*store.runs, env] if args.resume else [env]
+        if args.resume:
+            # kept cells keep their own run's yardstick (each record is judged before it is saved):
+            # never this run's, which did not measure them
+            if args.save_arrays:        # a kept cell whose arrays were never written runs again
+                store.rerun = frozenset(r.key for r in store.records
+                                        if r.status in ("ok", "mismatch") and not arrays_saved(out, r))
+            if store.records:
+                store.save()            # tables rebuilt from the kept records before any cell runs
+        if run.client is not None:
+            env["scheduler"] = {"address": args.scheduler, **scaleout.placement(run.client)}
+        self.out, self.args = out, args
+        self.show = engine.progress(len(run.cells), every=args.verbose)
+        self.t0 = time.perf_counter()
+
+    def store(self) -> Store:
+        return self.store_
+
+    def seed(self) -> int:
+        return int(self.env.get("seed", 0))
+
+    def on_record(self, i: int, rec: dict[str, Any], outs: dict[str, np.ndarray] | None) -> None:
+        self.ran.append({"time": rec.get("time")})
+        hardware.annotate([rec], self.env["hardware"])        # judged against this run's yardstick
+        rec["run"] = environment.run_stamp(self.env)          # and named as this run's
+        if self.args.save_arrays and outs is not None:        # before its record is saved: a failed
+            save_arrays(self.out, rec, outs)                  # write leaves the cell to be run again
+        self.show(i, rec, outs)
+
+    def on_repeat(self, block: dict[str, Any]) -> None:
+        self.ran.append({"time": block})
+
+    def render(self, run: Run, results: list[engine.Result]) -> int:
+        args, out, store, env, spent = run.args, run.out, self.store_, self.env, run.spent
+        spent["cells"], t0 = time.perf_counter() - self.t0, time.perf_counter()
+        # the records of this plan, in plan order; with --resume also the kept records of other plans
+        records = [r for r, _ in results]
+        outputs = {i: o for i, (_, o) in enumerate(results) if o is not None}
+        mine = {r.key for r in records}
+        records += [r for r in store.records if r.key not in mine]
+        if args.save_arrays or args.resume:
+            saved_outputs(out, records, outputs)
+        fill_vs_reference(records, outputs, run.cells)
+        for r in records:
+            store.put(r)
+        store.save()
+        render(out, env, records, outputs, plots=not args.no_plots, clean=not args.resume)
+        spent["tables and pictures"] = time.perf_counter() - t0
+        env["phases"] = {"run": spent, "cells": phases.cell_parts(self.ran)}
+        store.save()                # the run's parts beside its records
+        print("\n".join(console.closing(records, env, args.verbose, args.wide)))
+        print(phases.summary_line(spent, env["phases"]["cells"], len(self.ran)))
+        print(f"wrote {store.path}, results.csv, results.md" + ("" if args.no_plots else ", plots/"))
+        against = versus.block(records, env, out, args.against, args.quick)
+        if against:
+            print("\n".join(["", *against]))
+        missing = [r for r, _ in results if args.save_arrays and r.status in ("ok", "mismatch")
+                   and not arrays_saved(out, r)]
+        if missing:
+            print(f"error: the arrays of {len(missing)} cells are missing (first: "
+                  f"{array_file(out, missing[0].identity)}); rerun with --resume --save-arrays", file=sys.stderr)
+        bad = missing or any(r.status in ("mismatch", "error") for r in records)
+        return options.EXIT_FAIL if bad else options.EXIT_OK
 
 
 def report_command(args: argparse.Namespace) -> int:

@@ -17,11 +17,14 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from backends.base import visible_gpus
 from compare.spec import Cell
 from scenarios.base import ParamError
+
+if TYPE_CHECKING:       # the worker imports this module: not the engine with it
+    from compare.engine import Probes
 
 CPU_SET_ENV = "COMPARE_CPU_SET"
 
@@ -95,7 +98,7 @@ def placement(c: Any) -> dict[str, Any]:
 
 
 def runner(c: Any, timeout: float, plan: list[Cell],
-           probes: dict[str, dict[str, Any]]) -> Callable[[Cell], Any]:
+           probes: Probes) -> Callable[[Cell], Any]:
     """A ``run_cells`` runner: each cell a task that starts its own worker process (the same
     isolation and timeout as locally), collected in plan order. A task ships the cell's
     ``to_dict`` (the one encoding a cell crosses a process boundary in)."""

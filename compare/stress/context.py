@@ -19,6 +19,7 @@ from compare.record import Record
 from compare.report import fmt_num
 from compare.store import Store
 from compare.stress import host_loop
+from compare.stress.numerics import Row
 
 COLUMNS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 
@@ -36,8 +37,10 @@ class Ctx:
     quick: bool
     jobs: int
     timeout: float
-    probes: dict[str, dict[str, Any]]
+    probes: engine.Probes
     store: Store | None = None
+    # the suite's per-record hook (``driver.Suite.on_record``): every cell's record passes it
+    on_record: Callable[[int, dict[str, Any], dict[str, np.ndarray] | None], None] | None = None
 
     @property
     def reference(self) -> str:
@@ -67,7 +70,7 @@ class Ctx:
         return tuple(p for p in wanted if not be.precision_unavailable(p, device))
 
     def skip_rows(self, experiment: str, variants: bool = False,
-                  precisions: tuple[str, ...] = ()) -> list[dict[str, Any]]:
+                  precisions: tuple[str, ...] = ()) -> list[Row]:
         """A ``skipped`` row, with its reason, per backend and device that cannot run (and, with
         ``variants``, per variant that the framework lacks on that device; with ``precisions``,
         per precision of them that it lacks there)."""
@@ -96,7 +99,7 @@ class Ctx:
 
     @staticmethod
     def row(experiment: str, backend: str, device: str, precision: str, setting: str, figure: str,
-            value: Any, verdict: str, detail: str | None = "") -> dict[str, Any]:
+            value: Any, verdict: str, detail: str | None = "") -> Row:
         if isinstance(value, (np.floating, np.integer)):
             value = value.item()
         return dict(zip(COLUMNS, (experiment, backend, device, precision, setting, figure, value,
@@ -108,7 +111,7 @@ class Ctx:
         v = s.get("variant", "default")
         return f"{s['backend']}/{s['device']}" + ("" if v == "default" else f"/{v}")
 
-    def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: Record) -> dict[str, Any]:
+    def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: Record) -> Row:
         return self.row(experiment, self.label(s).split("/", 1)[0], s["device"], s["precision"], setting,
                         "cell", None, "error", rec.reason)
 
@@ -123,7 +126,7 @@ class Ctx:
         unless ``fresh_process`` (run-to-run comparisons want two separate processes). Every
         record also goes into the suite's store."""
         return engine.run_cells(specs, timeout=self.timeout, jobs=self.jobs, probes=self.probes,
-                                share_process=not fresh_process, store=self.store)
+                                share_process=not fresh_process, store=self.store, on_record=self.on_record)
 
     def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
         """``fn`` over ``items`` on threads, ``--jobs`` at a time, one GPU item per backend at a time

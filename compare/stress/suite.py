@@ -24,17 +24,14 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from compare import engine, environment, options, outdir, preflight
+from compare import environment, options, outdir, preflight
+from compare.driver import Planned, Run, Suite, claim, drive
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
 from compare.store import Store
 from compare.stress import page
 from compare.stress.context import Ctx
-from compare.stress.numerics import Experiment
 from compare.stress.registry import experiments
 
-# disk preflight: the cell records and findings of a full suite, generously (the CPU suite's
-# stress.json is ~1 MB), and the page and plots
-RESERVE_BYTES = 256 * 2**20
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
@@ -59,71 +56,112 @@ def failure(r: dict[str, Any]) -> bool:
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """Run the chosen experiments (or merge saved parts); raises UsageError/ParamError for bad usage."""
+    if args.merge:
+        return merge(args)
+    return drive(StressSuite(), args, argv)
+
+
+def merge(args: argparse.Namespace) -> int:
+    """--merge: saved parts into --out, every part validated before anything is written."""
     registry = experiments()
     if getattr(args, "precision", None) is not None:
         raise UsageError("--precision does not apply: each stress experiment states its precisions")
-    chosen = options.selection(args)
-    only = options.names(args.only, registry, "only") if args.only is not None else list(registry)
-    if args.merge:
-        options.refuse_inapplicable(args, add_arguments, ("--merge", "--out", "--no-plots"), "with --merge")
-        options.no_duplicates(args.merge, "--merge")
-        for f in args.merge:                # every part validated before anything is written
-            Store.read(f, "stress")
-        outdir.check_output(args.out)
-        Store.open(args.out, "stress")
-        out, lock = outdir.claim_output(args.out, 2 * sum(Path(f).stat().st_size for f in args.merge)
-                                         + preflight.PAGE_BYTES)
-        with lock:
-            return page.merge(args.merge, out, registry, plots_=not args.no_plots)
+    options.selection(args)
+    if args.only is not None:
+        options.names(args.only, registry, "only")
+    options.refuse_inapplicable(args, add_arguments, ("--merge", "--out", "--no-plots"), "with --merge")
+    options.no_duplicates(args.merge, "--merge")
+    for f in args.merge:
+        Store.read(f, "stress")
     outdir.check_output(args.out)
-    Store.open(args.out, "stress")                 # a bad stress.json refused (read only)
-    probes = engine.availability(chosen["backends"])
-    usable = [(b, d) for b in chosen["backends"] for d in chosen["devices"] if probes[b]["available"].get(d) is None]
-    if not usable:      # every experiment would record only skips: refused before anything is written
-        b, d = chosen["backends"][0], chosen["devices"][0]
-        raise UsageError(f"nothing to run: no chosen backend can use a chosen device "
-                         f"(first: {b} on {d}: {probes[b]['available'].get(d)})")
-    out, lock = outdir.claim_output(args.out, RESERVE_BYTES)
+    Store.open(args.out, "stress")
+    out, lock = claim(args, 2 * sum(Path(f).stat().st_size for f in args.merge) + preflight.PAGE_BYTES)
     with lock:
-        return run_claimed(args, argv, registry, chosen, only, Store.open(out, "stress"), probes)
+        return page.merge(args.merge, out, registry, plots_=not args.no_plots)
 
 
-def run_claimed(args: argparse.Namespace, argv: list[str], registry: dict[str, Experiment],
-                chosen: dict[str, list[str]], only: list[str], store: Store,
-                probes: dict[str, dict[str, Any]]) -> int:
-    """The suite, once its output directory is checked and locked by this driver."""
-    ctx = Ctx(chosen["backends"], chosen["devices"], args.quick, args.jobs, args.timeout, probes, store)
-    env = environment.collect(argv)
-    rows: list[dict[str, Any]] = []
-    series: dict[str, Any] = {}
-    try:
-        for name in only:
-            t0 = time.perf_counter()
-            print(f"stress: {name} ...", file=sys.stderr, flush=True)
-            try:
-                r, s = registry[name].run(ctx)
-            except OSError as exc:
-                if exc.errno in DISK_FULL:   # no experiment can save: stop (one line, exit 1)
-                    raise
-                traceback.print_exc()
-                r, s = [ctx.row(name, "-", "-", "-", "-", "experiment", None, "error",
-                                f"{type(exc).__name__}: {exc}")], {}
-            except Exception as exc:  # one broken experiment must not lose the others
-                traceback.print_exc()
-                r, s = [ctx.row(name, "-", "-", "-", "-", "experiment", None, "error",
-                                f"{type(exc).__name__}: {exc}")], {}
-            rows += r
-            series[name] = s
-            print(f"stress: {name} done in {time.perf_counter() - t0:.0f} s ({len(r)} rows)", file=sys.stderr, flush=True)
-            page.write_outputs(store, env, rows, series, only[:only.index(name) + 1], registry, plots_=False)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    data = page.write_outputs(store, env, rows, series, only, registry, plots_=not args.no_plots)
-    failed = [r for r in data["rows"] if r["experiment"] in only and failure(r)]
-    print(f"wrote {store.path}, stress.md" + ("" if args.no_plots else ", *.png")
-          + f": {len(rows)} rows, {len(failed)} failures", file=sys.stderr)
-    for r in failed:
-        print(f"  {r['experiment']} {r['backend']}/{r['device']} {r['setting']}: {r['verdict']} {r['detail'][:160]}",
-              file=sys.stderr)
-    return EXIT_FAIL if failed else EXIT_OK
+class StressSuite(Suite):
+    """The chosen experiments, one after another, into DIR/stress.json. A unit of its plan is an
+    experiment (``Planned(None, name)``): it makes its cells as it runs, from what it found."""
+    timed = False       # stress figures are not timings: no --overlap, no --processes
+    add_arguments = staticmethod(add_arguments)
+
+    def plan(self, args: argparse.Namespace) -> list[Planned[str]]:
+        self.registry = experiments()
+        if getattr(args, "precision", None) is not None:
+            raise UsageError("--precision does not apply: each stress experiment states its precisions")
+        self.chosen = options.selection(args)
+        only = options.names(args.only, self.registry, "only") if args.only is not None else list(self.registry)
+        return [Planned(None, name) for name in only]
+
+    def check_output(self, args: argparse.Namespace) -> None:
+        outdir.check_output(args.out)
+        Store.open(args.out, "stress")                 # a bad stress.json refused (read only)
+
+    def backends(self, run: Run) -> list[str]:
+        return self.chosen["backends"]
+
+    def check_runnable(self, run: Run, blocked: list[Any]) -> None:
+        """Every experiment would record only skips: refused before anything is written."""
+        b_, d_ = self.chosen["backends"], self.chosen["devices"]
+        if not any(run.probes[b]["available"].get(d) is None for b in b_ for d in d_):
+            b, d = b_[0], d_[0]
+            raise UsageError(f"nothing to run: no chosen backend can use a chosen device "
+                             f"(first: {b} on {d}: {run.probes[b]['available'].get(d)})")
+
+    def disk_need(self, run: Run) -> float:
+        return preflight.STRESS_BYTES
+
+    def open(self, run: Run) -> None:
+        args = run.args
+        self.store_ = Store.open(run.out, "stress")
+        self.ctx = Ctx(self.chosen["backends"], self.chosen["devices"], args.quick, args.jobs, args.timeout,
+                       run.probes, self.store_, on_record=self.on_record)
+        self.env = environment.collect(run.argv)
+        self.rows: list[dict[str, Any]] = []
+        self.series: dict[str, Any] = {}
+        self.interrupted = False
+
+    def execute(self, run: Run) -> list[Any]:
+        only = [str(p.extra) for p in run.planned]
+        ctx, store, rows, series = self.ctx, self.store_, self.rows, self.series
+        try:
+            for name in only:
+                t0 = time.perf_counter()
+                print(f"stress: {name} ...", file=sys.stderr, flush=True)
+                try:
+                    r, s = self.registry[name].run(ctx)
+                except OSError as exc:
+                    if exc.errno in DISK_FULL:   # no experiment can save: stop (one line, exit 1)
+                        raise
+                    traceback.print_exc()
+                    r, s = [ctx.row(name, "-", "-", "-", "-", "experiment", None, "error",
+                                    f"{type(exc).__name__}: {exc}")], {}
+                except Exception as exc:  # one broken experiment must not lose the others
+                    traceback.print_exc()
+                    r, s = [ctx.row(name, "-", "-", "-", "-", "experiment", None, "error",
+                                    f"{type(exc).__name__}: {exc}")], {}
+                rows += r
+                series[name] = s
+                print(f"stress: {name} done in {time.perf_counter() - t0:.0f} s ({len(r)} rows)",
+                      file=sys.stderr, flush=True)
+                page.write_outputs(store, self.env, rows, series, only[:only.index(name) + 1], self.registry,
+                                   plots_=False)
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            self.interrupted = True
+        return []
+
+    def render(self, run: Run, results: list[Any]) -> int:
+        if self.interrupted:
+            return EXIT_INTERRUPTED
+        only, store, rows = [str(p.extra) for p in run.planned], self.store_, self.rows
+        data = page.write_outputs(store, self.env, rows, self.series, only, self.registry,
+                                  plots_=not run.args.no_plots)
+        failed = [r for r in data["rows"] if r["experiment"] in only and failure(r)]
+        print(f"wrote {store.path}, stress.md" + ("" if run.args.no_plots else ", *.png")
+              + f": {len(rows)} rows, {len(failed)} failures", file=sys.stderr)
+        for r in failed:
+            print(f"  {r['experiment']} {r['backend']}/{r['device']} {r['setting']}: {r['verdict']} "
+                  f"{r['detail'][:160]}", file=sys.stderr)
+        return EXIT_FAIL if failed else EXIT_OK

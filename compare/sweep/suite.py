@@ -31,7 +31,8 @@ from typing import Any
 import backends
 import scenarios
 from backends.base import Device
-from compare import engine, environment, hardware, options, outdir, overlap, preflight, run_suite, scaleout
+from compare import engine, environment, hardware, options, outdir, preflight, scaleout
+from compare.driver import Planned, Run, Suite, claim, drive
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.spec import Cell
 from compare.store import UPGRADES, Store, atomic_write
@@ -60,6 +61,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="scaling: also keep every K-th state (default 0: no trajectory)")
     p.add_argument("--quick", action="store_true", help="few, small points (minutes on 2 cores)")
     options.add_timing(p, repeat=None, min_time=None, timeout=600.0)
+    options.add_processes(p)
     p.add_argument("--cache", default="cold", choices=("cold", "warm"),
                    help="framework kernel caches for the first call (docs/measurement.md)")
     options.add_output(p, "results/sweep")
@@ -92,10 +94,23 @@ def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scena
     return sorted(found, key=lambda sc: rank.get(sweeps(sc.name).measures, len(rank)))
 
 
-def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str, Any]) -> list[dict[str, Any]]:
+Reference = dict[str, Any] | None       # a point's converged-error reference (compare.sweep.converged)
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    """One sweep point of a scenario: its resolved parameters, the knob it sets (for the page),
+    its converged-error reference, and what it sets in its cell (``SPEC_OPTIONS``)."""
+    params: Any
+    knob: dict[str, Any]
+    reference: Reference
+    options: dict[str, Any]
+
+
+def points(sc: scenarios.Scenario, kind: str, device: str, args: argparse.Namespace,
+           sets: dict[str, Any]) -> list[Point]:
     """The scenario's points with --set (and, for scaling, --record-every) applied and the
-    parameters resolved (the scenario's Params, once): each {'params', 'knob', 'options',
-    'reference'}."""
+    parameters resolved (the scenario's Params, once)."""
     raw = sweeps(sc.name).points(kind, device, args.quick)
     over = dict(sets)
     fields = {f.name for f in dataclasses.fields(sc.Params)}
@@ -104,12 +119,11 @@ def points(sc: scenarios.Scenario, kind: str, device: str, args, sets: dict[str,
     for k in over:
         if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
             raise ParamError(f"--set {k}: the {kind} sweep of {sc.name} varies it")
-    return [{"params": sc.params({**pt["params"], **over}),
-             "knob": pt.get("knob") or {}, "reference": pt.get("reference"),
-             "options": {k: pt[k] for k in SPEC_OPTIONS if k in pt}} for pt in raw]
+    return [Point(sc.params({**pt["params"], **over}), pt.get("knob") or {}, pt.get("reference"),
+                  {k: pt[k] for k in SPEC_OPTIONS if k in pt}) for pt in raw]
 
 
-def plan(args: argparse.Namespace) -> list[tuple[Cell, dict[str, Any] | None]]:
+def plan(args: argparse.Namespace) -> list[Planned[Reference]]:
     """Every cell of the requested sweeps as (cell, the point's converged-error reference), in
     run order: kind, device, backend, variant (error sweep only), precision, scenario, point."""
     sel = options.selection(args)
@@ -123,14 +137,14 @@ def plan(args: argparse.Namespace) -> list[tuple[Cell, dict[str, Any] | None]]:
     sets = options.scenario_sets(options.parse_sets(args.set), everyone)
     repeat = args.repeat or (3 if args.quick else 10)
     min_time = args.min_time if args.min_time is not None else (0.05 if args.quick else 0.2)
-    out = []
+    out: list[Planned[Reference]] = []
     for kind in kinds:
         for dev in sel["devices"]:
             pts = {sc.name: points(sc, kind, dev, args, sets[sc.name]) for sc in chosen[kind]}
             for sc in chosen[kind]:          # --set values each swept precision can represent
                 for pt in pts[sc.name]:
                     for prec in precisions[kind]:
-                        options.check_precision(sc, pt["params"], prec)
+                        options.check_precision(sc, pt.params, prec)
             for be in sel["backends"]:
                 for variant in variants(kind, be, chosen[kind]):
                     for prec in precisions[kind]:
@@ -140,10 +154,10 @@ def plan(args: argparse.Namespace) -> list[tuple[Cell, dict[str, Any] | None]]:
                             measures = sweeps(sc.name).measures
                             role = measures if kind == "bandwidth" and measures else sc.name
                             for pt in pts[sc.name]:
-                                cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, pt["params"],
-                                            tags={"sweep": kind, "role": role, "knob": dict(pt["knob"])},
-                                            repeat=repeat, min_time=min_time, cache=args.cache, **pt["options"])
-                                out.append((cell, pt["reference"]))
+                                cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, pt.params,
+                                            tags={"sweep": kind, "role": role, "knob": dict(pt.knob)},
+                                            repeat=repeat, min_time=min_time, cache=args.cache, **pt.options)
+                                out.append(Planned(cell, pt.reference))
     return out
 
 
@@ -186,37 +200,16 @@ def contents(store: Store) -> dict[str, Any]:
 
 
 # ---- running --------------------------------------------------------------------------------
-def run_plan(specs: list[Cell], references: list[dict[str, Any] | None], probes, args,
-             store: Store, env: dict[str, Any], runner=None) -> None:
-    """Run the cells into the store (saved after every record), each error-sweep record with
-    its converged error attached first: one at a time here (they would share cores and the
-    GPU), or on a Dask cluster's workers, one per GPU and core set (``runner``)."""
-    cache: dict[Any, Any] = {}
-
-    def label(rec: dict[str, Any]) -> str:
-        tags = rec.get("tags") or {}
-        knob = tags.get("knob") or {}
-        setting = f" {knob.get('name')}={knob.get('value')}" if knob.get("name") and knob.get("value") is not None else ""
-        return (f"{tags.get('sweep')} {rec['scenario']}/{rec['backend']}/{rec['device']}/{rec['precision']}/"
-                f"{rec['variant']}{setting}")
-    show = engine.progress(len(specs), label)
-    count = iter(range(len(specs)))
-
-    def on_record(j: int, rec: dict[str, Any], outputs) -> None:      # the record's JSON, not yet stored
-        if (rec.get("tags") or {}).get("sweep") == "error" and rec["status"] in ("ok", "mismatch"):
-            conv = sweeps(rec["scenario"]).converged_error(rec["params"], outputs, rec, cache,
-                                                           reference=references[j])
-            if conv is not None:
-                rec["converged"] = conv
-        hardware.annotate([rec], env["hardware"])
-        rec["run"] = environment.run_stamp(env)
-        show(next(count), rec, outputs)
-    engine.run_cells(specs, timeout=args.timeout, probes=probes, on_record=on_record, store=store,
-                     resume=args.resume, runner=runner, ahead=overlap.ahead(args),
-                     footprint=lambda c: preflight.cell_bytes(c)[0])
+def label(rec: dict[str, Any]) -> str:
+    """A sweep record's name in the progress lines: its sweep, identity and knob setting."""
+    tags = rec.get("tags") or {}
+    knob = tags.get("knob") or {}
+    setting = f" {knob.get('name')}={knob.get('value')}" if knob.get("name") and knob.get("value") is not None else ""
+    return (f"{tags.get('sweep')} {rec['scenario']}/{rec['backend']}/{rec['device']}/{rec['precision']}/"
+            f"{rec['variant']}{setting}")
 
 
-def rebuild(data: dict[str, Any], args, sources: list[str], notes: str) -> Path:
+def rebuild(data: dict[str, Any], args: argparse.Namespace, sources: list[str], notes: str) -> Path:
     """Write the PNGs into --out and the Markdown page (--page); returns the page's path."""
     out = Path(args.out)
     page = Path(args.page) if args.page else out / "measurement.md"
@@ -235,71 +228,91 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     """``argv``: the command line after ``python -m compare`` (``sweep ...``), for the record."""
     if args.kind == "report":
         return report(args)
-    if args.kind not in (*KINDS, "all"):
-        raise UsageError(f"unknown sweep {args.kind!r} ({', '.join(KINDS)}, all, report)")
-    if args.files:
-        raise UsageError(f"unexpected argument {args.files[0]!r}")
-    given = options.given(args, add_arguments, args.kind)
-    if "--scenarios" in given and args.kind == "bandwidth":
-        raise UsageError("--scenarios does not apply to the bandwidth sweep (its scenarios are its yardsticks)")
-    if "--record-every" in given and args.kind not in ("scaling", "all"):
-        raise UsageError(f"--record-every does not apply to the {args.kind} sweep (only to scaling)")
-    if args.resume and args.fresh:
-        raise UsageError("--resume keeps OUT/sweep.json's records and --fresh drops them: give one")
-    options.check_scheduler(args)
-    planned = plan(args)
-    if not planned:
-        raise UsageError(f"nothing to run: the {args.kind} sweep has no points for the chosen "
-                         "scenarios, backends and devices")
-    notes = outdir.read_notes(args.notes)
-    outdir.check_output(args.out)
-    Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
-    # after every read-only refusal: the page's check creates (and removes) a file in its folder
-    outdir.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
-    probes = engine.availability(dict.fromkeys(c.backend for c, _ in planned))
-    blocked = [engine.not_runnable(c, probes) for c, _ in planned]
-    run_suite.nothing_to_run([s for s, _ in planned], blocked)
-    runnable = [s for (s, _), b in zip(planned, blocked) if not b]
-    # connected before the claim: an unreachable scheduler leaves no lock and no --out behind
-    client = scaleout.client(args.scheduler) if args.scheduler else None
-    try:
-        out, lock = outdir.claim_output(args.out, 2 * (preflight.RECORD_BYTES * len(runnable) + existing_bytes(args.out))
-                                         + preflight.PAGE_BYTES)
-    except UsageError:
-        if client is not None:
-            client.close()
-        raise
-    with lock:
-        return run_claimed(args, argv, planned, notes, out, probes, client)
+    return drive(SweepSuite(), args, argv)
+
+
+class SweepSuite(Suite):
+    """The sweeps' cells, run one at a time here (they would share cores and the GPU) or on a
+    Dask cluster's workers, one per GPU and core set, into DIR/sweep.json (saved after every
+    record), each error-sweep record with its converged error attached first."""
+    add_arguments = staticmethod(add_arguments)
+
+    def plan(self, args: argparse.Namespace) -> list[Planned[Reference]]:
+        if args.kind not in (*KINDS, "all"):
+            raise UsageError(f"unknown sweep {args.kind!r} ({', '.join(KINDS)}, all, report)")
+        if args.files:
+            raise UsageError(f"unexpected argument {args.files[0]!r}")
+        given = options.given(args, add_arguments, args.kind)
+        if "--scenarios" in given and args.kind == "bandwidth":
+            raise UsageError("--scenarios does not apply to the bandwidth sweep (its scenarios are its yardsticks)")
+        if "--record-every" in given and args.kind not in ("scaling", "all"):
+            raise UsageError(f"--record-every does not apply to the {args.kind} sweep (only to scaling)")
+        if args.resume and args.fresh:
+            raise UsageError("--resume keeps OUT/sweep.json's records and --fresh drops them: give one")
+        options.check_scheduler(args)
+        planned = plan(args)
+        if not planned:
+            raise UsageError(f"nothing to run: the {args.kind} sweep has no points for the chosen "
+                             "scenarios, backends and devices")
+        return planned
+
+    def check_output(self, args: argparse.Namespace) -> None:
+        self.notes = outdir.read_notes(args.notes)
+        outdir.check_output(args.out)
+        Store.open(args.out, "sweep", keep=not args.fresh)     # a bad sweep.json refused (read only)
+        # after every read-only refusal: the page's check creates (and removes) a file in its folder
+        outdir.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
+
+    def disk_need(self, run: Run) -> float:
+        return 2 * (preflight.RECORD_BYTES * len(run.runnable) + existing_bytes(run.args.out)) + preflight.PAGE_BYTES
+
+    def open(self, run: Run) -> None:
+        args = run.args
+        self.store_ = store = Store.open(run.out, "sweep", keep=not args.fresh)
+        env = self.env = environment.collect(list(map(shlex.quote, run.argv)))    # a command one can paste
+        env["backends"] = run.probes
+        env["overlap"] = run.ahead
+        env["processes"] = args.processes
+        env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
+        env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
+                           if any(p["available"].get(d) is None for p in run.probes.values())}
+        if run.client is not None:
+            env["scheduler"] = {"address": args.scheduler, **scaleout.placement(run.client)}
+        store.runs.append(env)
+        store.save()
+        self.references = [p.extra for p in run.planned]
+        self.cache: dict[Any, Any] = {}
+        self.show = engine.progress(len(run.cells), label)
+        self.count = iter(range(len(run.cells)))
+
+    def store(self) -> Store:
+        return self.store_
+
+    def seed(self) -> int:
+        return int(self.env.get("seed", 0))
+
+    def on_record(self, j: int, rec: dict[str, Any], outputs: engine.Outputs | None) -> None:
+        if (rec.get("tags") or {}).get("sweep") == "error" and rec["status"] in ("ok", "mismatch"):
+            conv = sweeps(rec["scenario"]).converged_error(rec["params"], outputs, rec, self.cache,
+                                                           reference=self.references[j])
+            if conv is not None:
+                rec["converged"] = conv
+        hardware.annotate([rec], self.env["hardware"])
+        rec["run"] = environment.run_stamp(self.env)
+        self.show(next(self.count), rec, outputs)
+
+    def render(self, run: Run, results: list[Any]) -> int:
+        store = self.store_
+        page = rebuild(contents(store), run.args, [str(store.path)], self.notes)
+        print(pages.summary(store.records))
+        print(f"wrote {store.path} and {page}")
+        bad = [r for r in store.records if r.status in ("mismatch", "error")]
+        return EXIT_FAIL if bad else EXIT_OK
 
 
 def existing_bytes(out: str) -> int:
     f = Path(out) / "sweep.json"
     return f.stat().st_size if f.is_file() else 0
-
-
-def run_claimed(args: argparse.Namespace, argv: list[str], planned, notes: str, out: Path,
-                probes: dict[str, dict[str, Any]], client: Any = None) -> int:
-    """The sweep, once its output directory is checked, has room and is locked by this driver."""
-    store = Store.open(out, "sweep", keep=not args.fresh)
-    env = environment.collect(list(map(shlex.quote, argv)))    # a command one can paste
-    env["backends"] = probes
-    env["overlap"] = overlap.ahead(args)
-    env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
-    env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c, _ in planned)
-                       if any(p["available"].get(d) is None for p in probes.values())}
-    if client is not None:
-        env["scheduler"] = {"address": args.scheduler, **scaleout.placement(client)}
-    store.runs.append(env)
-    store.save()
-    specs = [s for s, _ in planned]
-    runner = scaleout.runner(client, args.timeout, specs, probes) if client is not None else None
-    run_plan(specs, [r for _, r in planned], probes, args, store, env, runner)
-    page = rebuild(contents(store), args, [str(store.path)], notes)
-    print(pages.summary(store.records))
-    print(f"wrote {store.path} and {page}")
-    bad = [r for r in store.records if r.status in ("mismatch", "error")]
-    return EXIT_FAIL if bad else EXIT_OK
 
 
 def report(args: argparse.Namespace) -> int:
@@ -313,7 +326,7 @@ def report(args: argparse.Namespace) -> int:
     for f in args.files:                  # a later file's record of the same cell wins
         merged.merge(Store.read(f, "sweep"))
     outdir.check_page(args.page or str(Path(args.out) / "measurement.md"), args.title)
-    out, lock = outdir.claim_output(args.out, preflight.PAGE_BYTES)
+    out, lock = claim(args, preflight.PAGE_BYTES)
     with lock:
         rebuild(contents(merged), args, list(args.files), notes)
     print(pages.summary(merged.records))
