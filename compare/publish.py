@@ -144,8 +144,12 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
     procs = () if quick else ("--processes", MATRIX_PROCESSES)
     alone = ("--against", "none")      # a store is a reference itself: no block against another
-    parts = [Part("all", ("all", "--devices", devs, *sel, "--precision", "float32,float64",
-                          "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *procs, *alone, *tail))]
+    # The matrix part is what the matrix reads (float32) in repeated processes; float64 cells
+    # (parity with the oracle, no row ranks them) run once, in their own part after it.
+    parts = [Part("all", ("all", "--devices", devs, *sel, "--precision", "float32",
+                          "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *procs, *alone, *tail)),
+             Part("float64", ("all", "--devices", devs, *sel, "--precision", "float64", "--variants", "all",
+                              *alone, *tail))]
     large, notes = large_parts(devices, chosen, sel, quick, have if have is not None else memory())
     parts += [dataclasses.replace(p, argv=p.argv + alone + tuple(tail)) for p in large]
     parts += [Part(k, ("sweep", k, "--devices", devs, *sel, *tail)) for k in SWEEPS]

@@ -47,14 +47,17 @@ def test_cuda_plan_measures_what_the_h100_store_holds():
     parts, notes = publish.plan("results/h100", ["cuda"], "all", have=H100)
     assert not notes
     order = names(parts)
-    assert order[:8] == ["all", "large-cuda-saxpy26", "large-cuda-saxpy28", "large-cuda-particles24",
+    assert order[:9] == ["all", "float64", "large-cuda-saxpy26", "large-cuda-saxpy28", "large-cuda-particles24",
                          "bandwidth", "scaling", "error", "horizon"]
     by = {p.name: p.argv for p in parts}
     assert "--variants" in by["all"] and by["all"][by["all"].index("--variants") + 1] == "all"
-    assert all("--resume" in by[n] for n in order[:8])
+    assert all("--resume" in by[n] for n in order[:9])
+    # the matrix part is float32 in repeated processes; float64 (no row ranks it) once, apart
+    assert by["all"][by["all"].index("--precision") + 1] == "float32" and "--processes" in by["all"]
+    assert by["float64"][by["float64"].index("--precision") + 1] == "float64" and "--processes" not in by["float64"]
     store = json.loads((ROOT / "docs/results/h100/results.json").read_text())
     held = {(r["scenario"], r["params"].get("n"), r["variant"]) for r in store["records"]}
-    for n in order[1:4]:
+    for n in order[2:5]:
         argv = by[n]
         size = int(argv[argv.index("--set") + 1].split("=")[1])
         for v in argv[argv.index("--variants") + 1].split(","):
