@@ -16,7 +16,7 @@ version below and saves the newest; users load these files with pandas, so keys 
       ``time.null``, ``time.own_timer``, ``time.processes`` (compare.repeats).
   1 - no ``format_version``: ``results.json`` is ``{"environment", "records"}``, ``sweep.json``
       ``{"runs", "records"}``, ``stress.json`` ``{"environment", "provenance", "rows", "series"}``.
-      Each suite's module registers its record upgrade (``compare.store.UPGRADES``).
+      Each suite's format upgrades its records (``compare.formats``).
 
 ``Record.from_json`` is the one validating loader: every record a reader sees (report, resume,
 merge, the site, the sweep and stress pages) and every record the engine stores went through it,
@@ -109,13 +109,17 @@ class Record:
             object.__setattr__(self, "layout", have + tuple(self.extra))
 
     @classmethod
-    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None) -> Record:
+    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+                  check: Callable[[dict[str, Any]], str | None] | None = None) -> Record:
         """The record a JSON object holds, validated; ``upgrade`` turns an older format's record
-        into today's (applied once its basic shape is known good)."""
+        into today's (applied once its basic shape is known good), ``check`` is its suite's own
+        check (``compare.formats``) after the common schema's."""
         problem = records.shape_problem(obj)
         if problem is None and upgrade is not None:
             obj = upgrade(obj)
         problem = problem or records.record_problem(obj)
+        if problem is None and check is not None:
+            problem = check(obj)
         if problem is not None:
             raise RecordError(problem)
         named = {k: v for k, v in obj.items() if k in NAMED}
