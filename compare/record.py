@@ -31,6 +31,7 @@ import types
 from typing import Any, Callable, Mapping
 
 from compare import records
+from compare.record_parts import PARTS, Check, Gradient, Hardware, Memory, Part, Regime, Timing, plain
 from compare.spec import key as cell_key
 
 FORMAT_VERSION = 2
@@ -53,13 +54,6 @@ def _freeze(v: Any, field: str, depth: int = 1) -> Any:
     return v
 
 
-def plain(v: Any) -> Any:
-    """A record's value as plain JSON types (dicts and lists), e.g. to ``json.dumps`` it."""
-    if isinstance(v, Mapping):
-        return {k: plain(x) for k, x in v.items()}
-    if isinstance(v, tuple):
-        return [plain(x) for x in v]
-    return v
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,14 +71,14 @@ class Record:
     tags: Block | None = None           # a suite's own identity of the cell (sweep kind, role, knob)
     reason: str = ""                    # why not ok ('' when ok)
     # what was measured, when the cell ran
-    time: Block | None = None           # first call, latency, throughput and graph regimes, noise
-    error: Block | None = None          # against the float64 oracle and the reference backend
+    time: Timing | None = None          # first call, latency, throughput and graph regimes, noise
+    error: Check | None = None          # against the float64 oracle and the reference backend
     work: Block | None = None           # bytes, items, flops per call
     throughput: Block | None = None     # work per second; the hardware floor and fraction
-    memory: Block | None = None         # peak host RSS, device bytes
-    gradient: Block | None = None       # how a gradient was obtained and its errors
+    memory: Memory | None = None        # peak host RSS, device bytes
+    gradient: Gradient | None = None    # how a gradient was obtained and its errors
     converged: Block | None = None      # the error sweep's distance to a converged reference
-    hardware: Block | None = None       # the yardstick the cell was judged against
+    hardware: Hardware | None = None    # the yardstick the cell was judged against
     info: Block | None = None           # the kernel's own notes
     versions: Block | None = None       # the framework's packages
     host: str | None = None
@@ -101,8 +95,12 @@ class Record:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             # a key this version does not name is refused by its own name
+            if isinstance(v, Part):
+                continue
             v = (types.MappingProxyType({k: _freeze(x, records.show_key(k)) for k, x in v.items()})
                  if f.name == "extra" else _freeze(v, f.name))
+            if f.name in PARTS and isinstance(v, Mapping):     # a typed part, from its JSON
+                v = PARTS[f.name].from_json(v)
             object.__setattr__(self, f.name, v)
         if not self.layout:         # built in code: the fields it has, in declaration order
             have = tuple(f for f in NAMED if getattr(self, f) is not None)
@@ -150,4 +148,5 @@ class Record:
 
 NAMED = tuple(f.name for f in dataclasses.fields(Record) if f.name not in ("extra", "layout"))
 
-__all__ = ["Block", "FORMAT_VERSION", "Record", "RecordError", "plain"]
+__all__ = ["Block", "Check", "FORMAT_VERSION", "Gradient", "Hardware", "Memory", "Record", "RecordError", "Regime",
+           "Timing", "plain"]

@@ -15,16 +15,17 @@ def harness_table(recs: list[Record]) -> Table:
     for r in sorted(recs, key=lambda r: (r.backend, r.variant)):
         if r.status != "ok" or r.variant == "graph":
             continue
-        t = r.time or {}
+        t = r.time
         lat = data.timing(r, "latency")
-        null = data.num((t.get("null") or {}).get("median_s"))
+        null = data.num(t.null.median_s) if t and t.null else None
         ev = data.num((events_of(t) or {}).get("median_s"))
-        own = t.get("own_timer") or {}
+        own = (t.own_timer if t else None) or {}
         own_s = data.num(own.get("median_s"))
         # ours in the same process: alternated with the own timer where recorded (in its statistic
         # since the record has ``block``), else that process's latency regime (never the median
         # across processes)
-        ours = (data.num(own.get("ours_s")) or data.num((t.get("latency") or {}).get("median_s"))) if own_s else None
+        ours = (data.num(own.get("ours_s")) or (data.num(t.latency.median_s) if t and t.latency else None)) \
+            if own_s else None
         ratio = data.num(own.get("ratio")) or (ours / own_s if ours and own_s else None)
         how = (f"{own['rounds']} rounds" if own.get("rounds") else "once") + \
             (f", blocks of {own['block']}" if own.get("block") else "")

@@ -192,8 +192,8 @@ ERROR_FLOOR = 1e-3                # a share of the bound below this counts as th
 
 def error_share(r: Record) -> float | None:
     """A record's error against the float64 oracle as a share of its derived tolerance."""
-    e = r.error or {}
-    err, tol = data.num(e.get("vs_oracle")), data.num(e.get("tolerance"))
+    e = r.error
+    err, tol = (data.num(e.vs_oracle), data.num(e.tolerance)) if e else (None, None)
     return err / tol if err is not None and tol else None
 
 

@@ -185,12 +185,12 @@ def accuracy(c: qp.Ctx) -> list[Any]:
     for r in sorted(matrix.all_defaults(c.m, c.device), key=lambda r: (r.scenario, r.backend)):
         if r.scenario not in matrix.IN_ALL:
             continue
-        e = r.error or {}
+        e = r.error
         share = matrix.error_share(r)
-        err, tol = data.num(e.get("vs_oracle")), data.num(e.get("tolerance"))
+        err, tol = (data.num(e.vs_oracle), data.num(e.tolerance)) if e else (None, None)
         rows.append((r.scenario, r.backend, r.status, "-" if err is None else f"{err:.3g}",
                      "-" if tol is None else f"{tol:.3g}", "-" if share is None else f"{share:.3g}",
-                     str(e.get("metric", "")) or r.reason))
+                     str((e.get("metric", "") if e else "")) or r.reason))
     blocks += [H("float32 error per scenario (default sizes)"),
                Table(("scenario", "framework", "status", "error", "tolerance", "share", "metric"), tuple(rows))]
     swept = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r.device == c.device]
@@ -237,7 +237,7 @@ def compile_cost(c: qp.Ctx) -> list[Any]:
     rows = []
     for r in sorted(recs, key=lambda r: (r.scenario, r.backend)):
         ok = r.status == "ok"
-        setup = data.num((r.time or {}).get("setup_s")) if ok else None
+        setup = data.num(r.time.setup_s) if ok and r.time else None
         first, total = (data.timing(r, "first"), data.first_result(r)) if ok else (None, None)
         rows.append((r.scenario, r.backend, fmt.seconds(setup), fmt.seconds(first.median if first else None),
                      fmt.seconds(total.median if total else None),

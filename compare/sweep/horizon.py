@@ -29,9 +29,8 @@ from compare.sweep.rows import knob, label, need, ok, throughput_s, wall_s
 
 def memory(rec: Record) -> tuple[float | None, str]:
     """The cell's own memory and what it is: device bytes on CUDA, host bytes on the CPU."""
-    m = rec.memory or {}
-    key, what = ("host_bytes", "host") if rec.device == "cpu" else ("device_bytes", "device")
-    v = m.get(key)
+    what = "host" if rec.device == "cpu" else "device"
+    v = None if rec.memory is None else rec.memory.host_bytes if rec.device == "cpu" else rec.memory.device_bytes
     return (float(v), what) if isinstance(v, (int, float)) else (None, what)
 
 
@@ -81,8 +80,7 @@ def table(records: list[Record], device: str, scenario: str) -> str:
     for rows in groups.values():
         for r, slope in zip(rows, slopes(rows)):
             mem, what = memory(r)
-            g = r.gradient or {}
-            share = g.get("fd_agreement")
+            share = r.gradient.fd_agreement if r.gradient else None
             out.append([r.backend, r.variant, r.precision, *(need(r, "params").get(k) for k in extra),
                         knob(r)["value"], fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
                         f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
@@ -129,7 +127,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     extra = [k for k in varying(every, kname) if k not in ("batch",)]
     for rows in groups.values():
         for r in rows:
-            s = (r.gradient or {}).get("fd_agreement")
+            s = r.gradient.fd_agreement if r.gradient else None
             if isinstance(s, (int, float)):
                 key = (", ".join(f"{k}={need(r, 'params').get(k)}" for k in extra), r.precision)
                 shares.setdefault(key, {}).setdefault(knob(r)["value"], []).append(s)

@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Mapping
 
 from compare.record import Record
 from compare.report import fmt_bytes
@@ -31,7 +31,7 @@ def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
     contestant controls; ``compare/hardware.py``) where the records carry it; for files made
     before it existed, the best copy bandwidth of any backend (primary clock), so labelled."""
     hw = next((r.hardware for r in records if r.device == device
-               and (r.hardware or {}).get("copy_bytes_per_s")), None)
+               and r.hardware and r.hardware.copy_bytes_per_s), None)
     if hw:
         return {"gbps": hw["copy_bytes_per_s"] / 1e9, "backend": "hardware yardstick",
                 "precision": "bytes", "n": hw.get("copy_how", ""), "clock": "same-run"}
@@ -100,10 +100,10 @@ def error_points(records: list[Record], device: str, scenario: str) -> list[dict
 
 
 def device_bytes(rec: Record) -> tuple[int | None, str]:
-    m = rec.memory or {}
-    if isinstance(m.get("device_bytes"), (int, float)):   # the one metric every backend shares
+    m: Mapping[str, Any] = rec.memory or {}     # the framework's own figures have its names
+    if rec.memory and isinstance(rec.memory.device_bytes, (int, float)):   # the one metric every backend shares
         own = m.get("device_peak_bytes")
-        return int(m["device_bytes"]), "NVML above the context" + (
+        return int(rec.memory.device_bytes), "NVML above the context" + (
             f"; framework's own figure {fmt_bytes(own)}" if isinstance(own, (int, float)) else "")
     for k, src in (("device_peak_bytes", m.get("device_memory_source", "framework")),
                    ("nvml_process_peak_bytes", "nvml process"),

@@ -58,5 +58,5 @@ def event_s(rec: Record) -> float | None:
 
 def throughput_s(rec: Record) -> float | None:
     """Per-call time in the throughput regime (k calls, one synchronise), where measured."""
-    thr = (rec.time or {}).get("throughput") or {}
-    return float(thr["median_s"]) if thr.get("median_s") else None
+    thr = rec.time.throughput if rec.time else None
+    return float(thr.median_s) if thr and thr.median_s else None
