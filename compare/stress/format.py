@@ -2,9 +2,23 @@
 their experiment's own page hooks."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypedDict
 
 from compare.records import Format, show
+
+
+class Finding(TypedDict):
+    """One row of ``analysis.rows``: a figure an experiment measured and its verdict (the columns
+    of stress.md; ``compare.records.ROW`` checks them as a file loads)."""
+    experiment: str
+    backend: str
+    device: str
+    precision: str
+    setting: str
+    figure: str
+    value: Any                          # a string, number, boolean or null
+    verdict: str
+    detail: str
 
 
 def rows_problem(data: dict[str, Any]) -> str | None:
