@@ -11,6 +11,7 @@ is told at the top of ``compare.record``; ``compare.records`` checks it before a
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 from typing import Any, ClassVar, Iterator, Mapping, Self
 
@@ -106,11 +107,12 @@ class Regime(Part):
 class Timing(Part):
     """A cell's ``time`` block: the first call, the latency (the block's own median, iqr, min),
     the other regimes, and how the clocks were set up (docs/measurement.md)."""
-    first_call_s: float | None = None
-    median_s: float | None = None
-    iqr_s: float | None = None
-    min_s: float | None = None
-    repeats: int | None = None
+    # every time block has these five (compare.records): the defaults stand for no key at all
+    first_call_s: float = math.nan
+    median_s: float = math.nan
+    iqr_s: float = math.nan
+    min_s: float = math.nan
+    repeats: int = 0
     warmup: int | None = None
     timed_total_s: float | None = None
     wall: Regime | None = None

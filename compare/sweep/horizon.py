@@ -24,7 +24,7 @@ from compare.report import fmt_bytes, fmt_time
 from compare.figure_check import place_legends
 from compare.files import save_figure
 from compare.sweep.points import sweeps
-from compare.sweep.rows import knob, label, need, ok, throughput_s, wall_s
+from compare.sweep.rows import checked_items, knob, label, need, ok, throughput_s, wall_s
 
 
 def memory(rec: Record) -> tuple[float | None, str]:
@@ -86,7 +86,7 @@ def table(records: list[Record], device: str, scenario: str) -> str:
                         f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
                         f"{slope:.3g}" if slope is not None else "-",
                         f"{100 * share:.0f} %" if isinstance(share, (int, float)) else "-",
-                        need(r, "error").get("checked_items", "all")])
+                        checked_items(r)])
     unit = label(scenario, "horizon_items", "item")
     return tabulate(out, headers=["backend", "variant", "precision", *extra, kname, "latency median",
                                   "throughput: per call", "memory", f"bytes per {unit}-step (slope)",

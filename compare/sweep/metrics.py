@@ -13,7 +13,7 @@ from typing import Any, Mapping
 
 from compare.record import Record
 from compare.report import fmt_bytes
-from compare.sweep.rows import need, ok, wall_s
+from compare.sweep.rows import need, ok, timed, wall_s
 
 OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
 BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
@@ -37,11 +37,11 @@ def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
                 "precision": "bytes", "n": hw.get("copy_how", ""), "clock": "same-run"}
     best = None
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        t = need(r, "time")
-        bw = gbps(need(r, "work")["bytes"], t["median_s"])
+        t = timed(r)
+        bw = gbps(need(r, "work")["bytes"], t.median_s)
         if best is None or bw > best["gbps"]:
             best = {"gbps": bw, "backend": r.backend, "precision": r.precision,
-                    "n": need(r, "params")["n"], "clock": t.get("timer", "wall")}
+                    "n": need(r, "params")["n"], "clock": t.timer if t.timer is not None else "wall"}
     return best
 
 
@@ -63,7 +63,7 @@ def regime(launch_share: float | None, roof_share: float | None) -> str:
 def bandwidth_row(rec: Record, records: list[Record]) -> dict[str, Any]:
     """Achieved GB/s, % of the copy roofline, launch share and regime of one bandwidth cell."""
     nbytes = need(rec, "work")["bytes"]
-    bw = gbps(nbytes, need(rec, "time")["median_s"])
+    bw = gbps(nbytes, timed(rec).median_s)
     roof = roofline(records, rec.device)
     lw = launch_wall(records, rec.backend, rec.device, rec.precision)
     share = lw / wall_s(rec) if lw else None
