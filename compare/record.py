@@ -33,6 +33,7 @@ from typing import Any, Callable, Mapping
 from compare import records
 from compare.record_parts import PARTS, Check, Gradient, Hardware, Memory, Part, Regime, Timing, plain
 from compare.spec import key as cell_key
+from scenarios.base import Precision
 
 FORMAT_VERSION = 2
 Block = Mapping[str, Any]      # a read-only JSON object; its lists are tuples
@@ -63,8 +64,8 @@ class Record:
     # identity: the same cell run twice has one ``key``
     scenario: str
     backend: str
-    device: str
-    precision: str
+    device: str                         # a name: a file may hold a device this version lacks
+    precision: Precision
     status: str                         # ok | mismatch | error | skipped
     variant: str = "default"
     params: Block | None = None         # the scenario's resolved parameters
@@ -102,6 +103,8 @@ class Record:
             if f.name in PARTS and isinstance(v, Mapping):     # a typed part, from its JSON
                 v = PARTS[f.name].from_json(v)
             object.__setattr__(self, f.name, v)
+        if not isinstance(self.precision, Precision):     # checked on load (compare.records)
+            object.__setattr__(self, "precision", Precision(self.precision))
         if not self.layout:         # built in code: the fields it has, in declaration order
             have = tuple(f for f in NAMED if getattr(self, f) is not None)
             object.__setattr__(self, "layout", have + tuple(self.extra))
