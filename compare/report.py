@@ -90,7 +90,7 @@ def row(rec: Record) -> list[str]:
             rec.status, fmt_time(t.first_call_s if t else None),
             fmt_time(lat.median_s if lat else None) + mark("latency"),
             fmt_time(lat.iqr_s if lat else None), fmt_time(lat.min_s if lat else None),
-            fmt_time((timing.events_of(t) or {}).get("median_s")),
+            fmt_time(ev.median_s if (ev := timing.events_of(t)) else None),
             fmt_time(thr.median_s if thr else None) + mark("throughput"), fmt_time(thr.host_s if thr else None),
             fmt_time(graph.median_s if graph else None) + mark("graph"),
             f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",

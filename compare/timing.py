@@ -30,7 +30,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from backends.base import Backend, Device, EventTimer
-from compare.record_parts import Regime
+from compare.record_parts import Regime, Timing
 
 CLOCK = "wall clock (time.perf_counter) around run() + backend synchronize"
 
@@ -123,15 +123,15 @@ def null_call(sync: Callable[[Any], None], calls: int = NULL_CALLS) -> Regime:
     return summarise([call(noop, sync) for _ in range(calls)])
 
 
-def events_of(t: Any) -> Any:
-    """A record's ``time`` block's device-event figures ({median_s, iqr_s, min_s, repeats}), or
+def events_of(t: Timing | None) -> Regime | Timing | None:
+    """A record's ``time`` part's device-event figures (median_s, iqr_s, min_s, repeats), or
     None. Records made before the separate event pass (``timer == "events"`` and no ``events``)
     kept them as the block's own figures."""
-    if not hasattr(t, "get"):
+    if t is None:
         return None
-    if t.get("events") is not None:
-        return t["events"]
-    return t if t.get("timer") == "events" else None
+    if t.events is not None:
+        return t.events
+    return t if t.timer == "events" else None
 
 
 BATCH_S = 0.02     # the throughput regime's shortest batch (``pipelined``)

@@ -158,14 +158,14 @@ def timing(rec: Record, regime: str) -> Timing | None:
     several = across_processes(rec, regime)
     if several is not None:
         return several
-    part = (t.get(regime) if regime != "latency" else (t.latency or t)) if t else None
-    if not isinstance(part, Mapping):
+    part = (t.regime(regime) if regime != "latency" else (t.latency or t)) if t else None
+    if part is None:
         return None
-    med, iqr = num(part.get("median_s")), num(part.get("iqr_s"))
+    med, iqr = num(part.median_s), num(part.iqr_s)
     if med is None or med <= 0:
         return None
     iqr = iqr or 0.0
-    reps = part.get("repeats") if isinstance(part.get("repeats"), int) else None
+    reps = part.repeats if isinstance(part.repeats, int) else None
     # the spread and repeats of this regime, and what the run saw of the host (a record made
     # before time.noise existed has only the first two)
     why = noise.regime_reasons(part)

@@ -18,7 +18,7 @@ def harness_table(recs: list[Record]) -> Table:
         t = r.time
         lat = data.timing(r, "latency")
         null = data.num(t.null.median_s) if t and t.null else None
-        ev = data.num((events_of(t) or {}).get("median_s"))
+        ev = data.num(e.median_s) if (e := events_of(t)) else None
         own = (t.own_timer if t else None) or {}
         own_s = data.num(own.get("median_s"))
         # ours in the same process: alternated with the own timer where recorded (in its statistic

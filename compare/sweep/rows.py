@@ -72,7 +72,7 @@ def wall_s(rec: Record) -> float:
 
 def event_s(rec: Record) -> float | None:
     ev = events_of(rec.time)
-    return float(ev["median_s"]) if ev and ev.get("median_s") else None
+    return float(ev.median_s) if ev and ev.median_s else None
 
 
 def throughput_s(rec: Record) -> float | None:
