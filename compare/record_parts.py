@@ -104,6 +104,20 @@ class Regime(Part):
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
+class OwnTimer(Part):
+    """The framework's own timer of one call, alternated with ours (``compare.worker.own_latency``)."""
+    tool: str | None = None
+    median_s: float | None = None          # the tool's figure
+    calls: int | None = None
+    block: int | None = None               # calls per mean in the tool's statistic
+    ours_s: float | None = None            # our clock in the tool's statistic, same stretches
+    ours_call_s: float | None = None       # our latency statistic in those stretches
+    ratio: float | None = None             # median of the rounds' ours / theirs
+    rounds: int | None = None
+    failed: str | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
 class Timing(Part):
     """A cell's ``time`` block: the first call, the latency (the block's own median, iqr, min),
     the other regimes, and how the clocks were set up (docs/measurement.md)."""
@@ -122,7 +136,7 @@ class Timing(Part):
     throughput: Regime | None = None
     graph: Regime | None = None
     null: Regime | None = None
-    own_timer: Mapping[str, Any] | None = None
+    own_timer: OwnTimer | None = None
     setup_s: float | None = None
     download_s: float | None = None
     clock: str | None = None
@@ -134,8 +148,8 @@ class Timing(Part):
     processes: Mapping[str, Any] | None = None   # over several worker processes (compare.repeats)
     phases: Mapping[str, float] | None = None
     host_profile: Mapping[str, Any] | None = None  # where the host's time per call goes (--host-profile)
-    NESTED: ClassVar[Mapping[str, type[Part]]] = {k: Regime for k in ("wall", "events", "latency", "throughput",
-                                                                         "graph", "null")}
+    NESTED: ClassVar[Mapping[str, type[Part]]] = {**{k: Regime for k in ("wall", "events", "latency", "throughput",
+                                                                           "graph", "null")}, "own_timer": OwnTimer}
 
     def regime(self, name: str) -> Regime | None:
         """A regime by name ('latency', 'throughput', 'graph', 'null', 'events')."""
@@ -203,4 +217,4 @@ class Hardware(Part):
 PARTS: Mapping[str, type[Part]] = {"time": Timing, "error": Check, "memory": Memory, "gradient": Gradient,
                                    "hardware": Hardware}
 
-__all__ = ["Check", "Gradient", "Hardware", "Memory", "PARTS", "Part", "Regime", "Timing", "frozen", "plain"]
+__all__ = ["Check", "Gradient", "Hardware", "Memory", "OwnTimer", "PARTS", "Part", "Regime", "Timing", "frozen", "plain"]

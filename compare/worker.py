@@ -31,7 +31,7 @@ from backends.base import OWN_TIMER_S, Backend, Device
 from compare import noise, phases, scaleout, timing
 from compare.gate import Gate
 from compare.nvml import open_nvml
-from compare.record_parts import Check, Gradient, Memory, Regime, Timing, plain
+from compare.record_parts import Check, Gradient, Memory, OwnTimer, Regime, Timing, plain
 from compare.spec import BUSY_TAG, Cell
 from compare.store import jsonable
 from scenarios.base import Precision
@@ -109,7 +109,7 @@ def in_blocks(times: list[float], block: int) -> float:
     return float(np.median(means))
 
 
-def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> dict[str, Any] | None:
+def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> OwnTimer | None:
     """The framework's own timing of one call + synchronise (``Backend.own_latency``) alternated
     with our latency clock over the same call, ``CROSS_ROUNDS`` stretches each, so the two are
     compared in the same minutes of the process, and in the same statistic (a timer's median of
@@ -129,10 +129,10 @@ def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> dict[str, A
             per_call.append(float(np.median(times)))
             ratios.append(ours[-1] / theirs[-1])
     except Exception as exc:  # a cross-check failing is a note, never the cell
-        return {"failed": f"{type(exc).__name__}: {str(exc).strip()[:200]}"}
-    return {**last, "median_s": float(np.median(theirs)), "ours_s": float(np.median(ours)),
-            "ours_call_s": float(np.median(per_call)), "ratio": float(np.median(ratios)),
-            "rounds": CROSS_ROUNDS}
+        return OwnTimer.of(failed=f"{type(exc).__name__}: {str(exc).strip()[:200]}")
+    return OwnTimer.from_json({**last, "median_s": float(np.median(theirs)), "ours_s": float(np.median(ours)),
+                               "ours_call_s": float(np.median(per_call)), "ratio": float(np.median(ratios)),
+                               "rounds": CROSS_ROUNDS})
 
 
 def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, Any]) -> str | None:
