@@ -19,6 +19,7 @@ from compare import colors
 from compare.record import Record
 from compare.site import data, provenance, ranking
 from compare.site.data import Machine, Timing
+from scenarios.base import Precision
 
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
 NOT_SAME_WORK = ("fastmath",)
@@ -127,7 +128,7 @@ def latest(recs: list[Record]) -> list[Record]:
     return list(seen.values())
 
 
-def _pool(m: Machine, device: str, scenario: str, precision: str = "float32",
+def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precision.FLOAT32,
           sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling")) -> list[Record]:
     return latest([r for r in m.records if r.device == device and r.scenario == scenario
                    and r.precision == precision and data.tag(r, "sweep") in sweep
@@ -147,7 +148,7 @@ def _largest(recs: list[Record]) -> list[Record]:
     return [r for r in recs if data.size(r) == top]
 
 
-def defaults_of(scenario: str, precision: str = "float32") -> Callable[[Machine, str], list[Record]]:
+def defaults_of(scenario: str, precision: Precision = Precision.FLOAT32) -> Callable[[Machine, str], list[Record]]:
     def pick(m: Machine, device: str) -> list[Record]:
         return [r for r in _pool(m, device, scenario, precision, (None,)) if data.at_defaults(r)]
     return pick
@@ -156,7 +157,7 @@ def defaults_of(scenario: str, precision: str = "float32") -> Callable[[Machine,
 def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling")
                ) -> Callable[[Machine, str], list[Record]]:
     def pick(m: Machine, device: str) -> list[Record]:
-        return _largest(_pool(m, device, scenario, "float32", sweep))
+        return _largest(_pool(m, device, scenario, Precision.FLOAT32, sweep))
     return pick
 
 

@@ -14,6 +14,7 @@ from typing import Any, Mapping
 from compare.record import Record
 from compare.report import fmt_bytes
 from compare.sweep.rows import need, ok, timed, wall_s
+from scenarios.base import Precision
 
 OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
 BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
@@ -45,7 +46,7 @@ def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
     return best
 
 
-def launch_wall(records: list[Record], backend: str, device: str, precision: str) -> float | None:
+def launch_wall(records: list[Record], backend: str, device: str, precision: Precision) -> float | None:
     hits = ok(records, sweep="bandwidth", role="launch", backend=backend, device=device, precision=precision)
     return wall_s(hits[-1]) if hits else None
 

@@ -18,6 +18,7 @@ from compare.sweep import horizon
 from compare.sweep.metrics import ERROR_FLOOR, device_bytes, error_points, gbps, launch_wall, roofline
 from compare.sweep.page import error_scenarios, plot_key, swept, with_role
 from compare.sweep.rows import event_s, knob, label, need, ok, wall_s
+from scenarios.base import Precision
 
 MARKERS = {"float64": "o", "float32": "^"}
 
@@ -105,7 +106,7 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
             if any(event_s(r) for r in mine):
                 ax.plot(x, [gbps(need(r, "work")["bytes"], event_s(r) or math.nan) for r in mine], "-.x",
                         color=c, ms=5, label=f"{backend}{tag} (CUDA events)")
-            lw = launch_wall(records, backend, device, prec)
+            lw = launch_wall(records, backend, device, Precision(prec))
             if lw:
                 ax.plot(x, [b / lw / 1e9 for b in x], ":", color=c, lw=1,
                         label=f"{backend}{tag}: bytes / launch time")
