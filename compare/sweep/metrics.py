@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, TypedDict
 
 from compare.record import Record
 from compare.report import fmt_bytes
@@ -27,7 +27,33 @@ def gbps(nbytes: float, seconds: float) -> float:
     return nbytes / seconds / 1e9 if seconds > 0 else math.nan
 
 
-def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
+class Roofline(TypedDict):
+    """A device's copy roofline and where it comes from."""
+    gbps: float
+    backend: str            # 'hardware yardstick', or the backend whose copy was fastest
+    precision: str
+    n: Any                  # the copy's size, or how the yardstick copied
+    clock: str
+
+
+class BandwidthRow(TypedDict):
+    gbps: float
+    wall_gbps: float
+    roof_share: float | None
+    launch_share: float | None
+    regime: str
+
+
+class ErrorPoint(TypedDict, total=False):
+    """One error-sweep cell on the time-against-error plane, with its Pareto flags."""
+    rec: Record
+    time: float
+    error: float
+    front_backend: bool     # on its backend's own front
+    front_all: bool         # on the front of every backend
+
+
+def roofline(records: list[Record], device: str) -> Roofline | None:
     """The copy roofline of ``device``: the same-run hardware yardstick (a driver memcpy that no
     contestant controls; ``compare/hardware.py``) where the records carry it; for files made
     before it existed, the best copy bandwidth of any backend (primary clock), so labelled."""
@@ -36,7 +62,7 @@ def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
     if hw:
         return {"gbps": hw["copy_bytes_per_s"] / 1e9, "backend": "hardware yardstick",
                 "precision": "bytes", "n": hw.get("copy_how", ""), "clock": "same-run"}
-    best = None
+    best: Roofline | None = None
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
         t = timed(r)
         bw = gbps(need(r, "work")["bytes"], t.median_s)
@@ -61,7 +87,7 @@ def regime(launch_share: float | None, roof_share: float | None) -> str:
     return "mixed" if launch_share is not None and roof_share is not None else "-"
 
 
-def bandwidth_row(rec: Record, records: list[Record]) -> dict[str, Any]:
+def bandwidth_row(rec: Record, records: list[Record]) -> BandwidthRow:
     """Achieved GB/s, % of the copy roofline, launch share and regime of one bandwidth cell."""
     nbytes = need(rec, "work")["bytes"]
     bw = gbps(nbytes, timed(rec).median_s)
@@ -83,9 +109,9 @@ def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
     return flags
 
 
-def error_points(records: list[Record], device: str, scenario: str) -> list[dict[str, Any]]:
+def error_points(records: list[Record], device: str, scenario: str) -> list[ErrorPoint]:
     """Time-against-error points (ok cells with a finite error), with Pareto flags."""
-    pts: list[dict[str, Any]] = []
+    pts: list[ErrorPoint] = []
     for r in ok(records, sweep="error", device=device, scenario=scenario):
         e = (r.converged or {}).get("error")
         if isinstance(e, (int, float)) and math.isfinite(e):

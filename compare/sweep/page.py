@@ -231,9 +231,10 @@ def _launch_section(records, d) -> list[str]:
 
 def _error_section(records, d, s) -> str:
     rec = error_points(records, d, s)[0]["rec"]
-    ref = rec.converged.get("reference", {})
+    conv = need(rec, "converged")         # an error point has its converged error
+    ref = conv.get("reference", {})
     refline = "; ".join(f"{k} = {fmt_num(v) if not isinstance(v, str) else v}" for k, v in ref.items())
-    return (f"### {s}\n\nError: {rec.converged['metric']}. Reference: {refline}.\n\n"
+    return (f"### {s}\n\nError: {conv['metric']}. Reference: {refline}.\n\n"
             "Fastest at each accuracy (the Pareto front over all backends; rows whose "
             "times differ by less than their IQRs are ties):\n\n"
             f"{front_table(records, d, s)}\nAll cells:\n\n{error_table(records, d, s)}")
