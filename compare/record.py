@@ -18,6 +18,10 @@ version below and saves the newest; users load these files with pandas, so keys 
       ``{"runs", "records"}``, ``stress.json`` ``{"environment", "provenance", "rows", "series"}``.
       Each suite's format upgrades its records (``compare.formats``).
 
+The measured blocks are typed parts (``compare.record_parts``: ``Timing`` with its ``Regime``s,
+``Check``, ``Memory``, ``Gradient``, ``Hardware``), built by the worker where it measures them and
+read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
+
 ``Record.from_json`` is the one validating loader: every record a reader sees (report, resume,
 merge, the site, the sweep and stress pages) and every record the engine stores went through it,
 so each field a later step formats, compares, divides or indexes has its type and range

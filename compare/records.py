@@ -7,7 +7,9 @@ suite, stress's own file and ``site``) and every record the engine stores is bui
 is written. The first problem becomes one line naming the file, the record (or run, or finding)
 and the field. Every field that a reader formats, compares, sorts, divides or indexes is checked
 here for type and range; fields no reader looks at (``info``, ``versions``, a run's ``backends``)
-pass through untouched. The stored format does not change: this module only refuses.
+pass through untouched. The stored format does not change: this module only refuses. It knows no
+suite: a suite's own checks (what the sweep page indexes, what the stress page parses) belong to
+its ``Format``, registered in ``compare.formats``, which ``Store.read`` applies after these.
 
 A record's parameters are checked by its scenario (``Scenario.params``: the types and ranges a
 run accepts), so a size no run could have used never reaches a reader. ``arrays_problem`` guards the
