@@ -11,6 +11,7 @@ is told at the top of ``compare.record``; ``compare.records`` checks it before a
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import types
 from typing import Any, ClassVar, Iterator, Mapping, Self
@@ -36,6 +37,12 @@ def plain(v: Any) -> Any:
     return v
 
 
+@functools.cache
+def _names(cls: type) -> frozenset[str]:
+    """A part's field names (its JSON keys that are typed), once per class."""
+    return frozenset(f.name for f in dataclasses.fields(cls)) - {"extra", "layout"}
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Part(Mapping[str, Any]):
     """A JSON object with named, typed fields. ``layout`` is the object's keys in their order
@@ -46,7 +53,7 @@ class Part(Mapping[str, Any]):
 
     @classmethod
     def names(cls) -> frozenset[str]:
-        return frozenset(f.name for f in dataclasses.fields(cls)) - {"extra", "layout"}
+        return _names(cls)
 
     @classmethod
     def from_json(cls, obj: Mapping[str, Any]) -> Self:
