@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from compare import repeats
 from compare.record import Record
 from compare.site import data, fmt, matrix, pages, questions, ranking
 
@@ -30,13 +31,15 @@ def rec(backend: str, scenario: str = "saxpy", *, status: str = "ok", time: dict
                   time=time, **fields)
 
 
-def latency(median: float, ci: tuple[float, float] | None = None, n: int = 5) -> dict[str, Any]:
-    """A record's time block: the latency regime, and its median across ``n`` processes."""
+def latency(median: float, ci: tuple[float, float] | None = None, n: int = 6) -> dict[str, Any]:
+    """A record's time block: the latency regime, and its median across ``n`` processes (the
+    interval's confidence as compare.repeats.interval states it)."""
     t: dict[str, Any] = {"median_s": median, "iqr_s": 0.0, "repeats": 100,
                          "latency": {"median_s": median, "iqr_s": 0.0, "repeats": 100}}
     if ci is not None:
-        t["processes"] = {"latency": {"values": [median] * n, "median_s": median,
-                                      "ci_lo_s": ci[0], "ci_hi_s": ci[1]}}
+        cover = repeats.interval([float(i) for i in range(n)])[2]
+        t["processes"] = {"count": n, "latency": {"values": [median] * n, "median_s": median,
+                                                  "ci_lo_s": ci[0], "ci_hi_s": ci[1], "confidence": cover}}
     return t
 
 
@@ -71,7 +74,7 @@ def test_intervals_apart_and_five_percent_name_a_best():
     assert r.best == "warp" and r.tied == ("warp",)
     assert r.verdict.startswith("Best: warp") and "separated from cupy (1.1×; 95 % intervals apart" in r.verdict
     assert r.cells["cupy"].band == "near" and not r.cells["cupy"].tied      # 1.10x, but separated
-    assert r.cells["warp"].ci == (9.9e-6, 10.1e-6) and r.cells["warp"].processes == 5
+    assert r.cells["warp"].ci == (9.9e-6, 10.1e-6) and r.cells["warp"].processes == 6
 
 
 # ---- no intervals: the one-process gap ------------------------------------------------------
@@ -88,7 +91,7 @@ def test_one_interval_is_not_enough():
     r = row("latency", [rec("warp", time=latency(10e-6, (9.9e-6, 10.1e-6))), rec("cupy", time=latency(13e-6))])
     assert r.tied == ("warp", "cupy")
     r = row("latency", [rec("warp", time=latency(10e-6, (9.9e-6, 10.1e-6))), rec("cupy", time=latency(17e-6))])
-    assert r.best == "warp" and "one-process figures need 1.6×" in r.verdict
+    assert r.best == "warp" and "figures without a 95 % interval need 1.6×" in r.verdict
 
 
 def test_separation_rule_constants():
@@ -196,7 +199,8 @@ def test_first_call_uses_the_median_of_cold_processes():
     procs = {"first_result": {"values": [1.3, 1.5, 1.7], "median_s": 1.5, "ci_lo_s": 1.3, "ci_hi_s": 1.7,
                               "confidence": 0.75}}
     t = data.first_result(first("jax", 0.5, 3.0, procs))
-    assert t.median == pytest.approx(1.5) and t.processes == 3 and t.ci == pytest.approx((1.3, 1.7))
+    assert t.median == pytest.approx(1.5) and t.processes == 3 and (t.lo, t.hi) == pytest.approx((1.3, 1.7))
+    assert t.ci is None           # 3 processes: the range covers the median with 75 %, no 95 % interval
     one = data.first_result(first("jax", 0.5, 3.0))
     assert one.median == pytest.approx(3.5) and one.processes == 1 and one.ci is None
 
@@ -289,3 +293,21 @@ def test_the_markdown_legend_and_the_html_classes_name_the_same_bands():
         assert r.cells["cupy"].band == band
         assert f"{colors.BAND[band].emoji} {fmt.ratio(ratio)}" in pages.matrix_md([r], ["warp", "cupy"])
         assert f'class="cell {band}"' in pages.matrix_html([r], ["warp", "cupy"])
+
+
+def test_interval_below_confidence_separates_nothing():
+    """Two processes' range covers the median with 50 %: apart ranges 1.3x apart are no ranking."""
+    r = row("latency", [rec("warp", time=latency(10e-6, (9.9e-6, 10.1e-6), n=2)),
+                        rec("cupy", time=latency(13e-6, (12.9e-6, 13.1e-6), n=2))])
+    assert r.best is None and r.tied == ("warp", "cupy")
+    assert "figures without a 95 % interval within 1.3×" in r.verdict
+    far = row("latency", [rec("warp", time=latency(10e-6, (9.9e-6, 10.1e-6), n=2)),
+                          rec("cupy", time=latency(17e-6, (16.9e-6, 17.1e-6), n=2))])
+    assert far.best == "warp"
+
+
+def test_latest_prefers_the_repeated_record():
+    """Of two records of one cell, the one timed in more processes is the row's, whatever the order."""
+    one = rec("warp", time=latency(5e-6))
+    six = rec("warp", time=latency(10e-6, (9e-6, 11e-6)))
+    assert matrix.latest([six, one]) == [six] and matrix.latest([one, six]) == [six]

@@ -191,6 +191,12 @@ def first_result(rec: Record) -> Timing | None:
 PROCESS_SPREAD = 0.10       # a median whose interval strays further than this is noisy
 
 
+def process_count(rec: Record) -> int:
+    """How many worker processes timed the record's cell (1 for a record without repeats)."""
+    n = ((rec.time.processes if rec.time else None) or {}).get("count")
+    return n if isinstance(n, int) and not isinstance(n, bool) else 1
+
+
 def across_processes(rec: Record, regime: str) -> Timing | None:
     """The regime's figure over several worker processes (``time.processes``; 'first' is the time
     to first result, set-up + first call), or None for a one-process record. The bounds are the
@@ -209,7 +215,10 @@ def across_processes(rec: Record, regime: str) -> Timing | None:
                    "of the median")
     if cover < repeats.CONFIDENCE:
         why.append(f"{n} processes: interval at {100 * cover:.0f} % confidence")
-    return Timing(med, lo, hi, n, "; ".join(why), processes=n, ci=(lo, hi))
+    # an interval below the stated confidence (too few processes) separates nothing: the figure
+    # is ranked as a one-process figure, its range kept for the page
+    ci = (lo, hi) if cover >= repeats.CONFIDENCE else None
+    return Timing(med, lo, hi, n, "; ".join(why), processes=n, ci=ci)
 
 
 def per_call(rec: Record, regime: str) -> Timing | None:

@@ -115,24 +115,25 @@ class Row:
 
 # ---- record selection -------------------------------------------------------------------------
 def latest(recs: list[Record]) -> list[Record]:
-    """One record per framework, variant and size: the last stored (stores merge oldest first).
-    A parameter an older record lacks was added to its scenario since and the record ran at its
-    default, so its size is read with the scenario's defaults filled in (projectile's ``batch``)
-    and a newer record of the same cell replaces it."""
+    """One record per framework, variant and size: the one timed in the most worker processes
+    (published figures are the repeated ones), else the last stored (stores merge oldest first).
+    A parameter an older record lacks was added to its scenario since (it ran at the default): its
+    size is read with the scenario's defaults filled in (projectile's ``batch``)."""
     seen: dict[tuple[Any, ...], Record] = {}
     for r in recs:
         d = data.defaults(r.scenario)
         full = r if all(k in (r.params or {}) for k in d) else r.replace(params={**d, **(r.params or {})})
-        seen[(r.backend, r.scenario, r.device, r.precision, r.variant,
-              data.size(full), data.at_defaults(r))] = r
+        k = (r.backend, r.scenario, r.device, r.precision, r.variant, data.size(full), data.at_defaults(r))
+        seen[k] = r if k not in seen or data.process_count(r) >= data.process_count(seen[k]) else seen[k]
     return list(seen.values())
 
 
 def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precision.FLOAT32,
-          sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling")) -> list[Record]:
+          sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling"),
+          keep: Callable[[Record], bool] = lambda r: True) -> list[Record]:
     return latest([r for r in m.records if r.device == device and r.scenario == scenario
                    and r.precision == precision and data.tag(r, "sweep") in sweep
-                   and r.variant not in NOT_SAME_WORK])
+                   and r.variant not in NOT_SAME_WORK and keep(r)])
 
 
 def _largest(recs: list[Record]) -> list[Record]:
@@ -154,10 +155,10 @@ def defaults_of(scenario: str, precision: Precision = Precision.FLOAT32) -> Call
     return pick
 
 
-def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling")
-               ) -> Callable[[Machine, str], list[Record]]:
+def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling"),
+               keep: Callable[[Record], bool] = lambda r: True) -> Callable[[Machine, str], list[Record]]:
     def pick(m: Machine, device: str) -> list[Record]:
-        return _largest(_pool(m, device, scenario, Precision.FLOAT32, sweep))
+        return _largest(_pool(m, device, scenario, Precision.FLOAT32, sweep, keep))
     return pick
 
 

@@ -37,7 +37,7 @@ def gap(a: float, b: float) -> float:
 # the test that decided a pair, as the verdicts name it
 EQUAL, EXACT, INTERVALS, OVERLAP, ONE_PROCESS = (
     "equal figures", "deterministic figures", "95 % intervals apart", "95 % intervals overlap",
-    "one-process figures")
+    "figures without a 95 % interval")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,7 +52,7 @@ class Separation:
         return ONE_PROCESS_GAP if self.kind == ONE_PROCESS else SEPARATED_GAP
 
     def words(self) -> str:
-        """Why the pair is (not) separated, e.g. ``2.08×; one-process figures need 1.6×``."""
+        """Why the pair is (not) separated, e.g. ``2.08×; figures without a 95 % interval need 1.6×``."""
         if self.kind in (EQUAL, OVERLAP):
             return self.kind
         need = f"{self.needed:g}×" if self.kind == ONE_PROCESS else f"{100 * (self.needed - 1):.0f} %"
