@@ -23,6 +23,7 @@ import scenarios
 from compare import cells
 from compare.timing import BATCH_S
 from compare.spec import Cell
+from scenarios.base import Precision
 
 FACTOR = 64
 Refusal = Callable[[Cell], "tuple[str, str] | None"]
@@ -44,7 +45,7 @@ def protocol_calls(per_call: float, cell: Cell) -> float:
     return warm + steady + regime
 
 
-def _items(sc: Any, params: Any, precision: str) -> float:
+def _items(sc: Any, params: Any, precision: Precision) -> float:
     w = sc.work(params, precision)
     for k in ("items", "flops", "bytes"):
         if w.get(k):
@@ -54,7 +55,7 @@ def _items(sc: Any, params: Any, precision: str) -> float:
 
 def items(cell: Cell) -> float:
     """The cell's size in its scenario's work units (what a miniature scales down)."""
-    return _items(scenarios.get(cell.scenario), cell.params, str(cell.precision))
+    return _items(scenarios.get(cell.scenario), cell.params, cell.precision)
 
 
 def predict(cell: Cell, small: Cell, record: dict[str, Any]) -> tuple[float, float]:
@@ -62,7 +63,7 @@ def predict(cell: Cell, small: Cell, record: dict[str, Any]) -> tuple[float, flo
     record."""
     sc = scenarios.get(cell.scenario)
     t = record["time"]
-    ratio = _items(sc, cell.params, str(cell.precision)) / max(_items(sc, small.params, str(small.precision)), 1e-300)
+    ratio = _items(sc, cell.params, cell.precision) / max(_items(sc, small.params, small.precision), 1e-300)
     per_call = t["median_s"] * ratio
     compile_s = max(0.0, t["first_call_s"] - t["median_s"])
     return compile_s + per_call * (1 + protocol_calls(per_call, cell)), per_call

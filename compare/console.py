@@ -125,7 +125,7 @@ def noise_brief(records: list[Record]) -> list[str]:
         return []
     noisy = [r for r in records if r.status == "ok" and noise.reasons_for(r)]
     kinds = Counter(k for r in noisy for k in {_kind(x["why"]) for x in
-                                               ((r.time or {}).get("noise") or {}).get("reasons") or []})
+                                               ((r.time.noise if r.time else None) or {}).get("reasons") or []})
     why = ", ".join(f"{k} {n}" for k, n in kinds.most_common())
     head = (f"{noise.MARK} {len(noisy)} of {sum(r.status == 'ok' for r in records)} timed cells are noisy: "
             f"{why} (why: results.md)")

@@ -107,7 +107,7 @@ def verdict(t: dict[str, Any], host: dict[str, Any]) -> dict[str, Any]:
 
 def reasons_for(rec: Record, regime: str | None = None) -> list[str]:
     """The record's stored noise reasons that concern ``regime`` (all when None), as text."""
-    noise = (rec.time or {}).get("noise") or {}
+    noise = (rec.time.noise if rec.time else None) or {}
     out = []
     for r in noise.get("reasons") or []:
         if regime is None or r.get("regime") in ("", regime):

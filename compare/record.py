@@ -16,7 +16,11 @@ version below and saves the newest; users load these files with pandas, so keys 
       ``time.null``, ``time.own_timer``, ``time.processes`` (compare.repeats).
   1 - no ``format_version``: ``results.json`` is ``{"environment", "records"}``, ``sweep.json``
       ``{"runs", "records"}``, ``stress.json`` ``{"environment", "provenance", "rows", "series"}``.
-      Each suite's module registers its record upgrade (``compare.store.UPGRADES``).
+      Each suite's format upgrades its records (``compare.formats``).
+
+The measured blocks are typed parts (``compare.record_parts``: ``Timing`` with its ``Regime``s,
+``Check``, ``Memory``, ``Gradient``, ``Hardware``), built by the worker where it measures them and
+read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
 
 ``Record.from_json`` is the one validating loader: every record a reader sees (report, resume,
 merge, the site, the sweep and stress pages) and every record the engine stores went through it,
@@ -31,7 +35,9 @@ import types
 from typing import Any, Callable, Mapping
 
 from compare import records
+from compare.record_parts import PARTS, Check, Gradient, Hardware, Memory, Part, Regime, Timing, plain
 from compare.spec import key as cell_key
+from scenarios.base import Precision
 
 FORMAT_VERSION = 2
 Block = Mapping[str, Any]      # a read-only JSON object; its lists are tuples
@@ -53,13 +59,6 @@ def _freeze(v: Any, field: str, depth: int = 1) -> Any:
     return v
 
 
-def plain(v: Any) -> Any:
-    """A record's value as plain JSON types (dicts and lists), e.g. to ``json.dumps`` it."""
-    if isinstance(v, Mapping):
-        return {k: plain(x) for k, x in v.items()}
-    if isinstance(v, tuple):
-        return [plain(x) for x in v]
-    return v
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,22 +68,22 @@ class Record:
     # identity: the same cell run twice has one ``key``
     scenario: str
     backend: str
-    device: str
-    precision: str
+    device: str                         # a name: a file may hold a device this version lacks
+    precision: Precision
     status: str                         # ok | mismatch | error | skipped
     variant: str = "default"
     params: Block | None = None         # the scenario's resolved parameters
     tags: Block | None = None           # a suite's own identity of the cell (sweep kind, role, knob)
     reason: str = ""                    # why not ok ('' when ok)
     # what was measured, when the cell ran
-    time: Block | None = None           # first call, latency, throughput and graph regimes, noise
-    error: Block | None = None          # against the float64 oracle and the reference backend
+    time: Timing | None = None          # first call, latency, throughput and graph regimes, noise
+    error: Check | None = None          # against the float64 oracle and the reference backend
     work: Block | None = None           # bytes, items, flops per call
     throughput: Block | None = None     # work per second; the hardware floor and fraction
-    memory: Block | None = None         # peak host RSS, device bytes
-    gradient: Block | None = None       # how a gradient was obtained and its errors
+    memory: Memory | None = None        # peak host RSS, device bytes
+    gradient: Gradient | None = None    # how a gradient was obtained and its errors
     converged: Block | None = None      # the error sweep's distance to a converged reference
-    hardware: Block | None = None       # the yardstick the cell was judged against
+    hardware: Hardware | None = None    # the yardstick the cell was judged against
     info: Block | None = None           # the kernel's own notes
     versions: Block | None = None       # the framework's packages
     host: str | None = None
@@ -101,21 +100,31 @@ class Record:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             # a key this version does not name is refused by its own name
+            if isinstance(v, Part):
+                continue
             v = (types.MappingProxyType({k: _freeze(x, records.show_key(k)) for k, x in v.items()})
                  if f.name == "extra" else _freeze(v, f.name))
+            if f.name in PARTS and isinstance(v, Mapping):     # a typed part, from its JSON
+                v = PARTS[f.name].from_json(v)
             object.__setattr__(self, f.name, v)
+        if not isinstance(self.precision, Precision):     # checked on load (compare.records)
+            object.__setattr__(self, "precision", Precision(self.precision))
         if not self.layout:         # built in code: the fields it has, in declaration order
             have = tuple(f for f in NAMED if getattr(self, f) is not None)
             object.__setattr__(self, "layout", have + tuple(self.extra))
 
     @classmethod
-    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None) -> Record:
+    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+                  check: Callable[[dict[str, Any]], str | None] | None = None) -> Record:
         """The record a JSON object holds, validated; ``upgrade`` turns an older format's record
-        into today's (applied once its basic shape is known good)."""
+        into today's (applied once its basic shape is known good), ``check`` is its suite's own
+        check (``compare.formats``) after the common schema's."""
         problem = records.shape_problem(obj)
         if problem is None and upgrade is not None:
             obj = upgrade(obj)
         problem = problem or records.record_problem(obj)
+        if problem is None and check is not None:
+            problem = check(obj)
         if problem is not None:
             raise RecordError(problem)
         named = {k: v for k, v in obj.items() if k in NAMED}
@@ -146,4 +155,5 @@ class Record:
 
 NAMED = tuple(f.name for f in dataclasses.fields(Record) if f.name not in ("extra", "layout"))
 
-__all__ = ["Block", "FORMAT_VERSION", "Record", "RecordError", "plain"]
+__all__ = ["Block", "Check", "FORMAT_VERSION", "Gradient", "Hardware", "Memory", "Record", "RecordError", "Regime",
+           "Timing", "plain"]

@@ -7,7 +7,9 @@ suite, stress's own file and ``site``) and every record the engine stores is bui
 is written. The first problem becomes one line naming the file, the record (or run, or finding)
 and the field. Every field that a reader formats, compares, sorts, divides or indexes is checked
 here for type and range; fields no reader looks at (``info``, ``versions``, a run's ``backends``)
-pass through untouched. The stored format does not change: this module only refuses.
+pass through untouched. The stored format does not change: this module only refuses. It knows no
+suite: a suite's own checks (what the sweep page indexes, what the stress page parses) belong to
+its ``Format``, registered in ``compare.formats``, which ``Store.read`` applies after these.
 
 A record's parameters are checked by its scenario (``Scenario.params``: the types and ranges a
 run accepts), so a size no run could have used never reaches a reader. ``arrays_problem`` guards the
@@ -272,39 +274,9 @@ def record_problem(rec: dict[str, Any]) -> str | None:
     if rec["status"] in ("ok", "mismatch") and rec.get("error") is not None:
         if (p := problem(CHECKED_ERROR, rec["error"], "error")) is not None:
             return f"{p} (a checked {rec['status']} record holds its distance to the oracle and the tolerance)"
-    return _sweep_problem(rec)
-
-
-def _sweep_problem(rec: dict[str, Any]) -> str | None:
-    """What the sweep page and plots index directly in an ok, timed record of each sweep kind."""
-    from compare.sweep.points import sweeps
-    tags = rec.get("tags") or {}
-    knob = tags.get("knob") or {}
+    knob = (rec.get("tags") or {}).get("knob") or {}
     if knob.get("value") is not None and knob.get("name") is None:
         return "tags.knob.name must be a string where tags.knob.value is set"
-    if rec["status"] != "ok" or not rec.get("time"):
-        return None
-    kind, role = tags.get("sweep"), tags.get("role")
-    labels = sweeps(rec["scenario"]).labels
-    need: list[tuple[str, Any]] = []
-    if kind == "bandwidth" and role in ("copy", "bandwidth"):
-        need += [("work.bytes", POSITIVE), ("params.n", POSITIVE)]
-    if kind == "bandwidth" and role == "bandwidth" or kind in ("scaling", "horizon"):
-        need.append(("tags.knob.value", POSITIVE))          # sorted by, and a log axis of
-    if kind == "scaling":
-        need += [("error", Obj(null=False)), ("memory.peak_host_rss_bytes", AMOUNT),
-                 (f"work.{labels.get('rate_work', 'items')}", AMOUNT)]
-        need += [(f"params.{labels['per_run']}", AMOUNT)] if labels.get("per_run") else []
-    if kind == "horizon":
-        need += [("error", Obj(null=False)), ("variant", TEXT), ("params", Obj(null=False))]
-    for path, node in need:
-        v: Any = rec
-        for part in path.split("."):
-            if not isinstance(v, dict) or part not in v:
-                return f"{path} is missing (an ok {kind} sweep record, role {role}, needs it)"
-            v = v[part]
-        if (p := problem(node, v, path)) is not None:
-            return p
     return None
 
 
@@ -342,25 +314,19 @@ def store_problem(data: dict[str, Any]) -> str | None:
             return p
     if (p := problem(ANALYSIS, data["analysis"], "analysis")) is not None:
         return p
-    return _rows_problem(data["analysis"].get("rows") or [])
-
-
-def _rows_problem(rows: list[dict[str, Any]]) -> str | None:
-    """A finding its experiment's own page hooks cannot read (a setting they parse)."""
-    if not rows:
-        return None
-    from compare.stress.registry import experiments
-    registry = experiments()
-    for i, r in enumerate(rows):
-        exp = registry.get(r["experiment"])
-        for hook in (exp.extra_markdown, exp.table_rows) if exp is not None else ():
-            try:
-                if hook is not None:
-                    hook([r])
-            except Exception as exc:    # the hook is the experiment's: any failure is this row's
-                why = f"{type(exc).__name__}: {show(str(exc))}"
-                return f"analysis.rows[{i}]: the {show(r['experiment'])} page cannot read this finding ({why})"
     return None
+
+
+# ---- a suite's format ------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class Format:
+    """A suite's results file: its name, the upgrade of a format-1 record to today's shape, and
+    the suite's own checks on top of this module's (registered in ``compare.formats``)."""
+    suite: str
+    file: str
+    upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    record_problem: Callable[[dict[str, Any]], str | None] | None = None   # one record, as loaded
+    store_problem: Callable[[dict[str, Any]], str | None] | None = None    # the file's runs and analysis
 
 
 # ---- saved arrays -----------------------------------------------------------------------------
@@ -388,4 +354,4 @@ def arrays_problem(rec: Mapping[str, Any], headers: dict[str, tuple[tuple[int, .
     return None
 
 
-__all__ = ["arrays_problem", "problem", "record_problem", "shape_problem", "show", "store_problem"]
+__all__ = ["Format", "arrays_problem", "problem", "record_problem", "shape_problem", "show", "store_problem"]

@@ -95,7 +95,7 @@ def plan(processes: int | str) -> tuple[int, int]:
     return n, n
 
 
-def run_rounds(first: dict[int, Mapping[str, Any]], processes: int | str, seed: int,
+def run_rounds(first: Mapping[int, Mapping[str, Any]], processes: int | str, seed: int,
                time_one: Callable[[int], Mapping[str, Any] | None],
                on_round: Callable[[dict[int, dict[str, Any]]], None]) -> dict[int, dict[str, Any]]:
     """More processes for the cells in ``first`` (index -> the first process's ``time`` block):

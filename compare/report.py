@@ -10,7 +10,7 @@ from typing import Any, Iterable, Mapping
 from tabulate import tabulate
 
 from compare import noise, timing
-from compare.record import Record
+from compare.record import Record, Regime, Timing
 from compare.results_csv import csv_text, params_text
 from compare.store import atomic_write, run_environments
 
@@ -65,17 +65,17 @@ def fmt_bytes(b: Any) -> str:
 
 
 def row(rec: Record) -> list[str]:
-    t = rec.time or {}
+    t = rec.time
     # the same clock for every backend: wall clock around run() + synchronize (latency), k calls
     # and one synchronize (throughput); where the framework offers device events their median is
     # shown in its own column
-    lat = t.get("latency") or t.get("wall") or t
-    thr, graph = t.get("throughput") or {}, t.get("graph") or {}
-    e = rec.error or {}
+    lat: Regime | Timing | None = (t.latency or t.wall or t) if t else None
+    thr, graph = (t.throughput, t.graph) if t else (None, None)
+    e = rec.error
     note = rec.reason
-    if rec.status == "ok" and e.get("ill_conditioned"):
-        note = f"{e['ill_conditioned']} ill-conditioned particles not checked"
-    checked = e.get("checked_items")
+    if rec.status == "ok" and e and e.ill_conditioned:
+        note = f"{e.ill_conditioned} ill-conditioned particles not checked"
+    checked = e.checked_items if e else None
     if rec.status in ("ok", "mismatch") and isinstance(checked, str) and checked != "all":
         note = "; ".join(filter(None, [note, f"oracle checked {checked}"]))
     if rec.status == "ok" and noise.reasons_for(rec):
@@ -87,14 +87,16 @@ def row(rec: Record) -> list[str]:
     def mark(regime: str) -> str:
         return NOISY_MARK if noise.reasons_for(rec, regime) else ""
     return [rec.backend, device, rec.precision, rec.variant,
-            rec.status, fmt_time(t.get("first_call_s")), fmt_time(lat.get("median_s")) + mark("latency"),
-            fmt_time(lat.get("iqr_s")), fmt_time(lat.get("min_s")),
-            fmt_time((timing.events_of(t) or {}).get("median_s")),
-            fmt_time(thr.get("median_s")) + mark("throughput"), fmt_time(thr.get("host_s")),
-            fmt_time(graph.get("median_s")) + mark("graph"),
+            rec.status, fmt_time(t.first_call_s if t else None),
+            fmt_time(lat.median_s if lat else None) + mark("latency"),
+            fmt_time(lat.iqr_s if lat else None), fmt_time(lat.min_s if lat else None),
+            fmt_time(ev.median_s if (ev := timing.events_of(t)) else None),
+            fmt_time(thr.median_s if thr else None) + mark("throughput"), fmt_time(thr.host_s if thr else None),
+            fmt_time(graph.median_s if graph else None) + mark("graph"),
             f"{hw:.2g} ({kind})" if isinstance(hw, (int, float)) else "-",
-            fmt_bytes((rec.memory or {}).get("device_bytes")),
-            fmt_num(e.get("vs_oracle")), fmt_num(e.get("tolerance")), fmt_num(e.get("vs_reference")),
+            fmt_bytes(rec.memory.device_bytes if rec.memory else None),
+            fmt_num(e.vs_oracle if e else None), fmt_num(e.tolerance if e else None),
+            fmt_num(e.vs_reference if e else None),
             fmt_gradient(rec), note]
 
 
@@ -145,10 +147,10 @@ def _median(rec: Record) -> float:
 def _noisy(rec: Record) -> bool:
     """The cell's figures are not to be read as they stand: a stored noise reason (any regime),
     or the summary's own regime spread too wide or too few repeats."""
-    t = rec.time or {}
+    t = rec.time
     regime = call_time(rec)[2]
-    part = t.get("throughput") if regime == "throughput" else t
-    return bool(noise.reasons_for(rec) or noise.regime_reasons(part) or (t.get("noise") or {}).get("noisy"))
+    part = (t.throughput if regime == "throughput" else t) if t else None
+    return bool(noise.reasons_for(rec) or noise.regime_reasons(part) or ((t.noise if t else None) or {}).get("noisy"))
 
 
 def _interval(rec: Record) -> tuple[float, float]:
@@ -156,7 +158,7 @@ def _interval(rec: Record) -> tuple[float, float]:
     measured it (``time.processes.<regime>``), else the median's quartile range."""
     _, iqr, regime = call_time(rec)
     med = _median(rec)
-    procs = (rec.time or {}).get("processes")
+    procs = rec.time.processes if rec.time else None
     part = procs.get(regime) if isinstance(procs, Mapping) else None
     if isinstance(part, Mapping):
         lo, hi = part.get("ci_lo_s"), part.get("ci_hi_s")
@@ -225,7 +227,7 @@ def compact(records: list[Record], brief: bool = False) -> list[list[str]]:
         cut = cells[-1].find("noisy: ")
         if brief and cut >= 0 and r.status == "ok" and noise.reasons_for(r):
             cells[-1] = cells[-1][:cut].rstrip("; ")
-        ill = (r.error or {}).get("ill_conditioned")
+        ill = r.error.ill_conditioned if r.error else None
         if brief and ill:               # one line of the note column (results.md has the words)
             cells[-1] = cells[-1].replace(f"{ill} ill-conditioned particles not checked", f"{ill} ill-cond. unchecked")
         out.append([" ".join([r.backend, full[1], r.precision.replace("float", "f"), full[3]])] + cells)
@@ -342,10 +344,11 @@ def write_tables(out: Path, environment: dict[str, Any], records: list[Record],
 def call_time(rec: Record) -> tuple[float | None, float | None, str]:
     """(median, IQR, regime) of one call: the throughput regime (k calls, one synchronize), or
     the cell's own clock where it has no throughput regime."""
-    t = rec.time or {}
-    raw = t.get("throughput")
-    thr: Mapping[str, Any] = raw if isinstance(raw, Mapping) else {}
-    if isinstance(thr.get("median_s"), (int, float)):
-        return thr["median_s"], thr.get("iqr_s"), "throughput"
-    med = t.get("median_s")
-    return (med if isinstance(med, (int, float)) else None), t.get("iqr_s"), "latency"
+    t = rec.time
+    if t is None:
+        return None, None, "latency"
+    thr = t.throughput
+    if thr is not None and isinstance(thr.median_s, (int, float)):
+        return thr.median_s, thr.iqr_s, "throughput"
+    med = t.median_s
+    return (med if isinstance(med, (int, float)) else None), t.iqr_s, "latency"

@@ -54,8 +54,8 @@ def tidy(rec: Record) -> dict[str, Any]:
             out[col] = "; ".join(noise.reasons_for(rec))
             continue
         if col == "events_median_s":
-            t = rec.time or {}
-            out[col] = (timing.events_of(t) or {}).get("median_s", "")
+            ev = timing.events_of(rec.time)
+            out[col] = ev.median_s if ev and "median_s" in ev else ""
             continue
         assert path is not None, col         # every column without a path is handled above
         v: Any = getattr(rec, path[0])

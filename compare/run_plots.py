@@ -7,7 +7,7 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -31,10 +31,10 @@ def plot_time_vs_error(records: list[Record], path: Path) -> None:
                                  layout="constrained")
         for ax, (scenario, recs) in zip(axes.flat, groups.items()):
             for r in recs:
-                c, err = cmap[r.backend], (r.error or {}).get("vs_oracle")
-                t = r.time or {}        # (a timed record: by_scenario was given those only)
-                lat = t.get("latency") or t.get("wall") or t
-                x = lat.get("median_s") if isinstance(lat, Mapping) else None
+                c, err = cmap[r.backend], r.error.vs_oracle if r.error else None
+                t = r.time        # (a timed record: by_scenario was given those only)
+                lat = (t.latency or t.wall or t) if t else None
+                x = lat.median_s if lat else None
                 if not (isinstance(err, (int, float)) and math.isfinite(err)
                         and isinstance(x, (int, float)) and math.isfinite(x)) or x <= 0:
                     continue

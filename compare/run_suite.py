@@ -29,24 +29,9 @@ from compare.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memor
                                measured_need, memory_refusal)
 from compare.record import Record, plain
 from compare.spec import BUSY_TAG, Cell, key
-from compare.store import UPGRADES, Store, StoreError, array_file, load_arrays, save_arrays
+from compare.store import Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
 from scenarios.base import Precision
-
-
-def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
-    """A format-1 record: its distance to the reference backend was keyed ``vs_<name>``."""
-    err = rec.get("error")
-    ref = backends.reference()
-    if isinstance(err, dict) and f"vs_{ref}" in err:
-        err["vs_reference"] = err.pop(f"vs_{ref}")
-        err["reference"] = ref
-        if f"vs_{ref}_device" in err:
-            err["vs_reference_device"] = err.pop(f"vs_{ref}_device")
-    return rec
-
-
-UPGRADES["run"] = upgrade_record
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -8,7 +8,8 @@ shape (pyperf-style: versioned, and a merge of different suites or versions is r
      "records": [record, ...],            compare.record.Record, one per cell key
      "analysis": {...}}                   what a suite derives from its records (stress findings)
 
-Files of an older format (compare.record says what changed) are read and upgraded in memory;
+Files of an older format (compare.record says what changed) are read and upgraded in memory by
+their suite's format (compare.formats);
 saving writes the newest. Every write is atomic (temporary file + rename in the same directory,
 removed on failure).
 """
@@ -22,20 +23,18 @@ import re
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Self
+from typing import Any, Iterable, Mapping, Self
 
 import numpy as np
 
 from compare.files import TEMP_MARK, TEMP_SUFFIX, atomic_write
+from compare.formats import FORMATS
 from compare.record import FORMAT_VERSION, Record, RecordError
 from compare.records import arrays_problem, store_problem
 from compare.records import show as _show
 from compare.spec import KEPT_ON_RESUME
 
-SUITES = {"run": "results.json", "sweep": "sweep.json", "stress": "stress.json"}
-# per suite: turn a record of an older format into today's (registered by the suite's module)
-UPGRADES: dict[str, Callable[[dict[str, Any]], dict[str, Any]]] = {}
-UPGRADE_MODULES = {"run": "compare.run_suite", "sweep": "compare.sweep.suite"}
+SUITES = {name: f.file for name, f in FORMATS.items()}     # suite -> its file's name
 
 
 class StoreError(ValueError):
@@ -159,17 +158,18 @@ def _upgrade(data: Any, path: Path) -> dict[str, Any]:
         raise StoreError(f"{path}: 'records' must be a list")
     if not isinstance(data.setdefault("analysis", {}), dict):
         raise StoreError(f"{path}: 'analysis' must be an object")
-    if data["suite"] not in UPGRADES and data["suite"] in UPGRADE_MODULES:
-        import importlib   # the suite's module registers its upgrade when imported
-        importlib.import_module(UPGRADE_MODULES[data["suite"]])
-    upgrade = UPGRADES.get(data["suite"]) if data["format_version"] == 1 else None
+    fmt = FORMATS[data["suite"]]
+    upgrade = fmt.upgrade if data["format_version"] == 1 else None
     for i, rec in enumerate(data["records"]):
         try:
-            data["records"][i] = Record.from_json(rec, upgrade)
+            data["records"][i] = Record.from_json(rec, upgrade, fmt.record_problem)
         except RecordError as exc:
             raise StoreError(f"{path}: record {i}: {exc}") from None
     # every field a later step reads, typed and in range, before any reader writes anything
-    if (problem := store_problem(data)) is not None:
+    problem = store_problem(data)
+    if problem is None and fmt.store_problem is not None:
+        problem = fmt.store_problem(data)
+    if problem is not None:
         raise StoreError(f"{path}: {problem}")
     version = data.pop("format_version")
     data["upgraded_from"] = version if version != FORMAT_VERSION else data.get("upgraded_from")

@@ -25,16 +25,17 @@ downloads in ``outputs()``); both are timed separately by the worker.
 from __future__ import annotations
 
 import time
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from backends.base import Backend, EventTimer
+from backends.base import Backend, Device, EventTimer
+from compare.record_parts import Regime, Timing
 
 CLOCK = "wall clock (time.perf_counter) around run() + backend synchronize"
 
 
-def event_timer(backend: Backend, device: str, mode: str = "auto") -> tuple[EventTimer | None, str]:
+def event_timer(backend: Backend, device: Device, mode: str = "auto") -> tuple[EventTimer | None, str]:
     """(timer or None, description of the primary clock) for a cell. mode: 'auto' | 'wall'.
     The timer is the backend's own (``Backend.event_timer``): frameworks without device events
     around a call (Taichi, JAX) are timed on the wall clock alone."""
@@ -76,7 +77,7 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
         warm_s += call(run, sync)
         made += 1
     walls = until(lambda: call(run, sync), repeat, min_time, max_time, max_calls)
-    out = summarise(walls)
+    out: dict[str, Any] = dict(summarise(walls))    # the latency, and how it was reached
     out.update({"warmup": made, "timed_total_s": float(sum(walls)),
                 "wall": {k: out[k] for k in ("median_s", "iqr_s", "min_s")}})
     if timer is not None:
@@ -89,7 +90,7 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
             return ev
         try:
             evs = until(timed, repeat, min(min_time / 2, max_time), max_time, max_calls, spent)
-            out["events"] = {**summarise(evs), "clock": getattr(timer, "description", "device events")}
+            out["events"] = Regime.of(**summarise(evs), clock=getattr(timer, "description", "device events"))
         except Exception as exc:  # an event API failing must not cost the cell's latency
             out["events_error"] = f"{type(exc).__name__}: {exc}"
             sync(None)
@@ -113,7 +114,7 @@ def until(one: Callable[[], float], repeat: int, min_time: float, max_time: floa
 NULL_CALLS = 200     # the null call's repeats: a few microseconds each
 
 
-def null_call(sync: Callable[[Any], None], calls: int = NULL_CALLS) -> dict[str, Any]:
+def null_call(sync: Callable[[Any], None], calls: int = NULL_CALLS) -> Regime:
     """The harness's floor: the latency regime's clock around a no-op ``run`` and the
     framework's synchronise (``sync(None)``) on an idle device, ``calls`` times after 10 warm."""
     noop: Callable[[], Any] = lambda: None  # noqa: E731
@@ -122,15 +123,15 @@ def null_call(sync: Callable[[Any], None], calls: int = NULL_CALLS) -> dict[str,
     return summarise([call(noop, sync) for _ in range(calls)])
 
 
-def events_of(t: Any) -> Any:
-    """A record's ``time`` block's device-event figures ({median_s, iqr_s, min_s, repeats}), or
+def events_of(t: Timing | None) -> Regime | Timing | None:
+    """A record's ``time`` part's device-event figures (median_s, iqr_s, min_s, repeats), or
     None. Records made before the separate event pass (``timer == "events"`` and no ``events``)
     kept them as the block's own figures."""
-    if not hasattr(t, "get"):
+    if t is None:
         return None
-    if t.get("events") is not None:
-        return t["events"]
-    return t if t.get("timer") == "events" else None
+    if t.events is not None:
+        return t.events
+    return t if t.timer == "events" else None
 
 
 BATCH_S = 0.02     # the throughput regime's shortest batch (``pipelined``)
@@ -138,7 +139,7 @@ BATCH_S = 0.02     # the throughput regime's shortest batch (``pipelined``)
 
 def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: float = BATCH_S,
               repeat: int = 5, max_k: int = 1 << 16, max_time: float = 10.0,
-              latency: dict[str, Any] | None = None) -> dict[str, Any]:
+              latency: Mapping[str, Any] | None = None) -> Regime:
     """The throughput regime: ``k`` back-to-back ``run()`` calls, one synchronise, time / k.
 
     What a simulation loop that synchronises rarely pays per call: launches are queued while the
@@ -151,8 +152,8 @@ def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: floa
     returned (``same_as``) rather than timing the same thing again.
     """
     if latency is not None and latency["median_s"] >= batch_s:
-        return {**{f: latency[f] for f in ("median_s", "iqr_s", "min_s", "repeats")}, "k": 1,
-                "host_s": None, "same_as": "latency"}
+        return Regime.of(**{f: latency[f] for f in ("median_s", "iqr_s", "min_s", "repeats")}, k=1,
+                         host_s=None, same_as="latency")
     k, spent = 1, 0.0
     while True:
         t0 = time.perf_counter()
@@ -178,7 +179,7 @@ def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: floa
         spent += per_call[-1] * k
         if spent >= max_time and len(per_call) >= 3:
             break
-    return {**summarise(per_call), "k": k, "host_s": float(np.median(host))}
+    return Regime.of(**summarise(per_call), k=k, host_s=float(np.median(host)))
 
 
 def host_profile(run: Callable[[], Any], sync: Callable[[Any], None], calls: int,
@@ -223,8 +224,7 @@ def _where(file: str, line: int) -> str:
     return f"{'/'.join(parts)}:{line}"
 
 
-def summarise(times: list[float]) -> dict[str, Any]:
+def summarise(times: list[float]) -> Regime:
     a = np.asarray(times)
     q1, med, q3 = np.percentile(a, [25, 50, 75])
-    return {"median_s": float(med), "iqr_s": float(q3 - q1), "min_s": float(a.min()),
-            "repeats": int(a.size)}
+    return Regime.of(median_s=float(med), iqr_s=float(q3 - q1), min_s=float(a.min()), repeats=int(a.size))

@@ -27,10 +27,11 @@ import numpy as np
 
 import backends
 import scenarios
-from backends.base import OWN_TIMER_S, Backend
+from backends.base import OWN_TIMER_S, Backend, Device
 from compare import noise, phases, scaleout, timing
 from compare.gate import Gate
 from compare.nvml import open_nvml
+from compare.record_parts import Check, Gradient, Memory, OwnTimer, Regime, Timing, plain
 from compare.spec import BUSY_TAG, Cell
 from compare.store import jsonable
 from scenarios.base import Precision
@@ -81,17 +82,17 @@ def apply_cache_policy(policy: str, backend: Backend, out_dir: Path) -> str:
                        or "the framework keeps no kernel cache on disk")
 
 
-def graph_regime(be: Backend, device: str, kernel: Any, sync: Any, max_time: float) -> dict[str, Any]:
+def graph_regime(be: Backend, device: Device, kernel: Any, sync: Any, max_time: float) -> Regime:
     """The throughput regime with the backend's graph replays (``Backend.capture``), or why not."""
     try:
         replay = be.capture(device, kernel.run)
         if replay is None:
-            return {"unavailable": f"{be.name} offers no graph capture on {device}"}
+            return Regime.of(unavailable=f"{be.name} offers no graph capture on {device}")
         sync(None)
-        return {**timing.pipelined(replay, sync, max_time=max_time), "how": "captured run() replayed"}
+        return Regime.of(**timing.pipelined(replay, sync, max_time=max_time), how="captured run() replayed")
     except Exception as exc:  # a failed capture is a finding, never the cell
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        return {"failed": f"{type(exc).__name__}: {first}"}
+        return Regime.of(failed=f"{type(exc).__name__}: {first}")
 
 
 OWN_TIMER_BELOW_S = 0.01     # the framework's own timer cross-checks per-call cells, not long ones
@@ -108,7 +109,7 @@ def in_blocks(times: list[float], block: int) -> float:
     return float(np.median(means))
 
 
-def own_latency(be: Backend, device: str, run: Any, sync: Any) -> dict[str, Any] | None:
+def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> OwnTimer | None:
     """The framework's own timing of one call + synchronise (``Backend.own_latency``) alternated
     with our latency clock over the same call, ``CROSS_ROUNDS`` stretches each, so the two are
     compared in the same minutes of the process, and in the same statistic (a timer's median of
@@ -128,10 +129,10 @@ def own_latency(be: Backend, device: str, run: Any, sync: Any) -> dict[str, Any]
             per_call.append(float(np.median(times)))
             ratios.append(ours[-1] / theirs[-1])
     except Exception as exc:  # a cross-check failing is a note, never the cell
-        return {"failed": f"{type(exc).__name__}: {str(exc).strip()[:200]}"}
-    return {**last, "median_s": float(np.median(theirs)), "ours_s": float(np.median(ours)),
-            "ours_call_s": float(np.median(per_call)), "ratio": float(np.median(ratios)),
-            "rounds": CROSS_ROUNDS}
+        return OwnTimer.of(failed=f"{type(exc).__name__}: {str(exc).strip()[:200]}")
+    return OwnTimer.from_json({**last, "median_s": float(np.median(theirs)), "ours_s": float(np.median(ours)),
+                               "ours_call_s": float(np.median(per_call)), "ratio": float(np.median(ratios)),
+                               "rounds": CROSS_ROUNDS})
 
 
 def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, Any]) -> str | None:
@@ -153,7 +154,7 @@ def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict
     return None
 
 
-def device_memory(be: Any, device: str) -> dict[str, Any]:
+def device_memory(be: Backend, device: Device) -> dict[str, Any]:
     """The backend's own device-memory figures; a failing reader is noted, not fatal."""
     try:
         return be.memory(device)
@@ -207,7 +208,8 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     laps.lap("steady")
     if nvml:
         nvml.sample()
-    regimes = {"latency": {k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")} | {"repeats": t["repeats"]}}
+    regimes: dict[str, Any] = {"latency": Regime.of(**{k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")},
+                                                  repeats=t["repeats"])}
     if cell.throughput:
         regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=cell.max_time,
                                                  latency=regimes["latency"])
@@ -246,10 +248,10 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
              "window": [round(w, 4) for w in gate.window]}   # epoch seconds: no two cells' overlap
     times["noise"] = noise.verdict(times, host)
     if not cell.check:      # a repeat process (compare.repeats): the first process checked the cell
-        times["phases"] = {k: round(v, 4) for k, v in laps.spent.items()}
         # a miniature's (compare.calibrate) peak, which the memory preflight scales to its big cell
-        return {"status": "ok", "reason": "", "params": dataclasses.asdict(params), "time": times,
-                "memory": {"peak_host_rss_bytes": run_peak}}
+        return {"status": "ok", "reason": "", "params": dataclasses.asdict(params),
+                "time": Timing.of(**times, phases={k: round(v, 4) for k, v in laps.spent.items()}),
+                "memory": Memory.of(peak_host_rss_bytes=run_peak)}
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
@@ -263,18 +265,19 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         "status": "ok" if check.ok else "mismatch",
         "reason": "" if check.ok else f"error {check.error:.3g} exceeds tolerance {check.tolerance:.3g}",
         "params": dataclasses.asdict(params),
-        "time": times,
-        "error": {"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
-                  **{k: v for k, v in check.details.items()},
-                  "checked_items": sampled.text() if sampled else "all"},
+        "time": times,      # a Timing once the cell's phases are known (below)
+        # (a dict first: a detail named as a field takes its place, as before)
+        "error": Check.from_json({"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
+                                  **check.details, "checked_items": sampled.text() if sampled else "all"}),
         "work": work,
         # useful work per second in the throughput regime (the latency regime where not measured)
         "throughput": {f"{k}_per_s": v / per_call for k, v in work.items()
                        if (per_call := (regimes.get("throughput") or t)["median_s"]) > 0},
-        "memory": {"peak_host_rss_bytes": peak_rss_bytes(),
-                   "host_bytes": max(0, run_peak - rss_before) if rss_before and run_peak else None,
-                   **device_memory(be, device),
-                   **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})},
+        "memory": Memory.from_json({
+            "peak_host_rss_bytes": peak_rss_bytes(),
+            "host_bytes": max(0, run_peak - rss_before) if rss_before and run_peak else None,
+            **device_memory(be, device),
+            **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})}),
         "info": kernel.info(),
         "host": platform.node(),
         "host_load_1m": os.getloadavg()[0],   # other processes on the host perturb CPU timings
@@ -282,18 +285,17 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         "versions": be.versions(),
     }
     if sc.has_gradient:
-        record["gradient"] = {
-            "method": be.gradient_method,
-            "value": check.details.get("gradient_value", outputs["grad"]),
-            "reference": check.details.get("gradient_reference"),
-            "reference_value": check.details.get("gradient_reference_value", reference["grad"]),
-            "vs_oracle": check.details.get("gradient_error"),
-            "vs_oracle_rel": check.details.get("gradient_rel_error"),
-            "vs_fd64_rel": check.details.get("gradient_vs_fd64_rel"),
-            "tolerance": check.details.get("gradient_tolerance"),
+        record["gradient"] = Gradient.of(
+            method=be.gradient_method,
+            value=check.details.get("gradient_value", outputs["grad"]),
+            reference=check.details.get("gradient_reference"),
+            reference_value=check.details.get("gradient_reference_value", reference["grad"]),
+            vs_oracle=check.details.get("gradient_error"),
+            vs_oracle_rel=check.details.get("gradient_rel_error"),
+            vs_fd64_rel=check.details.get("gradient_vs_fd64_rel"),
+            tolerance=check.details.get("gradient_tolerance"),
             **{k: check.details[f"gradient_{k}"] for k in ("fd_agreement", "fd_resolved")
-               if f"gradient_{k}" in check.details},
-        }
+               if f"gradient_{k}" in check.details})
     laps.lap("record")
     # (numpy's stubs read ** as possibly setting savez's allow_pickle: bool)
     if cell.save_outputs:
@@ -302,7 +304,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         np.savez(out_dir / "inputs.npz", **inputs)  # type: ignore[arg-type]
     if cell.save_outputs or cell.save_inputs:
         laps.lap("save")
-    times["phases"] = {k: round(v, 4) for k, v in laps.spent.items()}
+    record["time"] = Timing.of(**times, phases={k: round(v, 4) for k, v in laps.spent.items()})
     return record
 
 
@@ -355,7 +357,7 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
         record = {"status": "error", "reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
                   "traceback": traceback.format_exc()}
     tmp = cell_dir / "record.json.tmp"     # the parent polls for record.json: never half a file
-    tmp.write_text(json.dumps(jsonable(record)))
+    tmp.write_text(json.dumps(jsonable(plain(record))))     # the parts' JSON, crossing to the driver once
     os.replace(tmp, cell_dir / "record.json")
 
 

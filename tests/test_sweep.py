@@ -14,6 +14,7 @@ import pytest
 import backends
 import scenarios
 from compare.record import Record
+from compare.sweep.format import upgrade_record
 from compare.store import Store
 from compare.sweep import converged
 from compare.sweep import metrics as sweep_metrics
@@ -217,14 +218,14 @@ def test_old_records_are_upgraded_to_tags():
     old = {"scenario": "saxpy", "backend": "warp", "device": "cpu", "precision": "float32",
            "variant": "default", "params": {"n": 1024}, "sweep": "bandwidth", "role": "saxpy",
            "knob": {"name": "n", "value": 1024}, "status": "ok"}
-    new = sweep.upgrade_record(old)
+    new = upgrade_record(old)
     assert new["tags"] == {"sweep": "bandwidth", "role": "bandwidth", "knob": {"name": "n", "value": 1024}}
     assert not {"sweep", "role", "knob"} & set(new) and new["params"] == {"n": 1024}
-    assert sweep.upgrade_record(new) is new
-    err = sweep.upgrade_record({**old, "scenario": "sdf", "sweep": "error", "role": "sdf", "knob": {}})
+    assert upgrade_record(new) is new
+    err = upgrade_record({**old, "scenario": "sdf", "sweep": "error", "role": "sdf", "knob": {}})
     assert err["tags"] == {"sweep": "error", "role": "sdf", "knob": {}}
     store = Store(ROOT / "unused.json", "sweep",
-                  records=[Record.from_json(new), Record.from_json(sweep.upgrade_record(dict(old)))])
+                  records=[Record.from_json(new), Record.from_json(upgrade_record(dict(old)))])
     assert len(store.records) == 1                 # the same cell, old or new shape: one key
 
 

@@ -26,7 +26,7 @@ def figure(runs: Runs) -> Any:
                      for k, v in o.items()}) for r, o in runs]
     refs = {prec: SC.oracle(p, SC.inputs(p, prec), Precision(prec)) for prec in {r.precision for r, _ in runs}}
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
-    ref = refs.get("float64", next(iter(refs.values())))["loss_history"]
+    ref = refs.get(Precision.FLOAT64, next(iter(refs.values())))["loss_history"]
     ax.plot(np.arange(ref.size), np.maximum(ref, 1e-30), "k--", lw=2, alpha=0.5, label="float64 oracle")
     for prec, o in refs.items():
         scale = np.maximum(np.abs(o["loss_history"]), 1e-300)

@@ -151,21 +151,21 @@ REGIMES = ("latency", "throughput", "graph")
 def timing(rec: Record, regime: str) -> Timing | None:
     """``regime``: 'latency' (one synchronised call), 'throughput' (k calls, one synchronise,
     per call), 'graph' (a captured call replayed), or 'first' (the first call, cold caches)."""
-    t = rec.time or {}
+    t = rec.time
     if regime == "first":
-        v = num(t.get("first_call_s"))
+        v = num(t.first_call_s) if t else None
         return Timing(v, v, v, 1) if v is not None else None
     several = across_processes(rec, regime)
     if several is not None:
         return several
-    part = t.get(regime) if regime != "latency" else (t.get("latency") or t)
-    if not isinstance(part, Mapping):
+    part = (t.regime(regime) if regime != "latency" else (t.latency or t)) if t else None
+    if part is None:
         return None
-    med, iqr = num(part.get("median_s")), num(part.get("iqr_s"))
+    med, iqr = num(part.median_s), num(part.iqr_s)
     if med is None or med <= 0:
         return None
     iqr = iqr or 0.0
-    reps = part.get("repeats") if isinstance(part.get("repeats"), int) else None
+    reps = part.repeats if isinstance(part.repeats, int) else None
     # the spread and repeats of this regime, and what the run saw of the host (a record made
     # before time.noise existed has only the first two)
     why = noise.regime_reasons(part)
@@ -181,7 +181,7 @@ def first_result(rec: Record) -> Timing | None:
     several = across_processes(rec, "first_result")
     if several is not None:
         return several
-    setup, first = num((rec.time or {}).get("setup_s")), num((rec.time or {}).get("first_call_s"))
+    setup, first = (num(rec.time.setup_s), num(rec.time.first_call_s)) if rec.time else (None, None)
     if setup is None or first is None:
         return None
     v = setup + first
@@ -193,7 +193,7 @@ PROCESS_SPREAD = 0.10       # a median whose interval strays further than this i
 
 def process_count(rec: Record) -> int:
     """How many worker processes timed the record's cell (1 for a record without repeats)."""
-    n = ((rec.time or {}).get("processes") or {}).get("count")
+    n = ((rec.time.processes if rec.time else None) or {}).get("count")
     return n if isinstance(n, int) and not isinstance(n, bool) else 1
 
 
@@ -201,7 +201,7 @@ def across_processes(rec: Record, regime: str) -> Timing | None:
     """The regime's figure over several worker processes (``time.processes``; 'first' is the time
     to first result, set-up + first call), or None for a one-process record. The bounds are the
     median's interval; the figure is noisy where the interval strays more than PROCESS_SPREAD."""
-    block = ((rec.time or {}).get("processes") or {}).get(regime)
+    block = ((rec.time.processes if rec.time else None) or {}).get(regime)
     if not isinstance(block, Mapping):
         return None
     med, lo, hi = num(block.get("median_s")), num(block.get("ci_lo_s")), num(block.get("ci_hi_s"))
@@ -255,7 +255,7 @@ def size(rec: Record) -> float:
 
 def device_bytes(rec: Record) -> float | None:
     """Device memory above the framework's context (NVML), the one metric every backend shares."""
-    return num((rec.memory or {}).get("device_bytes"))
+    return num(rec.memory.device_bytes) if rec.memory else None
 
 
 def item_rate(rec: Record, regime: str = "throughput") -> float | None:

@@ -19,6 +19,7 @@ from compare import colors
 from compare.record import Record
 from compare.site import data, provenance, ranking
 from compare.site.data import Machine, Timing
+from scenarios.base import Precision
 
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
 NOT_SAME_WORK = ("fastmath",)
@@ -127,8 +128,9 @@ def latest(recs: list[Record]) -> list[Record]:
     return list(seen.values())
 
 
-def _pool(m: Machine, device: str, scenario: str, precision: str = "float32", sweep: tuple[str | None, ...]
-          = (None, "bandwidth", "scaling"), keep: Callable[[Record], bool] = lambda r: True) -> list[Record]:
+def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precision.FLOAT32,
+          sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling"),
+          keep: Callable[[Record], bool] = lambda r: True) -> list[Record]:
     return latest([r for r in m.records if r.device == device and r.scenario == scenario
                    and r.precision == precision and data.tag(r, "sweep") in sweep
                    and r.variant not in NOT_SAME_WORK and keep(r)])
@@ -147,7 +149,7 @@ def _largest(recs: list[Record]) -> list[Record]:
     return [r for r in recs if data.size(r) == top]
 
 
-def defaults_of(scenario: str, precision: str = "float32") -> Callable[[Machine, str], list[Record]]:
+def defaults_of(scenario: str, precision: Precision = Precision.FLOAT32) -> Callable[[Machine, str], list[Record]]:
     def pick(m: Machine, device: str) -> list[Record]:
         return [r for r in _pool(m, device, scenario, precision, (None,)) if data.at_defaults(r)]
     return pick
@@ -156,7 +158,7 @@ def defaults_of(scenario: str, precision: str = "float32") -> Callable[[Machine,
 def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling"),
                keep: Callable[[Record], bool] = lambda r: True) -> Callable[[Machine, str], list[Record]]:
     def pick(m: Machine, device: str) -> list[Record]:
-        return _largest(_pool(m, device, scenario, "float32", sweep, keep))
+        return _largest(_pool(m, device, scenario, Precision.FLOAT32, sweep, keep))
     return pick
 
 
@@ -192,8 +194,8 @@ ERROR_FLOOR = 1e-3                # a share of the bound below this counts as th
 
 def error_share(r: Record) -> float | None:
     """A record's error against the float64 oracle as a share of its derived tolerance."""
-    e = r.error or {}
-    err, tol = data.num(e.get("vs_oracle")), data.num(e.get("tolerance"))
+    e = r.error
+    err, tol = (data.num(e.vs_oracle), data.num(e.tolerance)) if e else (None, None)
     return err / tol if err is not None and tol else None
 
 

@@ -15,7 +15,7 @@ from compare.site.data import Machine
 from compare.site.matrix import Row
 from compare.site.pages_stability import stability  # noqa: F401 (a page of the site)
 from compare.site.render import Figure, H, Items, P, Raw, Table
-from compare.sweep.rows import wall_s
+from compare.sweep.rows import need, wall_s
 
 # ---- the matrix -------------------------------------------------------------------------------
 def matrix_html(rows: list[Row], frameworks: list[str]) -> str:
@@ -185,12 +185,12 @@ def accuracy(c: qp.Ctx) -> list[Any]:
     for r in sorted(matrix.all_defaults(c.m, c.device), key=lambda r: (r.scenario, r.backend)):
         if r.scenario not in matrix.IN_ALL:
             continue
-        e = r.error or {}
+        e = r.error
         share = matrix.error_share(r)
-        err, tol = data.num(e.get("vs_oracle")), data.num(e.get("tolerance"))
+        err, tol = (data.num(e.vs_oracle), data.num(e.tolerance)) if e else (None, None)
         rows.append((r.scenario, r.backend, r.status, "-" if err is None else f"{err:.3g}",
                      "-" if tol is None else f"{tol:.3g}", "-" if share is None else f"{share:.3g}",
-                     str(e.get("metric", "")) or r.reason))
+                     str((e.get("metric", "") if e else "")) or r.reason))
     blocks += [H("float32 error per scenario (default sizes)"),
                Table(("scenario", "framework", "status", "error", "tolerance", "share", "metric"), tuple(rows))]
     swept = [r for r in c.m.sweep if data.tag(r, "sweep") == "error" and r.device == c.device]
@@ -208,7 +208,7 @@ def accuracy(c: qp.Ctx) -> list[Any]:
                                                        "wall median s", "error"),
                              [(r.scenario, r.backend, r.variant, r.precision,
                                fmt.params_text(r.params or {}, data.defaults(r.scenario)),
-                               wall_s(r), r.converged["error"]) for r in pts])
+                               wall_s(r), need(r, "converged")["error"]) for r in pts])
             fws = ", ".join(f for f in c.m.frameworks if any(r.backend == f for r in swept))
             blocks += [H("Run time against error"),
                        Figure(rel, "Time against error against a converged float64 reference, both "
@@ -237,7 +237,7 @@ def compile_cost(c: qp.Ctx) -> list[Any]:
     rows = []
     for r in sorted(recs, key=lambda r: (r.scenario, r.backend)):
         ok = r.status == "ok"
-        setup = data.num((r.time or {}).get("setup_s")) if ok else None
+        setup = data.num(r.time.setup_s) if ok and r.time else None
         first, total = (data.timing(r, "first"), data.first_result(r)) if ok else (None, None)
         rows.append((r.scenario, r.backend, fmt.seconds(setup), fmt.seconds(first.median if first else None),
                      fmt.seconds(total.median if total else None),

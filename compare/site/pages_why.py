@@ -40,13 +40,13 @@ def _launches(r: Record) -> str:
 
 def _host(r: Record) -> list[str]:
     """The host's share of a call (time.throughput.host_s), and its most-called function."""
-    t = r.time or {}
-    thr = t.get("throughput") or {}
-    host, per = data.num(thr.get("host_s")), data.num(thr.get("median_s"))
+    t = r.time
+    thr = t.throughput if t else None
+    host, per = (data.num(thr.host_s), data.num(thr.median_s)) if thr else (None, None)
     out = []
     if host is not None and per and host / per >= HOST_BOUND:
         out.append(f"host-bound: issuing a call takes {fmt.pct(min(host / per, 1.0))} of its time")
-    top = [f for f in ((t.get("host_profile") or {}).get("top") or ())
+    top = [f for f in (((t.host_profile if t else None) or {}).get("top") or ())
            if (data.num(f.get("calls")) or 0) >= HOST_LOOP]
     if top:     # the loop that costs the most: the largest cumulative time
         f = max(top, key=lambda f: data.num(f.get("cumulative_s")) or 0)
@@ -71,8 +71,8 @@ def facts(r: Record, unit: str, leader: bool = False) -> list[str]:
 
 def first_result(recs: list[Record]) -> list[str]:
     """The time to first result of several scenarios: the first calls' sum and the largest."""
-    firsts = [(v, r.scenario) for r in recs if (v := data.num((r.time or {}).get("first_call_s"))) is not None]
-    setup = sum(data.num((r.time or {}).get("setup_s")) or 0.0 for r in recs)
+    firsts = [(v, r.scenario) for r in recs if r.time and (v := data.num(r.time.first_call_s)) is not None]
+    setup = sum((data.num(r.time.setup_s) if r.time else None) or 0.0 for r in recs)
     if not firsts:
         return []
     big = max(firsts)

@@ -132,8 +132,8 @@ def _group(recs: list[Record]) -> dict[tuple[str, str], list[Record]]:
 
 
 def _host_share(r: Record) -> list[str]:
-    thr = (r.time or {}).get("throughput") or {}
-    h, t = data.num(thr.get("host_s")), data.num(thr.get("median_s"))
+    thr = r.time.throughput if r.time else None
+    h, t = (data.num(thr.host_s), data.num(thr.median_s)) if thr else (None, None)
     return [fmt.pct(h / t) if h is not None and t else "-"]
 
 
@@ -142,8 +142,8 @@ def _launch_yardstick(recs: list[Record]) -> str:
     run's yardstick in ``hardware``), never another run's."""
     seen = []
     for r in recs:
-        hw = r.hardware or {}
-        lat, pipe = data.num(hw.get("launch_latency_s")), data.num(hw.get("launch_pipelined_s"))
+        hw = r.hardware
+        lat, pipe = (data.num(hw.launch_latency_s), data.num(hw.launch_pipelined_s)) if hw else (None, None)
         if lat and pipe and (lat, pipe) not in seen:
             seen.append((lat, pipe))
     words = [f"{fmt.seconds(lat)} with a synchronise, {fmt.seconds(pipe)} pipelined" for lat, pipe in seen]
@@ -235,5 +235,5 @@ def _longest_loop(hz: list[Record]) -> Page:
     return [H(f"A long loop ({n} steps): time and memory"), P(f"**{text}**"),
             Table(("framework", "variant", "time per call", "device memory", "gradients agreeing with FD"),
                   tuple((r.backend, r.variant, fmt.seconds(t), fmt.nbytes(m),
-                         fmt.pct((r.error or {}).get("gradient_fd_agreement")))
+                         fmt.pct(r.error.details.get("gradient_fd_agreement") if r.error else None))
                         for t, m, r in sorted(rows, key=lambda x: (x[0] is None, x[0] or 0.0))))]

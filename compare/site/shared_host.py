@@ -65,7 +65,7 @@ def cells(m: data.Machine, device: str) -> dict[str, Cell]:
 
 
 def _cores(r: Record, key: str) -> float | None:
-    return data.num(((r.time or {}).get("noise") or {}).get(key))
+    return data.num(((r.time.noise if r.time else None) or {}).get(key))
 
 
 def why(idle: Record, busy: Record) -> str:

@@ -61,8 +61,8 @@ def exp_ulps(ctx: StressContext) -> Result:
                             float(np.max(e)) if finite.all() else math.inf,
                             "within derived bound" if ok else "EXCEEDS derived bound",
                             f"median {q[0]:.3g}, p99 {q[1]:.3g} ulps; {100 * np.mean(e > 0.5):.3g}% not correctly "
-                            f"rounded; scenario metric {ctx.fmt(rec.error['vs_oracle'])} "
-                            f"(bound {ctx.fmt(rec.error['tolerance'])})"))
+                            f"rounded; scenario metric {ctx.fmt(rec.error.vs_oracle)} "
+                            f"(bound {ctx.fmt(rec.error.tolerance)})"))
         if np.ndim(out[key]) == 2:        # an image: its per-pixel distribution is plotted
             srt = np.sort(e[finite])
             idx = np.unique(np.geomspace(1, srt.size, 200).astype(int)) - 1
@@ -122,8 +122,8 @@ def exp_races(ctx: StressContext) -> Result:
             verdict = race_verdict(s["device"], diff, (ra.status == "ok", rb.status == "ok"))
             rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
                                 "elements differing between two runs", diff, verdict,
-                                f"error vs oracle {ctx.fmt(ra.error['vs_oracle'])} and "
-                                f"{ctx.fmt(rb.error['vs_oracle'])} (bound {ctx.fmt(ra.error['tolerance'])}); "
+                                f"error vs oracle {ctx.fmt(ra.error.vs_oracle)} and "
+                                f"{ctx.fmt(rb.error.vs_oracle)} (bound {ctx.fmt(ra.error.tolerance)}); "
                                 f"control: {why}"))
             continue
         first_run[(s["scenario"], s["backend"], s["device"], s["precision"])] = (ra, oa)

@@ -18,6 +18,7 @@ from compare.report import fmt_num
 from compare.store import Store, atomic_write, jsonable
 from compare.stress import plots
 from compare.stress.context import COLUMNS
+from compare.stress.format import Finding
 from compare.stress.numerics import Experiment
 
 Registry = dict[str, Experiment]
@@ -76,11 +77,11 @@ def flagged(verdict: str) -> bool:
     return any(w not in ACRONYMS for w in re.findall(r"\b[A-Z]{2,}\b", str(verdict)))
 
 
-def skipped(r: dict[str, Any]) -> bool:
+def skipped(r: Finding) -> bool:
     return str(r.get("verdict")) == "skipped"
 
 
-def worst(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
+def worst(rows: list[Finding]) -> Finding | None:
     """An experiment's worst row: among its flagged rows (else all it measured), the largest
     value of the most common figure whose larger value is worse; a flagged row without such a
     figure: the first flagged."""
@@ -95,7 +96,7 @@ def worst(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
     return flags[0] if flags else None
 
 
-def summary(rows: list[dict[str, Any]], experiments: Registry) -> list[tuple[str, ...]]:
+def summary(rows: list[Finding], experiments: Registry) -> list[tuple[str, ...]]:
     """One line per experiment with rows: (experiment, title, cases, skipped, flagged, worst)."""
     out: list[tuple[str, ...]] = []
     for name, exp in experiments.items():
@@ -152,7 +153,7 @@ def old_provenance(store: Store) -> dict[str, dict[str, Any]]:
     return provenance({"environment": store.runs[-1] if store.runs else {}, **store.analysis})
 
 
-def write_outputs(store: Store, env: dict[str, Any], rows: list[dict[str, Any]], series: dict[str, Any],
+def write_outputs(store: Store, env: dict[str, Any], rows: list[Finding] | list[dict[str, Any]], series: dict[str, Any],
                   ran: list[str], experiments: Registry, plots_: bool = True,
                   prov: dict[str, list[dict[str, Any]] | dict[str, Any]] | None = None) -> dict[str, Any]:
     """Findings of the experiments in ``ran`` replace the store's (the others are kept); save
@@ -179,7 +180,7 @@ def write_outputs(store: Store, env: dict[str, Any], rows: list[dict[str, Any]],
     return data
 
 
-def row_key(r: dict[str, Any]) -> tuple[str, str, str]:
+def row_key(r: Finding) -> tuple[str, str, str]:
     """What a later part replaces in a merge: one experiment's rows of one backend on one device."""
     return r["experiment"], r["backend"], r["device"]
 
@@ -192,7 +193,7 @@ def deep_merge(a: Any, b: Any) -> Any:
     return b
 
 
-def in_table_order(rows: list[dict[str, Any]], seen: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def in_table_order(rows: list[Finding], seen: list[Finding]) -> list[Finding]:
     """Merged rows as one run would list them: per experiment, each kind of figure together, in the
     order the parts (``seen``: all their rows, in file order) first showed it, and within it the
     backends in registry order (host-side rows such as the oracle's last)."""
@@ -209,11 +210,11 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     record), so a part that ran some backends keeps the other backends' rows of earlier parts, and
     a part's ``skipped`` row replaces only another skipped row."""
     target = Store.open(out, "stress")
-    rows: list[dict[str, Any]] = []
+    rows: list[Finding] = []
     series: dict[str, Any] = {}
     envs: list[dict[str, Any]] = []
     prov: dict[str, list[dict[str, Any]]] = {}
-    seen: list[dict[str, Any]] = []
+    seen: list[Finding] = []
     for f in files:
         part = Store.read(f, "stress")
         seen += part.analysis.get("rows", [])

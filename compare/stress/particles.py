@@ -21,7 +21,7 @@ SC = Particles()
 STATE = ("x", "y", "vx", "vy")
 
 
-def particle_inputs(params: dict[str, Any], precision: str) -> tuple[ParticlesParams, dict[str, np.ndarray]]:
+def particle_inputs(params: dict[str, Any], precision: Precision) -> tuple[ParticlesParams, dict[str, np.ndarray]]:
     p = SC.params(params)
     return p, SC.inputs(p, precision)
 
@@ -35,7 +35,7 @@ def finite_state(out: dict[str, np.ndarray]) -> bool:
     return all(bool(np.all(np.isfinite(out[k]))) for k in STATE)
 
 
-def first_nonfinite_step(params: dict[str, Any], precision: str, max_steps: int) -> int | None:
+def first_nonfinite_step(params: dict[str, Any], precision: Precision, max_steps: int) -> int | None:
     """The first step after which some particle's state is non-finite, by the scenario's NumPy
     stepper at ``precision`` (operation by operation, no FMA); None within ``max_steps``."""
     _, inp = particle_inputs(params, precision)
@@ -71,13 +71,13 @@ def exp_particles_dt(ctx: StressContext) -> Result:
     precisions = ("float32",) if ctx.quick else ("float32", "float64")   # float64: exact vs the oracle
     steps = {dt: int(round(T / dt)) for dt in dts}
     # discretisation error: float64 oracle at dt against one at dt_min/4 (median over particles)
-    pf, inf = particle_inputs({"n": n, "steps": 4 * steps[dts[-1]], "dt": dts[-1] / 4}, "float64")
+    pf, inf = particle_inputs({"n": n, "steps": 4 * steps[dts[-1]], "dt": dts[-1] / 4}, Precision.FLOAT64)
     fine = SC.oracle(pf, inf, Precision.FLOAT64)
     disc, ref32 = {}, {}
     for dt in dts:
-        p, i64 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, "float64")
+        p, i64 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, Precision.FLOAT64)
         disc[dt] = float(np.median(state_error(SC.oracle(p, i64, Precision.FLOAT64), fine)))
-        p, i32 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, "float32")
+        p, i32 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, Precision.FLOAT32)
         ref32[dt] = SC.oracle(p, i32, Precision.FLOAT32)
     specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": steps[dt], "dt": dt})
              for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions) for dt in dts]
@@ -162,7 +162,7 @@ def exp_particles_inf(ctx: StressContext) -> Result:
     the horizontal speed overflows in finite time; find the first step with a non-finite state."""
     name, n, smax = "particles-inf", 256, 30_000
     base = {"n": n, "bounce": 1.05}
-    predicted = {prec: first_nonfinite_step(base, prec, smax) for prec in ("float32", "float64")}
+    predicted = {prec: first_nonfinite_step(base, prec, smax) for prec in (Precision.FLOAT32, Precision.FLOAT64)}
 
     def search(item):
         b, d, var, prec = item
@@ -231,7 +231,7 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
     n, steps = prm["n"], prm["steps"]
     refs = {}
     for prec in ("float32", "float64"):
-        p, inp = particle_inputs(prm, prec)
+        p, inp = particle_inputs(prm, Precision(prec))
         ref = SC.oracle(p, inp, Precision(prec))
         refs[prec] = (ref, contacts(ref["traj_x"][1:], ref["traj_y"][1:], float(inp["radius"]), np.float64),
                       float(inp["radius"]))

@@ -211,13 +211,13 @@ def exp_projectile_horizon(ctx: StressContext) -> Result:
         setting = f"contact={c}, steps={n}"
         if rec.status == "error" or out is None:
             rows.append(ctx.error_row(name, s, setting, rec)); continue
-        gr = rec.gradient or {}
+        rel = rec.gradient.vs_oracle_rel if rec.gradient else None
         g = float(np.linalg.norm(np.asarray(out["grad"], np.float64)))
         ok = rec.status == "ok"
         rows.append(ctx.row(name, s["backend"], s["device"], "float32", setting, "gradient rel. error vs float64",
-                            gr.get("vs_oracle_rel"), "within derived bound" if ok else "EXCEEDS derived bound",
-                            f"|grad| = {g:.4g}; error/bound = {ctx.fmt(rec.error['vs_oracle'])}"))
-        acc.setdefault((s["backend"], s["device"], c), []).append((n, g, gr.get("vs_oracle_rel"), ok))
+                            rel, "within derived bound" if ok else "EXCEEDS derived bound",
+                            f"|grad| = {g:.4g}; error/bound = {ctx.fmt(rec.error.vs_oracle)}"))
+        acc.setdefault((s["backend"], s["device"], c), []).append((n, g, rel, ok))
     for (b, d, c), pts in acc.items():
         pts.sort()
         ns = np.array([p[0] for p in pts], float); gs = np.array([p[1] for p in pts], float)

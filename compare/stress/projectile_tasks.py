@@ -70,7 +70,7 @@ def optimise(evaluate: Evaluate, v0: np.ndarray, lr: float, iters: int, method: 
     return hist, v
 
 
-def backend_evaluator(backend: str, device: str, precision: str, params: dict[str, Any]) -> Evaluate:
+def backend_evaluator(backend: str, device: str, precision: Precision, params: dict[str, Any]) -> Evaluate:
     """loss and gradient at v from the backend's projectile kernel (iters = 0): one kernel, its v0
     replaced in place per call (``set_input``), else one kernel per call. Runs in a host-loop
     worker process."""
@@ -102,7 +102,7 @@ def backend_evaluator(backend: str, device: str, precision: str, params: dict[st
     return evaluate
 
 
-def oracle_evaluator(params: dict[str, Any], precision: str = "float64") -> Evaluate:
+def oracle_evaluator(params: dict[str, Any], precision: Precision = Precision.FLOAT64) -> Evaluate:
     """The same from the scenario's float64 rollout and adjoint (constants rounded to
     ``precision`` as the backends receive them)."""
     sc = Projectile()

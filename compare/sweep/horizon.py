@@ -24,14 +24,13 @@ from compare.report import fmt_bytes, fmt_time
 from compare.figure_check import place_legends
 from compare.files import save_figure
 from compare.sweep.points import sweeps
-from compare.sweep.rows import knob, label, need, ok, throughput_s, wall_s
+from compare.sweep.rows import checked_items, knob, label, need, ok, throughput_s, wall_s
 
 
 def memory(rec: Record) -> tuple[float | None, str]:
     """The cell's own memory and what it is: device bytes on CUDA, host bytes on the CPU."""
-    m = rec.memory or {}
-    key, what = ("host_bytes", "host") if rec.device == "cpu" else ("device_bytes", "device")
-    v = m.get(key)
+    what = "host" if rec.device == "cpu" else "device"
+    v = None if rec.memory is None else rec.memory.host_bytes if rec.device == "cpu" else rec.memory.device_bytes
     return (float(v), what) if isinstance(v, (int, float)) else (None, what)
 
 
@@ -81,14 +80,13 @@ def table(records: list[Record], device: str, scenario: str) -> str:
     for rows in groups.values():
         for r, slope in zip(rows, slopes(rows)):
             mem, what = memory(r)
-            g = r.gradient or {}
-            share = g.get("fd_agreement")
+            share = r.gradient.fd_agreement if r.gradient else None
             out.append([r.backend, r.variant, r.precision, *(need(r, "params").get(k) for k in extra),
                         knob(r)["value"], fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
                         f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
                         f"{slope:.3g}" if slope is not None else "-",
                         f"{100 * share:.0f} %" if isinstance(share, (int, float)) else "-",
-                        need(r, "error").get("checked_items", "all")])
+                        checked_items(r)])
     unit = label(scenario, "horizon_items", "item")
     return tabulate(out, headers=["backend", "variant", "precision", *extra, kname, "latency median",
                                   "throughput: per call", "memory", f"bytes per {unit}-step (slope)",
@@ -129,7 +127,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     extra = [k for k in varying(every, kname) if k not in ("batch",)]
     for rows in groups.values():
         for r in rows:
-            s = (r.gradient or {}).get("fd_agreement")
+            s = r.gradient.fd_agreement if r.gradient else None
             if isinstance(s, (int, float)):
                 key = (", ".join(f"{k}={need(r, 'params').get(k)}" for k in extra), r.precision)
                 shares.setdefault(key, {}).setdefault(knob(r)["value"], []).append(s)

@@ -9,11 +9,12 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Mapping, TypedDict
 
 from compare.record import Record
 from compare.report import fmt_bytes
-from compare.sweep.rows import need, ok, wall_s
+from compare.sweep.rows import need, ok, timed, wall_s
+from scenarios.base import Precision
 
 OVERHEAD_SHARE = 0.5     # launch time >= half the cell's time: overhead-bound
 BANDWIDTH_SHARE = 0.5    # >= half the copy roofline: bandwidth-bound
@@ -26,26 +27,52 @@ def gbps(nbytes: float, seconds: float) -> float:
     return nbytes / seconds / 1e9 if seconds > 0 else math.nan
 
 
-def roofline(records: list[Record], device: str) -> dict[str, Any] | None:
+class Roofline(TypedDict):
+    """A device's copy roofline and where it comes from."""
+    gbps: float
+    backend: str            # 'hardware yardstick', or the backend whose copy was fastest
+    precision: str
+    n: Any                  # the copy's size, or how the yardstick copied
+    clock: str
+
+
+class BandwidthRow(TypedDict):
+    gbps: float
+    wall_gbps: float
+    roof_share: float | None
+    launch_share: float | None
+    regime: str
+
+
+class ErrorPoint(TypedDict, total=False):
+    """One error-sweep cell on the time-against-error plane, with its Pareto flags."""
+    rec: Record
+    time: float
+    error: float
+    front_backend: bool     # on its backend's own front
+    front_all: bool         # on the front of every backend
+
+
+def roofline(records: list[Record], device: str) -> Roofline | None:
     """The copy roofline of ``device``: the same-run hardware yardstick (a driver memcpy that no
     contestant controls; ``compare/hardware.py``) where the records carry it; for files made
     before it existed, the best copy bandwidth of any backend (primary clock), so labelled."""
     hw = next((r.hardware for r in records if r.device == device
-               and (r.hardware or {}).get("copy_bytes_per_s")), None)
+               and r.hardware and r.hardware.copy_bytes_per_s), None)
     if hw:
         return {"gbps": hw["copy_bytes_per_s"] / 1e9, "backend": "hardware yardstick",
                 "precision": "bytes", "n": hw.get("copy_how", ""), "clock": "same-run"}
-    best = None
+    best: Roofline | None = None
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        t = need(r, "time")
-        bw = gbps(need(r, "work")["bytes"], t["median_s"])
+        t = timed(r)
+        bw = gbps(need(r, "work")["bytes"], t.median_s)
         if best is None or bw > best["gbps"]:
             best = {"gbps": bw, "backend": r.backend, "precision": r.precision,
-                    "n": need(r, "params")["n"], "clock": t.get("timer", "wall")}
+                    "n": need(r, "params")["n"], "clock": t.timer if t.timer is not None else "wall"}
     return best
 
 
-def launch_wall(records: list[Record], backend: str, device: str, precision: str) -> float | None:
+def launch_wall(records: list[Record], backend: str, device: str, precision: Precision) -> float | None:
     hits = ok(records, sweep="bandwidth", role="launch", backend=backend, device=device, precision=precision)
     return wall_s(hits[-1]) if hits else None
 
@@ -60,10 +87,10 @@ def regime(launch_share: float | None, roof_share: float | None) -> str:
     return "mixed" if launch_share is not None and roof_share is not None else "-"
 
 
-def bandwidth_row(rec: Record, records: list[Record]) -> dict[str, Any]:
+def bandwidth_row(rec: Record, records: list[Record]) -> BandwidthRow:
     """Achieved GB/s, % of the copy roofline, launch share and regime of one bandwidth cell."""
     nbytes = need(rec, "work")["bytes"]
-    bw = gbps(nbytes, need(rec, "time")["median_s"])
+    bw = gbps(nbytes, timed(rec).median_s)
     roof = roofline(records, rec.device)
     lw = launch_wall(records, rec.backend, rec.device, rec.precision)
     share = lw / wall_s(rec) if lw else None
@@ -82,9 +109,9 @@ def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
     return flags
 
 
-def error_points(records: list[Record], device: str, scenario: str) -> list[dict[str, Any]]:
+def error_points(records: list[Record], device: str, scenario: str) -> list[ErrorPoint]:
     """Time-against-error points (ok cells with a finite error), with Pareto flags."""
-    pts: list[dict[str, Any]] = []
+    pts: list[ErrorPoint] = []
     for r in ok(records, sweep="error", device=device, scenario=scenario):
         e = (r.converged or {}).get("error")
         if isinstance(e, (int, float)) and math.isfinite(e):
@@ -100,10 +127,10 @@ def error_points(records: list[Record], device: str, scenario: str) -> list[dict
 
 
 def device_bytes(rec: Record) -> tuple[int | None, str]:
-    m = rec.memory or {}
-    if isinstance(m.get("device_bytes"), (int, float)):   # the one metric every backend shares
+    m: Mapping[str, Any] = rec.memory or {}     # the framework's own figures have its names
+    if rec.memory and isinstance(rec.memory.device_bytes, (int, float)):   # the one metric every backend shares
         own = m.get("device_peak_bytes")
-        return int(m["device_bytes"]), "NVML above the context" + (
+        return int(rec.memory.device_bytes), "NVML above the context" + (
             f"; framework's own figure {fmt_bytes(own)}" if isinstance(own, (int, float)) else "")
     for k, src in (("device_peak_bytes", m.get("device_memory_source", "framework")),
                    ("nvml_process_peak_bytes", "nvml process"),

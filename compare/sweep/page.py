@@ -24,7 +24,7 @@ from compare.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
 from compare.sweep.metrics import bandwidth_row, device_bytes, error_points, gbps, roofline
 from compare.sweep.points import sweeps
-from compare.sweep.rows import event_s, knob, label, need, ok, tag, throughput_s, wall_s
+from compare.sweep.rows import checked_items, event_s, knob, label, need, ok, tag, throughput_s, timed, wall_s
 
 # ---- records and scenarios --------------------------------------------------------------------
 def with_role(role: str) -> list[str]:
@@ -81,11 +81,11 @@ def _img(written: dict[str, Path], name: str, page: Path, alt: str) -> str:
 def launch_table(records, device) -> str:
     rows = []
     for r in ok(records, sweep="bandwidth", role="launch", device=device):
-        t = need(r, "time")
+        t = timed(r)
         ev = event_s(r)
-        rows.append([r.backend, r.precision, fmt_time(wall_s(r)), fmt_time(t["wall"]["iqr_s"]
-                     if t.get("wall") else t["iqr_s"]), fmt_time(t["wall"]["min_s"] if t.get("wall")
-                     else t["min_s"]), fmt_time(ev), fmt_time(t["first_call_s"]), t["repeats"]])
+        rows.append([r.backend, r.precision, fmt_time(wall_s(r)), fmt_time(t.wall.iqr_s if t.wall else t.iqr_s),
+                     fmt_time(t.wall.min_s if t.wall else t.min_s), fmt_time(ev), fmt_time(t.first_call_s),
+                     t.repeats])
     return _table(rows, ["backend", "precision", "wall median", "wall IQR", "wall min",
                          "CUDA-event median", "first call (cold)", "timed calls"]) if rows else ""
 
@@ -93,11 +93,11 @@ def launch_table(records, device) -> str:
 def copy_table(records, device) -> str:
     rows = []
     for r in ok(records, sweep="bandwidth", role="copy", device=device):
-        t, w = need(r, "time"), need(r, "work")
+        t, w = timed(r), need(r, "work")
         rows.append([r.backend, r.precision, need(r, "params")["n"], fmt_bytes(w["bytes"]),
                      fmt_time(wall_s(r)), fmt_time(event_s(r)),
-                     f"{gbps(w['bytes'], t['median_s']):.3g}",
-                     t.get("timer", "wall")])
+                     f"{gbps(w['bytes'], t.median_s):.3g}",
+                     t.timer if t.timer is not None else "wall"])
     return _table(rows, ["backend", "precision", "n", "bytes/call (read + write)", "wall median",
                          "CUDA-event median", "GB/s", "clock of GB/s"]) if rows else ""
 
@@ -145,7 +145,7 @@ def front_table(records, device, scenario) -> str:
     for p in sorted((p for p in error_points(records, device, scenario) if p["front_all"]),
                     key=lambda p: p["time"]):
         r = p["rec"]
-        iqr = ((r.time or {}).get("wall") or {}).get("iqr_s")
+        iqr = r.time.wall.iqr_s if r.time and r.time.wall else None
         rows.append([fmt_num(need(r, "converged")["error"]), fmt_time(p["time"]), fmt_time(iqr),
                      r.backend, r.variant, r.precision, knob_text(r)])
     return _table(rows, ["error reached", "wall median", "wall IQR", "backend", "variant",
@@ -170,7 +170,7 @@ def scaling_table(records, device, scenario) -> str:
                      fmt_rate(need(r, "work")[work] / (thr or t), "/s"),
                      fmt_bytes(need(r, "memory")["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
-                     need(r, "error").get("checked_items", "all")])
+                     checked_items(r)])
     return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "wall median",
                          "CUDA-event median", "throughput: per call", *([f"{per_run}/s"] if per_run else []),
                          f"{items}/s (throughput regime where measured)",
@@ -231,9 +231,10 @@ def _launch_section(records, d) -> list[str]:
 
 def _error_section(records, d, s) -> str:
     rec = error_points(records, d, s)[0]["rec"]
-    ref = rec.converged.get("reference", {})
+    conv = need(rec, "converged")         # an error point has its converged error
+    ref = conv.get("reference", {})
     refline = "; ".join(f"{k} = {fmt_num(v) if not isinstance(v, str) else v}" for k, v in ref.items())
-    return (f"### {s}\n\nError: {rec.converged['metric']}. Reference: {refline}.\n\n"
+    return (f"### {s}\n\nError: {conv['metric']}. Reference: {refline}.\n\n"
             "Fastest at each accuracy (the Pareto front over all backends; rows whose "
             "times differ by less than their IQRs are ties):\n\n"
             f"{front_table(records, d, s)}\nAll cells:\n\n{error_table(records, d, s)}")

@@ -15,9 +15,10 @@ from compare.figure_check import keep_apart
 from compare.record import Record
 from compare.files import save_figure
 from compare.sweep import horizon
-from compare.sweep.metrics import ERROR_FLOOR, device_bytes, error_points, gbps, launch_wall, roofline
+from compare.sweep.metrics import ERROR_FLOOR, ErrorPoint, device_bytes, error_points, gbps, launch_wall, roofline
 from compare.sweep.page import error_scenarios, plot_key, swept, with_role
 from compare.sweep.rows import event_s, knob, label, need, ok, wall_s
+from scenarios.base import Precision
 
 MARKERS = {"float64": "o", "float32": "^"}
 
@@ -105,7 +106,7 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
             if any(event_s(r) for r in mine):
                 ax.plot(x, [gbps(need(r, "work")["bytes"], event_s(r) or math.nan) for r in mine], "-.x",
                         color=c, ms=5, label=f"{backend}{tag} (CUDA events)")
-            lw = launch_wall(records, backend, device, prec)
+            lw = launch_wall(records, backend, device, Precision(prec))
             if lw:
                 ax.plot(x, [b / lw / 1e9 for b in x], ":", color=c, lw=1,
                         label=f"{backend}{tag}: bytes / launch time")
@@ -130,7 +131,7 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
     return True
 
 
-def _knobs(pts: list[dict[str, Any]]) -> str:
+def _knobs(pts: list[ErrorPoint]) -> str:
     """'name, ' for each knob the points sweep (precision and variant always are)."""
     names = dict.fromkeys(knob(p["rec"]).get("name") for p in pts if knob(p["rec"]).get("value") is not None)
     return "".join(f"{n}, " for n in names if n)
@@ -176,7 +177,7 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
                 notes.append(ax.annotate(f"{k['name']}={k['value']}", (p["time"], p["error"]), fontsize=6,
                                          color="0.25", xytext=(4, 3), textcoords="offset points"))
         ax.set_xlabel("median wall time per run [s] (log)")
-        metric = pts[0]["rec"].converged.get("metric", "error")
+        metric = need(pts[0]["rec"], "converged").get("metric", "error")
         ax.set_ylabel(label(s, "error_axis", metric).format(floor=ERROR_FLOOR), fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
         _tidy_log(ax)

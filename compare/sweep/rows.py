@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, Iterable, Literal, Mapping
 
 import scenarios
-from compare.record import Block, Record
+from compare.record import Block, Check, Record, Timing
 from compare.timing import events_of
 from compare.sweep.points import sweeps
 
@@ -45,18 +45,37 @@ def label(scenario: str, what: str, default: str = "") -> str:
     return sweeps(scenario).labels.get(what, scenario if what == "name" else default)
 
 
+def timed(rec: Record) -> Timing:
+    """``rec.time`` where a sweep reader reads it directly (as ``need``)."""
+    if rec.time is None:
+        raise TypeError(f"{rec.key}: a sweep record without its time block, where one is read")
+    return rec.time
+
+
+def checked(rec: Record) -> Check:
+    """``rec.error`` where a sweep reader reads it directly (as ``need``)."""
+    if rec.error is None:
+        raise TypeError(f"{rec.key}: a sweep record without its error block, where one is read")
+    return rec.error
+
+
+def checked_items(rec: Record) -> str:
+    """What the oracle checked ('all', or a sample: '4096 of 16777216 (evenly spaced)')."""
+    c = checked(rec).checked_items
+    return c if c is not None else "all"
+
+
 def wall_s(rec: Record) -> float:
-    t = need(rec, "time")
-    wall: Mapping[str, Any] = t.get("wall") or {}
-    return float(wall.get("median_s", t["median_s"]))
+    t = timed(rec)
+    return float(t.wall.median_s if t.wall and t.wall.median_s is not None else t.median_s)
 
 
 def event_s(rec: Record) -> float | None:
     ev = events_of(rec.time)
-    return float(ev["median_s"]) if ev and ev.get("median_s") else None
+    return float(ev.median_s) if ev and ev.median_s else None
 
 
 def throughput_s(rec: Record) -> float | None:
     """Per-call time in the throughput regime (k calls, one synchronise), where measured."""
-    thr = (rec.time or {}).get("throughput") or {}
-    return float(thr["median_s"]) if thr.get("median_s") else None
+    thr = rec.time.throughput if rec.time else None
+    return float(thr.median_s) if thr and thr.median_s else None

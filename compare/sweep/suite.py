@@ -35,7 +35,7 @@ from compare import engine, environment, hardware, options, outdir, preflight, s
 from compare.driver import Planned, Run, Suite, claim, drive
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
 from compare.spec import Cell
-from compare.store import UPGRADES, Store, atomic_write
+from compare.store import Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
 from compare.sweep.points import sweeps
@@ -179,21 +179,6 @@ def variants(kind: str, backend: str, swept_scenarios: list[scenarios.Scenario])
 
 
 # ---- records and the results file ----------------------------------------------------------
-def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
-    """A record of an older sweep.json (top-level 'sweep', 'role', 'knob'; the size sweep's role
-    was its scenario's name) in today's shape: the three under ``tags``, the bandwidth sweep's
-    role the scenario's ``measures``."""
-    if "tags" in rec or not any(k in rec for k in ("sweep", "role", "knob")):
-        return rec
-    new = {k: v for k, v in rec.items() if k not in ("sweep", "role", "knob")}
-    role = rec.get("role")
-    measures = sweeps(rec["scenario"]).measures     # a string: from_json upgrades after shape_problem
-    if rec.get("sweep") == "bandwidth" and measures:
-        role = measures
-    new["tags"] = {"sweep": rec.get("sweep"), "role": role, "knob": rec.get("knob") or {}}
-    return new
-
-
 def contents(store: Store) -> dict[str, Any]:
     """What the page and plots read: {'runs': [...], 'records': [...]}."""
     return {"runs": store.runs, "records": store.records}
@@ -332,6 +317,3 @@ def report(args: argparse.Namespace) -> int:
     print(pages.summary(merged.records))
     return EXIT_OK
 
-
-# Older sweep.json files read through the common store get today's record shape.
-UPGRADES["sweep"] = upgrade_record

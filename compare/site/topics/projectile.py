@@ -17,7 +17,7 @@ ADJOINT = "adjoint"          # Backend.gradient_method of a hand-written discret
 def gradient_method(r: Record) -> str:
     """How a record's gradient was obtained ('tape', 'ad', 'adjoint'): its ``gradient.method``,
     else its backend's declared ``gradient_method``."""
-    m = (r.gradient or {}).get("method")
+    m = r.gradient.method if r.gradient else None
     if isinstance(m, str) and m:
         return m
     import backends
@@ -85,7 +85,8 @@ def page(c: Ctx) -> Page:
                                                        "gradient fd agreement"),
                              [(r.backend, r.variant, r.precision,
                                (r.params or {}).get("steps"), data.device_bytes(r),
-                               (r.error or {}).get("gradient_fd_agreement")) for r in hz if r.status == "ok"])
+                               r.error.details.get("gradient_fd_agreement") if r.error else None)
+                              for r in hz if r.status == "ok"])
             blocks += [H("Memory and gradient quality against the horizon"),
                        Figure(rel, "Device memory and gradient agreement with float64 finite differences "
                               "against the number of steps, with each framework's memory-saving variants.",

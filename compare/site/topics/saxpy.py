@@ -54,7 +54,7 @@ def bandwidth(c: Ctx) -> Page:
     allvar = matrix.latest(_variants(allvar))
     if allvar:
         gpu = next((g for r in allvar if (g := datasheet.gpu_of(r, c.m.runs))), None)
-        copy = next((v for r in allvar if (v := data.num((r.hardware or {}).get("copy_bytes_per_s")))), None)
+        copy = next((v for r in allvar if r.hardware and (v := data.num(r.hardware.copy_bytes_per_s))), None)
         png, rel, csv = c.fig("bandwidth-largest")
         charts.bars(png, f"SAXPY at the largest n ({matrix.scope(allvar)}), {c.device}, float32: per call, "
                     "throughput regime", "seconds per call (whiskers: quartiles)",
@@ -106,7 +106,7 @@ def per_call(c: Ctx) -> Page:
                       + (f" For scale, the driver's own empty-kernel launch in the run that timed these cells: {yard}." if yard else ""),
                       c.cmd(f"run {' '.join(topics.SMALL)} --devices {c.device} --precision float32 --variants all"), csv),
                H("Every small cell"), timing_table(recs, extra=_host_share, extra_headers=("host share",))]
-    if any((r.time or {}).get("null") for r in mine):
+    if any(r.time and r.time.null for r in mine):
         blocks += [H("What the clock costs"),
                    P("The latency is the wall clock around one call and the framework's synchronise, "
                      "nothing else between the clock reads. The null call (a no-op call and the same "

@@ -16,6 +16,7 @@ import numpy as np
 
 import scenarios
 from compare.sweep.converged import dt_reference
+from scenarios.base import Precision
 
 CHECK_SAMPLE = 1 << 16     # items checked against the oracle in large per-item sweep cells
 
@@ -76,7 +77,7 @@ class Sweeps:
                                  lambda a, b: error(*a, *b)["error"], t)
         return {**error(*(outputs[k] for k in names), *ref), "metric": self.error_metric, "reference": info}
 
-    def state_bytes_per_step(self, precision: str) -> float | None:
+    def state_bytes_per_step(self, precision: Precision) -> float | None:
         """Bytes of state one item carries per step: the least a tape storing every step keeps
         (the horizon sweep draws it beside each framework's measured memory). Default: none."""
         return None

@@ -9,6 +9,7 @@ from compare.sweep import converged
 from compare.sweep.converged import REF_FACTOR
 from compare.sweep.points import Point, Sweeps
 from scenarios.base import dtype_of
+from scenarios.base import Precision
 
 
 # Time-against-error sweep: dt halves down the list at a fixed simulated time PROJECTILE_T (the
@@ -64,7 +65,7 @@ class ProjectileSweeps(Sweeps):
                                          converged.converged_loss_grad, converged.loss_grad_error, PROJECTILE_T,
                                          ("loss", "grad"))
 
-    def state_bytes_per_step(self, precision: str) -> float:
+    def state_bytes_per_step(self, precision: Precision) -> float:
         """x, y, vx, vy: what a tape that stores every step must keep at the least."""
         return 4.0 * np.dtype(dtype_of(precision)).itemsize
 
