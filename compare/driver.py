@@ -16,7 +16,7 @@ import argparse
 import dataclasses
 import time
 from pathlib import Path
-from typing import Any, Generic, NamedTuple, TypeVar
+from typing import Any, Callable, Generic, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from compare import engine, options, outdir, overlap, preflight, scaleout
 from compare.calibrate import Refusal
 from compare.lock import DirectoryLock
 from compare.options import UsageError
+from compare.record import Record
 from compare.spec import Cell
 
 X = TypeVar("X")
@@ -117,12 +118,20 @@ class Suite(Command):
         """Run the plan (default: its cells on the engine)."""
         return run_cells(self, run)
 
-    def on_record(self, i: int, rec: dict[str, Any], outputs: Outputs | None) -> None:
-        """Every finished cell's record (its JSON, before the store keeps it): the one place a
-        suite adds to a record or reports it."""
+    def on_record(self, i: int, rec: Record, outputs: Outputs | None) -> Record:
+        """Every finished cell's record, mapped to the one the store keeps: the one place a
+        suite adds to a record (a new record: records are immutable) or reports it."""
+        return rec
 
     def on_repeat(self, block: dict[str, Any]) -> None:
         """The ``time`` block of every repeat process (--processes)."""
+
+    @property
+    def check(self) -> Callable[[dict[str, Any]], str | None] | None:
+        """Its records' own check beyond the common schema (its store's format, ``compare.formats``)."""
+        from compare.formats import FORMATS
+        store = self.store()
+        return FORMATS[store.suite].record_problem if store is not None else None
 
     def seed(self) -> int:
         """The seed of the repeats' interleaved rounds (the run's environment's)."""
@@ -192,7 +201,7 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
     runner = scaleout.runner(run.client, args.timeout, cells, run.probes) if run.client is not None else None
     return engine.run_cells(cells, timeout=args.timeout, probes=run.probes, runner=runner,
                             store=suite.store(), resume=getattr(args, "resume", False),
-                            on_record=suite.on_record, refuse=run.judged, ahead=run.ahead,
+                            on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
                             footprint=lambda c: preflight.cell_bytes(c)[0],
                             processes=getattr(args, "processes", 1) if suite.timed else 1,
                             seed=suite.seed(), on_repeat=suite.on_repeat)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import threading
-from typing import Any, Callable, Iterable, TypedDict, cast
+from typing import Any, Callable, Iterable, Mapping, TypedDict, cast
 
 import numpy as np
 
@@ -101,9 +101,20 @@ def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
     return None
 
 
+def typed(obj: dict[str, Any], ident: Mapping[str, Any],
+          check: Callable[[dict[str, Any]], str | None] | None) -> Record:
+    """A cell's record, checked; one that no reader could load fails its cell, not the whole file."""
+    try:
+        return Record.from_json(obj, check=check)
+    except RecordError as exc:
+        return Record.from_json({**ident, "status": "error", "reason": f"malformed record: {exc}",
+                                 "time": None, "error": None})
+
+
 def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
               probes: Probes | None = None,
-              on_record: Callable[[int, dict[str, Any], Outputs | None], None] | None = None,
+              on_record: Callable[[int, Record, Outputs | None], Record] | None = None,
+              check: Callable[[dict[str, Any]], str | None] | None = None,
               runner: Callable[[Cell], cells.Result] | None = None,
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
@@ -126,8 +137,10 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     ``not_runnable``'s. ``ahead`` > 0 (timed suites, one cell at a time): up to that many
     workers start before their turn, their untimed parts overlapped and their clocks never
     (``compare.overlap``); ``footprint``: a worker's host-memory estimate, which bounds them.
-    ``on_record`` sees a record's JSON object before ``Record.from_json`` checks it (it may add
-    to it); a record that fails the check becomes an ``error`` record of its cell.
+    Every record is typed once (``Record.from_json``, with ``check``: its suite's own check,
+    ``compare.formats``); ``on_record`` maps it to the record the store keeps (a function from
+    Record to Record: it may add a yardstick, a run stamp, a converged error), checked again;
+    a record that fails a check becomes an ``error`` record of its cell.
     ``processes``: more than 1 (or 'auto') times every cell that ran ok again in further worker
     processes, in seeded rounds, and adds ``time.processes`` to its record (``compare.repeats``);
     ``on_repeat`` sees each repeat process's ``time`` block (its parts, for the run's summary).
@@ -151,13 +164,10 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
         with lock:
             if failed:                            # the store could not save (a full disk): no
                 raise failed[0]                   # other cell's record may pretend to be kept
+            record = typed(rec, idents[i], check)
             if on_record is not None and save:    # first: it may add to the record (a sweep's
-                on_record(i, rec, out)            # converged error) before the store keeps it
-            try:
-                record = Record.from_json(jsonable(rec))      # the hooks' figures may be NumPy scalars
-            except RecordError as exc:            # one that no reader could load fails its cell,
-                record = Record.from_json({**idents[i], "status": "error",   # not the whole file
-                                           "reason": f"malformed record: {exc}", "time": None, "error": None})
+                # converged error) before the store keeps it; its figures may be NumPy scalars
+                record = typed(jsonable(on_record(i, record, out).to_json()), idents[i], check)
             if store is not None and save:
                 store.put(record)
                 try:
@@ -243,8 +253,8 @@ def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int],
 QUIET_LINE_S = 300.0     # not a terminal: a progress line at least this often while cells run
 
 
-def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None, every: bool = True
-             ) -> Callable[[int, dict[str, Any], Outputs | None], None]:
+def progress(total: int, label: Callable[[Record], str] | None = None, every: bool = True
+             ) -> Callable[[int, Record, Outputs | None], None]:
     """An ``on_record`` that reports each finished cell on stderr: a tqdm bar on a terminal, one
     line per cell otherwise (CI logs). ``label``: a record's name (default: its identity).
     ``every=False`` (not a terminal): a line per quarter of the cells that run (the skipped ones
@@ -260,20 +270,20 @@ def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None, e
         bar = tqdm(total=total, unit="cell", file=sys.stderr)
     seen = {"skipped": 0, "ran": 0, "part": 0, "at": time.monotonic()}
 
-    def on_record(i: int, rec: dict[str, Any], out: Outputs | None) -> None:
-        name = label(rec) if label else "/".join(str(rec.get(k)) for k in IDENTITY)
+    def on_record(i: int, rec: Record, out: Outputs | None) -> None:
+        name = label(rec) if label else "/".join(str(rec.identity.get(k)) for k in IDENTITY)
         if bar is not None:
             bar.set_description(name)
             bar.update(1)
             if bar.n >= total:
                 bar.close()
             return
-        if every or rec["status"] in ("error", "mismatch"):
-            print(f"  [{i + 1}/{total}] {name}: {rec['status']} {rec.get('reason', '')}".rstrip(), file=sys.stderr,
+        if every or rec.status in ("error", "mismatch"):
+            print(f"  [{i + 1}/{total}] {name}: {rec.status} {rec.reason or ''}".rstrip(), file=sys.stderr,
                   flush=True)
             if every:
                 return
-        if rec["status"] == "skipped" and not seen["ran"]:
+        if rec.status == "skipped" and not seen["ran"]:
             seen["skipped"] += 1
             return
         seen["ran"] += 1
@@ -281,6 +291,6 @@ def progress(total: int, label: Callable[[dict[str, Any]], str] | None = None, e
         part, now = seen["ran"] * 4 // runs, time.monotonic()
         if part > seen["part"] or now - seen["at"] >= QUIET_LINE_S:
             seen["part"], seen["at"] = part, now
-            print(f"  {seen['ran']}/{runs} cells run ({seen['skipped']} skipped; last: {name}: {rec['status']})",
+            print(f"  {seen['ran']}/{runs} cells run ({seen['skipped']} skipped; last: {name}: {rec.status})",
                   file=sys.stderr, flush=True)
     return on_record

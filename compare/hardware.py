@@ -213,6 +213,13 @@ def measure(device: str, timeout: float = 300.0) -> dict[str, Any]:
     return {"error": f"yardstick process failed (exit {proc.returncode}): {tail}"}
 
 
+def annotated(rec: Any, hardware: dict[str, dict[str, Any]]) -> Any:
+    """A ``Record`` with its floor and hardware fraction added (``annotate`` on its JSON): a new record."""
+    obj = rec.to_json()
+    annotate([obj], hardware)
+    return type(rec).from_json(obj) if obj != rec.to_json() else rec
+
+
 def annotate(records: list[dict[str, Any]], hardware: dict[str, dict[str, Any]]) -> None:
     """Add each timed cell's stated floor and hardware fraction (throughput regime)."""
     import scenarios

@@ -273,13 +273,14 @@ class RunSuite(Suite):
     def seed(self) -> int:
         return int(self.env.get("seed", 0))
 
-    def on_record(self, i: int, rec: dict[str, Any], outs: dict[str, np.ndarray] | None) -> None:
-        self.ran.append({"time": rec.get("time")})
-        hardware.annotate([rec], self.env["hardware"])        # judged against this run's yardstick
-        rec["run"] = environment.run_stamp(self.env)          # and named as this run's
+    def on_record(self, i: int, rec: Record, outs: dict[str, np.ndarray] | None) -> Record:
+        self.ran.append({"time": rec.to_json()["time"]})
+        rec = hardware.annotated(rec, self.env["hardware"])   # judged against this run's yardstick
+        rec = rec.replace(run=environment.run_stamp(self.env))    # and named as this run's
         if self.args.save_arrays and outs is not None:        # before its record is saved: a failed
-            save_arrays(self.out, rec, outs)                  # write leaves the cell to be run again
+            save_arrays(self.out, rec.identity, outs)         # write leaves the cell to be run again
         self.show(i, rec, outs)
+        return rec
 
     def on_repeat(self, block: dict[str, Any]) -> None:
         self.ran.append({"time": block})

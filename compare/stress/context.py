@@ -40,7 +40,7 @@ class Ctx:
     probes: engine.Probes
     store: Store | None = None
     # the suite's per-record hook (``driver.Suite.on_record``): every cell's record passes it
-    on_record: Callable[[int, dict[str, Any], dict[str, np.ndarray] | None], None] | None = None
+    on_record: Callable[[int, Record, dict[str, np.ndarray] | None], Record] | None = None
 
     @property
     def reference(self) -> str:

@@ -34,6 +34,7 @@ from backends.base import Device
 from compare import engine, environment, hardware, options, outdir, preflight, scaleout
 from compare.driver import Planned, Run, Suite, claim, drive
 from compare.options import EXIT_FAIL, EXIT_OK, UsageError
+from compare.record import Record
 from compare.spec import Cell
 from compare.store import Store, atomic_write
 from compare.sweep import page as pages
@@ -185,13 +186,12 @@ def contents(store: Store) -> dict[str, Any]:
 
 
 # ---- running --------------------------------------------------------------------------------
-def label(rec: dict[str, Any]) -> str:
+def label(rec: Record) -> str:
     """A sweep record's name in the progress lines: its sweep, identity and knob setting."""
-    tags = rec.get("tags") or {}
+    tags = rec.tags or {}
     knob = tags.get("knob") or {}
     setting = f" {knob.get('name')}={knob.get('value')}" if knob.get("name") and knob.get("value") is not None else ""
-    return (f"{tags.get('sweep')} {rec['scenario']}/{rec['backend']}/{rec['device']}/{rec['precision']}/"
-            f"{rec['variant']}{setting}")
+    return f"{tags.get('sweep')} {rec.scenario}/{rec.backend}/{rec.device}/{rec.precision}/{rec.variant}{setting}"
 
 
 def rebuild(data: dict[str, Any], args: argparse.Namespace, sources: list[str], notes: str) -> Path:
@@ -276,15 +276,15 @@ class SweepSuite(Suite):
     def seed(self) -> int:
         return int(self.env.get("seed", 0))
 
-    def on_record(self, j: int, rec: dict[str, Any], outputs: engine.Outputs | None) -> None:
-        if (rec.get("tags") or {}).get("sweep") == "error" and rec["status"] in ("ok", "mismatch"):
-            conv = sweeps(rec["scenario"]).converged_error(rec["params"], outputs, rec, self.cache,
-                                                           reference=self.references[j])
+    def on_record(self, j: int, rec: Record, outputs: engine.Outputs | None) -> Record:
+        if (rec.tags or {}).get("sweep") == "error" and rec.status in ("ok", "mismatch"):
+            conv = sweeps(rec.scenario).converged_error(dict(rec.params or {}), outputs, rec.to_json(),
+                                                        self.cache, reference=self.references[j])
             if conv is not None:
-                rec["converged"] = conv
-        hardware.annotate([rec], self.env["hardware"])
-        rec["run"] = environment.run_stamp(self.env)
+                rec = rec.replace(converged=conv)
+        rec = hardware.annotated(rec, self.env["hardware"]).replace(run=environment.run_stamp(self.env))
         self.show(next(self.count), rec, outputs)
+        return rec
 
     def render(self, run: Run, results: list[Any]) -> int:
         store = self.store_
