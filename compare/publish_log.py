@@ -25,6 +25,7 @@ from typing import Any
 
 from compare import environment
 from compare.options import EXIT_INTERRUPTED
+from compare.publish_plan import Part
 from compare.store import StoreError, atomic_write
 
 FORMAT_VERSION, LOG = 1, "publish.json"
@@ -61,16 +62,6 @@ def identity(argv: Any, out: str) -> list[str]:
         r = Path(w).resolve()
         words.append(("DIR/" + str(r.relative_to(base))) if r == base or base in r.parents else w)
     return words
-
-
-@dataclasses.dataclass(frozen=True)
-class Part:
-    """One part of a publish run: the command after ``python -m compare``; compare/publish.py
-    plans them."""
-    name: str
-    argv: tuple[str, ...]
-    reads: tuple[str, ...] = ()     # a derived part: it reruns after any of these ran
-    resumes: bool = True            # a rerun continues where a cut-off attempt stopped
 
 
 def cut_off(e: dict[str, Any]) -> bool:

@@ -25,8 +25,8 @@ def _packages(m: Machine) -> list[tuple[str, str]]:
 
 def _plan_parts(device: str) -> list[str]:
     """The parts a publish runs for ``device`` (every size assumed to fit)."""
-    from compare import publish
-    parts, _ = publish.plan("DIR", [device], "all", have={"cpu": float("inf"), "cuda": float("inf")})
+    from compare import publish_plan
+    parts, _ = publish_plan.plan("DIR", [device], "all", have={"cpu": float("inf"), "cuda": float("inf")})
     return [p.name for p in parts]
 
 

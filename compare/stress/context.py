@@ -19,9 +19,8 @@ from compare.record import Record
 from compare.report import fmt_num
 from compare.store import Store
 from compare.stress import host_loop
-from compare.stress.numerics import Row
+from compare.stress.numerics import COLUMNS, Row
 
-COLUMNS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 
 
 def lane(item: Any) -> Any:

@@ -17,6 +17,8 @@ import numpy as np
 ORACLE = "oracle64"      # the float64 Python reference, as a row's backend ('host' device)
 
 Row = dict[str, Any]
+# the columns of a finding (stress.md, stress.json's analysis.rows), in order
+COLUMNS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 Result = tuple[list[Row], dict[str, Any]]                    # (rows, series for the plot)
 Outputs = dict[str, np.ndarray]
 Style = Callable[[str], dict[str, Any]]                       # "backend/device/..." -> plot kwargs

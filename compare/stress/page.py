@@ -17,7 +17,7 @@ import backends
 from compare.report import fmt_num
 from compare.store import Store, atomic_write, jsonable
 from compare.stress import plots
-from compare.stress.context import COLUMNS
+from compare.stress.numerics import COLUMNS
 from compare.stress.format import Finding
 from compare.stress.numerics import Experiment
 
