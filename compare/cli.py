@@ -21,16 +21,18 @@ from typing import Any
 
 import backends
 import scenarios
-from compare import engine, options, run_suite
+from compare.running import engine
+from compare import options
+from compare.suites import run as run_suite
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
 from compare.spec import SpecError
-from compare.store import StoreError
+from compare.results.store import StoreError
 from scenarios.base import ParamError
 
 
 # The subcommands with a module of their own: each has add_arguments, run and a docstring.
-SUITE_MODULES = {"sweep": "compare.sweep.suite", "stress": "compare.stress.suite", "site": "compare.site",
-                 "publish": "compare.publish", "agree": "compare.agree"}
+SUITE_MODULES = {"sweep": "compare.suites.sweep", "stress": "compare.suites.stress", "site": "compare.site",
+                 "publish": "compare.suites.publish", "agree": "compare.site.agree"}
 
 
 def suite_modules() -> dict[str, Any]:

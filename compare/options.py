@@ -135,7 +135,7 @@ def add_selection(p: argparse.ArgumentParser, precision: str | None = ",".join(P
 def add_scheduler(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run cells as tasks on a Dask cluster ('local': one worker per GPU of this "
-                        "host, each pinned to its GPU and a core set; compare/scaleout.py)")
+                        "host, each pinned to its GPU and a core set; compare/running/scaleout.py)")
 
 
 def check_scheduler(args: argparse.Namespace) -> None:
@@ -156,7 +156,7 @@ def add_timing(p: argparse.ArgumentParser, repeat: int | None = 10, min_time: fl
 
 
 def add_processes(p: argparse.ArgumentParser) -> None:
-    """--processes: the repeats across worker processes (``compare.repeats``), which the driver
+    """--processes: the repeats across worker processes (``compare.running.repeats``), which the driver
     runs for every timed suite."""
     p.add_argument("--processes", type=processes_count, default=1, metavar="N",
                    help="time every cell in N independent worker processes (auto: until each "

@@ -8,7 +8,7 @@ kernel. It crosses the process boundary (a worker, a Dask task) through one pair
 carries a suite's own identity of the cell (a sweep's kind, role and knob; a stress experiment),
 so two suites can run the same cell for different reasons and keep both records.
 
-Its record is ``compare.record.Record`` (the fields, their checks and the format's history).
+Its record is ``compare.results.record.Record`` (the fields, their checks and the format's history).
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ makes (already rounded to the cell's precision) and returns outputs named as in 
 A scenario holds physics only, and knows nothing of the suites either: what they do with it is
 found by scenario name beside them (sweep points in compare/sweep/points/<name>.py and
 converged errors in compare/sweep/converged.py, stress experiments in compare/stress/<name>.py,
-the report's picture in compare/figures/<name>.py). tests/test_layout.py checks that nothing here imports ``backends`` or
+the report's picture in compare/render/figures/<name>.py). tests/test_layout.py checks that nothing here imports ``backends`` or
 ``compare``.
 """
 from __future__ import annotations
@@ -256,9 +256,9 @@ class Scenario:
     def footprint(self, params, precision: str, device: str = "cpu") -> float:
         """Bytes of host memory a cell's worker needs for its data at its peak (inputs, the
         framework's copies, outputs, oracle and check temporaries), beyond the interpreter and
-        framework (compare.run_suite.WORKER_BASELINE_BYTES, per device). ``device``: where the
+        framework (compare.suites.run.WORKER_BASELINE_BYTES, per device). ``device``: where the
         framework's own working copies live (on a GPU they are not host memory). An upper bound: the run suite
-        refuses sizes whose bound exceeds the available memory, and tests/test_memory_guard.py
+        refuses sizes whose bound exceeds the available memory, and tests/planning/test_preflight.py
         checks it against measured peaks."""
         return 0.0
 
@@ -297,7 +297,7 @@ class Scenario:
 
     def scaled(self, params, factor: int):
         """The same parameters at 1/``factor`` of the cell's size, run first to predict how long a
-        big cell takes (``compare.calibrate``); None (the default) for a cell too small to need it."""
+        big cell takes (``compare.planning.calibrate``); None (the default) for a cell too small to need it."""
         return None
 
     def size_text(self, params) -> str:
@@ -311,7 +311,7 @@ class Scenario:
         return {}
 
     def floor(self, params, precision: str, hardware: dict[str, Any]) -> dict[str, Any] | None:
-        """The least time one run can take on this hardware (``compare.hardware``'s same-run
+        """The least time one run can take on this hardware (``compare.running.hardware``'s same-run
         yardstick): {'kind', 'seconds', 'derivation'}, or None where nothing is stated.
 
         Default: the larger of the bandwidth floor (``work()['bytes']`` at the measured copy

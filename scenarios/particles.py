@@ -39,7 +39,7 @@ from .base import Check, Precision, Sample, Scenario, UNIT_ROUNDOFF, dtype_of, r
 CONSTANTS = ("dt", "gravity", "damping", "bounce", "radius")
 INITIAL = ("x0", "y0", "vx0", "vy0")
 STATE = ("x", "y", "vx", "vy")
-BIG_N = 1 << 22      # from here a cell is first timed in miniature (compare.calibrate)
+BIG_N = 1 << 22      # from here a cell is first timed in miniature (compare.planning.calibrate)
 # particles checked against the oracle unless told otherwise: above this many, a seeded sample
 # (its float64 rollout is one NumPy pass per step; all 2^24 particles took 14 minutes of a cell)
 PARTICLES_CHECKED = 1 << 16

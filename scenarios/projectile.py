@@ -37,7 +37,7 @@ from .projectile_adjoint import closed_form, evaluate, finite_difference_gradien
 CONSTANTS = ("dt", "gravity", "target_x", "target_y", "bounce", "damping", "stiffness",
              "softness", "lr")
 MAX_BATCH = 1 << 24
-BIG_BATCH = 1 << 16    # from here a cell is first timed in miniature (compare.calibrate)
+BIG_BATCH = 1 << 16    # from here a cell is first timed in miniature (compare.planning.calibrate)
 # Useful floating-point operations per trajectory-step, forward + reverse: 'none' 3 updates of 2
 # FLOPs forward and 2 of 2 in reverse; 'hard' adds 3 multiplies on a bounce (counted always);
 # 'soft' adds the softplus (2 transcendental + 6 FLOPs) and its derivative (~8) in each direction.

@@ -12,7 +12,7 @@ reads NUL-terminated JSON messages on its fd 3 and writes them on its fd 4.
 ``check`` loads one page in a fresh tab (every http(s) request blocked, so a test never waits on
 the network) and reports console errors and uncaught exceptions, failed loads (an error or HTTP
 status >= 400), every http(s) request, images that did not load, relative links whose
-target is not on disk, and each shown PNG's layout verdict (compare/figure_check.py). Every wait is bounded: a page that does not load in ``timeout`` seconds
+target is not on disk, and each shown PNG's layout verdict (compare/render/figure_check.py). Every wait is bounded: a page that does not load in ``timeout`` seconds
 is reported as timed out, and the browser is killed (the next call starts a fresh one).
 """
 from __future__ import annotations
@@ -359,9 +359,9 @@ class Browser:
 
 def figure_problems(srcs: list[str]) -> list[str]:
     """The layout problems of the PNGs a page shows, as stamped where they were saved
-    (compare/figure_check.py: texts inside the canvas, no two overlapping, no legend over
+    (compare/render/figure_check.py: texts inside the canvas, no two overlapping, no legend over
     data); a PNG saved without that check is a problem too."""
-    from compare import figure_check          # the standard library only, at import
+    from compare.render import figure_check  # the standard library only, at import
     out = []
     for src in dict.fromkeys(srcs):
         path = local_path(src)
@@ -369,7 +369,7 @@ def figure_problems(srcs: list[str]) -> list[str]:
             continue                          # not a local PNG, or broken (reported as such)
         found = figure_check.read(path)
         if found is None:
-            out.append(f"{path.name}: layout never checked (saved without compare.figure_check)")
+            out.append(f"{path.name}: layout never checked (saved without compare.render.figure_check)")
         out += [f"{path.name}: {p}" for p in found or ()]
     return out
 

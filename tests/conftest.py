@@ -18,7 +18,7 @@ if str(ROOT) not in sys.path:
 
 import adversarial  # noqa: E402
 import parallel  # noqa: E402
-from compare import cells, engine  # noqa: E402
+from compare.running import cells, engine  # noqa: E402
 # pytest-xdist's workers, groups and `alone` tests (tests/parallel.py)
 from parallel import (pytest_collection_finish, pytest_configure, pytest_runtest_protocol,  # noqa: E402,F401
                       pytest_unconfigure, pytest_xdist_auto_num_workers, pytest_xdist_make_scheduler)
@@ -116,7 +116,7 @@ def run_cell(backend: str, scenario: str, precision: str, params: dict, device: 
     """One cell through the real worker path (its own process), at quick sizes; ok or mismatch.
     Correctness only, as the parity suite: warm kernel caches and no throughput regime (the
     command-line tests run cells cold)."""
-    from compare import cells
+    from compare.running import cells
     require_device(backend, device)
     spec = {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
             "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant,
@@ -166,7 +166,7 @@ def run_script(backend: str, body: str, device: str = "cpu") -> dict:
     import sys
     import textwrap
 
-    from compare import cells
+    from compare.running import cells
     require_device(backend, device)
     code = "import json\nimport backends, scenarios\nDEVICE = %r\n" % device + textwrap.dedent(body)
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=cells.worker_env(),

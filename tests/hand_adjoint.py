@@ -1,4 +1,4 @@
-"""The GPU checks the hand-adjoint backends share (tests/test_cupy.py, tests/test_triton.py):
+"""The GPU checks the hand-adjoint backends share (tests/backends/test_cupy.py, tests/backends/test_triton.py):
 every scenario's cell times with CUDA events, replays a CUDA graph and reports a device memory
 peak; row 0 of a projectile batch equals the single trajectory bitwise for each contact, and a
 captured run replayed after ``set_input`` gives what a fresh kernel gives."""
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compare import cells
+from compare.running import cells
 
 GPU_CASES = [("saxpy", {}), ("sdf", {}), ("particles", {"record_every": 30}), ("launch", {}), ("copy", {}),
              ("projectile", {"contact": "hard"}), ("projectile", {"contact": "soft"}),

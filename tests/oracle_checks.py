@@ -1,5 +1,5 @@
 """Checks of a cell's outputs against the float64 oracle that several backends' tests share
-(tests/test_taichi.py, tests/test_jax.py, tests/test_mlx.py): the projectile's gradient against
+(tests/backends/test_taichi.py, tests/backends/test_jax.py, tests/backends/test_mlx.py): the projectile's gradient against
 finite differences of the oracle's loss, and the particles' trajectory frames."""
 from __future__ import annotations
 

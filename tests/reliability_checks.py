@@ -1,8 +1,8 @@
 """What the reliability tests share (docs/reliability.md): the figures printed after the run,
 the one-line refusal contract for bad input, the working directory of inputs and the entry
-point in a real process. The tests: tests/test_refusals.py (bad input, one case at a time),
-tests/test_refusal_properties.py (property-based bad input, fuzzed JSON), tests/test_memory_guard.py
-(host memory), tests/test_faults.py (locks, full disks, a killed driver)."""
+point in a real process. The tests: tests/test_options.py (bad input, one case at a time),
+tests/test_options_properties.py (property-based bad input, fuzzed JSON), tests/planning/test_preflight.py
+(host memory), tests/running/test_lock.py (locks, full disks, a killed driver)."""
 from __future__ import annotations
 
 import contextlib

@@ -1,8 +1,8 @@
 """What the tests of Taichi and of Quadrants (Taichi's maintained fork) share: the cells each
 framework's tests run through the worker (one conftest.shared_cell group per framework, which
-tests/test_taichi_family.py and the framework's own file both read), the parametrization of the
-checks that hold for both (tests/test_taichi_family.py) and their scripts. Each framework's own
-checks stay in tests/test_taichi.py and tests/test_quadrants.py."""
+tests/backends/test_taichi_family.py and the framework's own file both read), the parametrization of the
+checks that hold for both (tests/backends/test_taichi_family.py) and their scripts. Each framework's own
+checks stay in tests/backends/test_taichi.py and tests/backends/test_quadrants.py."""
 from __future__ import annotations
 
 import pytest
@@ -27,7 +27,7 @@ VS_WARP = {"taichi": [("saxpy", {}), ("saxpy", {"n": 257, "inputs": "random", "s
            "quadrants": [("saxpy", {"n": 257, "inputs": "random", "seed": 3}), ("sdf", {}),
                          ("particles", {"n": 33, "steps": 57, "record_every": 7}),
                          ("projectile", {"contact": "hard"}), ("projectile", {"contact": "soft"})]}
-# the cells only tests/test_taichi.py reads: gradients on every device, trajectory frames
+# the cells only tests/backends/test_taichi.py reads: gradients on every device, trajectory frames
 OWN_CELLS = {"taichi": [("taichi", "projectile", "float64", o, d, "default") for o in FD for d in backends.DEVICES]
                        + [("taichi", "particles", "float64", FRAMES, "cpu", "default")],
              "quadrants": []}

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from compare.hardware import matched_copy
+from compare.running.hardware import matched_copy
 from conftest import FAULTY, ROOT
 
 pytestmark = pytest.mark.cli
@@ -93,7 +93,7 @@ def test_results_json_contract(quick_run):
         thr = r["time"]["throughput"]
         if "same_as" in thr:
             # one synchronised call already lasts a batch (a slow or busy host): the latency
-            # regime's figures stand for it, said so (compare.timing.pipelined)
+            # regime's figures stand for it, said so (compare.measuring.timing.pipelined)
             assert thr["same_as"] == "latency" and thr["k"] == 1 and thr["host_s"] is None
             assert thr["median_s"] == r["time"]["latency"]["median_s"]
         else:
@@ -114,7 +114,7 @@ def test_results_json_contract(quick_run):
     saxpy = [r for r in recs if r["scenario"] == "saxpy"]
     for r in saxpy:
         assert r["throughput"]["floor_kind"] == "bandwidth"
-        # on the CPU against the copy nearest the cell's traffic (compare.hardware.matched_copy)
+        # on the CPU against the copy nearest the cell's traffic (compare.running.hardware.matched_copy)
         bw = matched_copy(hw, r["work"]["bytes"])[0]
         want = r["work"]["bytes"] / bw / r["time"]["throughput"]["median_s"]
         assert abs(r["throughput"]["hw_fraction"] - want) <= 1e-9 * want
@@ -273,7 +273,7 @@ def test_scenario_help_lists_its_parameters_with_defaults_and_ranges():
 def _cell(backend: str, median: float, iqr: float = 0.0, noisy: bool = False,
           ci: tuple[float, float] | None = None):
     """A projectile CPU float32 record timed in the throughput regime."""
-    from compare.record import Record
+    from compare.results.record import Record
     t: dict = {"median_s": median, "iqr_s": iqr, "repeats": 50,
                "throughput": {"median_s": median, "iqr_s": iqr, "repeats": 5, "k": 10}}
     if noisy:
@@ -285,7 +285,7 @@ def _cell(backend: str, median: float, iqr: float = 0.0, noisy: bool = False,
 
 
 def _ranking(*cells) -> str:
-    from compare import report
+    from compare.render import report
     lines = report.summary_lines(list(cells))
     return " ".join(x.strip() for x in lines if "projectile cpu float32" in x or x.startswith("      "))
 

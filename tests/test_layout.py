@@ -122,3 +122,44 @@ def test_the_checks_see_a_cycle_and_a_lazy_import(tmp_path):
     src = tmp_path / "m.py"
     src.write_text("def f():\n    from . import sibling\n    import backends.numpy\n")
     assert {"scenarios.sibling", "backends.numpy"} <= imported_names("scenarios.m", src)
+
+
+# compare/'s stages, lowest first: a module imports only from its own stage and those before it
+# (docs/architecture.md, "The folders"). The top modules (the cell, options, atomic files) are
+# the vocabulary every stage shares; cli is the command line above everything.
+STAGES = ("compare.spec compare.options compare.files", "compare.results", "compare.measuring",
+          "compare.running", "compare.render", "compare.sweep compare.stress", "compare.planning",
+          "compare.site", "compare.suites", "compare.cli compare.__main__ compare")
+# The one arrow up, by design: the store reads a file through the format its suite names, and the
+# registry of formats names the sweep's and stress suite's own format modules (leaves that import
+# the schema and their suite's definitions, never a driver).
+UPWARD_ALLOWED = {("compare.results.formats", f"compare.{suite}{leaf}")
+                  for suite in ("sweep", "stress") for leaf in ("", ".format")}   # (the package imports nothing)
+
+
+def stage(module: str) -> int | None:
+    """The stage of a compare module (None: not compare's)."""
+    best = None
+    for i, names in enumerate(STAGES):
+        for prefix in names.split():
+            if module == prefix or module.startswith(prefix + "."):
+                if best is None or len(prefix) > best[1]:
+                    best = (i, len(prefix))
+    return best[0] if best is not None else None
+
+
+def test_compare_imports_only_downward():
+    up = []
+    for name, deps in graph().items():
+        here = stage(name)
+        if here is None:
+            continue
+        for dep in deps:
+            there = stage(dep)
+            if there is not None and there > here and dep != "compare" and (name, dep) not in UPWARD_ALLOWED:
+                up.append(f"{name} ({STAGES[here].split()[0]}) imports {dep} ({STAGES[there].split()[0]})")
+    assert not up, "an import runs back up the stages:\n" + "\n".join(sorted(up))
+
+
+def test_every_compare_module_has_a_stage():
+    assert [m for m in project_modules() if m.startswith("compare") and stage(m) is None] == []

@@ -2,7 +2,7 @@
 
 Most MLX ops that leave values unchanged (``mx.contiguous`` of a contiguous array, ``astype`` to
 the same dtype, reshape, a full slice) share the input's buffer and move no bytes; ``mx.array``
-of an array allocates and fills a new one (tests/test_mlx.py checks that the output is new
+of an array allocates and fills a new one (tests/backends/test_mlx.py checks that the output is new
 memory). It is not compiled: there is nothing to fuse.
 """
 from __future__ import annotations

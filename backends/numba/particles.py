@@ -8,7 +8,7 @@ scenario's step order, each contact a select) and compiled for both targets:
   particles of its chunk inside, so LLVM vectorises the inner loop across particles (SIMD). The
   one-particle-per-iteration form runs every step as one serial chain of dependent operations,
   many times slower (docs/results/cpu/report/particles.md), with bit-identical results
-  (tests/test_numba.py).
+  (tests/backends/test_numba.py).
 
 Trajectory frames are written only when ``record_every`` asks for them (otherwise the traj arrays
 are empty).

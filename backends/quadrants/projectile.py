@@ -29,7 +29,7 @@ the backend). What differs from the Taichi port, and why (docs/findings.md has t
     Quadrants gets the adjoint of exp right through a loop: plain qd.exp, no extra fields.
 One launch per step over the B trajectories (Warp's per-step scheme, where none of this arises)
 is kept as ``Kernel.fused = False`` for the tests, which check both paths give the same outputs
-(tests/test_taichi_family.py); the driver always runs the fused one.
+(tests/backends/test_taichi_family.py); the driver always runs the fused one.
 
 Per gradient-descent iteration the host makes 3 launches (fused) or 2*steps + 5 (per step),
 whatever B; the update kernel also zeroes the gradients and re-seeds loss.grad for the next

@@ -44,7 +44,7 @@ built-in checkpointing: ti.ad.grad_replaced/grad_for only substitute a Python fu
 gradient under ti.ad.Tape, so the segments are driven from the host as the per-step path is.
 
 All paths give the same outputs: bitwise on the CPU, to a few roundings on CUDA, whose compiler
-contracts FMAs kernel by kernel (tests/test_taichi_family.py, tests/test_taichi.py). Per iteration
+contracts FMAs kernel by kernel (tests/backends/test_taichi_family.py, tests/backends/test_taichi.py). Per iteration
 the host makes 3 launches (fused) or 2*steps + 5 (per step), whatever B; the update kernel also
 zeroes the gradients and re-seeds loss.grad. Measured per run() (B = 1, 180 steps, 21 evaluations),
 fused vs per step: 2-core CPU VM 3-12 ms vs 235-270 ms; H200 4-14 ms vs 350-540 ms (before

@@ -6,7 +6,7 @@ Why these choices:
     another in NumPy: a correctness tool, not a CPU backend. So ``available()`` never offers the
     CPU to ``compare`` (its cells are skips naming the interpreter), and under
     ``TRITON_INTERPRET=1`` not CUDA either (the kernels would be the interpreter's, not compiled).
-    tests/test_triton.py runs the kernels under the interpreter on the CPU for parity.
+    tests/backends/test_triton.py runs the kernels under the interpreter on the CPU for parity.
   * Precision. Triton types a Python float kernel argument as fp32, so a float64 kernel would see
     rounded constants: scalar inputs travel in a small device tensor of the cell's dtype (``put``)
     and are loaded in the kernel. Literals in kernel code (``0.35``) are materialised in the dtype
@@ -37,7 +37,7 @@ from ..base import cuda_build_hint, not_installed
 from ..torch import TorchCuda   # Triton takes its tensors and stream from PyTorch
 
 CPU_REASON = ("Triton compiles for GPUs only; its CPU interpreter (TRITON_INTERPRET=1: NumPy, one "
-              "program at a time) is for correctness and is not timed (tests/test_triton.py runs "
+              "program at a time) is for correctness and is not timed (tests/backends/test_triton.py runs "
               "the parity cases under it)")
 INTERPRETER_REASON = ("TRITON_INTERPRET=1 is set: kernels would run in Triton's interpreter "
                       "(correctness only), not compiled for the GPU; unset it to time CUDA")

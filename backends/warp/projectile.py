@@ -20,7 +20,7 @@ segment's end state is kept, so memory per trajectory is O(steps/K + K). The bac
 each segment's states again: ``Tape.record_func`` (Warp's hook for a custom step in the backward
 pass) puts a re-run of segment j's forward just before segment j's adjoint in the replay. The same
 kernel computes the same states, and the adjoint chains through the kept end states exactly, so the
-gradient equals the plain tape's bit for bit (tests/test_warp.py). The cost: every segment but the
+gradient equals the plain tape's bit for bit (tests/backends/test_warp.py). The cost: every segment but the
 last runs its forward twice (3 launches: forward, re-run, adjoint), all inside the same CUDA graph. K = sqrt(steps) minimises the states kept, steps/K + K + 1 per trajectory.
 """
 # (no "from __future__ import annotations": Warp evaluates kernel annotations from the closure)

@@ -20,7 +20,8 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from compare import options, outdir
+from compare import options
+from compare.planning import outdir
 from compare.options import EXIT_OK, UsageError
 
 if TYPE_CHECKING:

@@ -17,8 +17,8 @@ import statistics
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
-from compare import charts
-from compare.record import Record
+from compare.render import charts
+from compare.results.record import Record
 from compare.site import data, fmt
 from compare.site.data import Machine, Timing
 from compare.site.questions_pages import Ctx

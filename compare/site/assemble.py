@@ -10,7 +10,7 @@ from compare.site import data, fmt, pages, questions, topics
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.render import H, Items, P, Table, page_html, page_md
-from compare.store import atomic_write
+from compare.results.store import atomic_write
 
 
 def _packages(m: Machine) -> list[tuple[str, str]]:
@@ -25,7 +25,7 @@ def _packages(m: Machine) -> list[tuple[str, str]]:
 
 def _plan_parts(device: str) -> list[str]:
     """The parts a publish runs for ``device`` (every size assumed to fit)."""
-    from compare import publish_plan
+    from compare.planning import publish_plan
     parts, _ = publish_plan.plan("DIR", [device], "all", have={"cpu": float("inf"), "cuda": float("inf")})
     return [p.name for p in parts]
 

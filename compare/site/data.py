@@ -1,7 +1,7 @@
 """One machine's stored results, as the site reads them, and the figures it takes from a record.
 
 A machine's store is a folder of suite files (results.json, sweep.json, stress.json; any may be
-missing) in the common format of compare/store.py; files may also be named one by one. Records of
+missing) in the common format of compare/results/store.py; files may also be named one by one. Records of
 the run and sweep suites are pooled for the questions that both can answer (a SAXPY at the
 largest n may come from either); the stress suite's analysis feeds the stability page.
 """
@@ -14,10 +14,11 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 import scenarios
-from compare import noise, repeats
-from compare.record import Record
+from compare.measuring import noise
+from compare.running import repeats
+from compare.results.record import Record
 from compare.spec import BUSY_TAG
-from compare.store import SUITES, Store, StoreError, run_environments
+from compare.results.store import SUITES, Store, StoreError, run_environments
 from compare.sweep.points import sweeps
 
 PUBLISH_LOG = "publish.json"
@@ -104,7 +105,7 @@ def load(paths: Iterable[Path]) -> Machine:
                 merged[s.suite] = s
         log = (p if p.is_dir() else p.parent) / PUBLISH_LOG
         if log.is_file():
-            from compare.store import read_bounded
+            from compare.results.store import read_bounded
             try:
                 publish = json.loads(read_bounded(log, 16 * 2**20))
             except (OSError, ValueError, RecursionError) as exc:

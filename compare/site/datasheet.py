@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Mapping
 
-from compare.record import Record
+from compare.results.record import Record
 from compare.site.data import num
 
 PEAK_BYTES_PER_S: dict[str, float] = {

@@ -4,8 +4,8 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
-from compare.colors import BANDS
-from compare.noise import MARK as NOISY_MARK
+from compare.render.colors import BANDS
+from compare.measuring.noise import MARK as NOISY_MARK
 from compare.site.matrix import Cell
 
 BAND_EMOJI = {b.name: b.emoji for b in BANDS}

@@ -4,11 +4,11 @@ device's time of a call (events, a separate pass), and the framework's own timin
 the same call + synchronise where it ships one (a cross-check of the latency regime)."""
 from __future__ import annotations
 
-from compare.record import Record
-from compare.record_parts import OwnTimer
+from compare.results.record import Record
+from compare.results.record_parts import OwnTimer
 from compare.site import data, fmt
 from compare.site.render import Table
-from compare.timing import events_of
+from compare.measuring.timing import events_of
 
 
 def harness_table(recs: list[Record]) -> Table:

@@ -15,8 +15,8 @@ import math
 from typing import Any, Callable, cast
 
 import scenarios
-from compare import colors
-from compare.record import Record
+from compare.render import colors
+from compare.results.record import Record
 from compare.site import data, provenance, ranking
 from compare.site.data import Machine, Timing
 from scenarios.base import Precision
@@ -56,7 +56,7 @@ class Cell:
             return "ref"
         if self.tied:
             return "best"
-        # ranked bands by their upper bound (compare.colors.BANDS); beyond the last: "poor"
+        # ranked bands by their upper bound (compare.render.colors.BANDS); beyond the last: "poor"
         return next((b.name for b in colors.BANDS if b.bound and self.ratio <= b.bound), "poor")
 
 

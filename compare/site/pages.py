@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare import charts, colors, figure_check, noise
+from compare.render import charts, colors, figure_check
+from compare.measuring import noise
 from compare.site import data, fmt, matrix, pages_why, questions, ranking, shared_host
 from compare.site import questions_pages as qp
 from compare.site.questions_pages import REPO_DOCS, doc_link  # noqa: F401 (assemble reads them here)
@@ -52,7 +53,7 @@ def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "") -> 
 
 
 def _band_colors(band: str) -> tuple[str, str]:
-    """(background, text) of a band: the pages' own (compare.colors.BANDS)."""
+    """(background, text) of a band: the pages' own (compare.render.colors.BANDS)."""
     b = colors.BAND[band]
     return b.background, b.text
 

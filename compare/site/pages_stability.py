@@ -7,7 +7,7 @@ import math
 import re
 from typing import Any
 
-from compare import charts, figure_check
+from compare.render import charts, figure_check
 from compare.site import questions_pages as qp
 from compare.site.questions_pages import doc_link
 from compare.site.render import Figure, H, P, Raw, Table, block_html, block_md

@@ -6,7 +6,7 @@ gradient keeps), each fact a field of the record's ``info`` or ``time`` block, n
 from __future__ import annotations
 
 import dataclasses
-from compare.record import Record
+from compare.results.record import Record
 from compare.site import data, fmt, matrix
 from compare.site.data import Machine
 from compare.site.matrix import Cell, Row

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Iterable
 
-from compare.record import Record
+from compare.results.record import Record
 
 UNSTAMPED = "records without a run stamp (made before runs were recorded)"
 

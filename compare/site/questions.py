@@ -7,7 +7,7 @@ can check each cell.
 """
 from __future__ import annotations
 
-from compare.record import Record
+from compare.results.record import Record
 from compare.site import data, shared_host, topics
 from compare.site.matrix import IN_ALL, Rule, all_defaults
 

@@ -8,8 +8,8 @@ import os
 from pathlib import Path
 from typing import Any, Callable, cast
 
-from compare import charts
-from compare.record import Record
+from compare.render import charts
+from compare.results.record import Record
 from compare.site import data, fmt, pages_why, provenance
 from compare.site.data import Machine
 from compare.site.matrix import Row

@@ -12,7 +12,7 @@ import html
 import re
 from typing import Union
 
-from compare.colors import band_css
+from compare.render.colors import band_css
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from compare.record import Record
+from compare.results.record import Record
 from compare.site import data, fmt
 from compare.site.matrix import IN_ALL, Cell
 from compare.site.render import H, P, Table

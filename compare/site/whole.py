@@ -31,7 +31,7 @@ from compare.options import UsageError
 from compare.files import TEMP_MARK, TEMP_SUFFIX
 
 MANIFEST = "site.json"          # every site holds it (compare/site/assemble.py writes it)
-LOCK = ".compare.lock"          # the driver's lock (compare/lock.py), in --out while it runs
+LOCK = ".compare.running.lock"          # the driver's lock (compare/running/lock.py), in --out while it runs
 SUFFIX = ".building-"
 
 

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from typing import Any, TypedDict
 
-from compare.records import Format, show
+from compare.results.records import Format, show
 
 
 class Finding(TypedDict):
     """One row of ``analysis.rows``: a figure an experiment measured and its verdict (the columns
-    of stress.md; ``compare.records.ROW`` checks them as a file loads)."""
+    of stress.md; ``compare.results.records.ROW`` checks them as a file loads)."""
     experiment: str
     backend: str
     device: str

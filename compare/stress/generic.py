@@ -12,7 +12,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare.figure_check import place_legends
+from compare.render.figure_check import place_legends
 from compare.stress.numerics import (Experiment, Result, StressContext, Style, bitwise_differences, log_floor,
                                      ulps)
 from compare.stress.ulp_cases import ulp_cases

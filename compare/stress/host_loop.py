@@ -4,7 +4,7 @@ Some experiments need more than one cell gives, e.g. an optimiser no backend imp
 on the host with the backend's loss and gradient. Such a task is a JSON-able dict whose ``call``
 names the function that runs it (``"package.module:function"``, e.g.
 ``compare.stress.projectile_tasks:run_task``); the function gets the task and returns a JSON-able
-dict. Process isolation is as for cells (``compare.cells``): frameworks' global state lives and
+dict. Process isolation is as for cells (``compare.running.cells``): frameworks' global state lives and
 dies with the process, and a crash or a hang becomes ``{"error": ...}`` instead of a lost run.
 """
 from __future__ import annotations
@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from compare import lifeline
-from compare.cells import ROOT, worker_env
+from compare.running import lifeline
+from compare.running.cells import ROOT, worker_env
 
 
 def call(task: dict[str, Any]) -> dict[str, Any]:
@@ -34,7 +34,7 @@ def call(task: dict[str, Any]) -> dict[str, Any]:
 
 
 def run(task: dict[str, Any], timeout: float = 900.0) -> dict[str, Any]:
-    """Run ``task`` in a fresh interpreter (as compare.cells.run does for a cell); never raises."""
+    """Run ``task`` in a fresh interpreter (as compare.running.cells.run does for a cell); never raises."""
     with lifeline.temp_dir("stress-task-") as tmp:
         spec, out = Path(tmp) / "task.json", Path(tmp) / "out.json"
         spec.write_text(json.dumps(task))

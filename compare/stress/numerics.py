@@ -2,7 +2,7 @@
 
 An experiment (a scenario's, in the module compare/stress/<scenario>.py that compare/stress/registry.py finds) runs through a context the
 driver hands it (``StressContext``: cells, host-loop tasks, row helpers), so that experiments
-import neither the driver nor the store, and compare/records.py can read their page hooks. What
+import neither the driver nor the store, and compare/results/records.py can read their page hooks. What
 those experiments share is here.
 """
 from __future__ import annotations
@@ -42,7 +42,7 @@ class StressContext(Protocol):
     def row(self, experiment: str, backend: str, device: str, precision: str, setting: str,
             figure: str, value: Any, verdict: str, detail: str | None = "") -> Row: ...
     def label(self, spec_or_rec: dict[str, Any]) -> str: ...
-    # a cell's record is a compare.record.Record, not imported here: compare/records.py imports the
+    # a cell's record is a compare.results.record.Record, not imported here: compare/results/records.py imports the
     # experiments to check their findings
     def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: Any) -> Row: ...
     def fmt(self, x: Any) -> str: ...

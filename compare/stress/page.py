@@ -1,6 +1,6 @@
 """stress.json and stress.md: the one place that reads and writes the suite's results.
 
-``stress.json`` is the suite's common store (compare/store.py): the cell records of the runs, and
+``stress.json`` is the suite's common store (compare/results/store.py): the cell records of the runs, and
 as ``analysis`` the findings: ``rows``, plot ``series`` and ``provenance``, which says, per
 experiment, which run (command, time, commit) produced its rows, since a results file may be
 assembled from several runs (``--only`` parts, ``--merge``).
@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare.report import fmt_num
-from compare.store import Store, atomic_write, jsonable
+from compare.render.report import fmt_num
+from compare.results.store import Store, atomic_write, jsonable
 from compare.stress import plots
 from compare.stress.numerics import COLUMNS
 from compare.stress.format import Finding

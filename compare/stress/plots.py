@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare.colors import backend_color
-from compare.store import atomic_write
+from compare.render.colors import backend_color
+from compare.results.store import atomic_write
 from compare.stress.numerics import ORACLE, Experiment
 
 

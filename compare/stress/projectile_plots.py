@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from compare.figure_check import place_legends
+from compare.render.figure_check import place_legends
 from compare.stress.numerics import ORACLE, Row, Style, log_floor
 from compare.stress.projectile_rules import CONTACTS, FD_AGREE
 from compare.stress.projectile_tasks import OPTIMISERS

@@ -1,7 +1,7 @@
 """Every stress experiment by name: each scenario's own (a module of this package named after
 the scenario, with ``EXPERIMENTS``, in the scenarios' registry order), then the generic ones that
 name no scenario. Experiments import neither the driver nor the store, so the validating loader
-(compare/records.py) reads their page hooks from here without loading the suite."""
+(compare/results/records.py) reads their page hooks from here without loading the suite."""
 from __future__ import annotations
 
 import importlib

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from compare.records import AMOUNT, POSITIVE, TEXT, Format, Obj, problem
+from compare.results.records import AMOUNT, POSITIVE, TEXT, Format, Obj, problem
 from compare.sweep.points import sweeps
 
 

@@ -19,9 +19,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-from compare.record import Record
-from compare.report import fmt_bytes, fmt_time
-from compare.figure_check import place_legends
+from compare.results.record import Record
+from compare.render.report import fmt_bytes, fmt_time
+from compare.render.figure_check import place_legends
 from compare.files import save_figure
 from compare.sweep.points import sweeps
 from compare.sweep.rows import checked_items, knob, label, need, ok, throughput_s, wall_s

@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping, TypedDict
 
-from compare.record import Record
-from compare.report import fmt_bytes
+from compare.results.record import Record
+from compare.render.report import fmt_bytes
 from compare.sweep.rows import need, ok, timed, wall_s
 from scenarios.base import Precision
 
@@ -55,7 +55,7 @@ class ErrorPoint(TypedDict, total=False):
 
 def roofline(records: list[Record], device: str) -> Roofline | None:
     """The copy roofline of ``device``: the same-run hardware yardstick (a driver memcpy that no
-    contestant controls; ``compare/hardware.py``) where the records carry it; for files made
+    contestant controls; ``compare/running/hardware.py``) where the records carry it; for files made
     before it existed, the best copy bandwidth of any backend (primary clock), so labelled."""
     hw = next((r.hardware for r in records if r.device == device
                and r.hardware and r.hardware.copy_bytes_per_s), None)

@@ -19,8 +19,8 @@ from tabulate import tabulate
 
 import backends
 import scenarios
-from compare.record import Record
-from compare.report import fmt_bytes, fmt_num, fmt_time
+from compare.results.record import Record
+from compare.render.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
 from compare.sweep.metrics import bandwidth_row, device_bytes, error_points, gbps, roofline
 from compare.sweep.points import sweeps

@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 import backends
-from compare.colors import backend_color
-from compare.figure_check import keep_apart
-from compare.record import Record
+from compare.render.colors import backend_color
+from compare.render.figure_check import keep_apart
+from compare.results.record import Record
 from compare.files import save_figure
 from compare.sweep import horizon
 from compare.sweep.metrics import ERROR_FLOOR, ErrorPoint, device_bytes, error_points, gbps, launch_wall, roofline

@@ -6,8 +6,8 @@ from __future__ import annotations
 from typing import Any, Iterable, Literal, Mapping
 
 import scenarios
-from compare.record import Block, Check, Record, Timing
-from compare.timing import events_of
+from compare.results.record import Block, Check, Record, Timing
+from compare.measuring.timing import events_of
 from compare.sweep.points import sweeps
 
 
@@ -21,7 +21,7 @@ def knob(rec: Record) -> Mapping[str, Any]:
 
 def need(rec: Record, block: Literal["params", "time", "error", "work", "memory", "converged"]) -> Block:
     """``rec``'s ``block`` where a sweep reader indexes it directly: an ok, timed sweep record has
-    it (``compare.records`` refuses one without it on load; the callers filter on what they
+    it (``compare.results.records`` refuses one without it on load; the callers filter on what they
     read), so a missing one is a bug upstream, raised here by name."""
     b = getattr(rec, block)
     if b is None:

@@ -1,7 +1,7 @@
 """The particles on the site: the particle loop at small and large n."""
 from __future__ import annotations
 
-from compare import charts
+from compare.render import charts
 from compare.site import data, fmt, matrix
 from compare.site.matrix import Rule, defaults_of, largest_of, rate, regime
 from compare.site.questions_pages import Ctx, Page, _bar, _scaling, _variants, verdicts

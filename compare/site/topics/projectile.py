@@ -1,8 +1,8 @@
 """The batched differentiable projectile on the site: gradients through a simulation at scale."""
 from __future__ import annotations
 
-from compare import charts, figure_check
-from compare.record import Record
+from compare.render import charts, figure_check
+from compare.results.record import Record
 from compare.site import data
 from compare.site.matrix import Reference, Rule, largest_of, rate
 from compare.sweep.points.projectile import BATCH_SWEEP_PARAMS

@@ -1,7 +1,7 @@
 """SAXPY on the site: large bandwidth-bound arrays, and the per-call cost of a small kernel."""
 from __future__ import annotations
 
-from compare import charts
+from compare.render import charts
 from compare.site import data, datasheet, fmt, matrix
 from compare.site.harness import harness_table
 from compare.site.matrix import Rule, defaults_of, largest_of, regime

@@ -1,6 +1,6 @@
 # CPU calibration of Scenario.footprint (docs/reliability.md): python docs/results/reliability/cpu-memory.py warp,numba,jax,taichi
 import json, sys, time
-from compare import engine
+from compare.running import engine
 import scenarios
 cases = [("saxpy",{"n":1<<22}),("saxpy",{"n":1<<24}),
          ("sdf",{"width":1024,"height":1024}),("sdf",{"width":2048,"height":2048}),

@@ -1,6 +1,7 @@
 """Host peak RSS of CUDA cells (each in its own worker) against the run suite's estimate."""
 import sys
-from compare import engine, run_suite
+from compare.running import engine
+from compare.suites import run as run_suite
 SIZES = {"saxpy": ({}, {"n": 1 << 24}), "sdf": ({}, {"width": 2048, "height": 2048}),
          "particles": ({}, {"n": 1 << 20, "steps": 10, "record_every": 5}),
          "projectile": ({}, {"steps": 100000, "iters": 1})}

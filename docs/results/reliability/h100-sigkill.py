@@ -12,7 +12,7 @@ def procs(marker):
                 cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
             except OSError:
                 continue
-            if "compare.worker" in cmd and marker in cmd:
+            if "compare.running.worker" in cmd and marker in cmd:
                 out.append(int(d.name))
     return out
 
@@ -52,4 +52,4 @@ for b in sys.argv[1].split(","):
     print(f"{b}: worker {w} seen on GPU {on_gpu}; second driver rc={second.returncode} "
           f"{second.stderr.strip()[-160:]!r}; after SIGKILL: workers {procs(str(tmp))}, temp {list(tmp.iterdir())}, "
           f"GPU pids of it {set(w) & gpu_pids()}, settled in {gone_after:.1f} s; --resume rc={again.returncode} "
-          f"lock left {(out / '.compare.lock').exists()}", flush=True)
+          f"lock left {(out / '.compare.running.lock').exists()}", flush=True)

@@ -27,7 +27,7 @@ SOURCE = ROOT / "docs" / "results" / "h100"
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from compare.store import Store, jsonable  # noqa: E402
+from compare.results.store import Store, jsonable  # noqa: E402
 
 Record = dict[str, Any]
 # The size parameters of the compare-all cells (the scenarios' defaults when these were run);

@@ -15,7 +15,7 @@ for b in "$@"; do
     echo "[{\"scenario\": \"saxpy\", \"backend\": \"$b\", \"device\": \"cuda\", \"precision\": \"float32\",
       \"params\": {\"n\": $n}, \"repeat\": 40, \"min_time\": 0, \"throughput\": false}]" > "/tmp/ncu-$b-$n/spec.json"
     timeout 200 ncu --metrics gpu__time_duration.sum --csv --launch-skip 10 --launch-count 20 \
-        python -m compare.worker "/tmp/ncu-$b-$n/spec.json" "/tmp/ncu-$b-$n" > "/tmp/ncu-$b-$n.csv" 2>/dev/null
+        python -m compare.running.worker "/tmp/ncu-$b-$n/spec.json" "/tmp/ncu-$b-$n" > "/tmp/ncu-$b-$n.csv" 2>/dev/null
     grep '"gpu__time_duration.sum"' "/tmp/ncu-$b-$n.csv" | sed "s/^/$b,$n,/" >> "$OUT/ncu.csv"
   done
 done

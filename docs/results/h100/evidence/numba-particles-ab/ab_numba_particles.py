@@ -7,7 +7,7 @@ the kernel's time or only the host's launch path? Run in the project root as
 OLD_PARTICLES_PY is `git show 02b6385~1:backends/numba/particles.py`. Per size and kernel: the
 outputs against each other (bitwise), then ROUNDS alternating rounds of the latency regime
 (call + synchronise) and the throughput regime (k calls, one synchronise) with the project's own
-timing functions (compare/timing.py), a CUDA graph replay where the backend captures one, and a
+timing functions (compare/measuring/timing.py), a CUDA graph replay where the backend captures one, and a
 host profile at the smallest size.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare import timing
+from compare.measuring import timing
 
 SIZES = (256, 4096, 65536, 2**20, 2**24)
 ROUNDS = 5

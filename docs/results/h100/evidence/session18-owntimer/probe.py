@@ -3,7 +3,7 @@ torch.utils.benchmark.Timer's, alternated in one process? (issue 43, its 15 % ch
 Each round times the same call + synchronise several ways, back to back, ROUNDS times:
   timer       torch.utils.benchmark.Timer(stmt="call()").blocked_autorange(0.2): its median of block means
   timer_raw   the same with the statement written out (no closure), plain torch.cuda.synchronize()
-  ours        compare.timing.until(call, 10, 0.05, ...): the median of per-call wall clocks (our latency)
+  ours        compare.measuring.timing.until(call, 10, 0.05, ...): the median of per-call wall clocks (our latency)
   ours_0.2    the same for 0.2 s, as long as the Timer's stretch
   ours_nogc   the same with the garbage collector off (timeit, under the Timer, turns it off)
   block       one clock pair around 1000 calls, the mean (the Timer's way, without the Timer)
@@ -21,7 +21,7 @@ from torch.utils import benchmark
 sys.path.insert(0, ".")
 import backends  # noqa: E402
 import scenarios  # noqa: E402
-from compare import timing  # noqa: E402
+from compare.measuring import timing  # noqa: E402
 from scenarios.base import Precision  # noqa: E402
 
 ROUNDS = 10

@@ -1,0 +1,115 @@
+"""What a results file records about where it was made (so numbers can be reproduced)."""
+from __future__ import annotations
+
+import datetime
+import importlib.metadata
+import os
+import platform
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity: fewer than the host's under a core set)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def packages() -> tuple[str, ...]:
+    """The distributions whose versions a results file records: this project's own requirements
+    (from its installed metadata) and every backend's package."""
+    import re
+
+    import backends
+    try:
+        reqs = importlib.metadata.requires("gpu-python-compare") or []
+    except importlib.metadata.PackageNotFoundError:      # run from a tree that was not installed
+        reqs = []
+    names = [re.split(r"[\s<>=!~;\[(]", r, maxsplit=1)[0] for r in reqs if "extra ==" not in r]
+    for b in backends.BACKENDS.values():
+        names += [b.package, *b.related_packages]
+    return tuple(dict.fromkeys(names))
+
+
+def _run(cmd: list[str]) -> str:
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=20, cwd=ROOT).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def gpus() -> list[dict[str, str]]:
+    if not shutil.which("nvidia-smi"):
+        return []
+    out = _run(["nvidia-smi", "--query-gpu=name,driver_version,memory.total", "--format=csv,noheader"])
+    rows = []
+    for line in out.splitlines():
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) == 3:
+            rows.append({"name": parts[0], "driver": parts[1], "memory": parts[2]})
+    return rows
+
+
+DIRTY_PATHS_KEPT = 20     # a run names at most this many uncommitted paths (and how many more)
+
+
+def dirty_paths() -> list[str]:
+    """The tracked paths with uncommitted changes in this checkout (empty: clean, or no git)."""
+    out = _run(["git", "status", "--porcelain", "--untracked-files=no"])
+    return [line[3:].split(" -> ")[-1] for line in out.splitlines() if len(line) > 3]
+
+
+def collect(argv: list[str] | None = None) -> dict[str, Any]:
+    versions = {}
+    for pkg in packages():
+        try:
+            versions[pkg] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    cores = usable_cores()
+    import psutil
+    cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []
+    commit = os.environ.get("COMPARE_GIT_COMMIT", "").strip()
+    dirty = [] if commit else dirty_paths()
+    return {
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "hostname": platform.node(),
+        "os": platform.platform(),
+        "cpu": cpu_model(), "cores": cores,
+        "memory_gib": round(psutil.virtual_memory().total / 2**30, 1),
+        "gpus": gpus(), "cuda_toolkit": cuda[0] if cuda else "",
+        "python": sys.version.split()[0],
+        "packages": versions,
+        # A copied tree (e.g. on a lent GPU machine) may carry a stale or no .git: the caller then
+        # names the commit it copied in COMPARE_GIT_COMMIT, and dirtiness is unknown (None).
+        "git_commit": commit or _run(["git", "rev-parse", "--short", "HEAD"]),
+        "git_dirty": None if commit else bool(dirty),
+        **({"git_dirty_paths": dirty[:DIRTY_PATHS_KEPT] + ([f"... and {len(dirty) - DIRTY_PATHS_KEPT} more"]
+                                                         if len(dirty) > DIRTY_PATHS_KEPT else [])}
+           if dirty else {}),
+        "command": " ".join(["python -m compare"] + (argv if argv is not None else sys.argv[1:])),
+    }
+
+
+def run_stamp(env: dict[str, Any]) -> dict[str, Any]:
+    """What a record keeps of the run that measured it (``Record.run``): when it started, the
+    commit and whether the tree was dirty (None: unknown, a copied tree)."""
+    return {"created": str(env.get("created", "")), "commit": env.get("git_commit") or None,
+            "dirty": env.get("git_dirty")}

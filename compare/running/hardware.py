@@ -1,0 +1,262 @@
+"""Framework-neutral hardware yardsticks, measured in the same run as the cells they judge.
+
+No contestant controls them (docs/measurement.md, "Hardware yardstick"):
+  * CUDA: a device-to-device ``cuMemcpyDtoDAsync`` of 1 GiB timed with driver events (bandwidth
+    = 2 x bytes / time: one read, one write), and an empty kernel (hand-written PTX, loaded with
+    ``cuModuleLoadData``) launched with ``cuLaunchKernel``: its latency (launch + synchronise)
+    and its pipelined cost (k launches, one synchronise). All through the CUDA driver library
+    with ctypes, so no framework's allocator, stream or launch path is involved. The GPU's name
+    and maximum SM clock come from NVML.
+  * CPU: ``numpy.copyto`` of 128 MiB, in one thread and in one per core (a slice each), the
+    faster of the two (bandwidth = 2 x bytes / time).
+Run as ``python -m compare.running.hardware DEVICE`` in its own process (it must not share a CUDA
+context with a framework); ``measure`` returns its JSON, or ``{"error": reason}``.
+
+The floors each scenario states (``Scenario.floor``) use these figures and, for FLOP floors, the
+vendor's stated peak rates below. ``annotate`` adds to each cell ``throughput.floor_s`` (with the
+floor's kind and derivation) and ``throughput.hw_fraction`` = floor / throughput-regime time:
+1 is the hardware's limit. On the CPU a cell's bandwidth floor uses the copy of the smallest
+measured size that moves at least the cell's bytes (``copy_curve``), so a cache-resident cell is
+judged against a cache-resident copy; above 1 then means a loose stated floor (FLOPs counted low)
+or a cell that beats a plain copy (fewer writes than it counts).
+"""
+from __future__ import annotations
+
+import ctypes
+import json
+import math
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from compare.measuring import environment
+
+# Stated peak non-tensor FLOP rates (NVIDIA datasheets, boost clock): the FLOP floors' denominators.
+STATED_PEAK_FLOPS = {
+    "H100 80GB HBM3": {"float32": 66.9e12, "float64": 33.5e12, "source": "H100 SXM5 datasheet"},
+    "H100 PCIe": {"float32": 51.2e12, "float64": 25.6e12, "source": "H100 PCIe datasheet"},
+    "H200": {"float32": 66.9e12, "float64": 33.5e12, "source": "H200 SXM datasheet (H100 SXM5 compute)"},
+}
+PTX = b""".version 7.0
+.target sm_70
+.address_size 64
+.visible .entry noop()
+{
+	ret;
+}
+"""
+
+
+def _median(xs: list[float]) -> float:
+    return float(np.median(np.asarray(xs)))
+
+
+def _copy_seconds(copy: Any, reps: int = 1) -> float:
+    """Median of 10 samples of one copy's time; a sample times ``reps`` copies (small copies)."""
+    copy()
+    times = []
+    for _ in range(10):
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            copy()
+        times.append((time.perf_counter() - t0) / reps)
+    return _median(times)
+
+
+def copy_in_slices(dst: np.ndarray, src: np.ndarray, pool: ThreadPoolExecutor, parts: int) -> None:
+    """``dst[:] = src`` as ``parts`` contiguous slices copied by the pool's threads at once."""
+    cut = np.linspace(0, src.size, parts + 1).astype(np.int64)
+    list(pool.map(lambda i: np.copyto(dst[cut[i]:cut[i + 1]], src[cut[i]:cut[i + 1]]), range(parts)))
+
+
+def measure_cpu() -> dict[str, Any]:
+    """The faster of one thread's ``numpy.copyto`` and one per core on a slice each (copyto
+    releases the GIL): the multi-threaded ports' copies beat one thread's (docs/measurement.md)."""
+    n = 1 << 25                                    # float32: 128 MiB per array
+    src = np.ones(n, np.float32)
+    dst = np.empty_like(src)
+    cores = environment.usable_cores()
+    with ThreadPoolExecutor(cores) as pool:
+        t1 = _copy_seconds(lambda: np.copyto(dst, src))
+        tn = _copy_seconds(lambda: copy_in_slices(dst, src, pool, cores))
+        # the same copy at the sizes a cell's working set may have: a cache-resident cell is
+        # judged against a copy that fits the same caches (docs/measurement.md)
+        curve = []
+        for nbytes in CURVE_BYTES:
+            a, b = src[: nbytes // 4], dst[: nbytes // 4]
+            reps = max(1, (4 << 20) // nbytes)
+            tc = min(_copy_seconds(lambda: np.copyto(b, a), reps),
+                     _copy_seconds(lambda: copy_in_slices(b, a, pool, cores), reps))
+            curve.append([nbytes, 2.0 * nbytes / tc])
+    t, threads = (t1, 1) if t1 <= tn else (tn, cores)
+    return {"copy_bytes_per_s": 2.0 * src.nbytes / t, "copy_bytes": src.nbytes, "copy_median_s": t,
+            "copy_one_thread_bytes_per_s": 2.0 * src.nbytes / t1, "copy_threads": threads,
+            "copy_how": f"numpy.copyto of 128 MiB float32 in {threads} thread{'s' * (threads > 1)} "
+                        f"(the faster of 1 and {cores}), median of 10 (2 x bytes / time)",
+            "copy_curve": curve + [[src.nbytes, 2.0 * src.nbytes / t]]}
+
+
+# bytes per array of the smaller copies (64 KiB to 64 MiB); 128 MiB is the main figure
+CURVE_BYTES = tuple(1 << k for k in range(16, 27))
+
+
+def matched_copy(hw: dict[str, Any], traffic: float) -> tuple[float, int] | None:
+    """(bandwidth, bytes per array) of the measured copy whose traffic (2 x its array: one read,
+    one write) is nearest ``traffic`` (by ratio), or None without a curve or traffic."""
+    curve = [(nbytes, bw) for nbytes, bw in hw.get("copy_curve") or [] if nbytes > 0 and bw > 0]
+    if not curve or not traffic or traffic <= 0:
+        return None
+    nbytes, bw = min(curve, key=lambda p: abs(math.log(2 * p[0] / traffic)))
+    return bw, nbytes
+
+
+def measure_cuda() -> dict[str, Any]:
+    cu = ctypes.CDLL("libcuda.so.1")
+    P, U64, SZ = ctypes.c_void_p, ctypes.c_uint64, ctypes.c_size_t
+    sig = {"cuInit": [ctypes.c_uint], "cuDeviceGet": [ctypes.POINTER(ctypes.c_int), ctypes.c_int],
+           "cuDevicePrimaryCtxRetain": [ctypes.POINTER(P), ctypes.c_int], "cuCtxSetCurrent": [P],
+           "cuMemAlloc_v2": [ctypes.POINTER(U64), SZ], "cuMemsetD8_v2": [U64, ctypes.c_ubyte, SZ],
+           "cuMemcpyDtoDAsync_v2": [U64, U64, SZ, P], "cuEventCreate": [ctypes.POINTER(P), ctypes.c_uint],
+           "cuEventRecord": [P, P], "cuEventSynchronize": [P],
+           "cuEventElapsedTime": [ctypes.POINTER(ctypes.c_float), P, P],
+           "cuModuleLoadData": [ctypes.POINTER(P), ctypes.c_char_p],
+           "cuModuleGetFunction": [ctypes.POINTER(P), P, ctypes.c_char_p],
+           "cuLaunchKernel": [P] + [ctypes.c_uint] * 7 + [P, P, P], "cuCtxSynchronize": []}
+    for name, args in sig.items():
+        getattr(cu, name).argtypes = args
+
+    def ck(r: int, what: str) -> None:
+        if r != 0:
+            raise OSError(f"{what} failed (CUresult {r})")
+    ck(cu.cuInit(0), "cuInit")
+    dev, ctx = ctypes.c_int(), P()
+    ck(cu.cuDeviceGet(ctypes.byref(dev), 0), "cuDeviceGet")
+    ck(cu.cuDevicePrimaryCtxRetain(ctypes.byref(ctx), dev), "cuDevicePrimaryCtxRetain")
+    ck(cu.cuCtxSetCurrent(ctx), "cuCtxSetCurrent")
+    n = 1 << 30
+    src, dst = U64(), U64()
+    ck(cu.cuMemAlloc_v2(ctypes.byref(src), n), "cuMemAlloc")
+    ck(cu.cuMemAlloc_v2(ctypes.byref(dst), n), "cuMemAlloc")
+    ck(cu.cuMemsetD8_v2(src, 1, n), "cuMemsetD8")
+    a, b, ms = P(), P(), ctypes.c_float()
+    ck(cu.cuEventCreate(ctypes.byref(a), 0), "cuEventCreate")
+    ck(cu.cuEventCreate(ctypes.byref(b), 0), "cuEventCreate")
+    copies = []
+    for i in range(23):                            # 3 warm-up copies, then 20 timed
+        ck(cu.cuEventRecord(a, None), "cuEventRecord")
+        ck(cu.cuMemcpyDtoDAsync_v2(dst, src, n, None), "cuMemcpyDtoDAsync")
+        ck(cu.cuEventRecord(b, None), "cuEventRecord")
+        ck(cu.cuEventSynchronize(b), "cuEventSynchronize")
+        ck(cu.cuEventElapsedTime(ctypes.byref(ms), a, b), "cuEventElapsedTime")
+        if i >= 3:
+            copies.append(ms.value * 1e-3)
+    mod, fn = P(), P()
+    ck(cu.cuModuleLoadData(ctypes.byref(mod), PTX), "cuModuleLoadData")
+    ck(cu.cuModuleGetFunction(ctypes.byref(fn), mod, b"noop"), "cuModuleGetFunction")
+
+    def launch() -> None:
+        ck(cu.cuLaunchKernel(fn, 1, 1, 1, 1, 1, 1, 0, None, None, None), "cuLaunchKernel")
+    lat, piped, k = [], [], 2000
+    for i in range(2100):
+        t0 = time.perf_counter()
+        launch()
+        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
+        if i >= 100:
+            lat.append(time.perf_counter() - t0)
+    for _ in range(6):
+        t0 = time.perf_counter()
+        for _ in range(k):
+            launch()
+        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
+        piped.append((time.perf_counter() - t0) / k)
+    t = _median(copies)
+    out: dict[str, Any] = {"copy_bytes_per_s": 2.0 * n / t, "copy_bytes": n, "copy_median_s": t,
+                           "copy_how": "cuMemcpyDtoDAsync of 1 GiB, CUDA events, median of 20 (2 x bytes / time)",
+                           "launch_latency_s": _median(lat), "launch_pipelined_s": _median(piped[1:]),
+                           "launch_how": "empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize "
+                                         "(median of 2000); pipelined = 2000 launches, one synchronise, / 2000"}
+    try:
+        import pynvml
+        pynvml.nvmlInit()
+        h = pynvml.nvmlDeviceGetHandleByIndex(0)
+        name = pynvml.nvmlDeviceGetName(h)
+        out["gpu"] = name.decode() if isinstance(name, bytes) else name
+        out["sm_clock_max_hz"] = pynvml.nvmlDeviceGetMaxClockInfo(h, pynvml.NVML_CLOCK_SM) * 1e6
+    except Exception as exc:  # the floors that need them say so
+        out["nvml_error"] = f"{type(exc).__name__}: {exc}"
+    peak = next((v for k, v in STATED_PEAK_FLOPS.items() if k in out.get("gpu", "")), None)
+    if peak:
+        out["peak_flops"] = peak
+    return out
+
+
+def measure(device: str, timeout: float = 300.0) -> dict[str, Any]:
+    """The yardstick of ``device``, measured in a fresh process; {"error": reason} if it cannot be.
+    The process is tied to this driver's life (compare.running.lifeline) as cell workers are: a driver
+    killed mid-measurement leaves no yardstick running on."""
+    from compare.running import lifeline
+    from compare.running.cells import ROOT, worker_env
+    try:
+        proc = subprocess.run(lifeline.command("compare.running.hardware", device), cwd=ROOT,
+                              env=lifeline.child_environment(worker_env()), capture_output=True, text=True,
+                              timeout=timeout, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return {"error": f"yardstick timed out after {timeout:g} s"}
+    for line in proc.stdout.splitlines():
+        if line.startswith("YARDSTICK"):
+            return json.loads(line[len("YARDSTICK"):])
+    tail = " | ".join(proc.stderr.strip().splitlines()[-2:])
+    return {"error": f"yardstick process failed (exit {proc.returncode}): {tail}"}
+
+
+def annotated(rec: Any, hardware: dict[str, dict[str, Any]]) -> Any:
+    """A ``Record`` with its floor and hardware fraction added (``annotate`` on its JSON): a new record."""
+    obj = rec.to_json()
+    annotate([obj], hardware)
+    return type(rec).from_json(obj) if obj != rec.to_json() else rec
+
+
+def annotate(records: list[dict[str, Any]], hardware: dict[str, dict[str, Any]]) -> None:
+    """Add each timed cell's stated floor and hardware fraction (throughput regime)."""
+    import scenarios
+    for r in records:
+        thr = (r.get("time") or {}).get("throughput")
+        device = r.get("device")
+        hw = hardware.get(device, {}) if isinstance(device, str) else {}     # (no str key is another type)
+        if r.get("status") not in ("ok", "mismatch") or not thr or "error" in hw or not hw:
+            continue
+        sc = scenarios.SCENARIOS.get(r["scenario"])
+        if sc is None:
+            continue
+        # the yardstick the cell was judged against travels with it (pages are functions of records)
+        r["hardware"] = {k: hw[k] for k in ("copy_bytes_per_s", "copy_how", "launch_pipelined_s",
+                                            "launch_latency_s", "gpu", "copy_bytes") if k in hw}
+        params = sc.params(r["params"])
+        match = matched_copy(hw, sc.work(params, r["precision"]).get("bytes") or 0)
+        cell_hw = hw if match is None else {**hw, "copy_bytes_per_s": match[0]}
+        floor = sc.floor(params, r["precision"], cell_hw)
+        if floor is None:
+            continue
+        if match is not None and floor["kind"] == "bandwidth" and match[1] < hw.get("copy_bytes", 0):
+            floor["derivation"] += (f" of a copy of the same size ({match[1] / 2**20:.3g} MiB per array: "
+                                    "it fits the same caches)")
+        r.setdefault("throughput", {}).update(
+            floor_s=floor["seconds"], floor_kind=floor["kind"], floor=floor["derivation"],
+            hw_fraction=floor["seconds"] / thr["median_s"] if thr["median_s"] > 0 else None)
+
+
+def main(argv: list[str]) -> int:
+    try:
+        out = measure_cuda() if argv[0] == "cuda" else measure_cpu()
+    except Exception as exc:
+        out = {"error": f"{type(exc).__name__}: {exc}"}
+    print("YARDSTICK" + json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

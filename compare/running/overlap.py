@@ -1,0 +1,213 @@
+"""Timed cells, one fresh process each, their set-up done side by side and their clocks alone.
+
+A cell's worker (``compare.running.worker``) starts, imports, makes its inputs and sets its framework up,
+then waits at its gate (``compare.running.gate``) until this driver lets its clocks start; when its timed
+window is over (kernel build, first call, warm-up and latency, throughput, download, graph) it
+says so and goes on to the oracle, the check, its record and its exit. Here up to 1 + ``ahead``
+workers set up at the same time, then their gates open one after another:
+
+- a gate opens only when every other worker waits at its gate (blocked on a pipe: idle) or has
+  exited, so nothing else runs on the host while a cell is timed, on the CPU or on a GPU: no two
+  windows overlap (each record keeps its own, ``time.window``), and no set-up, check or exit
+  overlaps a window either (a launch-bound cell's host thread shares cores, caches and memory
+  with whatever else runs), so the set-up of the next workers begins only when no worker is
+  ready or timed (docs/results/h100/evidence/session15-overlap: the evidence for this design);
+- one worker per framework and GPU at a time (``engine.gpu_lane``), and the workers' memory
+  estimates together within the budget;
+- each cell still has its own process and empty kernel caches, so its first call is as cold
+  as one at a time; waiting at the gate is its own part (``time.phases.wait``) and does not
+  count against ``timeout``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable, IO
+
+from compare.running import cells, lifeline
+from compare.measuring import environment, phases
+from compare.running.gate import GATE_ENV, READY, TIMED
+from compare.spec import Cell
+
+Result = cells.Result
+
+
+def ahead(args: Any = None) -> int:
+    """Workers that set up beside the next one: ``--overlap`` (``auto``: half the cores less
+    one, at least one: 7 on 16 cores); 0 by default, the protocol the published figures used."""
+    given = getattr(args, "overlap", None)
+    if given in (None, 0):
+        return 0
+    if given == "auto":
+        return max(1, environment.usable_cores() // 2 - 1)
+    return int(given)
+
+
+def schedule(plan: list[Cell]) -> list[int]:
+    """The order cells run in: CUDA and CPU cells alternate and consecutive cells of one device
+    differ in framework where they can, so that workers setting up together rarely share a lane."""
+    by_dev: dict[str, list[int]] = {}
+    for i, c in enumerate(plan):
+        by_dev.setdefault("cpu" if c.device == "cpu" else "gpu", []).append(i)
+    for idx in by_dev.values():
+        idx.sort(key=lambda i: (str(plan[i].precision), plan[i].scenario, plan[i].variant, plan[i].backend))
+    gpu, cpu = by_dev.get("gpu", []), by_dev.get("cpu", [])
+    out: list[int] = []
+    for k in range(max(len(gpu), len(cpu))):
+        out += gpu[k:k + 1] + cpu[k:k + 1]
+    return out
+
+
+@dataclasses.dataclass
+class _Job:
+    i: int
+    cell: Cell
+    dir: Path
+    proc: subprocess.Popen
+    gate: int                      # the write end of the worker's gate pipe
+    err: IO[str]
+    launched: float
+    state: str = "start"           # start -> ready -> timed -> after -> (exit)
+    ready_at: float = 0.0
+    waited: float = 0.0
+    result: Result | None = None
+
+    def close(self) -> None:
+        for f in (lambda: os.close(self.gate), self.err.close):
+            try:
+                f()
+            except OSError:
+                pass
+
+
+def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[[int, Result], None],
+                   ahead: int, need: Callable[[Cell], float] | None = None,
+                   budget: float | None = None, lane: Callable[[Cell], Any] | None = None) -> None:
+    """Run every cell of ``plan`` (one process each), calling ``on_result(i, result)`` as each
+    finishes. ``need``/``budget``: a worker's host-memory estimate and what the workers may hold
+    together; ``lane``: cells of one lane never run at the same time (None: no constraint)."""
+    todo = schedule(plan)
+    active: list[_Job] = []
+    with lifeline.temp_dir("overlap-") as tmp:
+        root = Path(tmp)
+        try:
+            while todo or active:
+                now = time.monotonic()
+                for job in list(active):
+                    if _advance(job, now, timeout):
+                        active.remove(job)
+                        job.close()
+                        if job.result is None:      # _advance finishes a job only once it has one
+                            raise RuntimeError(f"overlap: cell {job.i} finished without a result")
+                        on_result(job.i, job.result)
+                        _remove(job.dir)
+                _grant(active)
+                started = _launchable(todo, active, plan, ahead, need, budget, lane)
+                if started is not None:
+                    todo.remove(started)
+                    active.append(_launch(started, plan[started], root, timeout))
+                    continue
+                # while a window is open the driver's own polling is other work: rarely then
+                time.sleep(0.01 if any(j.state == "timed" for j in active) else 0.002)
+        finally:                       # the driver gives up (a full disk, Ctrl-C): no worker runs on
+            for job in active:
+                if job.proc.poll() is None:
+                    job.proc.kill()
+                    job.proc.wait()
+                job.close()
+
+
+def _launch(i: int, cell: Cell, root: Path, timeout: float | None) -> _Job:
+    d = root / f"cell-{i}"
+    d.mkdir()
+    (d / "cells.json").write_text(json.dumps([cell.to_dict()]))
+    r, w = os.pipe()
+    env = lifeline.child_environment(cells.worker_env(cell.backend, cell.variant), d)
+    env[phases.LAUNCHED_ENV] = repr(time.time())
+    env[GATE_ENV] = str(r)
+    err = tempfile.TemporaryFile("w+")
+    proc = subprocess.Popen(lifeline.command("compare.running.worker", str(d / "cells.json"), str(d)), cwd=cells.ROOT,
+                            env=env, stdout=subprocess.DEVNULL, stderr=err, text=True,
+                            stdin=subprocess.DEVNULL, pass_fds=(r,))
+    os.close(r)
+    return _Job(i, cell, d, proc, w, err, time.monotonic())
+
+
+def _advance(job: _Job, now: float, timeout: float | None) -> bool:
+    """Move ``job`` on from what its worker left in its directory; True once it is over (its
+    record read and its process gone, or its failure made a record)."""
+    out = job.dir / "cell-0"
+    if job.state == "start" and (out / READY).exists():
+        job.state, job.ready_at = "ready", now
+    if job.state == "timed" and (out / TIMED).exists():
+        job.state = "after"
+    if job.result is None and (out / "record.json").exists():
+        job.result = cells.collect(out, job.cell)
+        job.state = "after"
+    alive = job.proc.poll() is None
+    if job.result is not None and not alive:
+        return True
+    spent = now - job.launched - job.waited - (now - job.ready_at if job.state == "ready" else 0.0)
+    if alive and (timeout is None or spent <= timeout):
+        return False
+    if alive:
+        job.proc.kill()
+        job.proc.wait()
+        if job.result is not None:      # its record is kept; only its exit hung
+            return True
+        job.err.seek(0)
+        why = f"timed out after {timeout:g} s; {cells.tail(job.err.read(), 2)}".rstrip("; ")
+    else:
+        job.err.seek(0)
+        why = cells.died(job.proc, job.err.read())
+    job.result = ({"status": "error", "reason": why}, None)
+    return True
+
+
+def _grant(active: list[_Job]) -> None:
+    """Open the next gate: the first ready worker in launch order, when every other worker waits
+    at its gate (none is timed, setting up, checking or exiting)."""
+    ready = [j for j in active if j.state == "ready"]
+    if not ready or len(ready) < len(active):
+        return
+    job = ready[0]
+    try:
+        os.write(job.gate, b"g")
+    except OSError:                   # the worker died at its gate: _advance records why
+        return
+    job.waited += time.monotonic() - job.ready_at
+    job.state = "timed"
+
+
+def _launchable(todo: list[int], active: list[_Job], plan: list[Cell], ahead: int,
+                need: Callable[[Cell], float] | None, budget: float | None,
+                lane: Callable[[Cell], Any] | None) -> int | None:
+    """The next cell to start now, or None: at most 1 + ``ahead`` workers, and only while none is
+    ready or timed (set-ups start together, then the gates open one by one); within the memory
+    budget and the lanes."""
+    if not todo or len(active) > ahead:
+        return None
+    if not active:
+        return todo[0]
+    if any(j.state in ("ready", "timed") for j in active):
+        return None
+    held = sum(need(j.cell) for j in active) if need else 0.0
+    lanes = {lane(j.cell) for j in active} if lane else set()
+    for i in todo[:1 + ahead]:
+        cell = plan[i]
+        if need and budget is not None and held + need(cell) > budget:
+            continue
+        if lane and lane(cell) is not None and lane(cell) in lanes:
+            continue
+        return i
+    return None
+
+
+def _remove(d: Path) -> None:
+    import shutil
+    shutil.rmtree(d, ignore_errors=True)

@@ -1,0 +1,209 @@
+"""The one driver every suite runs on: probe -> what can run -> preflight -> claim -> lock -> run -> render.
+
+A suite (``run_suite.RunSuite`` for all/<scenario>, ``sweep.suite.SweepSuite``,
+``stress.suite.StressSuite``) is a ``Suite``: a command (its arguments, then its run) whose
+capabilities are methods with harmless defaults. It plans a list of ``Planned`` (a cell and the
+suite's own extra) and says what to do with each record (``on_record``) and how to render; ``drive``
+owns the sequence between, once: probe the backends, refuse a plan nothing of which can run,
+preflight memory (the suite's own refusal) and disk (``disk_need``), connect the cluster client
+(--scheduler), claim and lock --out, run the cells on ``engine.run_cells`` with the repeats across
+processes (--processes) of every timed suite, and render. ``publish`` runs no cell: it is a
+``Command`` (arguments, then run) that shares the claim and lock (``claim``).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any, Callable, Generic, NamedTuple, TypeVar
+
+import numpy as np
+
+from compare.running import engine, overlap, scaleout
+from compare import options
+from compare.planning import outdir, preflight
+from compare.planning.calibrate import Refusal
+from compare.running.lock import DirectoryLock
+from compare.options import UsageError
+from compare.results.record import Record
+from compare.spec import Cell
+
+X = TypeVar("X")
+Blocked = tuple[str, str] | None
+Outputs = dict[str, np.ndarray]
+
+
+class Planned(NamedTuple, Generic[X]):
+    """One unit of a suite's plan: its cell and the suite's own extra (a sweep point's converged
+    reference; None where a suite has none). A stress experiment makes its cells as it runs (from
+    what its earlier cells found), so its units carry no cell: ``cell`` None, the experiment's
+    name as the extra."""
+    cell: Cell | None
+    extra: X
+
+
+@dataclasses.dataclass
+class Run:
+    """One invocation, as the driver fills it in: what the suite's later steps read."""
+    args: argparse.Namespace
+    argv: list[str]
+    planned: list[Planned[Any]]
+    probes: engine.Probes = dataclasses.field(default_factory=dict)
+    runnable: list[Cell] = dataclasses.field(default_factory=list)
+    judged: Refusal | None = None             # the preflight's reason not to start a cell
+    spent: dict[str, float] = dataclasses.field(default_factory=dict)   # seconds per part (compare.measuring.phases)
+    client: Any = None                         # the Dask client of --scheduler
+    out: Path = Path(".")
+    ahead: int = 0                             # --overlap, resolved (compare.running.overlap)
+
+    @property
+    def cells(self) -> list[Cell]:
+        return [p.cell for p in self.planned if p.cell is not None]
+
+
+class Command:
+    """A subcommand: its arguments, then its run."""
+
+    @staticmethod
+    def add_arguments(p: argparse.ArgumentParser) -> None:
+        """The command's options (its own, and the shared ones of compare/options.py)."""
+
+    def run(self, args: argparse.Namespace, argv: list[str]) -> int:
+        raise NotImplementedError
+
+
+class Suite(Command):
+    """A command that runs cells through ``drive``. Override what differs; every default is harmless."""
+    timed = True        # its figures are timings: --overlap and --processes apply
+
+    def run(self, args: argparse.Namespace, argv: list[str]) -> int:
+        return drive(self, args, argv)
+
+    # ---- before anything is written (a refusal is exit 2) -----------------------------------
+    def plan(self, args: argparse.Namespace) -> list[Planned[Any]]:
+        """Every unit of the run, validated (bad input never reaches a worker or --out)."""
+        raise NotImplementedError
+
+    def check_output(self, args: argparse.Namespace) -> None:
+        """Read-only refusals of --out and the files in it (a bad store to resume)."""
+        outdir.check_output(args.out)
+
+    def backends(self, run: Run) -> list[str]:
+        """The backends to probe."""
+        return list(dict.fromkeys(c.backend for c in run.cells))
+
+    def refusal(self, run: Run) -> Refusal | None:
+        """The suite's own reason, known before the probes' results, not to start a cell."""
+        return None
+
+    def check_runnable(self, run: Run, blocked: list[Blocked]) -> None:
+        """Refuse a plan nothing of which can run."""
+        nothing_to_run(run.cells, blocked)
+
+    def preflight(self, run: Run) -> Refusal | None:
+        """Memory checks of the runnable cells; the returned refusal is the engine's ``refuse``."""
+        return None
+
+    def disk_need(self, run: Run) -> float:
+        """Bytes the run may write into --out (a store rewritten through a temporary: twice)."""
+        return 2 * preflight.RECORD_BYTES * len(run.runnable) + preflight.PAGE_BYTES
+
+    def what(self, args: argparse.Namespace) -> str:
+        return "the results"
+
+    # ---- under the lock ----------------------------------------------------------------------
+    def open(self, run: Run) -> None:
+        """Open the store and its run's environment, before any cell runs."""
+
+    def execute(self, run: Run) -> list[engine.Result]:
+        """Run the plan (default: its cells on the engine)."""
+        return run_cells(self, run)
+
+    def on_record(self, i: int, rec: Record, outputs: Outputs | None) -> Record:
+        """Every finished cell's record, mapped to the one the store keeps: the one place a
+        suite adds to a record (a new record: records are immutable) or reports it."""
+        return rec
+
+    def on_repeat(self, block: dict[str, Any]) -> None:
+        """The ``time`` block of every repeat process (--processes)."""
+
+    @property
+    def check(self) -> Callable[[dict[str, Any]], str | None] | None:
+        """Its records' own check beyond the common schema (its store's format, ``compare.results.formats``)."""
+        from compare.results.formats import FORMATS
+        store = self.store()
+        return FORMATS[store.suite].record_problem if store is not None else None
+
+    def seed(self) -> int:
+        """The seed of the repeats' interleaved rounds (the run's environment's)."""
+        return 0
+
+    def store(self) -> Any:
+        """The store that keeps every record as it arrives (None: the suite keeps them)."""
+        return None
+
+    def render(self, run: Run, results: list[engine.Result]) -> int:
+        """Tables, pages and plots from what ran; returns the exit status."""
+        return options.EXIT_OK
+
+
+def nothing_to_run(cells: list[Cell], blocked: list[Blocked]) -> None:
+    """Refuse a plan whose every cell would be skipped (no chosen backend can use a chosen
+    device): exit 2 with the first reason, before anything is written."""
+    if cells and all(b is not None and b[0] == "skipped" for b in blocked):
+        c, why = cells[0], blocked[0][1]         # type: ignore[index]
+        raise UsageError(f"nothing to run: every one of the {len(cells)} cells would be skipped "
+                         f"(first: {c.backend} on {c.device}: {why})")
+
+
+def claim(args: argparse.Namespace, need: float, what: str = "the results", client: Any = None,
+          lock_name: str | None = None) -> tuple[Path, DirectoryLock]:
+    """--out checked, with room for ``need`` bytes, created and locked by this driver; a
+    refusal closes the cluster client first (no lock and no --out left behind). ``lock_name``:
+    a lock beside the writers' one (``outdir.claim_output``)."""
+    try:
+        out, lock = outdir.claim_output(args.out, need, what, lock_name)
+        return out, lock
+    except UsageError:
+        if client is not None:
+            client.close()
+        raise
+
+
+def drive(suite: Suite, args: argparse.Namespace, argv: list[str]) -> int:
+    """The suite's run, every step once, in this order: refusals first (nothing written), then
+    the claim of --out and, under its lock, the run and the render."""
+    run = Run(args, argv, suite.plan(args))
+    suite.check_output(args)
+    began = time.perf_counter()
+    run.probes = engine.availability(suite.backends(run))
+    run.spent["probes"] = time.perf_counter() - began
+    refuse = suite.refusal(run)
+    blocked = [engine.not_runnable(c, run.probes) or (refuse(c) if refuse else None) for c in run.cells]
+    run.runnable = [c for c, b in zip(run.cells, blocked) if not b]
+    suite.check_runnable(run, blocked)
+    run.judged = suite.preflight(run)
+    need = suite.disk_need(run)
+    # connected before the claim: an unreachable scheduler leaves no lock and no --out behind
+    scheduler = getattr(args, "scheduler", None)
+    run.client = scaleout.client(scheduler) if scheduler else None
+    run.out, lock = claim(args, need, suite.what(args), run.client)
+    run.ahead = overlap.ahead(args) if suite.timed else 0
+    with lock:
+        suite.open(run)
+        return suite.render(run, suite.execute(run))
+
+
+def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
+    """The plan's cells on the engine: locally one at a time (or overlapped set-ups), or on the
+    cluster's workers; each record through ``suite.on_record`` into the suite's store; then the
+    repeats across processes (--processes), for every timed suite alike."""
+    cells, args = run.cells, run.args
+    runner = scaleout.runner(run.client, args.timeout, cells, run.probes) if run.client is not None else None
+    return engine.run_cells(cells, timeout=args.timeout, probes=run.probes, runner=runner,
+                            store=suite.store(), resume=getattr(args, "resume", False),
+                            on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
+                            footprint=lambda c: preflight.cell_bytes(c)[0],
+                            processes=getattr(args, "processes", 1) if suite.timed else 1,
+                            seed=suite.seed(), on_repeat=suite.on_repeat)

@@ -1,0 +1,192 @@
+"""PyTorch-specific checks beyond the generic parity suite: the cell's dtype holds whatever torch's
+global default dtype is, TF32 is off and recorded, the compile variant computes what eager
+computes, v0/target are replaced in place, a missing torch is a skip naming the install command,
+and (on CUDA) graph replays and events."""
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+import backends
+import scenarios
+from compare.running import engine
+from conftest import require_device
+
+pytestmark = pytest.mark.torch
+
+SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 5, "height": 3},
+         "particles": {"n": 33, "steps": 57, "record_every": 7},
+         "projectile": {"contact": "soft", "steps": 20, "iters": 2, "batch": 5}}
+# compile against eager, float64: the forward is the same elementwise arithmetic; the compiled
+# backward (AOTAutograd/Inductor) may order the adjoint's products differently, so the projectile
+# gets the parity suite's float64 level (scenario distance: loss and gradient).
+TIGHT = {"saxpy": 0.0, "sdf": 1e-13, "particles": 0.0, "projectile": 1e-12}
+
+_cells: dict = {}
+
+
+def _spec(scenario, precision, variant, device="cpu"):
+    return {"scenario": scenario, "backend": "torch", "device": device, "precision": precision,
+            "variant": variant, "params": SMALL[scenario], "quick": True, "repeat": 1,
+            "min_time": 0.0, "cache": "warm", "throughput": False}
+
+
+def cells(precision, variant, device="cpu"):
+    """Every SMALL scenario of one precision and variant, in one worker process (cached)."""
+    require_device("torch", device)
+    key = (precision, variant, device)
+    if key not in _cells:
+        specs = [_spec(s, precision, variant, device) for s in SMALL]
+        results = engine.run_cells(specs, timeout=900, share_process=True)
+        _cells[key] = dict(zip(SMALL, results))
+    return _cells[key]
+
+
+def _torch():
+    require_device("torch", "cpu")
+    import torch
+    return torch
+
+
+@pytest.mark.xdist_group("torch-cells")            # cells()' cache: its cells run once
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+def test_outputs_have_the_cells_precision_and_tf32_is_recorded_off(precision):
+    for scenario, (record, outputs) in cells(precision, "default").items():
+        assert record.status == "ok", (scenario, record.reason, record.traceback or "")
+        assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
+        info = record.info
+        assert info["tf32_matmul"] is False and info["tf32_cudnn"] is False, info
+        assert info["float32_matmul_precision"] == "highest"
+        assert record.versions["torch"].startswith("2.13")
+        # an eager cell neither imports Inductor (seconds a cell) nor reports its switches
+        assert "inductor_division_rounding" not in info and "dynamo_fail_on_recompile_limit_hit" not in info
+
+
+@pytest.mark.parametrize("default", ["float64", "float32"])
+def test_global_default_dtype_does_not_leak_into_a_cell(default):
+    """Kernels set every dtype themselves: with torch's default dtype set to the other precision,
+    a float32 cell still computes in float32 and a float64 cell in float64 (not widened)."""
+    torch = _torch()
+    b = backends.get("torch")
+    sc = scenarios.get("projectile")
+    precision = "float32" if default == "float64" else "float64"
+    before = torch.get_default_dtype()
+    torch.set_default_dtype(getattr(torch, default))
+    try:
+        b.setup("cpu", precision, "default")
+        p = sc.params(SMALL["projectile"], quick=True)
+        k = b.kernel("projectile")(p, sc.inputs(p, precision), "cpu", precision, "default")
+        k.run()
+        want = getattr(torch, precision)
+        assert {t.dtype for t in (k.v, k.history, k.grad0, *k.c.values())} == {want}
+        out = k.outputs()
+    finally:
+        torch.set_default_dtype(before)
+    assert all(a.dtype == np.dtype(precision) for a in out.values())
+    if precision == "float64":        # computed in float64, not float32 widened afterwards
+        assert np.any(out["grad"] != out["grad"].astype(np.float32).astype(np.float64))
+    assert sc.check(p, sc.inputs(p, precision), out, sc.oracle(p, sc.inputs(p, precision), precision), precision).ok
+
+
+@pytest.mark.xdist_group("torch-cells")
+def test_compile_variant_equals_eager():
+    eager, comp = cells("float64", "default"), cells("float64", "compile")
+    for scenario, (record, outputs) in comp.items():
+        assert record.status == "ok", (scenario, record.reason, record.traceback or "")
+        assert record.info["execution"].startswith("torch.compile(mode='default'")
+        assert record.info["inductor_division_rounding"] is True     # IEEE division in Triton
+        assert record.info["dynamo_fail_on_recompile_limit_hit"] is True   # no silent eager
+        sc = scenarios.get(scenario)
+        p = sc.params(SMALL[scenario], quick=True)
+        ref = eager[scenario][1]
+        d = sc.distance(p, sc.inputs(p, "float64"), outputs, ref)
+        assert d <= TIGHT[scenario], f"{scenario}: compile vs eager differ by {d:.3g}"
+        if TIGHT[scenario] == 0.0:
+            assert all(outputs[k].tobytes() == ref[k].tobytes() for k in ref), scenario
+
+
+def test_set_input_replaces_v0_and_target_in_place():
+    torch = _torch()
+    b = backends.get("torch")
+    b.setup("cpu", "float64", "default")
+    sc = scenarios.get("projectile")
+    p = sc.params(SMALL["projectile"], quick=True)
+    inputs = sc.inputs(p, "float64")
+    k = b.kernel("projectile")(p, inputs, "cpu", "float64", "default")
+    k.run()
+    before = k.outputs()
+    ptr = (k.v0.data_ptr(), k.target.data_ptr())
+    new = {"v0": inputs["v0"] * 0.9, "target": inputs["target"] + 0.25}
+    for name, value in new.items():
+        k.set_input(name, value)
+    k.run()
+    assert (k.v0.data_ptr(), k.target.data_ptr()) == ptr          # the same tensors
+    fresh = b.kernel("projectile")(p, {**inputs, **new}, "cpu", "float64", "default")
+    fresh.run()
+    got, want = k.outputs(), fresh.outputs()
+    assert all(got[n].tobytes() == want[n].tobytes() for n in want)
+    assert not np.any(got["loss"] == before["loss"])                  # it did change
+    with pytest.raises(ValueError):
+        k.set_input("v0", np.zeros((3, 2)))
+    assert torch.is_tensor(k.v0)
+
+
+def test_missing_torch_is_a_skip_naming_the_install_command(monkeypatch):
+    monkeypatch.setitem(sys.modules, "torch", None)      # import torch -> ImportError
+    avail = backends.get("torch").available()
+    assert set(avail) == set(backends.DEVICES)
+    for device, why in avail.items():
+        assert why and "torch not importable" in why and "pip install -e '.[torch]'" in why, (device, why)
+
+
+@pytest.mark.parametrize("gpus", [0, 1])
+def test_the_install_hint_names_the_cpu_wheel_only_without_a_gpu(monkeypatch, gpus):
+    """A bare `pip install torch` on a machine without an NVIDIA GPU pulls several GB of CUDA
+    libraries: there the hint names PyTorch's CPU wheel first."""
+    import backends.torch as bt
+    monkeypatch.setitem(sys.modules, "torch", None)
+    monkeypatch.setattr(bt, "visible_gpus", lambda: gpus)
+    why = backends.get("torch").available()["cpu"]
+    assert ("download.pytorch.org/whl/cpu" in why) == (gpus == 0), why
+    assert why.endswith("pip install -e '.[torch]')"), why
+
+
+def test_cpu_has_no_graph_capture_or_events():
+    _torch()
+    b = backends.get("torch")
+    assert b.capture("cpu", lambda: None) is None
+    assert b.event_timer("cpu") is None
+    assert b.memory("cpu") == {}
+
+
+def test_cuda_graph_replays_and_events_reproduce_eager():
+    """CUDA: a captured run() replayed gives the eager outputs (v0 replaced in place between
+    replays is seen), events time a call, and the allocator's peak is reported."""
+    require_device("torch", "cuda")
+    import torch
+    b = backends.get("torch")
+    b.setup("cuda", "float32", "default")
+    sc = scenarios.get("projectile")
+    p = sc.params({**SMALL["projectile"], "contact": "hard"}, quick=True)
+    inputs = sc.inputs(p, "float32")
+    k = b.kernel("projectile")(p, inputs, "cuda", "float32", "default")
+    k.run()
+    b.synchronize("cuda", None)
+    eager = k.outputs()
+    replay = b.capture("cuda", k.run)
+    k.set_input("v0", inputs["v0"] * 0.5)
+    replay()
+    b.synchronize("cuda", None)
+    moved = k.outputs()
+    k.set_input("v0", inputs["v0"])
+    timer = b.event_timer("cuda")
+    timer.start(); replay(); timer.stop()
+    b.synchronize("cuda", None)
+    assert timer.elapsed_s() > 0
+    again = k.outputs()
+    assert all(again[n].tobytes() == eager[n].tobytes() for n in eager)
+    assert not np.array_equal(moved["grad"], eager["grad"])
+    assert b.memory("cuda")["device_peak_bytes"] > 0
+    assert torch.backends.cuda.matmul.allow_tf32 is False

@@ -1,0 +1,73 @@
+"""Each suite's results-file format is registered (compare.results.formats), not imported by side effect:
+a file of every old format loads through its suite's format, and reading one loads no suite."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import backends
+from compare.results.formats import FORMATS
+from compare.results.store import SUITES, Store
+
+ROOT = Path(__file__).resolve().parents[2]
+CPU = ROOT / "docs" / "results" / "cpu"
+
+
+def test_every_suite_has_a_format() -> None:
+    assert set(FORMATS) == set(SUITES) == {"run", "sweep", "stress"}
+    assert FORMATS["run"].upgrade and FORMATS["sweep"].upgrade and FORMATS["sweep"].record_problem
+    assert FORMATS["stress"].store_problem
+
+
+def test_a_format_1_run_file_loads_upgraded(tmp_path: Path) -> None:
+    """Format 1 of results.json: {"environment", "records"}, the reference's distance ``vs_<name>``."""
+    new = json.loads((CPU / "results.json").read_text())
+    ref = backends.reference()
+    records = []
+    for r in new["records"]:
+        err = r.get("error")
+        if isinstance(err, dict) and err.get("reference") == ref:
+            err = {("vs_" + ref if k == "vs_reference" else f"vs_{ref}_device" if k == "vs_reference_device" else k): v
+                   for k, v in err.items() if k != "reference"}
+            r = {**r, "error": err}
+        records.append(r)
+    old = tmp_path / "results.json"
+    old.write_text(json.dumps({"environment": new["runs"][0], "records": records}))
+    store, today = Store.read(old, "run"), Store.read(CPU / "results.json")
+    assert store.upgraded_from == 1
+    assert [r.error for r in store.records] == [r.error for r in today.records]
+
+
+def test_a_format_1_stress_file_loads_upgraded(tmp_path: Path) -> None:
+    """Format 1 of stress.json: {"environment", "provenance", "rows", "series"}, no records."""
+    new = json.loads((CPU / "stress.json").read_text())
+    old = tmp_path / "stress.json"
+    old.write_text(json.dumps({"environment": new["runs"][0], **new["analysis"]}))
+    store = Store.read(old, "stress")
+    assert store.upgraded_from == 1 and store.analysis["rows"] == new["analysis"]["rows"]
+
+
+def test_a_format_1_sweep_file_loads_upgraded() -> None:
+    store = Store.read(ROOT / "tests" / "data" / "format1-sweep.json", "sweep")
+    assert store.upgraded_from == 1 and all(r.tags is not None for r in store.records)
+
+
+def test_reading_any_file_imports_no_suite() -> None:
+    """The schema and the store know no suite's driver: the formats are leaves."""
+    code = ("import sys; from compare.results.store import Store\n"
+            "for f in ('results.json', 'sweep.json', 'stress.json'): Store.read('docs/results/cpu/' + f)\n"
+            "bad = [m for m in ('compare.suites.run', 'compare.suites.sweep', 'compare.suites.stress', 'compare.running.engine')"
+            " if m in sys.modules]\n"
+            "assert not bad, bad")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+
+
+def test_the_schema_imports_no_suite() -> None:
+    code = ("import sys, compare.results.records, compare.results.record\n"
+            "bad = [m for m in sys.modules if m.startswith(('compare.sweep', 'compare.stress'))]\n"
+            "assert not bad, bad")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr

@@ -1,0 +1,177 @@
+"""The typed record (compare/results/record.py): one loader that validates, one writer that gives back the
+stored object unchanged, immutable in between.
+
+Every committed store loads through it (format 1 upgraded); each record's JSON round-trips key for
+key and a loaded format-2 file saves to the same bytes; a malformed field is one line naming it;
+a record cannot be changed in place; the engine stores nothing a reader could not load.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import ROOT
+
+from compare.running import engine
+from compare import spec
+from compare.results.record import FORMAT_VERSION, Record, RecordError
+from compare.results.store import Store, StoreError
+
+SITE = ROOT / "tests" / "data" / "site"
+FORMAT2 = sorted({*ROOT.glob("docs/results/*/results.json"), *ROOT.glob("docs/results/*/sweep.json"),
+                  *ROOT.glob("docs/results/*/stress.json"), *ROOT.glob("docs/results/*/*/sweep.json"),
+                  *SITE.glob("*.json")})
+PUBLISHED = [p for p in FORMAT2 if "docs" in p.relative_to(ROOT).parts]
+FORMAT1 = [ROOT / "tests" / "data" / "format1-sweep.json"]
+OK_RUN = next(r for r in json.loads((SITE / "results.json").read_text())["records"]
+              if r["status"] == "ok" and r.get("time") is not None)
+
+
+def ids(paths: list[Path]) -> list[str]:
+    return [str(p.relative_to(ROOT)) for p in paths]
+
+
+@pytest.mark.parametrize("path", FORMAT2, ids=ids(FORMAT2))
+def test_every_record_of_a_committed_store_round_trips(path: Path) -> None:
+    raw = json.loads(path.read_text())
+    assert raw["format_version"] == FORMAT_VERSION and raw["records"] or raw["analysis"]
+    for i, obj in enumerate(raw["records"]):
+        got = Record.from_json(copy.deepcopy(obj)).to_json()
+        assert got == obj and list(got) == list(obj), i      # same keys, same order, same values
+
+
+@pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))
+def test_a_published_store_saves_to_the_same_bytes(path: Path) -> None:
+    """Files the store wrote (docs/results) come back byte for byte after a load and a save."""
+    assert Store.read(path).to_json() == path.read_text()
+
+
+@pytest.mark.parametrize("path", FORMAT1, ids=ids(FORMAT1))
+def test_a_format_1_store_loads_upgraded_and_its_records_round_trip(path: Path) -> None:
+    store = Store.read(path)
+    assert store.upgraded_from == 1 and store.records
+    assert all(r.tags is not None and r.tags.get("sweep") for r in store.records)
+    for r in store.records:
+        assert Record.from_json(r.to_json()) == r
+    saved = json.loads(store.to_json())
+    assert saved["format_version"] == FORMAT_VERSION and saved["upgraded_from"] == 1
+    assert not any(k in rec for rec in saved["records"] for k in ("sweep", "role", "knob"))
+
+
+def test_fields_are_attributes_and_blocks_are_read_only() -> None:
+    r = Record.from_json(copy.deepcopy(OK_RUN))
+    assert (r.scenario, r.backend, r.status, r.reason) == (OK_RUN["scenario"], OK_RUN["backend"], "ok", "")
+    assert r.time["median_s"] == OK_RUN["time"]["median_s"] and r.key == spec.key(OK_RUN)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.status = "error"                                   # type: ignore[misc]
+    with pytest.raises(TypeError):
+        r.time["median_s"] = 1.0                             # type: ignore[index]
+    with pytest.raises(TypeError):
+        r.params["n"] = 1                                    # type: ignore[index]
+    assert isinstance(r.to_json()["time"], dict)             # plain JSON again on the way out
+
+
+def test_lists_inside_a_record_are_tuples_and_come_back_as_lists() -> None:
+    obj = copy.deepcopy(OK_RUN)
+    obj["time"]["noise"] = {"noisy": True, "reasons": [{"regime": "latency", "why": "spread"}]}
+    r = Record.from_json(obj)
+    assert r.time["noise"]["reasons"] == ({"regime": "latency", "why": "spread"},)
+    assert r.to_json()["time"]["noise"]["reasons"] == [{"regime": "latency", "why": "spread"}]
+
+
+def test_a_key_this_version_does_not_name_is_kept_where_it_was() -> None:
+    obj = {"future_figure": {"a": [1, 2]}, **copy.deepcopy(OK_RUN), "zz_last": "x"}
+    r = Record.from_json(obj)
+    assert r.extra["future_figure"]["a"] == (1, 2)
+    assert list(r.to_json()) == list(obj) and r.to_json() == obj
+
+
+def test_replace_changes_a_copy_and_adds_a_new_field_last() -> None:
+    obj = copy.deepcopy(OK_RUN)
+    obj.pop("machine", None)
+    r = Record.from_json(obj)
+    m = r.replace(machine="box", error={**r.error, "vs_reference": 0.0})
+    assert r.machine is None and r.error == OK_RUN["error"]              # the original is unchanged
+    assert list(m.to_json()) == [*obj, "machine"] and m.error["vs_reference"] == 0.0
+
+
+def test_a_record_built_in_code_writes_the_fields_it_has() -> None:
+    r = Record(scenario="saxpy", backend="numpy", device="cpu", precision="float32", status="skipped",
+               reason="not installed")
+    assert r.to_json() == {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
+                           "status": "skipped", "variant": "default", "reason": "not installed"}
+    assert Record.from_json(r.to_json()) == r
+
+
+@pytest.mark.parametrize("change,needle", [
+    (lambda o: o["time"].update(median_s=-1.0), "time.median_s must be a finite number > 0, got -1.0"),
+    (lambda o: o.update(status="fine"), "record status must be one of ok, mismatch, error, skipped, got 'fine'"),
+    (lambda o: o.update(backend="a/b"), "backend must be a name of letters, digits and _.+- (at most 64)"),
+    (lambda o: o.update(scenario="nope"), "scenario 'nope' is not one this tool knows"),
+    (lambda o: o["params"].update(n=-5), "params: "),
+    (lambda o: o.update(error=None), "needs both time and error (or neither), got only time"),
+    (lambda o: o.update(tags=[1]), "record field 'tags' must be an object or null, got list"),
+])
+def test_a_malformed_field_is_one_line_naming_it(change: Any, needle: str) -> None:
+    obj = copy.deepcopy(OK_RUN)
+    change(obj)
+    with pytest.raises(RecordError) as exc:
+        Record.from_json(obj)
+    assert needle in str(exc.value) and "\n" not in str(exc.value), str(exc.value)
+
+
+def test_not_an_object_is_refused() -> None:
+    with pytest.raises(RecordError, match="a record must be an object, got list"):
+        Record.from_json([1, 2])
+
+
+def test_the_store_names_the_file_and_the_record(tmp_path: Path) -> None:
+    doc = json.loads((SITE / "results.json").read_text())
+    i = next(i for i, r in enumerate(doc["records"]) if r["status"] == "ok" and r.get("time"))
+    doc["records"][i]["error"]["tolerance"] = [1]
+    (tmp_path / "results.json").write_text(json.dumps(doc))
+    with pytest.raises(StoreError) as exc:
+        Store.read(tmp_path / "results.json")
+    assert str(exc.value) == (f"{tmp_path / 'results.json'}: record {i}: "
+                              "record field error.tolerance must be a number or null, got [1]")
+
+
+def test_the_engine_stores_no_record_a_reader_could_not_load(tmp_path: Path) -> None:
+    """A worker's record that fails the loader's checks becomes an error record of its cell (the
+    reason names the field), so the results file stays readable."""
+    bad = {k: copy.deepcopy(v) for k, v in OK_RUN.items()
+           if k not in ("scenario", "backend", "device", "precision", "variant", "params", "tags")}
+    bad["time"]["median_s"] = 0.0
+    cell = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
+            "params": {"n": 1000}, "quick": True}
+    probes = {"numpy": {"available": {"cpu": None}, "versions": {}}}
+    store = Store(tmp_path / "results.json", "run")
+    (rec, _), = engine.run_cells([cell], timeout=60, probes=probes, store=store,
+                                 runner=lambda s: (copy.deepcopy(bad), None))
+    assert isinstance(rec, Record) and rec.status == "error"
+    assert rec.reason == "malformed record: time.median_s must be a finite number > 0, got 0.0"
+    assert (rec.scenario, rec.backend, rec.params["n"]) == ("saxpy", "numpy", 1000)
+    assert [r.status for r in Store.read(store.path).records] == ["error"]
+
+
+def test_cells_that_cannot_start_are_stored_in_one_write_before_any_cell_runs(tmp_path, monkeypatch):
+    """Skipped cells (here: a device no backend has) cost no file write each; they are in the
+    store before the first cell runs, and every cell that runs is saved as it finishes."""
+    probes = {"numpy": {"available": {"cpu": None, "cuda": "NumPy runs on the CPU only"}, "versions": {}}}
+    cells = [{"scenario": "saxpy", "backend": "numpy", "device": d, "precision": p, "params": {"n": 1000},
+              "quick": True} for d in ("cuda", "cpu") for p in ("float32", "float64")]
+    store = Store(tmp_path / "results.json", "run")
+    saved: list[list[str]] = []
+    real_save = Store.save
+    monkeypatch.setattr(Store, "save", lambda self: (saved.append([r.status for r in self.records]),
+                                                     real_save(self))[1])
+    good = {"status": "skipped", "reason": "stand-in for a run"}
+    results = engine.run_cells(cells, timeout=60, probes=probes, store=store,
+                               runner=lambda s: (copy.deepcopy(good), None))
+    assert [r.status for r, _ in results] == ["skipped"] * 4
+    assert saved == [["skipped"] * 2, ["skipped"] * 3, ["skipped"] * 4]
+    assert len(Store.read(store.path).records) == 4

@@ -1,0 +1,101 @@
+"""Repeats across processes (compare/running/repeats.py): the median's distribution-free interval, the
+stopping rule, the seeded rounds, and a run whose records carry every process's figures."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from compare.running import repeats
+from compare.results.record import Record, plain
+from compare.site import data
+from conftest import ROOT
+
+
+@pytest.mark.parametrize("n,j,cover", [(6, 1, 0.96875), (10, 2, 0.978515625), (20, 6, 0.9586)])
+def test_the_interval_is_the_narrowest_pair_of_order_statistics_at_95_percent(n, j, cover):
+    lo, hi, c = repeats.interval(list(range(1, n + 1)))
+    assert (lo, hi) == (j, n + 1 - j) and c == pytest.approx(cover, abs=1e-4) and c >= 0.95
+
+
+def test_too_few_processes_give_the_range_at_its_lower_confidence():
+    assert repeats.interval([3.0, 1.0, 2.0]) == (1.0, 3.0, 0.75)
+    assert repeats.summary([_t(v) for v in (3e-5, 1e-5, 2e-5, 1e-4)])["latency"]["median_s"] == 2.5e-5
+
+
+def _t(lat: float, first: float = 1.0) -> dict:
+    return {"latency": {"median_s": lat}, "throughput": {"median_s": lat / 2}, "first_call_s": first,
+            "setup_s": 0.5}
+
+
+def test_summary_keeps_every_process_and_first_is_set_up_plus_first_call():
+    b = repeats.summary([_t(1e-5), _t(2e-5, 2.0), _t(3e-5)])
+    assert b["count"] == 3 and b["latency"]["values"] == [1e-5, 2e-5, 3e-5]
+    assert b["latency"]["median_s"] == 2e-5 and b["throughput"]["median_s"] == 1e-5
+    assert b["first_result"]["values"] == [1.5, 2.5, 1.5]
+    assert "graph" not in b and "events" not in b
+
+
+def test_auto_stops_a_settled_cell_and_runs_a_scattered_one_to_the_maximum():
+    calls: dict[int, int] = {0: 0, 1: 0}
+    values = {0: iter([1e-5] * 20), 1: iter([1e-5, 2e-5] * 10)}
+
+    def time_one(i: int) -> dict:
+        calls[i] += 1
+        return _t(next(values[i]))
+    rounds: list[list[int]] = []
+    out = repeats.run_rounds({0: _t(1e-5), 1: _t(2e-5)}, "auto", 0, time_one, lambda b: rounds.append(sorted(b)))
+    assert calls == {0: repeats.AUTO_MIN - 1, 1: repeats.AUTO_MAX - 1}
+    assert out[0]["count"] == repeats.AUTO_MIN and out[1]["count"] == repeats.AUTO_MAX
+    assert repeats.settled(out[0]) and not repeats.settled(out[1])
+    assert rounds[0] == [0, 1] and rounds[-1] == [1]
+
+
+def test_a_failed_repeat_is_counted_not_hidden():
+    out = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda i: None, lambda b: None)
+    assert out[0]["count"] == 1 and out[0]["failed"] == 2
+
+
+def test_the_site_reads_the_median_of_processes_and_its_interval():
+    rec = Record.from_json({"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
+                            "variant": "default", "status": "ok", "reason": "", "params": {"n": 1000},
+                            "time": {"first_call_s": 1.0, "median_s": 9e-6, "iqr_s": 0.0, "min_s": 9e-6,
+                                     "repeats": 10, "latency": {"median_s": 9e-6, "iqr_s": 0.0, "min_s": 9e-6,
+                                                                "repeats": 10},
+                                     "processes": repeats.summary([_t(v) for v in (1e-5, 1.1e-5, 1e-5, 1e-5,
+                                                                                   1.05e-5, 1e-5)])},
+                            "error": {"vs_oracle": 0.0, "tolerance": 1.0}})
+    t = data.timing(rec, "latency")
+    assert t.processes == 6 and t.median == 1e-5 and t.ci == (1e-5, 1.1e-5) and "disagree" not in t.noisy
+    j = plain(rec.to_json())
+    del j["time"]["processes"]
+    one = data.timing(Record.from_json(j), "latency")
+    assert one.processes == 1 and one.ci is None and one.median == 9e-6
+
+
+def test_a_run_with_three_processes_keeps_all_three(tmp_path):
+    out = tmp_path / "r"
+    p = subprocess.run([sys.executable, "-m", "compare", "run", "saxpy", "--backends", "numpy", "--devices", "cpu",
+                        "--precision", "float32", "--quick", "--repeat", "3", "--min-time", "0",
+                        "--processes", "3", "--out", str(out), "--no-plots"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    doc = json.loads((out / "results.json").read_text())
+    [rec] = [r for r in doc["records"] if r["status"] == "ok"]
+    block = rec["time"]["processes"]
+    assert block["count"] == 3 and len(block["latency"]["values"]) == 3 and len(block["first_result"]["values"]) == 3
+    assert doc["runs"][0]["processes"] == 3
+
+
+def test_the_engine_hands_each_repeat_process_to_on_repeat():
+    """The run's closing 'where the time went' counts the repeat processes' parts too."""
+    from compare.running import engine
+    from compare.spec import Cell
+    cell = Cell.make(scenario="saxpy", backend="numpy", device="cpu", precision="float32", quick=True,
+                     repeat=3, min_time=0.0)
+    seen: list[dict] = []
+    [(rec, _)] = engine.run_cells([cell], timeout=300, processes=3, on_repeat=seen.append)
+    assert rec.status == "ok" and rec.time["processes"]["count"] == 3
+    assert len(seen) == 2 and all("phases" in t for t in seen)

@@ -1,0 +1,234 @@
+"""``python -m compare publish``: the plan, --list, bad usage, the log, skipping and rerunning parts."""
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import ROOT
+from compare import cli
+from compare.measuring import environment
+from compare.suites import publish
+
+pytestmark = pytest.mark.cli
+# --allow-dirty: a developer's checkout may hold uncommitted changes (the guard has its own test)
+NUMPY = ["--backends", "numpy", "--devices", "cpu", "--quick", "--allow-dirty"]
+H100 = {"cpu": 120 * 2**30, "cuda": 79 * 2**30}
+
+
+def compare(*args):
+    return subprocess.run([sys.executable, "-m", "compare", *args], cwd=ROOT, capture_output=True,
+                          text=True, timeout=600)
+
+
+def names(parts):
+    return [p.name for p in parts]
+
+
+def test_list_prints_every_part_and_its_command_and_writes_nothing(tmp_path):
+    out = tmp_path / "m"
+    p = compare("publish", "--out", str(out), "--list", *NUMPY)
+    assert p.returncode == 0, p.stderr
+    assert not out.exists()
+    lines = p.stdout.splitlines()
+    listed = [ln.split(":")[0].strip() for ln in lines[1::2]]
+    parts, _ = publish.plan(str(out), ["cpu"], "numpy", quick=True)
+    assert listed == names(parts)
+    assert listed[0] == "all" and listed[-2:] == ["stress-merge", "site"]
+    for state, cmd in zip(lines[1::2], lines[2::2]):
+        assert state.endswith(": to run") and cmd.strip().startswith("python -m compare ")
+    assert f"python -m compare site {out} --out {out / 'report'}" in p.stdout
+
+
+def test_cuda_plan_measures_what_the_h100_store_holds():
+    parts, notes = publish.plan("results/h100", ["cuda"], "all", have=H100)
+    assert not notes
+    order = names(parts)
+    assert order[:9] == ["all", "float64", "large-cuda-saxpy26", "large-cuda-saxpy28", "large-cuda-particles24",
+                         "bandwidth", "scaling", "error", "horizon"]
+    by = {p.name: p.argv for p in parts}
+    assert "--variants" in by["all"] and by["all"][by["all"].index("--variants") + 1] == "all"
+    assert all("--resume" in by[n] for n in order[:9])
+    # the matrix part is float32 in repeated processes; float64 (no row ranks it) once, apart
+    assert by["all"][by["all"].index("--precision") + 1] == "float32" and "--processes" in by["all"]
+    assert by["float64"][by["float64"].index("--precision") + 1] == "float64" and "--processes" not in by["float64"]
+    store = json.loads((ROOT / "docs/results/h100/results.json").read_text())
+    held = {(r["scenario"], r["params"].get("n"), r["variant"]) for r in store["records"]}
+    for n in order[2:5]:
+        argv = by[n]
+        size = int(argv[argv.index("--set") + 1].split("=")[1])
+        for v in argv[argv.index("--variants") + 1].split(","):
+            assert (argv[1], size, v) in held, (n, v)
+    assert "--check-sample" in by["large-cuda-particles24"]
+    stress = [p for p in parts if p.name.startswith("stress-") and p.name != "stress-merge"]
+    assert stress and all("--quick" not in p.argv for p in stress)      # full where CUDA is
+    assert by["stress-ulps"][by["stress-ulps"].index("--devices") + 1] == "cpu,cuda"
+    small, notes = publish.plan("r", ["cuda"], "all", have={"cpu": 16 * 2**30, "cuda": 8 * 2**30})
+    assert "large-cuda-saxpy28" not in names(small) and "large-cuda-saxpy28: left out" in notes[0]
+    cpu, _ = publish.plan("r", ["cpu"], "all", have={"cpu": 20 * 2**30})
+    assert [n for n in names(cpu) if n.startswith("large-")] == \
+        ["large-cpu-saxpy24", "large-cpu-saxpy26", "large-cpu-particles20"]
+    assert all("--quick" in p.argv for p in cpu if p.name.startswith("stress-") and p.name != "stress-merge")
+
+
+@pytest.mark.parametrize("args,needle", [
+    (("--part", "bogus"), "unknown part 'bogus'"),
+    (("--part", "all,all"), "names 'all' twice"),
+    (("--part", ","), "--part is empty"),
+    (("--devices", "tpu"), "unknown device"),
+    (("--backends", "fortran"), "unknown backend"),
+    (("--budget", "0"), "--budget"),
+    (("--timeout", "nan"), "--timeout"),
+    (("--frobnicate",), "unrecognized"),
+])
+def test_bad_usage_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, args, needle):
+    out = tmp_path / "m"
+    assert cli.main(["publish", "--out", str(out), *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0], err
+    assert not out.exists()
+
+
+def test_empty_out_and_a_bad_log_are_refused(tmp_path, capsys):
+    assert cli.main(["publish", "--out", ""]) == 2
+    assert "--out is empty" in capsys.readouterr().err
+    (tmp_path / "publish.json").write_text('{"format_version": 7}')
+    assert cli.main(["publish", "--out", str(tmp_path), *NUMPY]) == 2
+    assert "not a publish log" in capsys.readouterr().err
+    assert sorted(os.listdir(tmp_path)) == ["publish.json"]
+
+
+def test_a_dirty_checkout_is_refused_unless_allowed(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(environment, "dirty_paths", lambda: ["compare/x.py", "b.py", "c.py", "d.py"])
+    monkeypatch.delenv("COMPARE_GIT_COMMIT", raising=False)
+    out = tmp_path / "m"
+    args = ["publish", "--out", str(out), "--backends", "numpy", "--devices", "cpu", "--quick"]
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "uncommitted changes (compare/x.py, b.py, c.py and 1 more)" in err[0], err
+    assert "--allow-dirty" in err[0] and not out.exists()
+    assert cli.main([*args, "--list"]) == 0 and not out.exists()      # listing runs nothing
+    publish.refuse_dirty(allowed=True)                                 # allowed: the runs name the paths
+    monkeypatch.setenv("COMPARE_GIT_COMMIT", "abc1234")                # a copied tree names its commit
+    publish.refuse_dirty(allowed=False)
+
+
+def test_a_run_names_its_uncommitted_paths(monkeypatch):
+    monkeypatch.delenv("COMPARE_GIT_COMMIT", raising=False)
+    many = [f"f{i}.py" for i in range(environment.DIRTY_PATHS_KEPT + 5)]
+    monkeypatch.setattr(environment, "dirty_paths", lambda: many)
+    env = environment.collect([])
+    assert env["git_dirty"] is True and env["git_dirty_paths"][:2] == ["f0.py", "f1.py"]
+    assert env["git_dirty_paths"][-1] == "... and 5 more"
+    monkeypatch.setattr(environment, "dirty_paths", lambda: [])
+    assert environment.collect([])["git_dirty"] is False and "git_dirty_paths" not in environment.collect([])
+    monkeypatch.setenv("COMPARE_GIT_COMMIT", "abc1234")
+    assert environment.collect([])["git_dirty"] is None
+
+
+def test_states_of_the_log():
+    part = publish.Part("stress-ulps", ("stress", "--only", "ulps", "--out", "d/stress-parts/ulps"), resumes=False)
+    sweep = publish.Part("bandwidth", ("sweep", "bandwidth", "--resume", "--out", "d"))
+    site = publish.Part("site", ("site", "d", "--out", "d/report"), reads=("bandwidth", "stress-ulps"))
+
+    def entry(p, code, argv=None, interrupted=False):
+        return {"name": p.name, "argv": list(argv or p.argv), "exit_code": code, "interrupted": interrupted}
+    log = {"format_version": 1, "parts": []}
+    assert publish.state(sweep, log, "d") == "to run"
+    log["parts"] += [entry(sweep, 1, [*sweep.argv, "--timeout", "5"])]       # --timeout aside
+    assert publish.state(sweep, log, "d").startswith("done (exit 1")
+    assert publish.state(sweep, log, os.path.abspath("d")).startswith("done")     # DIR spelled otherwise
+    log["parts"] += [entry(sweep, 0, ["sweep", "bandwidth", "--backends", "numpy", "--out", "d"])]
+    assert publish.state(sweep, log, "d").startswith("done")                  # another command's attempt
+    log["parts"] += [entry(site, 0)]
+    assert publish.state(site, log, "d") == "done"
+    log["parts"] += [entry(part, 130, interrupted=True), entry(sweep, None), entry(sweep, -9)]
+    assert publish.state(site, log, "d") == "to run (bandwidth, stress-ulps ran since)"
+    assert publish.state(sweep, log, "d") == "to run (last attempt exited -9)"       # it resumes: retried
+    assert publish.state(part, log, "d") == "to run (interrupted)"
+    log["parts"] += [entry(part, None)]
+    assert publish.state(part, log, "d").startswith("given up (cut off twice")        # it does not resume
+    log["parts"] += [entry(part, 1, interrupted=True)]
+    assert not publish.state(part, log, "d").startswith("done")
+
+
+def test_merge_takes_the_stress_files_that_exist_oldest_first(tmp_path):
+    parts, _ = publish.plan(str(tmp_path), ["cpu"], "numpy", quick=True)
+    merge = next(p for p in parts if p.name == "stress-merge")
+    assert publish.merge_argv(merge) is None                 # no experiment has run
+    files = [tmp_path / "stress-parts" / n / "stress.json" for n in ("b", "a")] + [tmp_path / "stress.json"]
+    for i, f in enumerate(files):
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text("{}")
+        os.utime(f, (time.time() - 100 + i, time.time() - 100 + i))
+    argv = publish.merge_argv(merge)
+    assert list(argv[argv.index("--merge") + 1:argv.index("--out")]) == list(map(str, files))
+
+
+def run_publish(monkeypatch, capsys, out, keep, *extra):
+    """compare.cli.main's publish with the plan cut to ``keep`` (the parts still run as subprocesses)."""
+    real = publish.plan
+    monkeypatch.setattr(publish, "plan", lambda *a, **k: (
+        [p for p in real(*a, **k)[0] if p.name in keep], []))
+    code = cli.main(["publish", "--out", str(out), *NUMPY, *extra])
+    return code, capsys.readouterr().out
+
+
+@pytest.mark.early
+def test_a_real_publish_logs_skips_done_parts_and_reruns_one(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "m"
+    keep = {"bandwidth", "stress-ulps", "stress-merge", "site"}
+    code, text = run_publish(monkeypatch, capsys, out, keep)
+    assert code == 0, text
+    for n in keep:
+        assert f"] {n}: python -m compare " in text               # each command printed before it runs
+    log = json.loads((out / "publish.json").read_text())
+    assert log["format_version"] == 1 and [e["name"] for e in log["parts"]] == \
+        ["bandwidth", "stress-ulps", "stress-merge", "site"]
+    for e in log["parts"]:
+        assert e["exit_code"] == 0 and e["seconds"] >= 0 and e["interrupted"] is False
+        assert datetime.datetime.fromisoformat(e["started"]).utcoffset() == datetime.timedelta(0)
+        assert {"hostname", "cores", "gpus"} <= set(e["host"])
+    assert log["parts"][0]["argv"][:2] == ["sweep", "bandwidth"] and "--resume" in log["parts"][0]["argv"]
+    for f in ("sweep.json", "stress.json", "report/index.html"):
+        assert (out / f).is_file(), f
+    stress = json.loads((out / "stress.json").read_text())
+    assert {r["experiment"] for r in stress["analysis"]["rows"]} == {"ulps"}
+
+    code, text = run_publish(monkeypatch, capsys, out, keep)          # all done: nothing runs
+    assert code == 0 and text.count(", skipped") == 4 and "python -m compare" not in text
+    assert len(json.loads((out / "publish.json").read_text())["parts"]) == 4
+
+    code, text = run_publish(monkeypatch, capsys, out, keep, "--part", "bandwidth")   # named: reruns
+    assert code == 0 and "] bandwidth: python -m compare sweep bandwidth" in text
+    code, text = run_publish(monkeypatch, capsys, out, keep)          # the site is stale now, only it
+    assert code == 0 and "] site: python -m compare site" in text and text.count("python -m compare") == 1
+    assert [e["name"] for e in json.loads((out / "publish.json").read_text())["parts"]][4:] == ["bandwidth", "site"]
+    records = json.loads((out / "sweep.json").read_text())["records"]
+    assert len(records) == len({json.dumps([r["scenario"], r["params"], r["tags"]]) for r in records})
+
+
+def test_budget_interrupts_the_running_part_and_the_next_call_resumes_it(tmp_path):
+    out = tmp_path / "m"
+    p = compare("publish", "--out", str(out), *NUMPY, "--part", "all", "--budget", "1")
+    assert p.returncode == 3, p.stdout + p.stderr
+    assert "--budget spent during all" in p.stderr
+    (e,) = json.loads((out / "publish.json").read_text())["parts"]
+    assert e["name"] == "all" and e["interrupted"] is True
+    listed = compare("publish", "--out", str(out), *NUMPY, "--list", "--part", "all")
+    assert "all: to run (interrupted)" in listed.stdout
+
+
+def test_large_parts_share_results_json_with_other_sizes(tmp_path):
+    """``run --resume`` with another --set n keeps the records already there (publish relies on it)."""
+    out = tmp_path / "m"
+    p = compare("publish", "--out", str(out), *NUMPY, "--part", "large-cpu-saxpy16,large-cpu-saxpy18")
+    assert p.returncode == 0, p.stdout + p.stderr
+    records = json.loads((out / "results.json").read_text())["records"]
+    assert sorted(r["params"]["n"] for r in records) == [2**16, 2**18]
+    assert all(r["status"] == "ok" and r["precision"] == "float32" for r in records)

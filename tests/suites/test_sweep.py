@@ -1,0 +1,281 @@
+"""The sweep suite (issue 6): roofline and Pareto math, converged references, the sweep command on
+Warp/CPU in quick mode, its plan, record shape, page and plots; the measurements it is made of are
+in tests/measuring/test_timing.py."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import backends
+import scenarios
+from compare.results.record import Record
+from compare.sweep.format import upgrade_record
+from compare.results.store import Store
+from compare.sweep import converged
+from compare.sweep import metrics as sweep_metrics
+from compare.sweep import page as sweep_page
+from compare.sweep import plots as sweep_plots
+from compare.sweep import suite as sweep
+from compare.sweep.points import sweeps
+from conftest import ROOT, require_device
+
+pytestmark = pytest.mark.cli
+
+
+# ---- roofline and Pareto math ---------------------------------------------------------------
+def _rec(role, backend, n, median, nbytes, wall=None, timer="wall", device="cuda"):
+    scenario = {"bandwidth": "saxpy"}.get(role, role)
+    return Record(tags={"sweep": "bandwidth", "role": role, "knob": {"name": "n", "value": n}},
+                  scenario=scenario, backend=backend,
+                  device=device, precision="float32", status="ok", params={"n": n},
+                  work={"bytes": nbytes},
+                  time={"median_s": median, "timer": timer,
+                        "wall": {"median_s": wall or median, "iqr_s": 0.0, "min_s": wall or median}})
+
+
+def test_roofline_and_bandwidth_rows():
+    recs = [_rec("copy", "a", 1 << 20, 1e-3, 2e9), _rec("copy", "b", 1 << 20, 2e-3, 2e9),
+            _rec("launch", "a", 1, 1e-5, 8, wall=1e-5),
+            _rec("bandwidth", "a", 1 << 10, 2e-6, 3e3, wall=1.2e-5, timer="events"),
+            _rec("bandwidth", "a", 1 << 28, 2e-3, 3e9, wall=2.1e-3, timer="events")]
+    roof = sweep_metrics.roofline(recs, "cuda")
+    assert roof["backend"] == "a" and math.isclose(roof["gbps"], 2000.0)
+    assert sweep_metrics.roofline(recs, "cpu") is None
+    small = sweep_metrics.bandwidth_row(recs[3], recs)
+    assert math.isclose(small["gbps"], 3e3 / 2e-6 / 1e9)              # primary clock (events)
+    assert math.isclose(small["wall_gbps"], 3e3 / 1.2e-5 / 1e9)
+    assert math.isclose(small["launch_share"], 1e-5 / 1.2e-5) and small["regime"] == "overhead-bound"
+    big = sweep_metrics.bandwidth_row(recs[4], recs)
+    assert math.isclose(big["roof_share"], 1500.0 / 2000.0) and big["regime"] == "bandwidth-bound"
+    assert sweep_metrics.regime(0.1, 0.2) == "mixed" and sweep_metrics.regime(None, None) == "-"
+    assert sweep_metrics.gbps(1e9, 0.5) == 2.0
+
+
+def test_pareto_front():
+    pts = [(1.0, 10.0), (2.0, 5.0), (3.0, 6.0), (4.0, 1.0), (2.0, 5.0), (0.5, 20.0), (5.0, 1.0)]
+    assert sweep_metrics.pareto_front(pts) == [True, True, False, True, True, True, False]
+    assert sweep_metrics.pareto_front([]) == []
+    assert sweep_metrics.pareto_front([(1.0, 1.0)]) == [True]
+
+
+# ---- converged references -------------------------------------------------------------------
+def test_references_converge():
+    import scenarios
+    sdf = scenarios.get("sdf")
+    errs = [converged.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {}, "float64")["image"])["error"]
+            for r in (32, 128, 512)]
+    assert errs[0] > errs[1] > errs[2] > 0
+    params = {"n": 16, "seed": 0}
+    part = scenarios.get("particles")
+    ref = converged.converged_positions(part, params, 0.001, 3000)
+    e = [converged.position_error(*converged.converged_positions(part, params, dt, round(3.0 / dt)), *ref)["error"]
+         for dt in (0.02, 0.004)]
+    assert e[0] > e[1] > 0
+    p = {"contact": "none", "iters": 0}
+    proj = scenarios.get("projectile")
+    exact = proj.params(p)       # continuous limit of the no-contact case
+    T = 4.5
+    x, y = exact.vx0 * T, exact.vy0 * T + 0.5 * exact.gravity * T * T
+    dx, dy = x - exact.target_x, y - exact.target_y
+    loss, grad = converged.converged_loss_grad(proj, p, 0.0005, 9000)
+    assert abs(loss - (dx * dx + dy * dy)) / (dx * dx + dy * dy) < 1e-3
+    assert np.allclose(grad, [2 * dx * T, 2 * dy * T], rtol=1e-3)
+
+
+# ---- the sweep command ----------------------------------------------------------------------
+def run_sweep(*args):
+    return subprocess.run([sys.executable, "-m", "compare", "sweep", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=1200)
+
+
+@pytest.fixture(scope="module")
+def quick_sweep(tmp_path_factory):
+    require_device("warp", "cpu")
+    out = tmp_path_factory.mktemp("sweep")
+    p = run_sweep("all", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
+                  "float32", "--cache", "warm", "--out", str(out))
+    return p, out
+
+
+@pytest.mark.early                      # its group is the longest: start it first
+@pytest.mark.xdist_group("quick_sweep")
+def test_sweep_quick_runs_everything_ok(quick_sweep):
+    p, out = quick_sweep
+    assert p.returncode == 0, p.stdout + p.stderr
+    data = json.loads((out / "sweep.json").read_text())
+    recs = data["records"]
+    assert all(r["status"] == "ok" for r in recs), [r.get("reason") for r in recs]
+    assert not any(k in r for r in recs for k in ("sweep", "role", "knob"))   # all under tags
+    roles = {(r["tags"]["sweep"], r["tags"]["role"], r["scenario"]) for r in recs}
+    assert {("bandwidth", "launch", "launch"), ("bandwidth", "copy", "copy"),
+            ("bandwidth", "bandwidth", "saxpy"), ("error", "sdf", "sdf"),
+            ("error", "particles", "particles"), ("error", "projectile", "projectile"),
+            ("scaling", "particles", "particles"), ("scaling", "projectile", "projectile"),
+            ("horizon", "projectile", "projectile")} <= roles
+    assert {r["variant"] for r in recs if r["tags"]["sweep"] == "horizon"} == {"default", "checkpoint"}
+    for r in recs:
+        if r["tags"]["sweep"] == "error":
+            c = r["converged"]
+            assert c["metric"] and math.isfinite(c["error"]) and c["error"] >= 0
+            if r["scenario"] in ("particles", "projectile"):    # the reference is far finer
+                assert c["reference"]["self_difference"] < c["error"]
+    for name in ("bandwidth_cpu.png", "time_vs_error_cpu.png", "scaling_particles_cpu.png",
+                 "scaling_projectile_cpu.png", "horizon_cpu.png", "measurement.md"):
+        assert (out / name).stat().st_size > 0
+    md = (out / "measurement.md").read_text()
+    assert "Roofline for this device" in md and "python -m compare sweep all --quick" in md
+
+
+@pytest.mark.xdist_group("quick_sweep")
+def test_sweep_report_rebuilds_without_running(quick_sweep, tmp_path):
+    _, out = quick_sweep
+    page = tmp_path / "page.md"
+    p = run_sweep("report", str(out / "sweep.json"), "--out", str(tmp_path / "plots"),
+                  "--page", str(page), "--title", "Rebuilt")
+    assert p.returncode == 0, p.stderr
+    text = page.read_text()
+    assert text.startswith("# Rebuilt") and "(plots/bandwidth_cpu.png)" in text
+
+
+@pytest.mark.xdist_group("quick_sweep")
+def test_sweep_resume_skips_ok_cells(quick_sweep):
+    _, out = quick_sweep
+    p = run_sweep("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
+                  "float32", "--out", str(out), "--resume", "--no-plots")
+    assert p.returncode == 0, p.stderr
+    assert "scaling particles" not in p.stderr          # nothing rerun
+
+
+@pytest.mark.parametrize("args,needle", [
+    ((), "required"),
+    (("bogus",), "unknown sweep"),
+    (("bandwidth", "--backends", "fortran"), "unknown backend"),
+    (("error", "--scenarios", "launch"), "unknown scenario"),
+    (("scaling", "--precision", "float16"), "unknown precision"),
+    (("bandwidth", "--repeat", "0"), "--repeat"),
+    (("report",), "at least one"),
+    (("report", "/nonexistent/sweep.json"), "cannot read"),
+    (("error", "--set", "contact=sticky"), "contact must be one of"),
+    (("bandwidth", "--set", "contact=soft"), "unknown parameter 'contact'"),
+    (("error", "--scenarios", "particles", "--set", "dt=0.1"), "varies it"),
+    (("error", "--set", "contact"), "KEY=VALUE"),
+])
+def test_sweep_bad_usage_exits_2_with_one_line(args, needle):
+    p = run_sweep(*args)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], p.stderr
+
+
+# ---- the suite's plan, record shape and page, without running cells --------------------------
+def plan_of(*argv):
+    from compare import options
+    p = options.Parser()
+    sweep.add_arguments(p)
+    return sweep.plan(p.parse_args(list(argv)))
+
+
+def test_plan_comes_from_the_scenarios_sweeps():
+    import scenarios
+    specs = [s for s, _ in plan_of("bandwidth", "--quick", "--backends", "warp", "--devices", "cpu")]
+    assert [s.tags["role"] for s in specs[:2]] == ["launch", "copy"]      # yardsticks first
+    assert {s.scenario for s in specs if s.tags["role"] == "bandwidth"} == {
+        name for name in scenarios.SCENARIOS if sweeps(name).measures == "bandwidth"}
+    assert all(s.check_sample for s in specs if s.tags["role"] != "launch")
+    # a scenario's own variants join the size sweep of that scenario only (Warp's tiled SAXPY; its
+    # recorded launches of SAXPY and of the copy and launch yardsticks), never another's
+    own = backends.get("warp").scenario_variants
+    assert {(s.scenario, s.variant) for s in specs if s.variant != "default"} == {
+        (sc, v) for sc in {s.scenario for s in specs} for v in own.get(sc, ())}
+    assert {s.variant for s in specs if s.scenario == "saxpy"} == {"default", "tile", "record_cmd"}
+    assert "tile" not in {s.variant for s in specs if s.scenario == "copy"}
+    err = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--precision", "float32")
+    assert {s.scenario for s, _ in err} == set(sweep.error_scenarios()) == {
+        "saxpy", "sdf", "particles", "projectile"}
+    proj = [(s, ref) for s, ref in err if s.scenario == "projectile"]
+    assert {s.params.contact for s, _ in proj} == {"soft"}             # the sweep's default
+    assert all(ref["dt"] == min(s.params.dt for s, _ in proj) / 16 for _, ref in proj)
+    assert all("reference" not in s.tags for s, _ in err)                 # not the cell's identity
+    hard = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--set", "contact=hard",
+                   "--scenarios", "projectile,saxpy")
+    assert {s.params.contact for s, _ in hard if s.scenario == "projectile"} == {"hard"}
+    assert [s.scenario for s, _ in hard][:4] == ["projectile"] * 3 + ["saxpy"]   # the given order
+    scal = plan_of("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--record-every", "50")
+    assert {s.params.record_every for s, _ in scal if s.scenario == "particles"} == {50}
+    assert [s.params.batch for s, _ in scal if s.scenario == "projectile"] == [1, 16, 256]
+    hz = plan_of("horizon", "--quick", "--backends", "warp,numba", "--devices", "cpu")
+    assert {(s.backend, s.variant) for s, _ in hz} == {("warp", "default"), ("warp", "checkpoint"),
+                                                             ("numba", "default")}
+    assert {s.params.iters for s, _ in hz} == {0} and {s.precision for s, _ in hz} == {"float32", "float64"}
+
+
+def test_old_records_are_upgraded_to_tags():
+    old = {"scenario": "saxpy", "backend": "warp", "device": "cpu", "precision": "float32",
+           "variant": "default", "params": {"n": 1024}, "sweep": "bandwidth", "role": "saxpy",
+           "knob": {"name": "n", "value": 1024}, "status": "ok"}
+    new = upgrade_record(old)
+    assert new["tags"] == {"sweep": "bandwidth", "role": "bandwidth", "knob": {"name": "n", "value": 1024}}
+    assert not {"sweep", "role", "knob"} & set(new) and new["params"] == {"n": 1024}
+    assert upgrade_record(new) is new
+    err = upgrade_record({**old, "scenario": "sdf", "sweep": "error", "role": "sdf", "knob": {}})
+    assert err["tags"] == {"sweep": "error", "role": "sdf", "knob": {}}
+    store = Store(ROOT / "unused.json", "sweep",
+                  records=[Record.from_json(new), Record.from_json(upgrade_record(dict(old)))])
+    assert len(store.records) == 1                 # the same cell, old or new shape: one key
+
+
+def test_old_files_upgrade_without_importing_the_suite():
+    """The store upgrades a format-1 file's records itself (no import side effect needed), so
+    saving it never writes old-shape records under format 2."""
+    code = ("from compare.results.store import Store; s = Store.read('tests/data/format1-sweep.json', 'sweep'); "
+            "assert s.upgraded_from == 1 and s.records and all(r.tags is not None for r in s.records), 'not upgraded'")
+    p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+
+
+@pytest.mark.parametrize("published,device,old_format", [
+    ("docs/results/cpu/sweep.json", "cpu", None),    # today's format
+    ("tests/data/format1-sweep.json", "cuda", 1)])   # a format-1 file, upgraded on reading
+def test_published_sweep_file_still_renders(tmp_path, published, device, old_format):
+    store = Store.read(ROOT / published, "sweep")
+    assert store.upgraded_from == old_format
+    data = sweep.contents(store)
+    assert all(r.tags is not None for r in data["records"])
+    text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
+    for heading in (f"## {device}: launch overhead", f"## {device}: copy bandwidth (roofline)",
+                    f"## {device}: SAXPY bandwidth against size", "### projectile",
+                    f"## {device}: particles scaling"):
+        assert heading in text
+    assert "| 2^24 " in text and "| particle-steps/s " in text and "No data." not in text
+    assert "Roofline for this device" in text
+
+
+def test_plot_colours_belong_to_the_backend():
+    recs = [Record(scenario="saxpy", backend=b, device="cpu", precision="float32", status="ok")
+            for b in ("numba", "warp", "elsewhere")]
+    c = sweep_plots.colors(recs)
+    assert c["numba"] == backends.get("numba").color and c["warp"] == backends.get("warp").color
+    assert list(c)[:2] == ["warp", "numba"] and c["elsewhere"] not in (c["warp"], c["numba"])
+
+
+def test_sweep_stress_and_site_suites_name_no_framework_and_no_scenario():
+    """The sweep, stress and site suites name no framework and no scenario in their code: each
+    scenario's sweep points (compare/sweep/points/<scenario>.py), stress experiments
+    (compare/stress/<scenario>.py), ulp cases and site questions and pages
+    (compare/site/topics/<scenario>.py) are found by the module's or function's name (issue 29:
+    suites hold their per-scenario parts, compare/ names no framework)."""
+    import re
+    frameworks = re.compile(r"['\"](" + "|".join(backends.BACKENDS) + r")['\"]")
+    # 'launch' and 'copy' are also the names of the roles the bandwidth page draws
+    names = re.compile(r"['\"](" + "|".join(n for n in scenarios.SCENARIOS if n not in ("launch", "copy")) + r")['\"]")
+    for suite in ("sweep", "stress", "site"):
+        for f in (ROOT / "compare" / suite).rglob("*.py"):
+            for i, line in enumerate(f.read_text().splitlines(), 1):
+                code = line.split("#", 1)[0]
+                assert not frameworks.search(code), f"{f.name}:{i}: {line.strip()}"
+                assert not names.search(code), f"{f.name}:{i}: {line.strip()}"
