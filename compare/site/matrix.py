@@ -115,10 +115,8 @@ class Row:
 
 # ---- record selection -------------------------------------------------------------------------
 def latest(recs: list[Record]) -> list[Record]:
-    """One record per framework, variant and size: the one timed in the most worker processes
-    (published figures are the repeated ones), else the last stored (stores merge oldest first).
-    A parameter an older record lacks was added to its scenario since (it ran at the default): its
-    size is read with the scenario's defaults filled in (projectile's ``batch``)."""
+    """One record per framework, variant and size: the one timed in the most processes, else the
+    last stored; a parameter an older record lacks is read at its default (projectile's ``batch``)."""
     seen: dict[tuple[Any, ...], Record] = {}
     for r in recs:
         d = data.defaults(r.scenario)
