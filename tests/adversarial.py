@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import re
 
-MODULES = ("test_refusals", "test_refusal_properties", "test_memory_guard", "test_faults", "test_hostile",
-           "test_hostile_cli", "test_hostile_files", "test_hostile_depth")
+MODULES = ("test_options", "test_options_properties", "test_preflight", "test_lock", "test_store_paths",
+           "test_cli_hostile", "test_records", "test_records_depth")
 CATEGORIES = ("cli", "files", "faults", "security")
 
 # First match wins; a test name matching none is a CLI case (bad arguments and words).

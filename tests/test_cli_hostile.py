@@ -227,7 +227,7 @@ def test_timeout_covers_a_worker_that_saved_its_record_but_never_exits(work: Pat
     from compare.running import lifeline
     real = lifeline.command
     marker = "hangs-at-exit-" + str(os.getpid())
-    hang = f"import atexit, sys, time; atexit.register(time.sleep, 600); from compare import lifeline; " \
+    hang = f"import atexit, sys, time; atexit.register(time.sleep, 600); from compare.running import lifeline; " \
            f"lifeline.main(sys.argv[1:])  # {marker}"
     monkeypatch.setattr(lifeline, "command",
                         lambda *a: [sys.executable, "-c", hang, *a] if a[:1] == ("compare.running.worker",) else real(*a))

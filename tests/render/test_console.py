@@ -212,18 +212,20 @@ def test_install_hint_and_merge() -> None:
 
 def test_progress_off_a_terminal_is_a_few_lines(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
     from compare.running import engine
+    from compare.results.record import Record
     monkeypatch.setenv("CI", "1")
     ident = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32", "variant": "default"}
     show = engine.progress(60, every=False)
     for i in range(40):                  # the skipped cells come first, all at once: counted only
-        show(i, {**ident, "status": "skipped", "reason": "x"}, None)
+        show(i, Record.from_json({**ident, "params": {}, "status": "skipped", "reason": "x"}), None)
     for i in range(40, 60):
-        show(i, {**ident, "status": "error" if i == 45 else "ok", "reason": "boom" if i == 45 else ""}, None)
+        show(i, Record.from_json({**ident, "params": {}, "status": "error" if i == 45 else "ok",
+                                  "reason": "boom" if i == 45 else "", "time": None, "error": None}), None)
     lines = capsys.readouterr().err.splitlines()
     assert lines[0] == "  5/20 cells run (40 skipped; last: saxpy/numpy/cpu/float32/default: ok)"
     assert "  [46/60] saxpy/numpy/cpu/float32/default: error boom" in lines      # a failure, always
     assert len(lines) == 5 and lines[-1].startswith("  20/20 cells run")
     show = engine.progress(3, every=True)                                        # --verbose: every cell
     for i in range(3):
-        show(i, {**ident, "status": "skipped", "reason": "x"}, None)
+        show(i, Record.from_json({**ident, "params": {}, "status": "skipped", "reason": "x"}), None)
     assert capsys.readouterr().err.count("skipped x") == 3

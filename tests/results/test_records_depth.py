@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 from conftest import ROOT
-from test_hostile_files import BASE, ok, readers, run_main, snapshot
+from test_records import BASE, ok, readers, run_main, snapshot
 
 DEEPS = {"info": ("info", "info"), "unnamed-key": ("notes", "notes"), "run-environment": ("backends", "runs[0]")}
 

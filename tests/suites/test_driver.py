@@ -10,8 +10,8 @@ import pytest
 from compare.suites import driver, publish, run as run_suite
 from compare import options
 from compare.options import UsageError
-from compare.stress import suite as stress_suite
-from compare.sweep import suite as sweep_suite
+from compare.suites import stress as stress_suite
+from compare.suites import sweep as sweep_suite
 
 
 class Recorder(driver.Suite):

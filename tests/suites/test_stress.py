@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, require_device
-from compare.stress import context, generic, host_loop, numerics, projectile_rules
+from compare.stress import generic, host_loop, numerics, projectile_rules
+from compare.suites import stress_context as context
 from compare.stress import particles as particles_stress
 from scenarios import particles
 

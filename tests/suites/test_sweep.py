@@ -20,7 +20,7 @@ from compare.sweep import converged
 from compare.sweep import metrics as sweep_metrics
 from compare.sweep import page as sweep_page
 from compare.sweep import plots as sweep_plots
-from compare.sweep import suite as sweep
+from compare.suites import sweep
 from compare.sweep.points import sweeps
 from conftest import ROOT, require_device
 
