@@ -1,7 +1,7 @@
 """The one driver every suite runs on: probe -> what can run -> preflight -> claim -> lock -> run -> render.
 
-A suite (``run_suite.RunSuite`` for all/<scenario>, ``sweep.suite.SweepSuite``,
-``stress.suite.StressSuite``) is a ``Suite``: a command (its arguments, then its run) whose
+A suite (``suites.run.RunSuite`` for all/<scenario>, ``suites.sweep.SweepSuite``,
+``suites.stress.StressSuite``) is a ``Suite``: a command (its arguments, then its run) whose
 capabilities are methods with harmless defaults. It plans a list of ``Planned`` (a cell and the
 suite's own extra) and says what to do with each record (``on_record``) and how to render; ``drive``
 owns the sequence between, once: probe the backends, refuse a plan nothing of which can run,
