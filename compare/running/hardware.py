@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from compare.measuring import environment
+from compare.results.record import Record
 
 # Stated peak non-tensor FLOP rates (NVIDIA datasheets, boost clock): the FLOP floors' denominators.
 STATED_PEAK_FLOPS = {
@@ -213,11 +214,11 @@ def measure(device: str, timeout: float = 300.0) -> dict[str, Any]:
     return {"error": f"yardstick process failed (exit {proc.returncode}): {tail}"}
 
 
-def annotated(rec: Any, hardware: dict[str, dict[str, Any]]) -> Any:
-    """A ``Record`` with its floor and hardware fraction added (``annotate`` on its JSON): a new record."""
+def annotated(rec: Record, hardware: dict[str, dict[str, Any]]) -> Record:
+    """The record with its floor and hardware fraction added (``annotate`` on its JSON): a new record."""
     obj = rec.to_json()
     annotate([obj], hardware)
-    return type(rec).from_json(obj) if obj != rec.to_json() else rec
+    return Record.from_json(obj) if obj != rec.to_json() else rec
 
 
 def annotate(records: list[dict[str, Any]], hardware: dict[str, dict[str, Any]]) -> None:
