@@ -217,8 +217,9 @@ def measure(device: str, timeout: float = 300.0) -> dict[str, Any]:
 def annotated(rec: Record, hardware: dict[str, dict[str, Any]]) -> Record:
     """The record with its floor and hardware fraction added (``annotate`` on its JSON): a new record."""
     obj = rec.to_json()
-    annotate([obj], hardware)
-    return Record.from_json(obj) if obj != rec.to_json() else rec
+    before = (obj.get("hardware"), dict(obj.get("throughput") or {}))   # (annotate updates throughput in place)
+    annotate([obj], hardware)          # adds ``hardware`` and the throughput's floor, nothing else
+    return Record.from_json(obj) if (obj.get("hardware"), dict(obj.get("throughput") or {})) != before else rec
 
 
 def annotate(records: list[dict[str, Any]], hardware: dict[str, dict[str, Any]]) -> None:
