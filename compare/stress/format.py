@@ -2,26 +2,15 @@
 their experiment's own page hooks."""
 from __future__ import annotations
 
-from typing import Any, TypedDict
+from typing import Any
 
 from compare.results.records import Format, show
+from compare.stress.numerics import Finding
+
+__all__ = ["FORMAT", "Finding", "rows_problem"]     # Finding: the row as stored (numerics)
 
 
-class Finding(TypedDict):
-    """One row of ``analysis.rows``: a figure an experiment measured and its verdict (the columns
-    of stress.md; ``compare.results.records.ROW`` checks them as a file loads)."""
-    experiment: str
-    backend: str
-    device: str
-    precision: str
-    setting: str
-    figure: str
-    value: Any                          # a string, number, boolean or null
-    verdict: str
-    detail: str
-
-
-def rows_problem(data: dict[str, Any]) -> str | None:
+def rows_problem(data: dict[str, Any]) -> str | None:     # data: a stress.json as read from the file
     """A finding its experiment's own page hooks cannot read (a setting they parse)."""
     rows = data["analysis"].get("rows") or []
     if not rows:

@@ -6,15 +6,16 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import BinaryIO
 
 import numpy as np
 
 import backends
 import scenarios
 from compare.render.figure_check import place_legends
-from compare.stress.numerics import (Experiment, Result, StressContext, Style, bitwise_differences, log_floor,
-                                     ulps)
+from compare.spec import Cell
+from compare.stress.numerics import (Experiment, Result, Series, StressContext, Style, bitwise_differences,
+                                     check_of, log_floor, ulps)
 from compare.stress.ulp_cases import ulp_cases
 from scenarios.base import Precision
 
@@ -46,34 +47,34 @@ def exp_ulps(ctx: StressContext) -> Result:
     results = ctx.run_cells([s for _, s in planned])
     rows, series = ctx.skip_rows(name, variants=True), {}
     defaults = {}
-    for (_, s), (rec, out) in zip(planned, results):
-        if s["variant"] == "default" and out is not None:
-            defaults[(s["backend"], s["device"], s["scenario"], json.dumps(s["params"]))] = out
+    for ((scn, prm, _, _), s), (rec, out) in zip(planned, results):     # keyed on the case's overrides
+        if s.variant == "default" and out is not None:
+            defaults[(s.backend, str(s.device), scn, json.dumps(prm))] = out
     for ((scn, prm, key, case_setting), s), (rec, out) in zip(planned, results):
-        setting = f"{case_setting}, variant={s['variant']}"
+        setting = f"{case_setting}, variant={s.variant}"
         if rec.status == "error" or out is None:
             rows.append(ctx.error_row(name, s, setting, rec)); continue
         e = ulps(out[key], refs[(scn, json.dumps(prm))]).ravel()
         finite = np.isfinite(e)
         ok = rec.status == "ok"
         q = np.percentile(e[finite], [50, 99]) if finite.any() else [math.nan, math.nan]
-        rows.append(ctx.row(name, s["backend"], s["device"], "float32", setting, "max error [ulps of the result]",
+        rows.append(ctx.row(name, s.backend, s.device, "float32", setting, "max error [ulps of the result]",
                             float(np.max(e)) if finite.all() else math.inf,
                             "within derived bound" if ok else "EXCEEDS derived bound",
                             f"median {q[0]:.3g}, p99 {q[1]:.3g} ulps; {100 * np.mean(e > 0.5):.3g}% not correctly "
-                            f"rounded; scenario metric {ctx.fmt(rec.error.vs_oracle)} "
-                            f"(bound {ctx.fmt(rec.error.tolerance)})"))
+                            f"rounded; scenario metric {ctx.fmt(check_of(rec).vs_oracle)} "
+                            f"(bound {ctx.fmt(check_of(rec).tolerance)})"))
         if np.ndim(out[key]) == 2:        # an image: its per-pixel distribution is plotted
             srt = np.sort(e[finite])
             idx = np.unique(np.geomspace(1, srt.size, 200).astype(int)) - 1
             series[ctx.label(s)] = {"ulps": srt[idx].tolist(), "frac": ((idx + 1) / srt.size).tolist()}
-        if s["variant"] != "default":
-            base = defaults.get((s["backend"], s["device"], scn, json.dumps(prm)))
+        if s.variant != "default":
+            base = defaults.get((s.backend, str(s.device), scn, json.dumps(prm)))
             if base is None:
                 continue
             diff = bitwise_differences({key: out[key]}, {key: base[key]})
             change = ulps(out[key], base[key].astype(np.float64))
-            rows.append(ctx.row(name, s["backend"], s["device"], "float32", setting, "elements changed by the variant",
+            rows.append(ctx.row(name, s.backend, s.device, "float32", setting, "elements changed by the variant",
                                 diff, "bitwise identical to default" if diff == 0 else
                                 f"changes results (max {float(np.max(change)):.3g} ulps); "
                                 + ("still within derived bound" if ok else "EXCEEDS derived bound"),
@@ -81,7 +82,7 @@ def exp_ulps(ctx: StressContext) -> Result:
     return rows, series
 
 
-def controls(ctx: StressContext) -> list[tuple[dict[str, Any], str]]:
+def controls(ctx: StressContext) -> list[tuple[Cell, str]]:
     """(spec, what is wrong) of every racy control a chosen backend offers, at quick sizes."""
     out = []
     for b in ctx.backends:
@@ -106,28 +107,28 @@ def exp_races(ctx: StressContext) -> Result:
                 prm = {k: getattr(p, k) for k in scenarios.get(scn).quick}
                 specs += [ctx.spec(scn, b, d, prec, prm)] * 2
     control = controls(ctx)
-    wrong = {(s["backend"], s["scenario"], s["variant"]): why for s, why in control}
+    wrong = {(s.backend, s.scenario, s.variant): why for s, why in control}
     specs += [s for s, _ in control for _ in range(2)]
     results = ctx.run_cells(specs, fresh_process=True)      # run to run: two separate processes
     rows, first_run = ctx.skip_rows(name, precisions=precisions), {}
     for i in range(0, len(specs), 2):
         s = specs[i]
         (ra, oa), (rb, ob) = results[i], results[i + 1]
-        setting = f"{s['scenario']} (quick sizes)" + ("" if s["variant"] == "default" else f", variant={s['variant']}")
+        setting = f"{s.scenario} (quick sizes)" + ("" if s.variant == "default" else f", variant={s.variant}")
         if oa is None or ob is None:
             rows.append(ctx.error_row(name, s, setting, ra if oa is None else rb)); continue
         diff = bitwise_differences(oa, ob)
-        why = wrong.get((s["backend"], s["scenario"], s["variant"]))
+        why = wrong.get((s.backend, s.scenario, s.variant))
         if why is not None:
-            verdict = race_verdict(s["device"], diff, (ra.status == "ok", rb.status == "ok"))
-            rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
+            verdict = race_verdict(str(s.device), diff, (ra.status == "ok", rb.status == "ok"))
+            rows.append(ctx.row(name, s.backend, s.device, s.precision, setting,
                                 "elements differing between two runs", diff, verdict,
-                                f"error vs oracle {ctx.fmt(ra.error.vs_oracle)} and "
-                                f"{ctx.fmt(rb.error.vs_oracle)} (bound {ctx.fmt(ra.error.tolerance)}); "
+                                f"error vs oracle {ctx.fmt(check_of(ra).vs_oracle)} and "
+                                f"{ctx.fmt(check_of(rb).vs_oracle)} (bound {ctx.fmt(check_of(ra).tolerance)}); "
                                 f"control: {why}"))
             continue
-        first_run[(s["scenario"], s["backend"], s["device"], s["precision"])] = (ra, oa)
-        rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
+        first_run[(s.scenario, s.backend, str(s.device), str(s.precision))] = (ra, oa)
+        rows.append(ctx.row(name, s.backend, s.device, s.precision, setting,
                             "elements differing between two runs", diff,
                             "bitwise reproducible" if diff == 0 else "NONDETERMINISTIC between runs",
                             f"of {sum(int(np.size(v)) for v in oa.values())} output values"))
@@ -148,12 +149,13 @@ def exp_races(ctx: StressContext) -> Result:
     return rows, {}
 
 
-def plot_ulps(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
+def plot_ulps(series: Series, path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for lbl, s in sorted(series.items()):
-        ax.plot(log_floor(s["ulps"], 1e-3), s["frac"], lw=1, label=lbl, ls="--" if "fastmath" in lbl else "-",
-                **{**style(lbl), "marker": None})
+        st = style(lbl)
+        st["marker"] = None
+        ax.plot(log_floor(s["ulps"], 1e-3), s["frac"], lw=1, label=lbl, ls="--" if "fastmath" in lbl else "-", **st)
     ax.set_xscale("log"); ax.set_xlabel("error [ulps of the correctly rounded pixel] (0 drawn at 1e-3)")
     ax.set_ylabel("fraction of pixels with error <= x"); ax.set_title("image outputs, float32", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)

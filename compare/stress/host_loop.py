@@ -1,10 +1,11 @@
 """Host-loop tasks, each in a fresh worker process: ``python -m compare.stress.host_loop TASK.json OUT.json``.
 
 Some experiments need more than one cell gives, e.g. an optimiser no backend implements, driven
-on the host with the backend's loss and gradient. Such a task is a JSON-able dict whose ``call``
-names the function that runs it (``"package.module:function"``, e.g.
-``compare.stress.projectile_tasks:run_task``); the function gets the task and returns a JSON-able
-dict. Process isolation is as for cells (``compare.running.cells``): frameworks' global state lives and
+on the host with the backend's loss and gradient. Such a task is typed on our side (a
+``HostTask``, e.g. ``compare.stress.projectile_tasks.Task``) and a JSON dict only across the
+process boundary: ``to_json`` gives what the worker reads, whose ``call`` names the function that
+runs it (``"package.module:function"``, e.g. ``compare.stress.projectile_tasks:run_task``); the
+function gets that dict and returns a JSON-able dict, which the task's ``outcome`` decodes. Process isolation is as for cells (``compare.running.cells``): frameworks' global state lives and
 dies with the process, and a crash or a hang becomes ``{"error": ...}`` instead of a lost run.
 """
 from __future__ import annotations
@@ -16,16 +17,19 @@ import subprocess
 import sys
 import traceback
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from compare.running import lifeline
 from compare.running.cells import ROOT, worker_env
+from compare.stress.numerics import HostTask, Payload
+
+R = TypeVar("R")
 
 
-def call(task: dict[str, Any]) -> dict[str, Any]:
-    """Run ``task`` in this process: import and call its ``call`` target."""
+def call(task: Payload) -> Payload:
+    """Run ``task`` (the worker's JSON) in this process: import and call its ``call`` target."""
     target = task.get("call")
     if not isinstance(target, str) or ":" not in target:
         raise ValueError(f"a host-loop task names its function as 'module:function', got {target!r}")
@@ -33,14 +37,20 @@ def call(task: dict[str, Any]) -> dict[str, Any]:
     return getattr(importlib.import_module(module), function)(task)
 
 
-def run(task: dict[str, Any], timeout: float = 900.0) -> dict[str, Any]:
-    """Run ``task`` in a fresh interpreter (as compare.running.cells.run does for a cell); never raises."""
+def run(task: HostTask[R], timeout: float = 900.0) -> R:
+    """Run ``task`` in a fresh interpreter (as compare.running.cells.run does for a cell); never
+    raises: a timeout or a dead worker is an outcome with its ``error``."""
+    return task.outcome(run_json(task.to_json(), task.backend, timeout))
+
+
+def run_json(payload: Payload, backend: str | None, timeout: float) -> Payload:
+    """The process boundary: ``payload`` to a worker of ``backend``'s environment, its answer back."""
     with lifeline.temp_dir("stress-task-") as tmp:
         spec, out = Path(tmp) / "task.json", Path(tmp) / "out.json"
-        spec.write_text(json.dumps(task))
+        spec.write_text(json.dumps(payload))
         try:
             proc = subprocess.run(lifeline.command(__name__, str(spec), str(out)), cwd=ROOT,
-                                  env=lifeline.child_environment(worker_env(task.get("backend")), tmp),
+                                  env=lifeline.child_environment(worker_env(backend), tmp),
                                   capture_output=True,
                                   text=True, timeout=timeout, stdin=subprocess.DEVNULL)
         except subprocess.TimeoutExpired:
@@ -48,8 +58,9 @@ def run(task: dict[str, Any], timeout: float = 900.0) -> dict[str, Any]:
         if not out.exists():
             tail = " | ".join(proc.stderr.strip().splitlines()[-3:])
             return {"error": f"task process died (exit {proc.returncode}): {tail}"}
-        return json.loads(out.read_text(), parse_constant=float,
-                          object_hook=lambda d: {k: _unstr(v) for k, v in d.items()})
+        answer: Payload = json.loads(out.read_text(), parse_constant=float,
+                                     object_hook=lambda d: {k: _unstr(v) for k, v in d.items()})
+        return answer
 
 
 def _jsonable(x: Any) -> Any:

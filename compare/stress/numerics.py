@@ -10,18 +10,92 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Iterable, Protocol
+from typing import Any, BinaryIO, Callable, Iterable, Mapping, Protocol, Sequence, TypedDict, TypeVar
 
 import numpy as np
 
+from compare.results.record import Record
+from compare.results.record_parts import Check
+from compare.spec import Cell
+
 ORACLE = "oracle64"      # the float64 Python reference, as a row's backend ('host' device)
 
-Row = dict[str, Any]
-# the columns of a finding (stress.md, stress.json's analysis.rows), in order
-COLUMNS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
-Result = tuple[list[Row], dict[str, Any]]                    # (rows, series for the plot)
+Value = str | int | float | bool | None         # a finding's figure, as JSON holds it
+# a cell's parameter overrides (the scenario resolves and checks them: ``Scenario.params``)
+Overrides = Mapping[str, int | float | str | bool]
+# an experiment's plot series: kept in stress.json's analysis.series and redrawn from the file
+# (merged parts too), so its shape is the experiment's own JSON: a file boundary
+Series = dict[str, Any]
 Outputs = dict[str, np.ndarray]
-Style = Callable[[str], dict[str, Any]]                       # "backend/device/..." -> plot kwargs
+
+
+class Finding(TypedDict):
+    """One row of ``analysis.rows`` as stress.json stores it (the columns of stress.md;
+    ``compare.results.records.ROW`` checks them as a file loads). The page and the experiments'
+    page hooks read findings in this form, from the file."""
+    experiment: str
+    backend: str
+    device: str
+    precision: str
+    setting: str
+    figure: str
+    value: Value                        # a string, number, boolean or null
+    verdict: str
+    detail: str
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One finding as an experiment makes it; ``to_json`` is its form in the file (``Finding``)."""
+    experiment: str
+    backend: str
+    device: str
+    precision: str
+    setting: str
+    figure: str
+    value: Value
+    verdict: str
+    detail: str = ""
+
+    def to_json(self) -> Finding:
+        """The stored form: the COLUMNS, in their order."""
+        return Finding(experiment=self.experiment, backend=self.backend, device=self.device,
+                       precision=self.precision, setting=self.setting, figure=self.figure, value=self.value,
+                       verdict=self.verdict, detail=self.detail)
+
+
+# the columns of a finding (stress.md, stress.json's analysis.rows), in order
+COLUMNS = tuple(f.name for f in dataclasses.fields(Row))
+Result = tuple[list[Row], Series]                    # (rows, series for the plot)
+
+
+class PlotStyle(TypedDict):
+    """A line's matplotlib keywords: one colour per backend, one marker per device."""
+    color: str
+    marker: str | None
+    markersize: float
+
+
+Style = Callable[[str], PlotStyle]                       # "backend/device/..." -> plot kwargs
+
+
+# a host-loop task or its answer as JSON: what is sent to and read back from the worker process
+Payload = dict[str, Any]
+_R = TypeVar("_R", covariant=True)
+_I = TypeVar("_I")
+_O = TypeVar("_O")
+
+
+class HostTask(Protocol[_R]):
+    """A host-loop task (``compare.stress.host_loop``): where it runs (``backend``, ``device``:
+    its lane and worker environment), its JSON for the worker, and the decode of the worker's
+    answer (which may be only ``{"error": ...}``: the worker crashed, hung or raised)."""
+    @property
+    def backend(self) -> str: ...
+    @property
+    def device(self) -> str: ...
+    def to_json(self) -> Payload: ...
+    def outcome(self, result: Payload) -> _R: ...
 
 
 class StressContext(Protocol):
@@ -38,18 +112,16 @@ class StressContext(Protocol):
     def skip_rows(self, experiment: str, variants: bool = False,
                   precisions: tuple[str, ...] = ()) -> list[Row]: ...
     def spec(self, scenario: str, backend: str, device: str, precision: str,
-             params: dict[str, Any], variant: str = "default") -> dict[str, Any]: ...
+             params: Overrides, variant: str = "default") -> Cell: ...
     def row(self, experiment: str, backend: str, device: str, precision: str, setting: str,
             figure: str, value: Any, verdict: str, detail: str | None = "") -> Row: ...
-    def label(self, spec_or_rec: dict[str, Any]) -> str: ...
-    # a cell's record is a compare.results.record.Record, not imported here: compare/results/records.py imports the
-    # experiments to check their findings
-    def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: Any) -> Row: ...
+    def label(self, cell: Cell) -> str: ...
+    def error_row(self, experiment: str, cell: Cell, setting: str, rec: Record) -> Row: ...
     def fmt(self, x: Any) -> str: ...
-    def run_cells(self, specs: list[dict[str, Any]], fresh_process: bool = False
-                  ) -> list[tuple[Any, Outputs | None]]: ...
-    def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]: ...
-    def run_tasks(self, tasks: list[dict[str, Any]]) -> list[dict[str, Any]]: ...
+    def run_cells(self, specs: list[Cell], fresh_process: bool = False
+                  ) -> list[tuple[Record, Outputs | None]]: ...
+    def map(self, fn: Callable[[_I], _O], items: list[_I]) -> list[_O]: ...
+    def run_tasks(self, tasks: Sequence[HostTask[_O]]) -> list[_O]: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,9 +132,16 @@ class Experiment:
     name: str
     title: str
     run: Callable[[StressContext], Result]
-    plot: Callable[[dict[str, Any], Path | BinaryIO, Style], None] | None = None
-    extra_markdown: Callable[[list[Row]], str] | None = None
-    table_rows: Callable[[list[Row]], list[Row]] | None = None
+    plot: Callable[[Series, Path | BinaryIO, Style], None] | None = None
+    extra_markdown: Callable[[list[Finding]], str] | None = None
+    table_rows: Callable[[list[Finding]], list[Finding]] | None = None
+
+
+def check_of(rec: Record) -> Check:
+    """The check block (``error``) of a cell that ran: every record of one that did not fail has it."""
+    if rec.error is None:
+        raise ValueError(f"the {rec.backend}/{rec.device} {rec.scenario} record has no check block")
+    return rec.error
 
 
 def ulps(out: np.ndarray, ref: np.ndarray, dtype: Any = np.float32) -> np.ndarray:

@@ -11,17 +11,40 @@ import math
 import re
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict, cast
 
 import backends
 from compare.render.report import fmt_num
 from compare.results.store import Store, atomic_write, jsonable
 from compare.stress import plots
-from compare.stress.numerics import COLUMNS
-from compare.stress.format import Finding
-from compare.stress.numerics import Experiment
+from compare.stress.numerics import COLUMNS, Experiment, Finding, Row, Series
 
 Registry = dict[str, Experiment]
+# a run's environment (``environment.collect``) as stress.json keeps it in ``runs``: written to
+# the file and read back from parts (--merge), a file boundary
+Environment = dict[str, Any]
+
+
+class RunInfo(TypedDict, total=False):
+    """The run that produced an experiment's rows (its provenance); ``backends``: the ones it
+    gave, where a merge took the experiment's other backends from another run."""
+    command: str | None
+    created: str | None
+    git_commit: str | None
+    backends: list[str]
+
+
+Provenance = dict[str, RunInfo | list[RunInfo]]
+
+
+class PageData(TypedDict, total=False):
+    """What the page is made from: stress.json's analysis and its run's environment (``_out``:
+    the folder the page and plots are in)."""
+    environment: Environment
+    rows: list[Finding]
+    series: dict[str, Series]
+    provenance: Provenance
+    _out: str
 
 
 def fmt_value(v: Any) -> str:
@@ -32,24 +55,24 @@ def fmt_value(v: Any) -> str:
     return fmt_num(v) if not isinstance(v, bool) else str(v)
 
 
-def provenance(data: dict[str, Any]) -> dict[str, Any]:
+def provenance(data: PageData) -> Provenance:
     """experiment -> the run that produced its rows (command, time, commit), or, for a file merged
     from parts that ran different backends, the list of those runs, each naming its ``backends``."""
     if "provenance" in data:
         return data["provenance"]
     env = data.get("environment", {})
-    run = {k: env.get(k) for k in ("command", "created", "git_commit")}
+    run = RunInfo(command=env.get("command"), created=env.get("created"), git_commit=env.get("git_commit"))
     if "merged_from" in env:      # an old merged file: its parts' commands were not kept
         run["command"] = f"merge of {len(env['merged_from'])} parts (commands not recorded)"
     return {r["experiment"]: run for r in data.get("rows", [])}
 
 
-def runs_of(entry: dict[str, Any] | list[dict[str, Any]]) -> list[dict[str, Any]]:
+def runs_of(entry: RunInfo | list[RunInfo]) -> list[RunInfo]:
     """One experiment's provenance as a list of runs (a single run gave all of its rows)."""
     return entry if isinstance(entry, list) else [entry]
 
 
-def produced_by(data: dict[str, Any]) -> list[str]:
+def produced_by(data: PageData) -> list[str]:
     """One line per run that produced rows: its command, when, and which experiments (with the
     backends it gave, where a merge took the experiment's other backends from another run)."""
     runs: dict[tuple, list[str]] = {}
@@ -81,18 +104,23 @@ def skipped(r: Finding) -> bool:
     return str(r.get("verdict")) == "skipped"
 
 
+def measured(r: Finding) -> float | None:
+    """The row's value where it is a finite number (a boolean is none)."""
+    v = r.get("value")
+    return v if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) else None
+
+
 def worst(rows: list[Finding]) -> Finding | None:
     """An experiment's worst row: among its flagged rows (else all it measured), the largest
     value of the most common figure whose larger value is worse; a flagged row without such a
     figure: the first flagged."""
     flags = [r for r in rows if flagged(r["verdict"])]
-    pool = [r for r in flags or rows if not skipped(r) and isinstance(r.get("value"), (int, float))
-            and not isinstance(r.get("value"), bool) and math.isfinite(r["value"])
+    pool = [r for r in flags or rows if not skipped(r) and measured(r) is not None
             and WORSE_HIGHER.search(str(r["figure"]))]
     if pool:
         figs = [r["figure"] for r in pool]
         top = max(dict.fromkeys(figs), key=figs.count)
-        return max((r for r in pool if r["figure"] == top), key=lambda r: r["value"])
+        return max((r for r in pool if r["figure"] == top), key=lambda r: measured(r) or 0.0)
     return flags[0] if flags else None
 
 
@@ -114,7 +142,7 @@ def summary(rows: list[Finding], experiments: Registry) -> list[tuple[str, ...]]
 SUMMARY_HEADERS = ("experiment", "what", "cases", "skipped", "flagged (CAPITALS)", "worst")
 
 
-def markdown(data: dict[str, Any], experiments: Registry) -> str:
+def markdown(data: PageData, experiments: Registry) -> str:
     from tabulate import tabulate
     env = data.get("environment", {})
     lines = ["# Stress suite results", "",
@@ -148,36 +176,44 @@ def markdown(data: dict[str, Any], experiments: Registry) -> str:
     return "\n".join(lines) + "\n"
 
 
-def old_provenance(store: Store) -> dict[str, dict[str, Any]]:
+def stored(store: Store) -> PageData:
+    """The store's analysis (rows, series, provenance) as the file holds it, with the
+    environment of its last run."""
+    return cast(PageData, {"environment": store.runs[-1] if store.runs else {}, **store.analysis})
+
+
+def old_provenance(store: Store) -> Provenance:
     """Provenance of the store's findings (a file of the first format kept none: its one run)."""
-    return provenance({"environment": store.runs[-1] if store.runs else {}, **store.analysis})
+    return provenance(stored(store))
 
 
-def write_outputs(store: Store, env: dict[str, Any], rows: list[Finding] | list[dict[str, Any]], series: dict[str, Any],
+def write_outputs(store: Store, env: Environment, rows: list[Row] | list[Finding], series: dict[str, Series],
                   ran: list[str], experiments: Registry, plots_: bool = True,
-                  prov: dict[str, list[dict[str, Any]] | dict[str, Any]] | None = None) -> dict[str, Any]:
+                  prov: Provenance | None = None) -> list[Finding]:
     """Findings of the experiments in ``ran`` replace the store's (the others are kept); save
-    the store (stress.json), then stress.md and the plots beside it."""
+    the store (stress.json), then stress.md and the plots beside it. Rows an experiment made
+    (``Row``) become the stored form here. Returns every finding, as stored."""
     out = store.path.parent
-    old = store.analysis
+    new = [r.to_json() if isinstance(r, Row) else r for r in rows]
+    old = stored(store)
     old_rows = [r for r in old.get("rows", []) if r["experiment"] not in ran]
     old_series = {k: v for k, v in old.get("series", {}).items() if k not in ran}
-    old_prov = {k: v for k, v in old_provenance(store).items() if k not in ran}
+    old_prov = {k: v for k, v in provenance(old).items() if k not in ran}
     order = list(experiments)
-    all_rows = sorted(old_rows + rows, key=lambda r: order.index(r["experiment"]) if r["experiment"] in order else 99)
-    new_prov = prov if prov is not None else provenance({"environment": env, "rows": rows})
+    all_rows = sorted(old_rows + new, key=lambda r: order.index(r["experiment"]) if r["experiment"] in order else 99)
+    new_prov = prov if prov is not None else provenance({"environment": env, "rows": new})
     store.analysis = jsonable({"provenance": {**old_prov, **{e: v for e, v in new_prov.items() if e in ran}},
                                "rows": all_rows, "series": {**old_series, **series}})
     if not store.runs or store.runs[-1] is not env:
         store.runs.append(env)
     store.save()
-    data = {"environment": env, **store.analysis}
+    data = cast(PageData, {"environment": env, **store.analysis})
     if plots_:
         for name, s in data["series"].items():
             if name in experiments:
                 plots.draw(experiments[name], s, out / f"{name}.png")
     atomic_write(out / "stress.md", markdown({**data, "_out": str(out)}, experiments))
-    return data
+    return data["rows"]
 
 
 def row_key(r: Finding) -> tuple[str, str, str]:
@@ -204,6 +240,13 @@ def in_table_order(rows: list[Finding], seen: list[Finding]) -> list[Finding]:
     return sorted(rows, key=lambda r: (first[(r["experiment"], r["figure"])], rank.get(r["backend"], len(rank))))
 
 
+def with_backends(run: RunInfo, gave: list[str]) -> RunInfo:
+    """``run``, naming the backends it gave."""
+    out = run.copy()
+    out["backends"] = gave
+    return out
+
+
 def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = True) -> int:
     """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each,
     or new backends run later); later files win per experiment, backend and device (and per cell
@@ -211,16 +254,17 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     a part's ``skipped`` row replaces only another skipped row."""
     target = Store.open(out, "stress")
     rows: list[Finding] = []
-    series: dict[str, Any] = {}
-    envs: list[dict[str, Any]] = []
-    prov: dict[str, list[dict[str, Any]]] = {}
+    series: dict[str, Series] = {}
+    envs: list[Environment] = []
+    prov: dict[str, list[RunInfo]] = {}
     seen: list[Finding] = []
     for f in files:
         part = Store.read(f, "stress")
-        seen += part.analysis.get("rows", [])
+        got = stored(part)
+        seen += got.get("rows", [])
         found = {row_key(r) for r in rows if r["verdict"] != "skipped"}
         # a part that skipped a backend (not installed where it ran) erases no earlier finding
-        part_rows = [r for r in part.analysis.get("rows", []) if r["verdict"] != "skipped" or row_key(r) not in found]
+        part_rows = [r for r in got.get("rows", []) if r["verdict"] != "skipped" or row_key(r) not in found]
         replaced = {row_key(r) for r in part_rows}
         rows = [r for r in rows if row_key(r) not in replaced]
         for e, entry in old_provenance(part).items():
@@ -228,12 +272,11 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
             if not gave:
                 continue
             kept = {r["backend"] for r in rows if r["experiment"] == e}
-            earlier = [{**run, "backends": [b for b in run["backends"] if b in kept]} for run in prov.get(e, [])]
-            own = [{**run, "backends": [b for b in run.get("backends", gave) if b in gave]}
-                   for run in runs_of(entry)]
+            earlier = [with_backends(run, [b for b in run["backends"] if b in kept]) for run in prov.get(e, [])]
+            own = [with_backends(run, [b for b in run.get("backends", gave) if b in gave]) for run in runs_of(entry)]
             prov[e] = [run for run in earlier + own if run["backends"]]
         rows += part_rows
-        series = deep_merge(series, part.analysis.get("series", {}))
+        series = deep_merge(series, got.get("series", {}))
         envs.append(part.runs[-1] if part.runs else {})
         for r in part.records:
             target.put(r)

@@ -13,7 +13,8 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from compare.stress.numerics import Experiment, Result, StressContext, Style, bitwise_differences, log_floor
+from compare.stress.numerics import (Experiment, Outputs, Overrides, Result, Series, StressContext, Style,
+                                     bitwise_differences, check_of, log_floor)
 from scenarios.base import UNIT_ROUNDOFF, Precision, dtype_of
 from scenarios.particles import Particles, ParticlesParams, energy, energy_bound, simulate
 
@@ -21,7 +22,7 @@ SC = Particles()
 STATE = ("x", "y", "vx", "vy")
 
 
-def particle_inputs(params: dict[str, Any], precision: Precision) -> tuple[ParticlesParams, dict[str, np.ndarray]]:
+def particle_inputs(params: Overrides, precision: str) -> tuple[ParticlesParams, Outputs]:
     p = SC.params(params)
     return p, SC.inputs(p, precision)
 
@@ -35,7 +36,7 @@ def finite_state(out: dict[str, np.ndarray]) -> bool:
     return all(bool(np.all(np.isfinite(out[k]))) for k in STATE)
 
 
-def first_nonfinite_step(params: dict[str, Any], precision: Precision, max_steps: int) -> int | None:
+def first_nonfinite_step(params: Overrides, precision: Precision, max_steps: int) -> int | None:
     """The first step after which some particle's state is non-finite, by the scenario's NumPy
     stepper at ``precision`` (operation by operation, no FMA); None within ``max_steps``."""
     _, inp = particle_inputs(params, precision)
@@ -79,29 +80,28 @@ def exp_particles_dt(ctx: StressContext) -> Result:
         disc[dt] = float(np.median(state_error(SC.oracle(p, i64, Precision.FLOAT64), fine)))
         p, i32 = particle_inputs({"n": n, "steps": steps[dt], "dt": dt}, Precision.FLOAT32)
         ref32[dt] = SC.oracle(p, i32, Precision.FLOAT32)
-    specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": steps[dt], "dt": dt})
-             for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions) for dt in dts]
+    planned = [(dt, ctx.spec(SC.name, b, d, prec, {"n": n, "steps": steps[dt], "dt": dt}))
+               for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions) for dt in dts]
     rows = ctx.skip_rows(name, precisions=precisions)
     lines: dict[str, dict[str, list[float]]] = {}
-    for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
-        dt = s["params"]["dt"]
+    for (dt, s), (rec, out) in zip(planned, ctx.run_cells([s for _, s in planned])):
         setting = f"dt={dt:g}, steps={steps[dt]}, T={T:g} s"
         if rec.status == "error" or out is None:
             rows.append(ctx.error_row(name, s, setting, rec)); continue
-        e = rec.error
+        e = check_of(rec)
         ok = rec.status == "ok"
-        rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
+        rows.append(ctx.row(name, s.backend, s.device, s.precision, setting,
                             "max error / derived bound (well-conditioned particles)",
                             e.get("worst_error_over_bound"), "within derived bound" if ok else "EXCEEDS derived bound",
                             f"max |state - float64| {ctx.fmt(e['vs_oracle'])} vs bound {ctx.fmt(e['tolerance'])}; "
                             f"{e.get('ill_conditioned')} ill-conditioned particles not checked"))
-        line = lines.setdefault(f"{ctx.label(s)}/{s['precision']}", {"dt": [], "median": []})
+        line = lines.setdefault(f"{ctx.label(s)}/{s.precision}", {"dt": [], "median": []})
         line["dt"].append(dt)
-        if s["precision"] == "float32":
+        if s.precision == "float32":
             med = float(np.median(state_error(out, ref32[dt])))
             line["median"].append(med)
             ratio = med / disc[dt] if disc[dt] > 0 else math.inf
-            rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
+            rows.append(ctx.row(name, s.backend, s.device, s.precision, setting,
                                 "median rounding error / median discretisation error", ratio,
                                 "rounding below discretisation" if ratio < 1 else
                                 "ROUNDING DOMINATES: a smaller dt no longer helps in float32",
@@ -118,40 +118,39 @@ def exp_particles_long(ctx: StressContext) -> Result:
     lengths = (10_000,) if ctx.quick else (1000, 10_000, 100_000)
     bounces = (0.82, 1.05) if ctx.quick else (0.82, 0.99, 1.05)
     precisions = ("float32",) if ctx.quick else ("float32", "float64")
-    specs = [ctx.spec(SC.name, b, d, prec, {"n": n, "steps": st, "bounce": bo})
-             for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions)
-             for bo in bounces for st in lengths]
+    planned = [((bo, st), ctx.spec(SC.name, b, d, prec, {"n": n, "steps": st, "bounce": bo}))
+               for b, d, _ in ctx.targets() for prec in ctx.precisions(b, d, precisions)
+               for bo in bounces for st in lengths]
     rows = ctx.skip_rows(name, precisions=precisions)
     series: dict[str, dict[str, list[Any]]] = {}
-    for s, (rec, out) in zip(specs, ctx.run_cells(specs)):
-        prm = s["params"]
-        setting = f"bounce={prm['bounce']}, steps={prm['steps']}"
+    for ((bounce, st), s), (rec, out) in zip(planned, ctx.run_cells([s for _, s in planned])):
+        setting = f"bounce={bounce}, steps={st}"
         if rec.status == "error" or out is None:
-            rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting, "cell", None,
-                                "CRASHED" if prm["bounce"] > 1 else "error", rec.reason))
+            rows.append(ctx.row(name, s.backend, s.device, s.precision, setting, "cell", None,
+                                "CRASHED" if bounce > 1 else "error", rec.reason))
             continue
-        _, inp = particle_inputs(prm, s["precision"])
+        _, inp = particle_inputs({"n": n, "steps": st, "bounce": bounce}, s.precision)
         g, r = float(inp["gravity"]), float(inp["radius"])
         e0 = energy(inp["x0"], inp["y0"], inp["vx0"], inp["vy0"], g, r)
         et = energy(out["x"], out["y"], out["vx"], out["vy"], g, r)
         total = float(np.sum(et) / np.sum(e0))
         fin = finite_state(out)
-        key = f"{ctx.label(s)}/{s['precision']}/bounce={prm['bounce']}"
+        key = f"{ctx.label(s)}/{s.precision}/bounce={bounce}"
         series.setdefault(key, {"steps": [], "ratio": []})
-        series[key]["steps"].append(prm["steps"]); series[key]["ratio"].append(total if fin else None)
-        if prm["bounce"] < 1:
-            slack = 16 * UNIT_ROUNDOFF[s["precision"]]
+        series[key]["steps"].append(st); series[key]["ratio"].append(total if fin else None)
+        if bounce < 1:
+            slack = 16 * UNIT_ROUNDOFF[s.precision]
             worst = float(np.max(et / energy_bound(inp))) if fin else math.inf
             verdict = ("NON-FINITE state" if not fin else "no energy gain (within derived bound)"
                        if worst <= 1 + slack else "GAINS ENERGY beyond the derived bound")
-            rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
+            rows.append(ctx.row(name, s.backend, s.device, s.precision, setting,
                                 "max over particles of E(T) / derived bound", worst, verdict,
                                 f"total E(T)/E(0) = {total:.3g}; bound E <= u0^2/2 + max(Ev0, E_floor), slack 16u"))
         else:
             verdict = ("unstable, reported: non-finite state, no crash" if not fin else
                        f"unstable, reported: energy x{total:.3g} (bounce > 1 adds energy)" if total > 1 else
                        "no energy growth observed")
-            rows.append(ctx.row(name, s["backend"], s["device"], s["precision"], setting,
+            rows.append(ctx.row(name, s.backend, s.device, s.precision, setting,
                                 "total E(T) / E(0)", total, verdict,
                                 f"max height {float(np.max(np.asarray(out['y'], np.float64))):.3g} m"))
     return rows, series
@@ -164,9 +163,10 @@ def exp_particles_inf(ctx: StressContext) -> Result:
     base = {"n": n, "bounce": 1.05}
     predicted = {prec: first_nonfinite_step(base, prec, smax) for prec in (Precision.FLOAT32, Precision.FLOAT64)}
 
-    def search(item):
+    def search(item: tuple[str, str, str, Precision]) -> tuple[tuple[str, str, str, Precision], int | None,
+                                                              list[int], str | None]:
         b, d, var, prec = item
-        calls = []
+        calls: list[int] = []
 
         def nonfinite(steps: int) -> bool | None:
             if steps == 0:
@@ -195,7 +195,8 @@ def exp_particles_inf(ctx: StressContext) -> Result:
             return item, None, calls, str(exc)
 
     both = ("float32", "float64")
-    items = [(b, d, v, prec) for b, d, v in ctx.targets(variants=True) for prec in ctx.precisions(b, d, both)]
+    items = [(b, d, v, Precision(prec)) for b, d, v in ctx.targets(variants=True)
+             for prec in ctx.precisions(b, d, both)]
     rows = ctx.skip_rows(name, variants=True, precisions=both)
     for (b, d, var, prec), first, calls, err in ctx.map(search, items):
         setting = f"bounce=1.05, n={n}" + ("" if var == "default" else f", variant={var}")
@@ -221,14 +222,14 @@ def exp_particles_divergence(ctx: StressContext) -> Result:
     bounces = (0.99,) if ctx.quick else (0.82, 0.99)
     rows, series = ctx.skip_rows(name, precisions=("float32", "float64")), {}
     for bounce in bounces:
-        r, s = divergence_for(ctx, name, {"n": n, "steps": steps, "record_every": 1, "bounce": bounce})
+        r, s = divergence_for(ctx, name, n, steps, bounce)
         rows += r
         series.update({f"{k}/bounce={bounce:g}": v for k, v in s.items()})
     return rows, series
 
 
-def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result:
-    n, steps = prm["n"], prm["steps"]
+def divergence_for(ctx: StressContext, name: str, n: int, steps: int, bounce: float) -> Result:
+    prm = {"n": n, "steps": steps, "record_every": 1, "bounce": bounce}
     refs = {}
     for prec in ("float32", "float64"):
         p, inp = particle_inputs(prm, Precision(prec))
@@ -237,11 +238,11 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
                       float(inp["radius"]))
     specs = [ctx.spec(SC.name, b, d, prec, prm) for b, d, _ in ctx.targets()
              for prec in ctx.precisions(b, d, ("float32", "float64"))]
-    res = dict(zip([(s["backend"], s["device"], s["precision"]) for s in specs], ctx.run_cells(specs)))
+    res = dict(zip([(s.backend, str(s.device), str(s.precision)) for s in specs], ctx.run_cells(specs)))
     rows, series = [], {}
-    setting = f"bounce={prm['bounce']:g}, n={n}, steps={steps}"
+    setting = f"bounce={bounce:g}, n={n}, steps={steps}"
     flags: dict[tuple[str, str, str], np.ndarray] = {}
-    outs: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}     # the outputs flags were drawn from
+    outs: dict[tuple[str, str, str], Outputs] = {}     # the outputs flags were drawn from
     for (b, d, prec), (rec, out) in res.items():
         if rec.status == "error" or out is None or "traj_x" not in out:
             rows.append(ctx.row(name, b, d, prec, setting, "cell", None, "error", rec.reason))
@@ -298,7 +299,7 @@ def divergence_for(ctx: StressContext, name: str, prm: dict[str, Any]) -> Result
 
 # ---- plots (from the series kept in stress.json) -------------------------------------------------
 
-def plot_particles_dt(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
+def plot_particles_dt(series: Series, path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for lbl, line in sorted(series["lines"].items()):
@@ -311,7 +312,7 @@ def plot_particles_dt(series: dict[str, Any], path: Path | BinaryIO, style: Styl
     fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
 
 
-def plot_particles_long(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
+def plot_particles_long(series: Series, path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     bounces = sorted({float(k.rsplit("bounce=", 1)[1]) for k in series})
     fig, axes = plt.subplots(1, len(bounces), figsize=(5.2 * len(bounces), 4.2), squeeze=False)
@@ -329,14 +330,15 @@ def plot_particles_long(series: dict[str, Any], path: Path | BinaryIO, style: St
     fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
 
 
-def plot_particles_divergence(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
+def plot_particles_divergence(series: Series, path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     bounces = sorted({k.rsplit("bounce=", 1)[1] for k in series}, key=float)
     fig, axes = plt.subplots(1, len(bounces), figsize=(6 * len(bounces), 4.5), squeeze=False)
     for lbl, s in sorted(series.items()):
         ax = axes[0][bounces.index(lbl.rsplit("bounce=", 1)[1])]
         name = lbl.rsplit("/bounce", 1)[0]
-        st = {**style(lbl), "marker": None}
+        st = style(lbl)
+        st["marker"] = None
         ax.plot(s["step"], log_floor(s["median"]), label=f"{name} median", **st)
         ax.plot(s["step"], log_floor(s["max"]), ls=":", label=f"{name} max", **st)
     for ax, b in zip(axes[0], bounces):

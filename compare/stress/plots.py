@@ -9,12 +9,10 @@ from __future__ import annotations
 import io
 import sys
 from pathlib import Path
-from typing import Any
-
 import backends
 from compare.render.colors import backend_color
 from compare.results.store import atomic_write
-from compare.stress.numerics import ORACLE, Experiment
+from compare.stress.numerics import ORACLE, Experiment, PlotStyle, Series
 
 
 def _plt():
@@ -32,12 +30,12 @@ def _colour(name: str) -> str:
     return f"C{len(backends.BACKENDS) % 10}" if name == ORACLE else "k"
 
 
-def _style(lbl: str) -> dict[str, Any]:
+def _style(lbl: str) -> PlotStyle:
     """One colour per backend and one marker per device, in every plot."""
     return {"color": _colour(lbl.split("/", 1)[0]), "marker": "^" if "/cuda" in lbl else "o", "markersize": 4}
 
 
-def draw(experiment: Experiment, series: dict[str, Any], path: Path) -> None:
+def draw(experiment: Experiment, series: Series, path: Path) -> None:
     """Draw one experiment's plot; a failing plot warns and must not lose the table."""
     if experiment.plot is None or not series:
         return

@@ -4,17 +4,17 @@ parts redraw)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import BinaryIO
 
 from compare.render.figure_check import place_legends
-from compare.stress.numerics import ORACLE, Row, Style, log_floor
+from compare.stress.numerics import ORACLE, Finding, Series, Style, log_floor
 from compare.stress.projectile_rules import CONTACTS, FD_AGREE
 from compare.stress.projectile_tasks import OPTIMISERS
 
 
-def lr_matrix(rows: list[Row]) -> str:
+def lr_matrix(rows: list[Finding]) -> str:
     """projectile-lr as one line per (backend, device, optimiser, contact): C/S/D per lr, under
-    its legend (goes above the row table on the page)."""
+    its legend (goes above the row table on the page). Reads the findings as stored (the file)."""
     from tabulate import tabulate
     cells_: dict[tuple, dict[float, str]] = {}
     lrs: set[float] = set()
@@ -34,12 +34,12 @@ def lr_matrix(rows: list[Row]) -> str:
             f"clip, adam: host loop with the backend's gradient; {ORACLE}: float64 Python).\n\n" + table)
 
 
-def lr_table_rows(rows: list[Row]) -> list[Row]:
+def lr_table_rows(rows: list[Finding]) -> list[Finding]:
     """The rows the page tables below the matrix: predictions and boundaries (not per-lr rows)."""
     return [r for r in rows if "lr=" not in r["setting"]]
 
 
-def plot_projectile_lr(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
+def plot_projectile_lr(series: Series, path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     hist = series.get("histories", {})
     methods = OPTIMISERS
@@ -58,7 +58,7 @@ def plot_projectile_lr(series: dict[str, Any], path: Path | BinaryIO, style: Sty
     fig.savefig(path, dpi=100); plt.close(fig)
 
 
-def plot_projectile_gradient(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
+def plot_projectile_gradient(series: Series, path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
     for j, c in enumerate(CONTACTS):
@@ -87,7 +87,7 @@ def plot_projectile_gradient(series: dict[str, Any], path: Path | BinaryIO, styl
     fig.savefig(path, dpi=100); plt.close(fig)
 
 
-def plot_projectile_horizon(series: dict[str, Any], path: Path | BinaryIO, style: Style) -> None:
+def plot_projectile_horizon(series: Series, path: Path | BinaryIO, style: Style) -> None:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for lbl, s in sorted(series.items()):

@@ -4,9 +4,11 @@ are the function named after it here (its cases give the label's detail, the sce
 put in front); a scenario without one has none."""
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Callable
 
-Case = tuple[dict[str, Any], str, str]
+from compare.stress.numerics import Overrides
+
+Case = tuple[Overrides, str, str]
 
 
 def saxpy(quick: bool) -> list[Case]:

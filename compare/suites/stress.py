@@ -31,6 +31,7 @@ from compare.suites.driver import Planned, Run, Suite, claim, drive
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
 from compare.results.store import Store
 from compare.stress import page
+from compare.stress.numerics import Finding, Row, Series
 from compare.suites.stress_context import Ctx
 from compare.stress.registry import experiments
 
@@ -51,7 +52,7 @@ def add_arguments(p: argparse.ArgumentParser, common: bool = True) -> None:
                    help="run nothing: merge saved stress.json files (later ones win per experiment) into --out")
 
 
-def failure(r: dict[str, Any]) -> bool:
+def failure(r: Finding) -> bool:
     """A row that makes the exit status 1: a cell that failed, or a racy control not flagged."""
     return r["verdict"] in ("error", "CRASHED") or r["verdict"].startswith("MISSED")
 
@@ -120,8 +121,8 @@ class StressSuite(Suite):
         self.ctx = Ctx(self.chosen["backends"], self.chosen["devices"], args.quick, args.jobs, args.timeout,
                        run.probes, self.store_, on_record=self.on_record)
         self.env = environment.collect(run.argv)
-        self.rows: list[dict[str, Any]] = []
-        self.series: dict[str, Any] = {}
+        self.rows: list[Row] = []
+        self.series: dict[str, Series] = {}
         self.interrupted = False
 
     def execute(self, run: Run) -> list[Any]:
@@ -158,9 +159,9 @@ class StressSuite(Suite):
         if self.interrupted:
             return EXIT_INTERRUPTED
         only, store, rows = [str(p.extra) for p in run.planned], self.store_, self.rows
-        data = page.write_outputs(store, self.env, rows, self.series, only, self.registry,
-                                  plots_=not run.args.no_plots)
-        failed = [r for r in data["rows"] if r["experiment"] in only and failure(r)]
+        stored = page.write_outputs(store, self.env, rows, self.series, only, self.registry,
+                                    plots_=not run.args.no_plots)
+        failed = [r for r in stored if r["experiment"] in only and failure(r)]
         print(f"wrote {store.path}, stress.md" + ("" if run.args.no_plots else ", *.png")
               + f": {len(rows)} rows, {len(failed)} failures", file=sys.stderr)
         for r in failed:

@@ -9,7 +9,7 @@ per backend and GPU); host work and host-loop tasks through the same lanes.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from typing import Any, Callable, Sequence, TypeVar
 
 import numpy as np
 
@@ -18,15 +18,21 @@ from compare.running import engine
 from compare.results.record import Record
 from compare.render.report import fmt_num
 from compare.results.store import Store
+from compare.spec import Cell
 from compare.stress import host_loop
-from compare.stress.numerics import COLUMNS, Row
+from compare.stress.numerics import HostTask, Outputs, Overrides, Row
+
+_In = TypeVar("_In")
+_Out = TypeVar("_Out")
 
 
-
-def lane(item: Any) -> Any:
-    """Items that must not overlap (``engine.gpu_lane``): a cell spec or task dict, or a
+def lane(item: Cell | HostTask[object] | tuple[str, ...]) -> Any:
+    """Items that must not overlap (``engine.gpu_lane``): a cell, a host-loop task, or a
     (backend, device, ...) tuple."""
-    return engine.gpu_lane(item if isinstance(item, dict) else {"backend": item[0], "device": item[1]})
+    if isinstance(item, Cell):
+        return engine.gpu_lane(item)
+    backend, device = item[:2] if isinstance(item, tuple) else (item.backend, item.device)
+    return engine.gpu_lane({"backend": backend, "device": device})
 
 
 @dataclasses.dataclass
@@ -39,7 +45,7 @@ class Ctx:
     probes: engine.Probes
     store: Store | None = None
     # the suite's per-record hook (``driver.Suite.on_record``): every cell's record passes it
-    on_record: Callable[[int, Record, dict[str, np.ndarray] | None], Record] | None = None
+    on_record: Callable[[int, Record, Outputs | None], Record] | None = None
 
     @property
     def reference(self) -> str:
@@ -87,39 +93,38 @@ class Ctx:
         return rows
 
     @staticmethod
-    def spec(scenario: str, backend: str, device: str, precision: str, params: dict[str, Any],
-             variant: str = "default") -> dict[str, Any]:
+    def spec(scenario: str, backend: str, device: str, precision: str, params: Overrides,
+             variant: str = "default") -> Cell:
+        """The cell of ``params`` (overrides of the scenario's defaults, resolved here)."""
         # Timing is not measured here: the first call and one timed call, no warm-ups (an eager
         # PyTorch descent costs seconds a call on CUDA), and the frameworks' kernel caches stay
         # warm so cells do not recompile the same kernels.
-        return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
-                "variant": variant, "params": params, "quick": False, "warmup": 0, "repeat": 1, "min_time": 0.0,
-                "cache": "warm", "timer": "wall", "throughput": False}
+        return Cell.make(scenario, backend, device, precision, variant, dict(params), quick=False,
+                         warmup=0, repeat=1, min_time=0.0, cache="warm", timer="wall", throughput=False)
 
     @staticmethod
     def row(experiment: str, backend: str, device: str, precision: str, setting: str, figure: str,
             value: Any, verdict: str, detail: str | None = "") -> Row:
+        """A finding; a NumPy scalar value becomes its Python number, a missing detail ''."""
         if isinstance(value, (np.floating, np.integer)):
             value = value.item()
-        return dict(zip(COLUMNS, (experiment, backend, device, precision, setting, figure, value,
-                                  verdict, detail or "")))
+        return Row(experiment, str(backend), str(device), str(precision), setting, figure, value, verdict,
+                   detail or "")
 
     @staticmethod
-    def label(spec_or_rec: dict[str, Any]) -> str:
-        s = spec_or_rec
-        v = s.get("variant", "default")
-        return f"{s['backend']}/{s['device']}" + ("" if v == "default" else f"/{v}")
+    def label(cell: Cell) -> str:
+        return f"{cell.backend}/{cell.device}" + ("" if cell.variant == "default" else f"/{cell.variant}")
 
-    def error_row(self, experiment: str, s: dict[str, Any], setting: str, rec: Record) -> Row:
-        return self.row(experiment, self.label(s).split("/", 1)[0], s["device"], s["precision"], setting,
+    def error_row(self, experiment: str, cell: Cell, setting: str, rec: Record) -> Row:
+        return self.row(experiment, cell.backend, cell.device, cell.precision, setting,
                         "cell", None, "error", rec.reason)
 
     @staticmethod
     def fmt(x: Any) -> str:
         return fmt_num(x)
 
-    def run_cells(self, specs: list[dict[str, Any]], fresh_process: bool = False
-                  ) -> list[tuple[Record, dict[str, np.ndarray] | None]]:
+    def run_cells(self, specs: list[Cell], fresh_process: bool = False
+                  ) -> list[tuple[Record, Outputs | None]]:
         """(record, outputs) per spec, in order. Stress figures are not timings, so cells of one
         backend, device, precision and variant share a worker process (the framework starts once),
         unless ``fresh_process`` (run-to-run comparisons want two separate processes). Every
@@ -127,11 +132,13 @@ class Ctx:
         return engine.run_cells(specs, timeout=self.timeout, jobs=self.jobs, probes=self.probes,
                                 share_process=not fresh_process, store=self.store, on_record=self.on_record)
 
-    def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
+    def map(self, fn: Callable[[_In], _Out], items: list[_In]) -> list[_Out]:
         """``fn`` over ``items`` on threads, ``--jobs`` at a time, one GPU item per backend at a time
         (stress figures are not timings); results in the order of ``items``."""
         return engine.pool_map(fn, items, jobs=self.jobs, lane=lane)
 
-    def run_tasks(self, tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    def run_tasks(self, tasks: Sequence[HostTask[_Out]]) -> list[_Out]:
         """Host-loop tasks (``compare.stress.host_loop``), each in its own worker process."""
-        return self.map(lambda t: host_loop.run(t, timeout=self.timeout), tasks)
+        def one(task: HostTask[_Out]) -> _Out:
+            return host_loop.run(task, timeout=self.timeout)
+        return self.map(one, list(tasks))

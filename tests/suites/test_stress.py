@@ -1,6 +1,7 @@
 """The stress suite: its pure verdict rules on synthetic data, and a quick CPU run of two experiments."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -190,7 +191,7 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
     rows = data["analysis"]["rows"]
     assert {r["experiment"] for r in rows} == {"particles-inf", "races"}
     for r in rows:
-        assert set(context.COLUMNS) <= set(r) and r["verdict"]
+        assert set(numerics.COLUMNS) <= set(r) and r["verdict"]
     inf = [r for r in rows if r["experiment"] == "particles-inf"]
     assert {r["precision"] for r in inf} == {"float32", "float64"}
     for r in inf:   # the overflow step is found and agrees with the NumPy emulation
@@ -224,38 +225,37 @@ def test_host_loop_scan_reuses_one_kernel_and_matches_the_oracle(backend):
     from compare.stress import projectile_tasks
     require_device(backend, "cpu")
     scans = {"s": [6.3, 6.45, 6.5, 6.7]}
-    task = projectile_tasks.task("scan", backend=backend, device="cpu", precision="float64",
-                                 contacts=["hard", "soft"], scans=scans, budget_s=600.0)
+    task = projectile_tasks.Task("scan", backend, "cpu", "float64", ("hard", "soft"), 600.0, scans=scans)
     got = host_loop.run(task, timeout=600)
-    assert "results" in got, got
-    ref = projectile_tasks.run_task({**task, "backend": "oracle64", "device": "host"})
-    for g, r in zip(got["results"], ref["results"]):
-        assert g["contact"] == r["contact"]
-        assert len(set(g["loss"])) == len(scans["s"])            # every point really evaluated
-        np.testing.assert_allclose(g["loss"], r["loss"], rtol=1e-10)
-        np.testing.assert_allclose(g["grad"], r["grad"], rtol=1e-8, atol=1e-8)
+    assert got.why_not is None and got.scans, got
+    ref = projectile_tasks.execute(dataclasses.replace(task, backend="oracle64", device="host"))
+    for g, r in zip(got.scans, ref.scans):
+        assert g.contact == r.contact
+        assert len(set(g.loss)) == len(scans["s"])            # every point really evaluated
+        np.testing.assert_allclose(g.loss, r.loss, rtol=1e-10)
+        np.testing.assert_allclose(g.grad, r.grad, rtol=1e-8, atol=1e-8)
 
 
 def test_pool_map_runs_one_gpu_item_per_backend_at_a_time():
     import threading
     import time
     ctx = context.Ctx(["a", "b"], ["cpu", "cuda"], True, 8, 1.0, {})
-    items = [{"backend": b, "device": d, "i": i} for i in range(4) for b in ("a", "b") for d in ("cpu", "cuda")]
+    items = [(b, d, str(i)) for i in range(4) for b in ("a", "b") for d in ("cpu", "cuda")]
     busy: dict = {}
     peak: dict = {}
     lock = threading.Lock()
 
     def fn(it):
-        key = (it["backend"], it["device"])
+        key = it[:2]
         with lock:
             busy[key] = busy.get(key, 0) + 1
             peak[key] = max(peak.get(key, 0), busy[key])
         time.sleep(0.02)
         with lock:
             busy[key] -= 1
-        return it["i"]
+        return it[2]
 
-    assert ctx.map(fn, items) == [it["i"] for it in items]    # order kept
+    assert ctx.map(fn, items) == [it[2] for it in items]    # order kept
     assert peak[("a", "cuda")] == peak[("b", "cuda")] == 1
     assert peak[("a", "cpu")] > 1                                          # CPU items overlap
 
@@ -345,8 +345,8 @@ def test_targets_leave_out_variants_the_framework_lacks_on_a_device_and_say_why(
     ctx = context.Ctx([b], [d], True, 1, 1.0, probes)
     assert (b, d, v) not in ctx.targets(variants=True) and (b, d, "default") in ctx.targets(variants=True)
     skips = ctx.skip_rows("ulps", variants=True)
-    assert [(r["backend"], r["device"], r["setting"], r["verdict"]) for r in skips] == [(b, d, f"variant={v}", "skipped")]
-    assert skips[0]["detail"] == backends.get(b).variant_unavailable(v, d)
+    assert [(r.backend, r.device, r.setting, r.verdict) for r in skips] == [(b, d, f"variant={v}", "skipped")]
+    assert skips[0].detail == backends.get(b).variant_unavailable(v, d)
     assert ctx.skip_rows("ulps") == []
 
 
@@ -365,6 +365,6 @@ def test_precisions_a_framework_lacks_on_a_device_are_skipped_rows_not_errors():
     both = ("float32", "float64")
     assert p not in ctx.precisions(b, d, both) and len(ctx.precisions(b, d, both)) == 1
     skips = ctx.skip_rows("particles-dt", precisions=both)
-    assert [(r["backend"], r["device"], r["precision"], r["verdict"]) for r in skips] == [(b, d, p, "skipped")]
-    assert skips[0]["detail"] == backends.get(b).precision_unavailable(p, d)
+    assert [(r.backend, r.device, r.precision, r.verdict) for r in skips] == [(b, d, p, "skipped")]
+    assert skips[0].detail == backends.get(b).precision_unavailable(p, d)
     assert ctx.skip_rows("particles-dt") == []

@@ -1,0 +1,55 @@
+"""compare/stress/numerics.py: a finding (``Row``) and its stored form, the check block of a
+cell that ran."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from compare.results.record import Record
+from compare.results.store import jsonable
+from compare.stress import numerics
+from compare.stress.numerics import COLUMNS, Finding, Row
+
+# the columns of stress.json's analysis.rows, in the order every stored file has them
+STORED = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
+
+
+def test_the_columns_are_the_row_fields_and_the_stored_keys_in_their_order():
+    assert COLUMNS == STORED
+    assert tuple(Finding.__annotations__) == STORED
+
+
+@pytest.mark.parametrize("value", [1.5, 3, None, "n/a", True, math.inf, math.nan])
+def test_a_row_stores_as_the_dict_the_file_always_had(value):
+    """Same keys, same order, same values: the JSON text is that of the old dict rows."""
+    values = ("particles-dt", "numpy", "cpu", "float32", "dt=0.02", "max error", value, "ok", "why")
+    row = Row(*values)
+    got = row.to_json()
+    assert list(got) == list(STORED)
+    old = dict(zip(STORED, values))
+    assert json.dumps(jsonable(got)) == json.dumps(jsonable(old))
+    assert Row(**got) == row or (isinstance(value, float) and math.isnan(value))   # nan != nan
+
+
+def test_a_row_is_immutable_and_has_an_empty_detail_by_default():
+    row = Row("races", "numba", "cpu", "float32", "saxpy", "differing", 0, "bitwise reproducible")
+    assert row.detail == "" and row.to_json()["detail"] == ""
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        row.verdict = "other"      # type: ignore[misc]
+
+
+def test_check_of_gives_the_check_block_and_names_a_record_without_one():
+    ran = Record("saxpy", "numpy", "cpu", "float32", "ok", error={"vs_oracle": 0.25, "tolerance": 1.0})
+    assert numerics.check_of(ran).vs_oracle == 0.25 and numerics.check_of(ran).tolerance == 1.0
+    crashed = Record("saxpy", "numba", "cpu", "float32", "error", reason="boom")
+    with pytest.raises(ValueError, match="numba/cpu saxpy"):
+        numerics.check_of(crashed)
+
+
+def test_log_floor_keeps_zeros_visible_and_non_numbers_as_nan():
+    got = numerics.log_floor([0.0, 2.0, None, math.inf, np.float64(1e-30)], eps=1e-18)
+    assert got[:2] == [1e-18, 2.0] and math.isnan(got[2]) and math.isnan(got[3]) and got[4] == 1e-18
