@@ -5,7 +5,8 @@ on the host with the backend's loss and gradient. Such a task is typed on our si
 ``HostTask``, e.g. ``compare.stress.projectile_tasks.Task``) and a JSON dict only across the
 process boundary: ``to_json`` gives what the worker reads, whose ``call`` names the function that
 runs it (``"package.module:function"``, e.g. ``compare.stress.projectile_tasks:run_task``); the
-function gets that dict and returns a JSON-able dict, which the task's ``outcome`` decodes. Process isolation is as for cells (``compare.running.cells``): frameworks' global state lives and
+function gets that dict and returns a JSON-able dict, which the task's ``outcome`` decodes.
+Process isolation is as for cells (``compare.running.cells``): frameworks' global state lives and
 dies with the process, and a crash or a hang becomes ``{"error": ...}`` instead of a lost run.
 """
 from __future__ import annotations
