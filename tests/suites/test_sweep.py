@@ -199,7 +199,7 @@ def test_plan_comes_from_the_scenarios_sweeps():
         "saxpy", "sdf", "particles", "projectile"}
     proj = [(s, ref) for s, ref in err if s.scenario == "projectile"]
     assert {s.params.contact for s, _ in proj} == {"soft"}             # the sweep's default
-    assert all(ref["dt"] == min(s.params.dt for s, _ in proj) / 16 for _, ref in proj)
+    assert all(ref.dt == min(s.params.dt for s, _ in proj) / 16 for _, ref in proj)
     assert all("reference" not in s.tags for s, _ in err)                 # not the cell's identity
     hard = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--set", "contact=hard",
                    "--scenarios", "projectile,saxpy")
@@ -245,7 +245,7 @@ def test_published_sweep_file_still_renders(tmp_path, published, device, old_for
     store = Store.read(ROOT / published, "sweep")
     assert store.upgraded_from == old_format
     data = sweep.contents(store)
-    assert all(r.tags is not None for r in data["records"])
+    assert all(r.tags is not None for r in data.records)
     text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
     for heading in (f"## {device}: launch overhead", f"## {device}: copy bandwidth (roofline)",
                     f"## {device}: SAXPY bandwidth against size", "### projectile",
