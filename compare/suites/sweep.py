@@ -50,7 +50,6 @@ KINDS = ("bandwidth", "error", "scaling", "horizon")
 PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32",
              "horizon": "float32,float64"}
 ROLE_ORDER = ("launch", "copy", "bandwidth")    # the bandwidth sweep measures its yardsticks first
-SPEC_OPTIONS = ("check_sample", "save_outputs")  # what a sweep point may set in its cell's spec
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
