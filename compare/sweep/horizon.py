@@ -74,7 +74,7 @@ def table(records: list[Record], device: str, scenario: str) -> str:
     if not groups:
         return ""
     every = [r for rows in groups.values() for r in rows]
-    kname = (knob(every[0]).name or "size")
+    kname = knob(every[0]).name or "size"
     extra = varying(every, kname)
     out = []
     for rows in groups.values():
@@ -105,7 +105,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(16, 4.8))
     floor_done = set()
     every = [r for rows in groups.values() for r in rows]
-    kname = (knob(every[0]).name or "size")
+    kname = knob(every[0]).name or "size"
     for (backend, variant, prec, _), rows in groups.items():
         if any(need(rows[0], "params").get(k) != v for k, v in want.items()):
             continue

@@ -155,7 +155,7 @@ def size_table(records, device, scenario) -> str:
                      f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"],
                      fmt_time(thr), f"{gbps(w['bytes'], thr):.3g}" if thr else "-",
                      pct((r.throughput or {}).get("hw_fraction"))])
-    return _table(rows, ["backend", "variant", "precision", (knob(mine[0]).name or "size"), "bytes/call",
+    return _table(rows, ["backend", "variant", "precision", knob(mine[0]).name or "size", "bytes/call",
                          "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
                          "launch share", "regime", "throughput: per call", "throughput: GB/s",
                          "hw fraction"]) if rows else ""
@@ -208,7 +208,7 @@ def scaling_table(records, device, scenario) -> str:
                      fmt_bytes(need(r, "memory")["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
                      checked_items(r)])
-    return _table(rows, ["backend", "precision", (knob(mine[0]).name or "size"), "wall median",
+    return _table(rows, ["backend", "precision", knob(mine[0]).name or "size", "wall median",
                          "CUDA-event median", "throughput: per call", *([f"{per_run}/s"] if per_run else []),
                          f"{items}/s (throughput regime where measured)",
                          "peak host RSS", "device memory", "checked vs oracle"]) if rows else ""
