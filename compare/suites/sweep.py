@@ -26,7 +26,7 @@ import dataclasses
 import json
 import shlex
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping, NamedTuple
 
 import backends
 import scenarios
@@ -42,14 +42,14 @@ from compare.spec import Cell
 from compare.results.store import Store, atomic_write
 from compare.sweep import page as pages
 from compare.sweep import plots
-from compare.sweep.points import sweeps
+from compare.sweep.converged import Cache, Param, Reference
+from compare.sweep.points import Point, sweeps
 from scenarios.base import PRECISIONS, ParamError, Precision
 
 KINDS = ("bandwidth", "error", "scaling", "horizon")
 PRECISION = {"bandwidth": "float32", "error": "float32,float64", "scaling": "float32",
              "horizon": "float32,float64"}
 ROLE_ORDER = ("launch", "copy", "bandwidth")    # the bandwidth sweep measures its yardsticks first
-SPEC_OPTIONS = ("check_sample", "save_outputs")  # what a sweep point may set in its cell's spec
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -98,36 +98,29 @@ def swept(kind: str, args: argparse.Namespace, devices: list[str]) -> list[scena
     return sorted(found, key=lambda sc: rank.get(sweeps(sc.name).measures, len(rank)))
 
 
-Reference = dict[str, Any] | None       # a point's converged-error reference (compare.sweep.converged)
-
-
-@dataclasses.dataclass(frozen=True)
-class Point:
-    """One sweep point of a scenario: its resolved parameters, the knob it sets (for the page),
-    its converged-error reference, and what it sets in its cell (``SPEC_OPTIONS``)."""
-    params: Any
-    knob: dict[str, Any]
-    reference: Reference
-    options: dict[str, Any]
+class Resolved(NamedTuple):
+    """A scenario's sweep point with its parameters resolved: the scenario's Params (the cell's
+    ``params``), the point's defaults overridden by --set (and, for scaling, --record-every)."""
+    params: Any                     # the scenario's own Params dataclass (compare.spec.Cell.params)
+    point: Point
 
 
 def points(sc: scenarios.Scenario, kind: str, device: str, args: argparse.Namespace,
-           sets: dict[str, Any]) -> list[Point]:
+           sets: Mapping[str, str]) -> list[Resolved]:
     """The scenario's points with --set (and, for scaling, --record-every) applied and the
     parameters resolved (the scenario's Params, once)."""
     raw = sweeps(sc.name).points(kind, device, args.quick)
-    over = dict(sets)
+    over: dict[str, Param] = {k: v for k, v in sets.items()}      # --set's strings: Params coerces them
     fields = {f.name for f in dataclasses.fields(sc.Params)}
     if kind == "scaling" and args.record_every and "record_every" in fields:
         over["record_every"] = args.record_every
     for k in over:
-        if len({json.dumps(pt["params"].get(k)) for pt in raw}) > 1:
+        if len({json.dumps(pt.params.get(k)) for pt in raw}) > 1:
             raise ParamError(f"--set {k}: the {kind} sweep of {sc.name} varies it")
-    return [Point(sc.params({**pt["params"], **over}), pt.get("knob") or {}, pt.get("reference"),
-                  {k: pt[k] for k in SPEC_OPTIONS if k in pt}) for pt in raw]
+    return [Resolved(sc.params({**pt.params, **over}), pt) for pt in raw]
 
 
-def plan(args: argparse.Namespace) -> list[Planned[Reference]]:
+def plan(args: argparse.Namespace) -> list[Planned[Reference | None]]:
     """Every cell of the requested sweeps as (cell, the point's converged-error reference), in
     run order: kind, device, backend, variant (error sweep only), precision, scenario, point."""
     sel = options.selection(args)
@@ -141,14 +134,14 @@ def plan(args: argparse.Namespace) -> list[Planned[Reference]]:
     sets = options.scenario_sets(options.parse_sets(args.set), everyone)
     repeat = args.repeat or (3 if args.quick else 10)
     min_time = args.min_time if args.min_time is not None else (0.05 if args.quick else 0.2)
-    out: list[Planned[Reference]] = []
+    out: list[Planned[Reference | None]] = []
     for kind in kinds:
         for dev in sel["devices"]:
             pts = {sc.name: points(sc, kind, dev, args, sets[sc.name]) for sc in chosen[kind]}
             for sc in chosen[kind]:          # --set values each swept precision can represent
-                for pt in pts[sc.name]:
+                for params, _ in pts[sc.name]:
                     for prec in precisions[kind]:
-                        options.check_precision(sc, pt.params, prec)
+                        options.check_precision(sc, params, prec)
             for be in sel["backends"]:
                 for variant in variants(kind, be, chosen[kind]):
                     for prec in precisions[kind]:
@@ -157,10 +150,12 @@ def plan(args: argparse.Namespace) -> list[Planned[Reference]]:
                                 continue
                             measures = sweeps(sc.name).measures
                             role = measures if kind == "bandwidth" and measures else sc.name
-                            for pt in pts[sc.name]:
-                                cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, pt.params,
-                                            tags={"sweep": kind, "role": role, "knob": dict(pt.knob)},
-                                            repeat=repeat, min_time=min_time, cache=args.cache, **pt.options)
+                            for params, pt in pts[sc.name]:
+                                knob = pt.knob.to_json() if pt.knob else {}
+                                cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, params,
+                                            tags={"sweep": kind, "role": role, "knob": knob},
+                                            repeat=repeat, min_time=min_time, cache=args.cache,
+                                            check_sample=pt.check_sample, save_outputs=pt.save_outputs)
                                 out.append(Planned(cell, pt.reference))
     return out
 
@@ -183,9 +178,9 @@ def variants(kind: str, backend: str, swept_scenarios: list[scenarios.Scenario])
 
 
 # ---- records and the results file ----------------------------------------------------------
-def contents(store: Store) -> dict[str, Any]:
-    """What the page and plots read: {'runs': [...], 'records': [...]}."""
-    return {"runs": store.runs, "records": store.records}
+def contents(store: Store) -> pages.Contents:
+    """What the page and plots read: the store's runs and records."""
+    return pages.Contents(pages.runs_of(store.runs), store.records)
 
 
 # ---- running --------------------------------------------------------------------------------
@@ -197,11 +192,11 @@ def label(rec: Record) -> str:
     return f"{tags.get('sweep')} {rec.scenario}/{rec.backend}/{rec.device}/{rec.precision}/{rec.variant}{setting}"
 
 
-def rebuild(data: dict[str, Any], args: argparse.Namespace, sources: list[str], notes: str) -> Path:
+def rebuild(data: pages.Contents, args: argparse.Namespace, sources: list[str], notes: str) -> Path:
     """Write the PNGs into --out and the Markdown page (--page); returns the page's path."""
     out = Path(args.out)
     page = Path(args.page) if args.page else out / "measurement.md"
-    written = plots.write_plots(data["records"], out) if not args.no_plots else {}
+    written = plots.write_plots(data.records, out) if not args.no_plots else {}
     cmd = ["python -m compare sweep report", *map(shlex.quote, [*sources, "--out", str(out),
                                                                 "--page", str(page)])]
     if args.title:
@@ -225,7 +220,7 @@ class SweepSuite(Suite):
     record), each error-sweep record with its converged error attached first."""
     add_arguments = staticmethod(add_arguments)
 
-    def plan(self, args: argparse.Namespace) -> list[Planned[Reference]]:
+    def plan(self, args: argparse.Namespace) -> list[Planned[Reference | None]]:
         if args.kind not in (*KINDS, "all"):
             raise UsageError(f"unknown sweep {args.kind!r} ({', '.join(KINDS)}, all, report)")
         if args.files:
@@ -269,7 +264,7 @@ class SweepSuite(Suite):
         store.runs.append(env)
         store.save()
         self.references = [p.extra for p in run.planned]
-        self.cache: dict[Any, Any] = {}
+        self.cache: Cache = {}
         self.show = engine.progress(len(run.cells), label)
         self.count = iter(range(len(run.cells)))
 
@@ -281,10 +276,10 @@ class SweepSuite(Suite):
 
     def on_record(self, j: int, rec: Record, outputs: engine.Outputs | None) -> Record:
         if (rec.tags or {}).get("sweep") == "error" and rec.status in ("ok", "mismatch"):
-            conv = sweeps(rec.scenario).converged_error(dict(rec.params or {}), outputs, rec.to_json(),
-                                                        self.cache, reference=self.references[j])
+            conv = sweeps(rec.scenario).converged_error(dict(rec.params or {}), outputs, rec, self.cache,
+                                                        reference=self.references[j])
             if conv is not None:
-                rec = rec.replace(converged=conv)
+                rec = rec.replace(converged=conv.to_json())     # stored in sweep.json
         rec = hardware.annotated(rec, self.env["hardware"]).replace(run=environment.run_stamp(self.env))
         self.show(next(self.count), rec, outputs)
         return rec

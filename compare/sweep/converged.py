@@ -7,11 +7,13 @@ the sweep point is memoised in a cache the suite keeps for a whole run (``dt_ref
 """
 from __future__ import annotations
 
+import dataclasses
 import json
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from scenarios.base import Scenario
 from scenarios.particles import simulate
 from scenarios.projectile import CONSTANTS
 from scenarios.projectile_adjoint import loss_and_gradient
@@ -20,31 +22,88 @@ from scenarios.sdf import sdf_field
 REF_FACTOR = 16          # converged dt references: smallest swept dt / REF_FACTOR
 SDF_EVAL = 2001          # points per axis of the grid the sdf reconstruction is measured on
 
+Param = int | float | str      # a scenario parameter's value (every field of a scenario's Params is one)
+Solution = tuple[np.ndarray | float, ...]       # what a reference solve returns (positions; loss, gradient)
+Cache = dict[Any, Any]         # memoised references, kept by the suite for a whole run (keys: what they depend on)
 
-def dt_reference(cache: dict[Any, Any], sc: Any, params: dict[str, Any],
-                 reference: dict[str, Any] | None, default_dt: float, solve: Callable[..., Any],
-                 distance: Callable[[Any, Any], float], simulated_time: float) -> tuple[Any, dict[str, Any]]:
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """What a sweep point's converged error is measured against: a float64 rollout at ``dt``
+    (None: the scenario's default). A property of the sweep, not of the cell: the suite hands it
+    back to ``converged_error`` and never stores it in the cell's identity."""
+    dt: float | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class ReferenceInfo:
+    """What a converged reference is, as the record's ``converged.reference`` tells it: a note,
+    and for a dt reference its dt, steps, simulated time and self-difference (its own error
+    scale), for the sdf field its evaluation grid."""
+    note: str
+    dt: float | None = None
+    steps: int | None = None
+    simulated_time_s: float | None = None
+    self_difference: float | None = None
+    eval_grid: int | None = None
+
+    def to_json(self) -> dict[str, float | int | str]:
+        """The stored object: the fields it has, in the order the format has always had them."""
+        order = ("dt", "steps", "simulated_time_s", "self_difference", "eval_grid", "note")
+        return {k: v for k in order if (v := getattr(self, k)) is not None}
+
+
+@dataclasses.dataclass(frozen=True)
+class Converged:
+    """An error-sweep cell's distance to a converged reference (``Sweeps.converged_error``):
+    ``error`` in ``metric``, the metric's other ``figures`` (e.g. rms, max), and the reference.
+    Stored as the record's ``converged`` block (``to_json``)."""
+    error: float | str | None           # a figure as the record writes it ('nan', 'inf'); None: none
+    metric: str
+    reference: ReferenceInfo
+    figures: dict[str, float] = dataclasses.field(default_factory=dict)
+
+    @classmethod
+    def of(cls, figures: Mapping[str, float], metric: str, reference: ReferenceInfo) -> Converged:
+        """From an error function's figures: 'error', then the others in their order."""
+        return cls(figures["error"], metric, reference, {k: v for k, v in figures.items() if k != "error"})
+
+    def to_json(self) -> dict[str, float | str | None | dict[str, float | int | str]]:
+        """The record's ``converged`` block: error, the other figures, metric, reference."""
+        return {"error": self.error, **self.figures, "metric": self.metric, "reference": self.reference.to_json()}
+
+    @classmethod
+    def from_json(cls, obj: Mapping[str, Any]) -> Converged:      # JSON: a block as stored in sweep.json
+        """A stored ``converged`` block (JSON read from a results file: the file boundary)."""
+        rest = {k: float(v) for k, v in obj.items() if k not in ("error", "metric", "reference")}
+        return cls(obj["error"], obj["metric"], ReferenceInfo(**obj["reference"]), rest)
+
+
+def dt_reference(cache: Cache, sc: Scenario, params: Mapping[str, Param], reference: Reference | None,
+                 default_dt: float, solve: Callable[[Scenario, Mapping[str, Param], float, int], Solution],
+                 distance: Callable[[Solution, Solution], float],
+                 simulated_time: float) -> tuple[Solution, ReferenceInfo]:
     """A converged float64 reference over ``simulated_time`` at the sweep point's reference time
-    step (``reference["dt"]``, else ``default_dt``) for ``params`` without their dt and steps,
+    step (``reference.dt``, else ``default_dt``) for ``params`` without their dt and steps,
     memoised in ``cache``, and what it is: ``solve(sc, base_params, dt, steps)`` computes it; its
     ``self_difference`` is ``distance(coarse, reference)`` to the same at 2 dt (its own error
     scale, which must be far below the errors it measures)."""
-    dt = (reference or {}).get("dt") or default_dt
+    dt = (reference.dt if reference is not None else None) or default_dt
     base = {k: v for k, v in params.items() if k not in ("dt", "steps")}
     key = (sc.name, json.dumps(base, sort_keys=True), dt)
     if key not in cache:
         steps = round(simulated_time / dt)
         ref = solve(sc, base, dt, steps)
         coarse = solve(sc, base, 2 * dt, round(simulated_time / (2 * dt)))
-        cache[key] = (ref, {"dt": dt, "steps": steps, "simulated_time_s": simulated_time,
-                            "self_difference": distance(coarse, ref),
-                            "note": "float64 NumPy rollout; self_difference: same metric "
-                                    "against a reference at 2 dt (its own error scale)"})
+        cache[key] = (ref, ReferenceInfo(dt=dt, steps=steps, simulated_time_s=simulated_time,
+                                         self_difference=distance(coarse, ref),
+                                         note="float64 NumPy rollout; self_difference: same metric "
+                                              "against a reference at 2 dt (its own error scale)"))
     return cache[key]
 
 
 # ---- sdf: the analytic field ------------------------------------------------------------------
-def reconstruction_error(image: np.ndarray, cache: dict | None = None) -> dict[str, float]:
+def reconstruction_error(image: np.ndarray, cache: Cache | None = None) -> dict[str, float]:
     """Bilinear reconstruction of the image against the analytic field on a fixed fine grid
     (SDF_EVAL points per axis over [-1, 1]^2): max and RMS of the difference."""
     img = np.asarray(image, np.float64)
@@ -69,7 +128,8 @@ def reconstruction_error(image: np.ndarray, cache: dict | None = None) -> dict[s
 
 
 # ---- particles: positions at the same simulated time -------------------------------------------
-def converged_positions(sc: Any, params: dict[str, Any], dt: float, steps: int) -> tuple[np.ndarray, np.ndarray]:
+def converged_positions(sc: Scenario, params: Mapping[str, Param], dt: float,
+                        steps: int) -> tuple[np.ndarray, np.ndarray]:
     """Float64 positions after ``steps`` steps of ``dt`` (the particle scenario ``sc``'s one NumPy
     stepper, ``simulate``) from the float64 initial state of ``params``."""
     p = sc.params({**params, "dt": dt, "steps": steps})
@@ -84,7 +144,7 @@ def position_error(px: np.ndarray, py: np.ndarray, rx: np.ndarray, ry: np.ndarra
 
 
 # ---- projectile: loss and gradient at v0 -------------------------------------------------------
-def converged_loss_grad(sc: Any, params: dict[str, Any], dt: float, steps: int) -> tuple[float, np.ndarray]:
+def converged_loss_grad(sc: Scenario, params: Mapping[str, Param], dt: float, steps: int) -> tuple[float, np.ndarray]:
     """Float64 loss and discrete-adjoint gradient at v0 (``loss_and_gradient``: ``rollout`` +
     ``adjoint``) after ``steps`` steps of ``dt`` of the projectile scenario ``sc``, the other
     parameters from ``params``."""

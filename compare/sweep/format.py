@@ -8,7 +8,7 @@ from compare.results.records import AMOUNT, POSITIVE, TEXT, Format, Obj, problem
 from compare.sweep.points import sweeps
 
 
-def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
+def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:     # JSON: an older sweep.json's record, as read
     """A record of an older sweep.json (top-level 'sweep', 'role', 'knob'; the size sweep's role
     was its scenario's name) in today's shape: the three under ``tags``, the bandwidth sweep's
     role the scenario's ``measures``."""
@@ -23,7 +23,7 @@ def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
     return new
 
 
-def record_problem(rec: dict[str, Any]) -> str | None:
+def record_problem(rec: dict[str, Any]) -> str | None:      # JSON: a record as read, before Record is built
     """What the sweep page and plots index directly in an ok, timed record of each sweep kind."""
     tags = rec.get("tags") or {}
     if rec["status"] != "ok" or not rec.get("time"):

@@ -24,7 +24,7 @@ from compare.render.report import fmt_bytes, fmt_time
 from compare.render.figure_check import place_legends
 from compare.files import save_figure
 from compare.sweep.points import sweeps
-from compare.sweep.rows import checked_items, knob, label, need, ok, throughput_s, wall_s
+from compare.sweep.rows import checked_items, knob, knob_value, label, need, ok, throughput_s, wall_s
 
 
 def memory(rec: Record) -> tuple[float | None, str]:
@@ -40,7 +40,7 @@ def items(rec: Record) -> int:
 
 def group_key(rec: Record) -> tuple:
     """Cells that differ only in the horizon: same backend, variant, precision, other params."""
-    name = knob(rec).get("name")
+    name = knob(rec).name
     other = {k: v for k, v in need(rec, "params").items() if k != name}
     return rec.backend, rec.variant, rec.precision, json.dumps(other, sort_keys=True)
 
@@ -49,7 +49,7 @@ def series(records: list[Record], device: str, scenario: str) -> dict[tuple, lis
     out: dict[tuple, list[Record]] = {}
     for r in ok(records, sweep="horizon", device=device, scenario=scenario):
         out.setdefault(group_key(r), []).append(r)
-    return {k: sorted(v, key=lambda r: knob(r)["value"]) for k, v in sorted(out.items())}
+    return {k: sorted(v, key=knob_value) for k, v in sorted(out.items())}
 
 
 def slopes(rows: list[Record]) -> list[float | None]:
@@ -57,7 +57,7 @@ def slopes(rows: list[Record]) -> list[float | None]:
     out: list[float | None] = [None]
     for a, b in zip(rows, rows[1:]):
         (ma, _), (mb, _) = memory(a), memory(b)
-        dn = knob(b)["value"] - knob(a)["value"]
+        dn = knob_value(b) - knob_value(a)
         out.append((mb - ma) / (items(b) * dn) if ma is not None and mb is not None and dn else None)
     return out
 
@@ -74,7 +74,7 @@ def table(records: list[Record], device: str, scenario: str) -> str:
     if not groups:
         return ""
     every = [r for rows in groups.values() for r in rows]
-    kname = knob(every[0]).get("name", "size")
+    kname = knob(every[0]).name or "size"
     extra = varying(every, kname)
     out = []
     for rows in groups.values():
@@ -82,7 +82,7 @@ def table(records: list[Record], device: str, scenario: str) -> str:
             mem, what = memory(r)
             share = r.gradient.fd_agreement if r.gradient else None
             out.append([r.backend, r.variant, r.precision, *(need(r, "params").get(k) for k in extra),
-                        knob(r)["value"], fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
+                        knob_value(r), fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
                         f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
                         f"{slope:.3g}" if slope is not None else "-",
                         f"{100 * share:.0f} %" if isinstance(share, (int, float)) else "-",
@@ -105,14 +105,14 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(16, 4.8))
     floor_done = set()
     every = [r for rows in groups.values() for r in rows]
-    kname = knob(every[0]).get("name", "size")
+    kname = knob(every[0]).name or "size"
     for (backend, variant, prec, _), rows in groups.items():
         if any(need(rows[0], "params").get(k) != v for k, v in want.items()):
             continue
         style = "-" if variant == "default" else ":"
         mark = "^" if prec == "float32" else "o"
         lab = f"{backend}{'' if variant == 'default' else '/' + variant}{'' if prec == 'float32' else ' f64'}"
-        n = [knob(r)["value"] for r in rows]
+        n = [knob_value(r) for r in rows]
         mem = [memory(r)[0] for r in rows]
         a1.plot(n, [m / 2**20 if m else math.nan for m in mem], style + mark, color=colors.get(backend),
                 ms=4, label=lab)
@@ -121,16 +121,16 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
         floor = tape.state_bytes_per_step(prec)
         if floor and prec not in floor_done:
             floor_done.add(prec)
-            a1.plot(n, [floor * items(r) * knob(r)["value"] / 2**20 for r in rows], "k" + ("--" if prec == "float32" else "-."),
+            a1.plot(n, [floor * items(r) * knob_value(r) / 2**20 for r in rows], "k" + ("--" if prec == "float32" else "-."),
                     lw=1, label=f"state per step x {label(scenario, 'horizon_items', 'items')} x {kname} ({prec})")
-    shares: dict[tuple[str, str], dict[int, list[float]]] = {}
+    shares: dict[tuple[str, str], dict[float, list[float]]] = {}
     extra = [k for k in varying(every, kname) if k not in ("batch",)]
     for rows in groups.values():
         for r in rows:
             s = r.gradient.fd_agreement if r.gradient else None
             if isinstance(s, (int, float)):
                 key = (", ".join(f"{k}={need(r, 'params').get(k)}" for k in extra), r.precision)
-                shares.setdefault(key, {}).setdefault(knob(r)["value"], []).append(s)
+                shares.setdefault(key, {}).setdefault(knob_value(r), []).append(s)
     for (what, prec), pts in sorted(shares.items()):
         n = sorted(pts)
         lo = [100 * min(pts[k]) for k in n]

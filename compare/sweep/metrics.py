@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, TypedDict
+from typing import TypedDict
 
 from compare.results.record import Record
 from compare.render.report import fmt_bytes
@@ -32,7 +32,7 @@ class Roofline(TypedDict):
     gbps: float
     backend: str            # 'hardware yardstick', or the backend whose copy was fastest
     precision: str
-    n: Any                  # the copy's size, or how the yardstick copied
+    n: int | str            # the copy's size, or how the yardstick copied
     clock: str
 
 
@@ -127,10 +127,12 @@ def error_points(records: list[Record], device: str, scenario: str) -> list[Erro
 
 
 def device_bytes(rec: Record) -> tuple[int | None, str]:
-    m: Mapping[str, Any] = rec.memory or {}     # the framework's own figures have its names
-    if rec.memory and isinstance(rec.memory.device_bytes, (int, float)):   # the one metric every backend shares
+    m = rec.memory          # the framework's own figures are its extra keys, by the framework's names
+    if m is None:
+        return None, "-"
+    if isinstance(m.device_bytes, (int, float)):     # the one metric every backend shares
         own = m.get("device_peak_bytes")
-        return int(rec.memory.device_bytes), "NVML above the context" + (
+        return int(m.device_bytes), "NVML above the context" + (
             f"; framework's own figure {fmt_bytes(own)}" if isinstance(own, (int, float)) else "")
     for k, src in (("device_peak_bytes", m.get("device_memory_source", "framework")),
                    ("nvml_process_peak_bytes", "nvml process"),

@@ -13,7 +13,7 @@ import math
 import os
 import statistics
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, NamedTuple, TypedDict, cast
 
 from tabulate import tabulate
 
@@ -24,7 +24,44 @@ from compare.render.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
 from compare.sweep.metrics import bandwidth_row, device_bytes, error_points, gbps, roofline
 from compare.sweep.points import sweeps
-from compare.sweep.rows import checked_items, event_s, knob, label, need, ok, tag, throughput_s, timed, wall_s
+from compare.sweep.rows import (checked_items, event_s, knob, knob_value, label, need, ok, tag, throughput_s, timed,
+                                wall_s)
+
+class Gpu(TypedDict):
+    name: str
+    memory: str
+    driver: str
+
+
+class RunEnv(TypedDict, total=False):
+    """What the page reads of a run's environment (compare.measuring.environment.collect), as
+    stored in the store's ``runs``: older files may lack any of it."""
+    command: str
+    created: str
+    git_commit: str | None
+    git_dirty: bool
+    cpu: str
+    cores: int
+    memory_gib: float
+    gpus: list[Gpu]
+    cuda_toolkit: str | None
+    os: str
+    python: str
+    hostname: str
+    packages: dict[str, str]
+
+
+class Contents(NamedTuple):
+    """What the page and plots are built from: the runs' environments and every record."""
+    runs: list[RunEnv]
+    records: list[Record]
+
+
+def runs_of(stored: list[dict[str, Any]]) -> list[RunEnv]:     # JSON: the store's runs, as in sweep.json
+    """The store's ``runs`` (JSON read from, or to be written to, sweep.json: the file boundary)
+    as the environments the page reads; the file's loader checked they are objects."""
+    return [cast(RunEnv, r) for r in stored]
+
 
 # ---- records and scenarios --------------------------------------------------------------------
 def with_role(role: str) -> list[str]:
@@ -63,7 +100,7 @@ def pct(x: float | None) -> str:
 
 def knob_text(rec: Record) -> str:
     k = knob(rec)
-    return "-" if k.get("value") is None else f"{k['name']}={k['value']}"
+    return "-" if k.value is None else f"{k.name}={k.value}"
 
 
 # ---- tables -----------------------------------------------------------------------------------
@@ -107,18 +144,18 @@ def size_table(records, device, scenario) -> str:
     rows = []
     mine = sorted(ok(records, sweep="bandwidth", role="bandwidth", device=device, scenario=scenario),
                   key=lambda r: (r.backend, r.variant != "default",
-                                 r.variant, r.precision, knob(r).get("value") or 0))
+                                 r.variant, r.precision, knob(r).value or 0))
     for r in mine:
         b = bandwidth_row(r, records)
         thr = throughput_s(r)
         w = need(r, "work")
         rows.append([r.backend, r.variant, r.precision,
-                     f"2^{int(math.log2(knob(r)['value']))}",
+                     f"2^{int(math.log2(knob_value(r)))}",
                      fmt_bytes(w["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
                      f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"],
                      fmt_time(thr), f"{gbps(w['bytes'], thr):.3g}" if thr else "-",
                      pct((r.throughput or {}).get("hw_fraction"))])
-    return _table(rows, ["backend", "variant", "precision", knob(mine[0]).get("name", "size"), "bytes/call",
+    return _table(rows, ["backend", "variant", "precision", knob(mine[0]).name or "size", "bytes/call",
                          "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
                          "launch share", "regime", "throughput: per call", "throughput: GB/s",
                          "hw fraction"]) if rows else ""
@@ -128,7 +165,7 @@ def error_table(records, device, scenario) -> str:
     pts = error_points(records, device, scenario)
     rows = []
     for p in sorted(pts, key=lambda p: (p["rec"].backend, p["rec"].variant,
-                                        p["rec"].precision, knob(p["rec"]).get("value") or 0)):
+                                        p["rec"].precision, knob(p["rec"]).value or 0)):
         r = p["rec"]
         rows.append([r.backend, r.variant, r.precision, knob_text(r),
                      fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(need(r, "converged")["error"]),
@@ -159,19 +196,19 @@ def scaling_table(records, device, scenario) -> str:
     work = label(scenario, "rate_work", "items")       # the work() key the rate counts
     rows = []
     mine = sorted(ok(records, sweep="scaling", device=device, scenario=scenario),
-                  key=lambda r: (r.backend, r.precision, knob(r).get("value") or 0))
+                  key=lambda r: (r.backend, r.precision, knob(r).value or 0))
     for r in mine:
         t = wall_s(r)
         db, src = device_bytes(r)
         rates = [fmt_rate(need(r, "params")[per_run] / t, f"{per_run}/s")] if per_run else []
         thr = throughput_s(r)
-        rows.append([r.backend, r.precision, knob(r).get("value"), fmt_time(t),
+        rows.append([r.backend, r.precision, knob(r).value, fmt_time(t),
                      fmt_time(event_s(r)), fmt_time(thr), *rates,
                      fmt_rate(need(r, "work")[work] / (thr or t), "/s"),
                      fmt_bytes(need(r, "memory")["peak_host_rss_bytes"]),
                      f"{fmt_bytes(db)} ({src})" if db is not None else src,
                      checked_items(r)])
-    return _table(rows, ["backend", "precision", knob(mine[0]).get("name", "size"), "wall median",
+    return _table(rows, ["backend", "precision", knob(mine[0]).name or "size", "wall median",
                          "CUDA-event median", "throughput: per call", *([f"{per_run}/s"] if per_run else []),
                          f"{items}/s (throughput regime where measured)",
                          "peak host RSS", "device memory", "checked vs oracle"]) if rows else ""
@@ -187,10 +224,10 @@ def problems(records) -> str:
 
 def _knob(r) -> str:
     k = knob(r)
-    return f"({k['name']}={k['value']})" if k.get("name") and k.get("value") is not None else ""
+    return f"({k.name}={k.value})" if k.name and k.value is not None else ""
 
 
-def environment(runs: list[dict[str, Any]], records: list[Record]) -> str:
+def environment(runs: list[RunEnv], records: list[Record]) -> str:
     if not runs:
         return ""
     env = runs[-1]
@@ -222,7 +259,7 @@ def _launch_section(records, d) -> list[str]:
     intro = "A trivial launch"
     for name in with_role("launch")[:1]:
         pts = sweeps(name).points("bandwidth", d, False)
-        size = ", ".join(f"{k} = {v}" for k, v in (pts[0]["params"] if pts else {}).items())
+        size = ", ".join(f"{k} = {v}" for k, v in (pts[0].params if pts else {}).items())
         intro += f" (`{name}` scenario" + (f", {size})" if size else ")")
     return [f"## {d}: launch overhead\n",
             f"{intro}. Small cells whose time is mostly this are overhead-bound.\n\n"
@@ -240,12 +277,12 @@ def _error_section(records, d, s) -> str:
             f"{front_table(records, d, s)}\nAll cells:\n\n{error_table(records, d, s)}")
 
 
-def page(data: dict[str, Any], written: dict[str, Path], page_path: Path, title: str | None,
+def page(data: Contents, written: dict[str, Path], page_path: Path, title: str | None,
          sources: list[str], rebuild: str = "", notes: str = "") -> str:
     """The Markdown page: commands, environment, optional notes, then one set of sections per
     device (launch, copy roofline, size sweep, time against error, scaling, horizon) and the
     problems."""
-    records, runs = data["records"], data["runs"]
+    records, runs = data.records, data.runs
     devices = [d for d in backends.DEVICES if any(r.device == d and r.status != "skipped"
                                                   for r in records)]
     proto = os.path.relpath(Path(__file__).resolve().parents[2] / "docs" / "measurement.md",

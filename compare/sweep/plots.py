@@ -17,7 +17,8 @@ from compare.files import save_figure
 from compare.sweep import horizon
 from compare.sweep.metrics import ERROR_FLOOR, ErrorPoint, device_bytes, error_points, gbps, launch_wall, roofline
 from compare.sweep.page import error_scenarios, plot_key, swept, with_role
-from compare.sweep.rows import event_s, knob, label, need, ok, wall_s
+from compare.sweep.converged import Param
+from compare.sweep.rows import event_s, knob, knob_value, label, need, ok, wall_s
 from scenarios.base import Precision
 
 MARKERS = {"float64": "o", "float32": "^"}
@@ -133,7 +134,7 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
 
 def _knobs(pts: list[ErrorPoint]) -> str:
     """'name, ' for each knob the points sweep (precision and variant always are)."""
-    names = dict.fromkeys(knob(p["rec"]).get("name") for p in pts if knob(p["rec"]).get("value") is not None)
+    names = dict.fromkeys(knob(p["rec"]).name for p in pts if knob(p["rec"]).value is not None)
     return "".join(f"{n}, " for n in names if n)
 
 
@@ -165,16 +166,15 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(f"{s} (knobs: {_knobs(pts)}precision, variant)", fontsize=10)
-        labelled: dict[Any, tuple[float, float]] = {}
+        labelled: dict[Param, tuple[float, float]] = {}
         for p in sorted(pts, key=lambda p: p["time"]):   # label the overall front, once per value
             k = knob(p["rec"])
             at = (math.log10(p["time"]), math.log10(p["error"]))
             crowded = any(abs(at[0] - q[0]) < 0.3 and abs(at[1] - q[1]) < 0.12
                           for q in labelled.values())
-            if p["front_all"] and k.get("value") is not None and k["value"] not in labelled \
-                    and not crowded:
-                labelled[k["value"]] = at
-                notes.append(ax.annotate(f"{k['name']}={k['value']}", (p["time"], p["error"]), fontsize=6,
+            if p["front_all"] and k.value is not None and k.value not in labelled and not crowded:
+                labelled[k.value] = at
+                notes.append(ax.annotate(f"{k.name}={k.value}", (p["time"], p["error"]), fontsize=6,
                                          color="0.25", xytext=(4, 3), textcoords="offset points"))
         ax.set_xlabel("median wall time per run [s] (log)")
         metric = need(pts[0]["rec"], "converged").get("metric", "error")
@@ -212,11 +212,11 @@ def plot_scaling(records: list[Record], device: str, path: Path, scenario: str) 
     for backend, c in colors(records).items():
         for prec in ("float32", "float64"):
             mine = sorted((r for r in rows if r.backend == backend and r.precision == prec),
-                          key=lambda r: knob(r)["value"])
+                          key=knob_value)
             if not mine:
                 continue
             tag = "" if prec == "float32" else " f64"
-            n = [knob(r)["value"] for r in mine]
+            n = [knob_value(r) for r in mine]
             a1.plot(n, [need(r, "work")[label(scenario, "rate_work", "items")] / wall_s(r) for r in mine], "-o",
                     color=c, ms=4, label=f"{backend}{tag}")
             a2.plot(n, [need(r, "memory")["peak_host_rss_bytes"] / 2**20 for r in mine], "-o", color=c,
@@ -225,7 +225,7 @@ def plot_scaling(records: list[Record], device: str, path: Path, scenario: str) 
             if any(d is not None for d in dev):
                 a2.plot(n, [d / 2**20 if d is not None else math.nan for d in dev], "--s", color=c,
                         ms=4, label=f"{backend}{tag}: device memory")
-    size = f"{label(scenario, 'items', name)} {knob(rows[0]).get('name', 'size')}"
+    size = f"{label(scenario, 'items', name)} {knob(rows[0]).name or 'size'}"
     for ax in (a1, a2):
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")

@@ -3,20 +3,32 @@ helpers the page, the horizon section and the plots share (compare/sweep/page.py
 plots.py), kept apart so that none of those imports another only for these."""
 from __future__ import annotations
 
-from typing import Any, Iterable, Literal, Mapping
+from typing import Any, Iterable, Literal
 
 import scenarios
 from compare.results.record import Block, Check, Record, Timing
 from compare.measuring.timing import events_of
-from compare.sweep.points import sweeps
+from compare.sweep.points import Knob, sweeps
 
 
 def tag(rec: Record, name: str) -> Any:
     return (rec.tags or {}).get(name)
 
 
-def knob(rec: Record) -> Mapping[str, Any]:
-    return tag(rec, "knob") or {}
+def knob(rec: Record) -> Knob:
+    """The knob a sweep record's cell set (its ``tags.knob``, stored from ``Knob.to_json``);
+    ``Knob("")`` where it set none."""
+    k = tag(rec, "knob") or {}
+    return Knob(k.get("name", ""), k.get("value"))
+
+
+def knob_value(rec: Record) -> float:
+    """The knob's value where a reader computes with it (sorts, divides, draws it on a log axis):
+    a number in an ok sized record (``compare.sweep.format`` refuses one without on load)."""
+    v = knob(rec).value
+    if not isinstance(v, (int, float)):
+        raise TypeError(f"{rec.key}: a sweep record without a numeric knob value, where one is read")
+    return v
 
 
 def need(rec: Record, block: Literal["params", "time", "error", "work", "memory", "converged"]) -> Block:

@@ -1,6 +1,6 @@
-"""The sweep suite (issue 6): roofline and Pareto math, converged references, the sweep command on
-Warp/CPU in quick mode, its plan, record shape, page and plots; the measurements it is made of are
-in tests/measuring/test_timing.py."""
+"""The sweep suite (issue 6): roofline and Pareto math, the sweep command on Warp/CPU in quick
+mode, its plan, record shape, page and plots; its points, converged references and stored format
+are in tests/sweep/, the measurements it is made of in tests/measuring/test_timing.py."""
 from __future__ import annotations
 
 import json
@@ -8,15 +8,12 @@ import math
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 import backends
 import scenarios
 from compare.results.record import Record
-from compare.sweep.format import upgrade_record
 from compare.results.store import Store
-from compare.sweep import converged
 from compare.sweep import metrics as sweep_metrics
 from compare.sweep import page as sweep_page
 from compare.sweep import plots as sweep_plots
@@ -61,30 +58,6 @@ def test_pareto_front():
     assert sweep_metrics.pareto_front(pts) == [True, True, False, True, True, True, False]
     assert sweep_metrics.pareto_front([]) == []
     assert sweep_metrics.pareto_front([(1.0, 1.0)]) == [True]
-
-
-# ---- converged references -------------------------------------------------------------------
-def test_references_converge():
-    import scenarios
-    sdf = scenarios.get("sdf")
-    errs = [converged.reconstruction_error(sdf.oracle(sdf.params({"width": r, "height": r}), {}, "float64")["image"])["error"]
-            for r in (32, 128, 512)]
-    assert errs[0] > errs[1] > errs[2] > 0
-    params = {"n": 16, "seed": 0}
-    part = scenarios.get("particles")
-    ref = converged.converged_positions(part, params, 0.001, 3000)
-    e = [converged.position_error(*converged.converged_positions(part, params, dt, round(3.0 / dt)), *ref)["error"]
-         for dt in (0.02, 0.004)]
-    assert e[0] > e[1] > 0
-    p = {"contact": "none", "iters": 0}
-    proj = scenarios.get("projectile")
-    exact = proj.params(p)       # continuous limit of the no-contact case
-    T = 4.5
-    x, y = exact.vx0 * T, exact.vy0 * T + 0.5 * exact.gravity * T * T
-    dx, dy = x - exact.target_x, y - exact.target_y
-    loss, grad = converged.converged_loss_grad(proj, p, 0.0005, 9000)
-    assert abs(loss - (dx * dx + dy * dy)) / (dx * dx + dy * dy) < 1e-3
-    assert np.allclose(grad, [2 * dx * T, 2 * dy * T], rtol=1e-3)
 
 
 # ---- the sweep command ----------------------------------------------------------------------
@@ -199,7 +172,7 @@ def test_plan_comes_from_the_scenarios_sweeps():
         "saxpy", "sdf", "particles", "projectile"}
     proj = [(s, ref) for s, ref in err if s.scenario == "projectile"]
     assert {s.params.contact for s, _ in proj} == {"soft"}             # the sweep's default
-    assert all(ref["dt"] == min(s.params.dt for s, _ in proj) / 16 for _, ref in proj)
+    assert all(ref.dt == min(s.params.dt for s, _ in proj) / 16 for _, ref in proj)
     assert all("reference" not in s.tags for s, _ in err)                 # not the cell's identity
     hard = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--set", "contact=hard",
                    "--scenarios", "projectile,saxpy")
@@ -214,30 +187,6 @@ def test_plan_comes_from_the_scenarios_sweeps():
     assert {s.params.iters for s, _ in hz} == {0} and {s.precision for s, _ in hz} == {"float32", "float64"}
 
 
-def test_old_records_are_upgraded_to_tags():
-    old = {"scenario": "saxpy", "backend": "warp", "device": "cpu", "precision": "float32",
-           "variant": "default", "params": {"n": 1024}, "sweep": "bandwidth", "role": "saxpy",
-           "knob": {"name": "n", "value": 1024}, "status": "ok"}
-    new = upgrade_record(old)
-    assert new["tags"] == {"sweep": "bandwidth", "role": "bandwidth", "knob": {"name": "n", "value": 1024}}
-    assert not {"sweep", "role", "knob"} & set(new) and new["params"] == {"n": 1024}
-    assert upgrade_record(new) is new
-    err = upgrade_record({**old, "scenario": "sdf", "sweep": "error", "role": "sdf", "knob": {}})
-    assert err["tags"] == {"sweep": "error", "role": "sdf", "knob": {}}
-    store = Store(ROOT / "unused.json", "sweep",
-                  records=[Record.from_json(new), Record.from_json(upgrade_record(dict(old)))])
-    assert len(store.records) == 1                 # the same cell, old or new shape: one key
-
-
-def test_old_files_upgrade_without_importing_the_suite():
-    """The store upgrades a format-1 file's records itself (no import side effect needed), so
-    saving it never writes old-shape records under format 2."""
-    code = ("from compare.results.store import Store; s = Store.read('tests/data/format1-sweep.json', 'sweep'); "
-            "assert s.upgraded_from == 1 and s.records and all(r.tags is not None for r in s.records), 'not upgraded'")
-    p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
-    assert p.returncode == 0, p.stderr
-
-
 @pytest.mark.parametrize("published,device,old_format", [
     ("docs/results/cpu/sweep.json", "cpu", None),    # today's format
     ("tests/data/format1-sweep.json", "cuda", 1)])   # a format-1 file, upgraded on reading
@@ -245,7 +194,7 @@ def test_published_sweep_file_still_renders(tmp_path, published, device, old_for
     store = Store.read(ROOT / published, "sweep")
     assert store.upgraded_from == old_format
     data = sweep.contents(store)
-    assert all(r.tags is not None for r in data["records"])
+    assert all(r.tags is not None for r in data.records)
     text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
     for heading in (f"## {device}: launch overhead", f"## {device}: copy bandwidth (roofline)",
                     f"## {device}: SAXPY bandwidth against size", "### projectile",

@@ -8,19 +8,45 @@ place a scenario's name appears is its module's file name.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import pkgutil
-from typing import Any, ClassVar
+from typing import Callable, ClassVar, Mapping
 
 import numpy as np
 
 import scenarios
-from compare.sweep.converged import dt_reference
-from scenarios.base import Precision
+from compare.results.record import Record
+from compare.sweep.converged import Cache, Converged, Param, Reference, Solution, dt_reference
+from scenarios.base import Precision, Scenario
 
 CHECK_SAMPLE = 1 << 16     # items checked against the oracle in large per-item sweep cells
+Outputs = dict[str, np.ndarray]       # a cell's output arrays, by name (the worker hands them back)
 
-Point = dict[str, Any]
+
+@dataclasses.dataclass(frozen=True)
+class Knob:
+    """What a sweep point varies, as the page names it: the parameter and its value (None where
+    the cell itself says it: the precision, the variant)."""
+    name: str
+    value: Param | None = None
+
+    def to_json(self) -> dict[str, Param | None]:
+        """The cell's ``tags.knob`` (stored with the record; the page reads it back)."""
+        return {"name": self.name, "value": self.value}
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    """One point of a sweep: the scenario parameters it sets (the rest are the scenario's
+    defaults; the suite resolves them), the knob it varies (None: nothing to show), its
+    converged-error reference (None: the scenario's default), and what it sets in its cell's spec
+    (``compare.spec.Cell``; the defaults are the spec's)."""
+    params: Mapping[str, Param]
+    knob: Knob | None = None
+    reference: Reference | None = None
+    check_sample: int = 0          # check a sample of this many items (large per-item cells)
+    save_outputs: bool = True      # False: the outputs are not handed back (large cells)
 
 
 class Sweeps:
@@ -48,34 +74,30 @@ class Sweeps:
     large_sampled: ClassVar[bool] = False
 
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
-        """The points of sweep ``kind`` ('bandwidth', 'error', 'scaling', 'horizon') on ``device``.
-
-        Each point: {'params': {...}, 'knob': {'name', 'value'}} (knob optional), plus optional
-        cell-spec options ('check_sample', 'save_outputs') and 'reference' (what
-        ``converged_error`` compares against, e.g. the dt of a converged rollout: a property of
-        the sweep, not of the cell, so it is handed back to ``converged_error``, never stored
-        in the cell's identity)."""
+        """The points of sweep ``kind`` ('bandwidth', 'error', 'scaling', 'horizon') on ``device``
+        (``quick``: the few, small points of --quick)."""
         return []
 
-    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
-                        record: dict[str, Any], cache: dict[Any, Any],
-                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
-        """Error of an error-sweep cell against a converged float64 reference of the same quantity:
-        {'error': ..., 'metric': ..., 'reference': {...}, ...}, or None when it cannot be measured
-        (e.g. the outputs were not kept). ``params``: the cell's parameters; ``record``: its
-        record; ``cache``: a dict the suite keeps for a whole run, for memoising references;
-        ``reference``: the point's 'reference' (None: the scenario's default)."""
+    def converged_error(self, params: Mapping[str, Param], outputs: Outputs | None, record: Record,
+                        cache: Cache, reference: Reference | None = None) -> Converged | None:
+        """Error of an error-sweep cell against a converged float64 reference of the same
+        quantity, or None when it cannot be measured (e.g. the outputs were not kept).
+        ``params``: the cell's parameters; ``record``: its record; ``cache``: kept by the suite
+        for a whole run, for memoising references; ``reference``: the point's (None: the
+        scenario's default)."""
         return None
 
-    def against_dt_reference(self, params: dict[str, Any], outputs: dict[str, np.ndarray],
-                             cache: dict[Any, Any], reference: dict[str, Any] | None, default_dt: float,
-                             converge: Any, error: Any, t: float, names: tuple[str, ...]) -> dict[str, Any]:
+    def against_dt_reference(self, params: Mapping[str, Param], outputs: Outputs, cache: Cache,
+                             reference: Reference | None, default_dt: float,
+                             converge: Callable[[Scenario, Mapping[str, Param], float, int], Solution],
+                             error: Callable[..., dict[str, float]], t: float,
+                             names: tuple[str, ...]) -> Converged:
         """The error of ``outputs[names]`` at simulated time ``t`` against a float64 rollout at
         the point's reference dt (``default_dt`` without one): ``converge`` computes a reference,
         ``error(*outputs, *reference)`` compares (compare/sweep/converged.py)."""
         ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference, default_dt, converge,
                                  lambda a, b: error(*a, *b)["error"], t)
-        return {**error(*(outputs[k] for k in names), *ref), "metric": self.error_metric, "reference": info}
+        return Converged.of(error(*(outputs[k] for k in names), *ref), self.error_metric, info)
 
     def state_bytes_per_step(self, precision: Precision) -> float | None:
         """Bytes of state one item carries per step: the least a tape storing every step keeps

@@ -15,8 +15,7 @@ class CopySweeps(Sweeps):
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind != "bandwidth" or (device, quick) not in COPY_N:
             return []
-        return [{"params": {"n": COPY_N[device, quick]}, "check_sample": CHECK_SAMPLE,
-                 "save_outputs": False}]
+        return [Point({"n": COPY_N[device, quick]}, check_sample=CHECK_SAMPLE, save_outputs=False)]
 
 
 SWEEPS = CopySweeps()

@@ -8,7 +8,7 @@ class LaunchSweeps(Sweeps):
     measures = "launch"          # the trivial-launch overhead yardstick
 
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
-        return [{"params": {"n": 1}}] if kind == "bandwidth" else []
+        return [Point({"n": 1})] if kind == "bandwidth" else []
 
 
 SWEEPS = LaunchSweeps()

@@ -1,13 +1,12 @@
 """The particles scenario's part in the measurement sweeps (``compare.sweep.points``)."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Mapping
 
-import numpy as np
-
+from compare.results.record import Record
 from compare.sweep import converged
-from compare.sweep.converged import REF_FACTOR
-from compare.sweep.points import Point, Sweeps
+from compare.sweep.converged import REF_FACTOR, Cache, Converged, Param, Reference
+from compare.sweep.points import Knob, Outputs, Point, Sweeps
 
 
 # Time-against-error sweep: dt halves down the list at a fixed simulated time PARTICLES_T (the
@@ -31,18 +30,16 @@ class ParticlesSweeps(Sweeps):
 
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind == "error":        # reference: the smallest dt / REF_FACTOR
-            ref = {"dt": min(PARTICLES_DT[quick]) / REF_FACTOR}
-            return [{"params": {"dt": dt, "steps": round(PARTICLES_T / dt)},
-                     "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in PARTICLES_DT[quick]]
+            ref = Reference(dt=min(PARTICLES_DT[quick]) / REF_FACTOR)
+            return [Point({"dt": dt, "steps": round(PARTICLES_T / dt)}, Knob("dt", dt), ref)
+                    for dt in PARTICLES_DT[quick]]
         if kind == "scaling":      # no trajectory: every array is per particle, so sampled checks
-            return [{"params": {"n": n, "record_every": 0}, "knob": {"name": "n", "value": n},
-                     "check_sample": SCALING_CHECKED, "save_outputs": False}
-                    for n in PARTICLES_N.get((device, quick), ())]
+            return [Point({"n": n, "record_every": 0}, Knob("n", n), check_sample=SCALING_CHECKED,
+                          save_outputs=False) for n in PARTICLES_N.get((device, quick), ())]
         return []
 
-    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
-                        record: dict[str, Any], cache: dict[Any, Any],
-                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    def converged_error(self, params: Mapping[str, Param], outputs: Outputs | None, record: Record,
+                        cache: Cache, reference: Reference | None = None) -> Converged | None:
         """Positions at PARTICLES_T against a float64 rollout at the sweep point's reference dt
         (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:

@@ -1,13 +1,14 @@
 """The projectile scenario's part in the measurement sweeps (``compare.sweep.points``)."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Mapping
 
 import numpy as np
 
+from compare.results.record import Record
 from compare.sweep import converged
-from compare.sweep.converged import REF_FACTOR
-from compare.sweep.points import Point, Sweeps
+from compare.sweep.converged import REF_FACTOR, Cache, Converged, Param, Reference
+from compare.sweep.points import Knob, Outputs, Point, Sweeps
 from scenarios.base import dtype_of
 from scenarios.base import Precision
 
@@ -22,7 +23,7 @@ PROJECTILE_CONTACT = "soft"
 # bounce), 21 evaluations per run; 64 trajectories of each batch checked against the oracle.
 BATCH_SWEEP = {("cuda", False): tuple(4**k for k in range(11)), ("cpu", False): tuple(16**k for k in range(5)),
                ("cuda", True): (1, 64, 4096), ("cpu", True): (1, 16, 256)}
-BATCH_SWEEP_PARAMS = {"contact": "hard", "iters": 20}
+BATCH_SWEEP_PARAMS: dict[str, Param] = {"contact": "hard", "iters": 20}
 # Horizon sweep (one loss + gradient per trajectory at a fixed batch): AD memory per trajectory-
 # step and the share of gradients that agree with finite differences, per contact model. Soft
 # contact stops at 2000 steps: its oracle bound costs O(steps^2) per checked trajectory.
@@ -40,23 +41,20 @@ class ProjectileSweeps(Sweeps):
 
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind == "scaling":     # gradient throughput against the batch
-            return [{"params": {"batch": b, **BATCH_SWEEP_PARAMS}, "knob": {"name": "batch", "value": b},
-                     "save_outputs": False} for b in BATCH_SWEEP[(device, quick)]]
+            return [Point({"batch": b, **BATCH_SWEEP_PARAMS}, Knob("batch", b), save_outputs=False)
+                    for b in BATCH_SWEEP[(device, quick)]]
         if kind == "horizon":     # AD memory and gradient quality against the horizon
             batch = HORIZON_BATCH[(device, quick)]
-            return [{"params": {"steps": n, "contact": c, "iters": 0, "batch": batch},
-                     "knob": {"name": "steps", "value": n}, "save_outputs": False}
+            return [Point({"steps": n, "contact": c, "iters": 0, "batch": batch}, Knob("steps", n), save_outputs=False)
                     for c, ns in HORIZON_STEPS[quick].items() for n in ns]
         if kind != "error":
             return []
-        ref = {"dt": min(PROJECTILE_DT[quick]) / REF_FACTOR}   # reference: the smallest dt / REF_FACTOR
-        return [{"params": {"dt": dt, "steps": round(PROJECTILE_T / dt), "iters": 0,
-                            "contact": PROJECTILE_CONTACT},
-                 "knob": {"name": "dt", "value": dt}, "reference": ref} for dt in PROJECTILE_DT[quick]]
+        ref = Reference(dt=min(PROJECTILE_DT[quick]) / REF_FACTOR)   # the smallest dt / REF_FACTOR
+        return [Point({"dt": dt, "steps": round(PROJECTILE_T / dt), "iters": 0, "contact": PROJECTILE_CONTACT},
+                      Knob("dt", dt), ref) for dt in PROJECTILE_DT[quick]]
 
-    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
-                        record: dict[str, Any], cache: dict[Any, Any],
-                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    def converged_error(self, params: Mapping[str, Param], outputs: Outputs | None, record: Record,
+                        cache: Cache, reference: Reference | None = None) -> Converged | None:
         """Loss and gradient at v0 against a float64 rollout + adjoint at the sweep point's
         reference dt (default: the full sweep's smallest dt / REF_FACTOR)."""
         if outputs is None:

@@ -1,12 +1,12 @@
 """The saxpy scenario's part in the measurement sweeps (``compare.sweep.points``)."""
 from __future__ import annotations
 
-from typing import Any
-
-import numpy as np
+from typing import Mapping
 
 import scenarios
-from compare.sweep.points import CHECK_SAMPLE, Point, Sweeps
+from compare.results.record import Record
+from compare.sweep.converged import Cache, Converged, Param, Reference, ReferenceInfo
+from compare.sweep.points import CHECK_SAMPLE, Knob, Outputs, Point, Sweeps
 
 
 # Bandwidth-sweep sizes per (device, quick), exponents of 2: CPU sizes stop where a cell still
@@ -26,20 +26,20 @@ class SaxpySweeps(Sweeps):
 
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind == "bandwidth":
-            return [{"params": {"n": 1 << e}, "knob": {"name": "n", "value": 1 << e},
-                     "check_sample": CHECK_SAMPLE, "save_outputs": False}
+            return [Point({"n": 1 << e}, Knob("n", 1 << e), check_sample=CHECK_SAMPLE, save_outputs=False)
                     for e in SAXPY_EXP.get((device, quick), ())]
         if kind == "error":        # knobs: precision and variant only
-            return [{"params": {"n": scenarios.get(self.scenario).params(quick=quick).n},
-                     "knob": {"name": "precision", "value": None}}]
+            return [Point({"n": scenarios.get(self.scenario).params(quick=quick).n}, Knob("precision"))]
         return []
 
-    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
-                        record: dict[str, Any], cache: dict[Any, Any],
-                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
-        """The oracle's error is already converged: float64 of the same rounded inputs."""
-        return {"error": record["error"]["vs_oracle"], "metric": self.error_metric,
-                "reference": {"note": "float64 oracle of the same rounded inputs"}}
+    def converged_error(self, params: Mapping[str, Param], outputs: Outputs | None, record: Record,
+                        cache: Cache, reference: Reference | None = None) -> Converged | None:
+        """The oracle's error is already converged: float64 of the same rounded inputs (None
+        without the record's check)."""
+        if record.error is None:
+            return None
+        return Converged(record.error.vs_oracle, self.error_metric,
+                         ReferenceInfo("float64 oracle of the same rounded inputs"))
 
 
 SWEEPS = SaxpySweeps()

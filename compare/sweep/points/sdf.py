@@ -1,13 +1,12 @@
 """The sdf scenario's part in the measurement sweeps (``compare.sweep.points``)."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Mapping
 
-import numpy as np
-
+from compare.results.record import Record
 from compare.sweep import converged
-from compare.sweep.converged import SDF_EVAL
-from compare.sweep.points import Point, Sweeps
+from compare.sweep.converged import SDF_EVAL, Cache, Converged, Param, Reference, ReferenceInfo
+from compare.sweep.points import Knob, Outputs, Point, Sweeps
 
 
 # Time-against-error sweep: resolutions r x r per (device, quick).
@@ -23,16 +22,14 @@ class SdfSweeps(Sweeps):
     def points(self, kind: str, device: str, quick: bool) -> list[Point]:
         if kind != "error":
             return []
-        return [{"params": {"width": r, "height": r}, "knob": {"name": "resolution", "value": r}}
-                for r in SDF_RES.get((device, quick), ())]
+        return [Point({"width": r, "height": r}, Knob("resolution", r)) for r in SDF_RES.get((device, quick), ())]
 
-    def converged_error(self, params: dict[str, Any], outputs: dict[str, np.ndarray] | None,
-                        record: dict[str, Any], cache: dict[Any, Any],
-                        reference: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    def converged_error(self, params: Mapping[str, Param], outputs: Outputs | None, record: Record,
+                        cache: Cache, reference: Reference | None = None) -> Converged | None:
         if outputs is None:
             return None
-        return {**converged.reconstruction_error(outputs["image"], cache), "metric": self.error_metric,
-                "reference": {"eval_grid": SDF_EVAL, "note": "analytic field, float64"}}
+        return Converged.of(converged.reconstruction_error(outputs["image"], cache), self.error_metric,
+                            ReferenceInfo("analytic field, float64", eval_grid=SDF_EVAL))
 
 
 SWEEPS = SdfSweeps()
