@@ -15,12 +15,14 @@ set -u
 W=/root/percall
 WAIT=${WAIT:-540}
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 COMPARE_GIT_COMMIT=${COMMIT:-}
-# ROW picks the rows: percall (SAXPY n = 10^6, every variant) or gradients (the batched projectile
+# ROW picks the rows: percall (SAXPY n = 10^6, every variant), defaults, or gradients (the batched projectile
 # at the scaling sweep's largest point: batch 2^20, hard contact, 20 iterations; both gradient rows).
 case ${ROW:-percall} in
   percall) run="python -m compare run saxpy --devices cuda --precision float32 --variants all --processes 6 --no-plots" ;;
   gradients) run="python -m compare run projectile --devices cuda --precision float32 --set batch=1048576 --set contact=hard --set iters=20 --processes 6 --against none --no-plots" ;;
-  *) echo "ROW: percall or gradients"; exit 2 ;;
+  # defaults: the four scenarios at their defaults, default variants (the accuracy and first-call rows)
+  defaults) run="python -m compare all --devices cuda --precision float32 --processes ${PROCESSES:-3} --against none --no-plots" ;;
+  *) echo "ROW: percall, gradients or defaults"; exit 2 ;;
 esac
 if [ "${1:-wait}" = start ]; then
   [ -n "${COMMIT:-}" ] || { echo "name the commit: COMMIT=<sha> bash $0 start"; exit 2; }
