@@ -11,7 +11,6 @@ a store can save it before the next cell starts.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import threading
 from typing import Any, Callable, Iterable, Mapping, TypedDict, cast
 
@@ -19,7 +18,7 @@ import numpy as np
 
 import backends
 import scenarios
-from compare.running import cells, repeats
+from compare.running import cells
 from compare.results.record import Record, RecordError
 from compare.spec import IDENTITY, Cell, as_cell, key
 from compare.results.store import Store, jsonable
@@ -119,9 +118,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
               refuse: Callable[[Cell], tuple[str, str] | None] | None = None,
-              ahead: int = 0, footprint: Callable[[Cell], float] | None = None,
-              processes: int | str = 1, seed: int = 0,
-              on_repeat: Callable[[dict[str, Any]], None] | None = None) -> list[Result]:
+              ahead: int = 0, footprint: Callable[[Cell], float] | None = None) -> list[Result]:
     """Run every cell in a worker process; returns (record, outputs) per cell, in order. A dict
     is decoded into its Cell (``Cell.from_dict``) first.
 
@@ -140,10 +137,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     Every record is typed once (``Record.from_json``, with ``check``: its suite's own check,
     ``compare.results.formats``); ``on_record`` maps it to the record the store keeps (a function from
     Record to Record: it may add a yardstick, a run stamp, a converged error), checked again;
-    a record that fails a check becomes an ``error`` record of its cell.
-    ``processes``: more than 1 (or 'auto') times every cell that ran ok again in further worker
-    processes, in seeded rounds, and adds ``time.processes`` to its record (``compare.running.repeats``);
-    ``on_repeat`` sees each repeat process's ``time`` block (its parts, for the run's summary).
+    a record that fails a check becomes an ``error`` record of its cell. The plan runs once: the
+    repeats across processes (--processes) are the driver's (``compare.suites.driver.more_processes``).
     """
     plan = [as_cell(s) for s in specs]
     probes = probes if probes is not None else availability({c.backend for c in plan})
@@ -215,39 +210,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
                                lane=gpu_lane)
     else:
         pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
-    if repeats.plan(processes)[1] > 1:
-        ran = [i for idx in groups.values() for i in idx]
-        _more_processes(plan, done, ran, processes, seed, timeout, runner, store, lock, on_repeat)
     return [r for r in done if r is not None]
-
-
-def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int], processes: int | str,
-                    seed: int, timeout: float, runner: Callable[[Cell], cells.Result] | None,
-                    store: Store | None, lock: threading.Lock,
-                    on_repeat: Callable[[dict[str, Any]], None] | None = None) -> None:
-    """The repeat processes of every cell of ``ran`` that finished ok (``compare.running.repeats``)."""
-    first = {i: got[0].time for i in ran if (got := done[i]) is not None
-             and got[0].status == "ok" and got[0].time is not None}
-
-    def time_one(i: int) -> dict[str, Any] | None:
-        cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
-        rec, _ = runner(cell) if runner is not None else cells.run(cell, timeout)
-        if on_repeat is not None and rec.get("time"):
-            on_repeat(rec["time"])
-        return rec.get("time") if rec.get("status") == "ok" else None
-
-    def on_round(blocks: dict[int, dict[str, Any]]) -> None:
-        with lock:
-            for i, block in blocks.items():
-                rec, out = done[i]            # type: ignore[misc]
-                j = rec.to_json()
-                j["time"] = {**j["time"], "processes": block}
-                done[i] = (Record.from_json(jsonable(j)), out)
-                if store is not None:
-                    store.put(done[i][0])     # type: ignore[index]
-            if store is not None:
-                store.save()
-    repeats.run_rounds(first, processes, seed, time_one, on_round)
 
 
 QUIET_LINE_S = 300.0     # not a terminal: a progress line at least this often while cells run

@@ -87,15 +87,3 @@ def test_a_run_with_three_processes_keeps_all_three(tmp_path):
     block = rec["time"]["processes"]
     assert block["count"] == 3 and len(block["latency"]["values"]) == 3 and len(block["first_result"]["values"]) == 3
     assert doc["runs"][0]["processes"] == 3
-
-
-def test_the_engine_hands_each_repeat_process_to_on_repeat():
-    """The run's closing 'where the time went' counts the repeat processes' parts too."""
-    from compare.running import engine
-    from compare.spec import Cell
-    cell = Cell.make(scenario="saxpy", backend="numpy", device="cpu", precision="float32", quick=True,
-                     repeat=3, min_time=0.0)
-    seen: list[dict] = []
-    [(rec, _)] = engine.run_cells([cell], timeout=300, processes=3, on_repeat=seen.append)
-    assert rec.status == "ok" and rec.time["processes"]["count"] == 3
-    assert len(seen) == 2 and all("phases" in t for t in seen)
