@@ -27,7 +27,8 @@ from compare.planning.calibrate import Refusal
 from compare.running.lock import DirectoryLock
 from compare.options import UsageError
 from compare.results.record import Record
-from compare.results.store import Store, jsonable
+from compare.results.record_parts import Processes, Timing
+from compare.results.store import Store
 from compare.spec import Cell, key
 
 X = TypeVar("X")
@@ -126,7 +127,7 @@ class Suite(Command):
         suite adds to a record (a new record: records are immutable) or reports it."""
         return rec
 
-    def on_repeat(self, block: dict[str, Any]) -> None:
+    def on_repeat(self, block: Timing) -> None:
         """The ``time`` block of every repeat process (--processes)."""
 
     @property
@@ -219,26 +220,26 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
 
 def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], processes: int | str,
                    seed: int, timeout: float, runner: Callable[[Cell], cells_.Result] | None = None,
-                   store: Store | None = None, on_repeat: Callable[[dict[str, Any]], None] | None = None) -> None:
+                   store: Store | None = None, on_repeat: Callable[[Timing], None] | None = None) -> None:
     """The repeat processes of every cell of ``ran`` whose first process finished ok, in seeded
     rounds (``compare.running.repeats.run_rounds``): each round's ``time.processes`` replaces the
     record's in ``done`` and in the store, saved once a round. ``on_repeat`` sees each repeat
     process's ``time`` block (its parts, for the run's summary)."""
     first = {i: got[0].time for i in ran if (got := done[i])[0].status == "ok" and got[0].time is not None}
 
-    def time_one(i: int) -> dict[str, Any] | None:
+    def time_one(i: int) -> Timing | None:
         cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
         rec, _ = runner(cell) if runner is not None else cells_.run(cell, timeout)
-        if on_repeat is not None and rec.get("time"):
-            on_repeat(rec["time"])
-        return rec.get("time") if rec.get("status") == "ok" else None
+        t = Timing.from_json(rec["time"]) if rec.get("time") else None     # the worker's JSON
+        if on_repeat is not None and t is not None:
+            on_repeat(t)
+        return t if rec.get("status") == "ok" else None
 
-    def on_round(blocks: dict[int, dict[str, Any]]) -> None:
+    def on_round(blocks: dict[int, Processes]) -> None:
         for i, block in blocks.items():
             rec, out = done[i]
-            j = rec.to_json()
-            j["time"] = {**j["time"], "processes": block}
-            done[i] = (Record.from_json(jsonable(j)), out)
+            assert rec.time is not None           # a cell of ``first``: its first process timed it
+            done[i] = (rec.replace(time=Timing.from_json({**rec.time, "processes": block})), out)
             if store is not None:
                 store.put(done[i][0])
         if store is not None:
