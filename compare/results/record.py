@@ -78,8 +78,8 @@ class Record:
     # what was measured, when the cell ran
     time: Timing | None = None          # first call, latency, throughput and graph regimes, noise
     error: Check | None = None          # against the float64 oracle and the reference backend
-    work: Block | None = None           # bytes, items, flops per call
-    throughput: Block | None = None     # work per second; the hardware floor and fraction
+    work: Mapping[str, float] | None = None     # bytes, items, flops per call
+    throughput: Block | None = None     # work per second; the hardware floor and fraction (mixed: figures and words)
     memory: Memory | None = None        # peak host RSS, device bytes
     gradient: Gradient | None = None    # how a gradient was obtained and its errors
     converged: Block | None = None      # the error sweep's distance to a converged reference
