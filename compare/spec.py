@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from typing import Any, TypeVar
+from typing import Any, NotRequired, TypedDict, TypeVar
 
 import scenarios
 from backends.base import Device
@@ -29,6 +29,20 @@ KEPT_ON_RESUME = ("ok", "mismatch", "skipped")
 
 class SpecError(ValueError):
     """A malformed cell or record; one line naming the first problem."""
+
+
+ParamValue = int | float | str | bool | None      # a scenario parameter's value (its Params' fields)
+
+
+class Identity(TypedDict):
+    """What names a cell in every record, as plain JSON (``Cell.identity``, ``Record.identity``)."""
+    scenario: str
+    backend: str
+    device: str
+    precision: str
+    variant: str
+    params: dict[str, ParamValue]
+    tags: NotRequired[dict[str, Any]]     # a suite's own, as its stored records keep them (sweep knob, stress)
 
 
 BUSY_TAG = "busy_cores"     # tags: a cell timed while this many other processes keep cores busy
@@ -147,10 +161,11 @@ class Cell:
                    params=dataclasses.asdict(self.params), tags=dict(self.tags))
         return out
 
-    def identity(self) -> dict[str, Any]:
+    def identity(self) -> Identity:
         """What every record of this cell carries to say which cell it is (``key`` of it), in
         plain JSON types as a record holds it."""
-        ident = {f: str(getattr(self, f)) for f in IDENTITY} | {"params": dataclasses.asdict(self.params)}
+        ident = Identity(scenario=self.scenario, backend=self.backend, device=str(self.device),
+                         precision=str(self.precision), variant=self.variant, params=dataclasses.asdict(self.params))
         if self.tags:
             ident["tags"] = self.tags
         return ident
@@ -164,7 +179,7 @@ def as_cell(spec: Cell | dict[str, Any]) -> Cell:
     return spec if isinstance(spec, Cell) else Cell.from_dict(spec)
 
 
-def key(rec_or_spec: dict[str, Any]) -> str:
+def key(rec_or_spec: Identity | dict[str, Any]) -> str:   # or a stored record's JSON (samecheck)
     """The identity of a cell (spec or record) as a string: the same cell run twice has one key."""
     return json.dumps([rec_or_spec.get(f, "default" if f == "variant" else None) for f in IDENTITY]
                       + [rec_or_spec.get("params"), rec_or_spec.get("tags") or {}],

@@ -36,7 +36,7 @@ from typing import Any, Callable, Mapping
 
 from compare.results import records
 from compare.results.record_parts import PARTS, Check, Gradient, Hardware, Memory, Part, Regime, Timing, plain
-from compare.spec import key as cell_key
+from compare.spec import Identity, key as cell_key
 from scenarios.base import Precision
 
 FORMAT_VERSION = 2
@@ -145,11 +145,13 @@ class Record:
         return cell_key(self.identity)
 
     @property
-    def identity(self) -> dict[str, Any]:
+    def identity(self) -> Identity:
         """Scenario, backend, device, precision, variant, and the params and tags it has, as
         plain JSON: what names the cell (its key, its saved arrays' file)."""
-        ident = {f: getattr(self, f) for f in ("scenario", "backend", "device", "precision", "variant")}
-        ident.update({f: plain(getattr(self, f)) for f in ("params", "tags") if getattr(self, f) is not None})
+        ident = Identity(scenario=self.scenario, backend=self.backend, device=self.device, precision=self.precision,
+                         variant=self.variant, params=plain(self.params))
+        if self.tags is not None:
+            ident["tags"] = plain(self.tags)
         return ident
 
 

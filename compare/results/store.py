@@ -32,7 +32,7 @@ from compare.results.formats import FORMATS
 from compare.results.record import FORMAT_VERSION, Record, RecordError
 from compare.results.records import arrays_problem, store_problem
 from compare.results.records import show as _show
-from compare.spec import KEPT_ON_RESUME
+from compare.spec import KEPT_ON_RESUME, Identity
 
 SUITES = {name: f.file for name, f in FORMATS.items()}     # suite -> its file's name
 
@@ -266,7 +266,7 @@ class Store:
 _NAME = re.compile(r"[A-Za-z0-9_]+")
 
 
-def array_file(directory: Path, cell: Mapping[str, Any]) -> Path:
+def array_file(directory: Path, cell: Identity | Mapping[str, Any]) -> Path:   # or a stored record's JSON
     """``DIR/arrays/<scenario>-<backend>-<device>-<precision>[-<variant>].npz`` of a cell (a loaded
     record's ``identity``, or the JSON of one being written); the parts come from a record, so each
     must be a plain name (letters, digits, '_'): no path can leave arrays/."""
@@ -280,7 +280,7 @@ def array_file(directory: Path, cell: Mapping[str, Any]) -> Path:
     return Path(directory) / "arrays" / ("-".join(parts) + ".npz")
 
 
-def save_arrays(directory: Path, cell: Mapping[str, Any], arrays: dict[str, np.ndarray]) -> None:
+def save_arrays(directory: Path, cell: Identity, arrays: dict[str, np.ndarray]) -> None:
     import io
     buf = io.BytesIO()
     # (numpy's stubs read ** as possibly setting savez's allow_pickle: bool)
@@ -288,7 +288,7 @@ def save_arrays(directory: Path, cell: Mapping[str, Any], arrays: dict[str, np.n
     atomic_write(array_file(directory, cell), buf.getvalue())
 
 
-def load_arrays(directory: Path, cell: Mapping[str, Any], names: Iterable[str]) -> dict[str, np.ndarray] | None:
+def load_arrays(directory: Path, cell: Identity, names: Iterable[str]) -> dict[str, np.ndarray] | None:
     """The named arrays of a cell saved beside a results file, or None (absent or unreadable:
     a truncated file must not take a report down)."""
     try:

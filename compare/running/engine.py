@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import threading
-from typing import Any, Callable, Iterable, Mapping, TypedDict, cast
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
@@ -20,23 +20,18 @@ import backends
 import scenarios
 from compare.running import cells
 from compare.results.record import Record, RecordError
-from compare.spec import IDENTITY, Cell, as_cell, key
+from compare.spec import IDENTITY, Cell, Identity, as_cell, key
 from compare.results.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
 Result = tuple[Record, Outputs | None]
 
 
-class Probe(TypedDict):
-    """What probing one backend found (``cells.probe``): per device None (usable) or why not."""
-    available: dict[str, str | None]
-    versions: dict[str, Any]
-
-
+Probe = cells.Probe
 Probes = dict[str, Probe]       # backend -> its probe
 
 
-def gpu_lane(item: Cell | dict[str, Any]) -> Any:
+def gpu_lane(item: Cell | dict[str, Any]) -> Any:    # or a stress task's JSON dict (compare.stress)
     """Cells (or a suite's tasks: dicts with 'backend' and 'device') that must not overlap:
     those of one backend on one GPU (None: no constraint).
 
@@ -77,7 +72,7 @@ def availability(names: Iterable[str]) -> Probes:
     (each backend in its own process: probing imports the framework)."""
     names = list(names)
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(names))) as pool:
-        return {n: cast(Probe, p) for n, p in zip(names, pool.map(cells.probe, names))}
+        return dict(zip(names, pool.map(cells.probe, names)))
 
 
 def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
@@ -100,8 +95,8 @@ def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
     return None
 
 
-def typed(obj: dict[str, Any], ident: Mapping[str, Any],
-          check: Callable[[dict[str, Any]], str | None] | None) -> Record:
+def typed(obj: dict[str, Any], ident: Identity,            # the record's JSON, from the worker or a file
+          check: Callable[[dict[str, Any]], str | None] | None) -> Record:   # a check of that JSON
     """A cell's record, checked; one that no reader could load fails its cell, not the whole file."""
     try:
         return Record.from_json(obj, check=check)
@@ -110,6 +105,7 @@ def typed(obj: dict[str, Any], ident: Mapping[str, Any],
                                  "time": None, "error": None})
 
 
+# specs: a stress task's JSON dict is decoded (Cell.from_dict); check: of the record's stored JSON
 def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
               probes: Probes | None = None,
               on_record: Callable[[int, Record, Outputs | None], Record] | None = None,
@@ -147,6 +143,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     failed: list[BaseException] = []
     idents = [c.identity() for c in plan]
 
+    # got: the worker's JSON (or a kept record's, --resume)
     def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:
         inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
         if inputs and out is not None:

@@ -124,7 +124,7 @@ def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> OwnTimer | 
             got = be.own_latency(device, lambda: sync(run()))
             if got is None:             # the framework ships no timer: nothing more to time
                 return None
-            last: dict[str, Any] = got
+            last = got
             times = timing.until(lambda: timing.call(run, sync), 10, OWN_TIMER_S, 1.0, 100_000)
             theirs.append(got["median_s"])
             ours.append(in_blocks(times, int(got.get("block") or 1)))
@@ -137,7 +137,7 @@ def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> OwnTimer | 
                                "rounds": CROSS_ROUNDS})
 
 
-def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, Any]) -> str | None:
+def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, np.ndarray]) -> str | None:
     """The first way the kernel's outputs break the scenario's declared contract, or None."""
     want = sc.output_shapes(params)
     missing = [k for k in want if k not in outputs]
@@ -156,7 +156,7 @@ def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict
     return None
 
 
-def device_memory(be: Backend, device: Device) -> dict[str, Any]:
+def device_memory(be: Backend, device: Device) -> dict[str, int | float | str]:
     """The backend's own device-memory figures; a failing reader is noted, not fatal."""
     try:
         return be.memory(device)
@@ -347,7 +347,7 @@ def busy_cores(n: int) -> Iterator[None]:
             p.wait()
 
 
-def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
+def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver's JSON of the cell
     """One cell of the batch: its record (and outputs) in ``cell_dir``, whatever happens."""
     laps = phases.Laps(phases.since_launch() if not _SET_UP else 0.0)   # the process start: first cell only
     cell_dir.mkdir(parents=True, exist_ok=True)
