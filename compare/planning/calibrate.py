@@ -58,7 +58,7 @@ def items(cell: Cell) -> float:
     return _items(scenarios.get(cell.scenario), cell.params, cell.precision)
 
 
-def predict(cell: Cell, small: Cell, record: dict[str, Any]) -> tuple[float, float]:
+def predict(cell: Cell, small: Cell, record: dict[str, Any]) -> tuple[float, float]:   # the worker's JSON
     """(seconds the big cell's protocol takes, seconds of one of its calls) from its miniature's
     record."""
     sc = scenarios.get(cell.scenario)
@@ -84,7 +84,7 @@ def _when(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
-Miniatures = dict[tuple[Any, ...], tuple[Cell, dict[str, Any]]]
+Miniatures = dict[tuple[Any, ...], tuple[Cell, dict[str, Any]]]     # (miniature, its worker's record JSON)
 
 
 def run_miniatures(plan: list[Cell], timeout: float | None, factor: int = FACTOR,
