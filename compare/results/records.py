@@ -38,22 +38,25 @@ class Leaf:
 
 @dataclasses.dataclass(frozen=True)
 class Obj:
-    fields: Mapping[str, Any] = dataclasses.field(default_factory=dict)   # name -> node
+    fields: Mapping[str, Node] = dataclasses.field(default_factory=dict)   # name -> node
     required: tuple[str, ...] = ()
-    rest: Any = None                # the node of every other key (None: not read, anything goes)
+    rest: Node | None = None        # the node of every other key (None: not read, anything goes)
     null: bool = True               # null may stand for the object (readers write `x or {}`)
 
 
 @dataclasses.dataclass(frozen=True)
 class Seq:
-    item: Any
+    item: Node
     null: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
 class Either:
     what: str
-    options: tuple[Any, ...]
+    options: tuple[Node, ...]
+
+
+Node = Leaf | Obj | Seq | Either      # a schema: what one JSON value must be
 
 
 def _real(v: Any) -> bool:
