@@ -77,7 +77,7 @@ class Cell:
     precision: Precision
     variant: str = "default"
     params: Any = None                  # the scenario's Params dataclass, resolved (None: defaults)
-    tags: dict[str, Any] = dataclasses.field(default_factory=dict)
+    tags: dict[str, Any] = dataclasses.field(default_factory=dict)  # as stored in its records
     warmup: int = 2                     # timing.steady_state: untimed calls after the first
     repeat: int = 10                    # ... then at least this many timed calls
     min_time: float = 0.2               # ... and at least this many timed seconds
@@ -138,7 +138,7 @@ class Cell:
                    variant, resolved, **settings)
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "Cell":
+    def from_dict(cls, d: dict[str, Any]) -> "Cell":     # worker / Dask JSON
         """The decode of ``to_dict`` (in a worker, a Dask task). A hand-written dict may also
         give ``params`` as overrides and ``quick`` (see ``make``)."""
         if not isinstance(d, dict):
@@ -154,7 +154,7 @@ class Cell:
         except TypeError as exc:
             raise SpecError(f"cell spec: {exc}") from None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:     # worker / Dask JSON
         """Plain JSON types: the parameters as a mapping, device and precision as their names."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out.update(device=str(self.device), precision=str(self.precision),
@@ -174,7 +174,7 @@ class Cell:
         return key(self.identity())
 
 
-def as_cell(spec: Cell | dict[str, Any]) -> Cell:
+def as_cell(spec: Cell | dict[str, Any]) -> Cell:     # or its JSON (a stress task, a Dask task)
     """A Cell, or the decode of one given as a dict (``Cell.from_dict``)."""
     return spec if isinstance(spec, Cell) else Cell.from_dict(spec)
 

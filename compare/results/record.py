@@ -114,8 +114,8 @@ class Record:
             object.__setattr__(self, "layout", have + tuple(self.extra))
 
     @classmethod
-    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
-                  check: Callable[[dict[str, Any]], str | None] | None = None) -> Record:
+    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,  # stored JSON
+                  check: Callable[[dict[str, Any]], str | None] | None = None) -> Record:   # of stored JSON
         """The record a JSON object holds, validated; ``upgrade`` turns an older format's record
         into today's (applied once its basic shape is known good), ``check`` is its suite's own
         check (``compare.results.formats``) after the common schema's."""
@@ -130,7 +130,7 @@ class Record:
         named = {k: v for k, v in obj.items() if k in NAMED}
         return cls(**named, extra={k: v for k, v in obj.items() if k not in NAMED}, layout=tuple(obj))
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:     # the stored file's / worker's JSON
         """The record as the JSON object it was read from (plain dicts and lists)."""
         return {k: plain(getattr(self, k) if k in NAMED else self.extra[k]) for k in self.layout}
 

@@ -44,10 +44,10 @@ def _names(cls: type) -> frozenset[str]:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class Part(Mapping[str, Any]):
+class Part(Mapping[str, Any]):     # a read-only view of a stored JSON object
     """A JSON object with named, typed fields. ``layout`` is the object's keys in their order
     (which are present, null or not); ``extra`` holds the keys no field names."""
-    extra: Mapping[str, Any] = dataclasses.field(default_factory=dict, kw_only=True, repr=False)
+    extra: Mapping[str, Any] = dataclasses.field(default_factory=dict, kw_only=True, repr=False)  # stored JSON
     layout: tuple[str, ...] = dataclasses.field(default=(), kw_only=True, repr=False)
     NESTED: ClassVar[Mapping[str, type[Part]]] = {}      # field -> the part its object is
     RENAMED: ClassVar[Mapping[str, str]] = {}            # JSON key -> its field, where the key is a Mapping method
@@ -57,7 +57,7 @@ class Part(Mapping[str, Any]):
         return _names(cls)
 
     @classmethod
-    def from_json(cls, obj: Mapping[str, Any]) -> Self:
+    def from_json(cls, obj: Mapping[str, Any]) -> Self:     # stored / worker JSON
         """The part a (checked, ``compare.results.records``) JSON object holds, its keys kept in order."""
         names, kw, extra = cls.names(), {}, {}
         for k, v in obj.items():
@@ -76,7 +76,7 @@ class Part(Mapping[str, Any]):
         in the JSON; a field not given is absent); unnamed ones are kept as extra keys."""
         return cls.from_json(fields)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:     # stored / worker JSON
         return {k: plain(self[k]) for k in self.layout}
 
     # the read-only mapping of the JSON object
@@ -189,7 +189,7 @@ class Timing(Part):
     first_call_clock: str | None = None
     cache: str | None = None
     window: tuple[float, ...] | None = None      # epoch seconds the timed window opened and closed
-    noise: Mapping[str, Any] | None = None
+    noise: Mapping[str, Any] | None = None     # stored JSON (compare.measuring.noise.Noise when measured)
     processes: Processes | None = None   # over several worker processes (compare.running.repeats)
     phases: Mapping[str, float] | None = None
     host_profile: Mapping[str, Any] | None = None  # where the host's time per call goes (--host-profile)
@@ -217,7 +217,7 @@ class Check(Part):
     ill_conditioned: int | None = None
 
     @property
-    def details(self) -> Mapping[str, Any]:
+    def details(self) -> Mapping[str, Any]:     # the scenario's own, as stored
         """The scenario's own figures (``Scenario.check``'s details), by their names."""
         return self.extra
 

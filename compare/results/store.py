@@ -87,12 +87,12 @@ def jsonable(x: Any) -> Any:
 OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
 
 
-def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:  # a stored file's runs
     """The run environments one entry of a store's ``runs`` stands for: the entry itself, or for
     a merged report's entry (``environments``, written by ``compare report``) those it merged, in
     order (a merge of merges flattened; the store bounds their nesting). A ``stress --merge``
     entry is its own run's environment that also names its inputs (``merged_from``): kept."""
-    out: list[Mapping[str, Any]] = []
+    out: list[Mapping[str, Any]] = []     # stored JSON
     todo = [env]
     while todo:
         e = todo.pop(0)
@@ -130,7 +130,7 @@ def remove_stale_temps(directory: Path) -> list[Path]:
     return removed
 
 
-def _upgrade(data: Any, path: Path) -> dict[str, Any]:
+def _upgrade(data: Any, path: Path) -> dict[str, Any]:     # the file's JSON
     """Any supported layout -> format 2 (in memory), its records loaded (``Record.from_json``)."""
     if not isinstance(data, dict):
         raise StoreError(f"{path}: not a results file (top level is {type(data).__name__}, not an object)")
@@ -180,14 +180,14 @@ class Store:
     """Records of one suite in one JSON file, keyed by cell (a later record of a key replaces
     the earlier one); ``analysis`` is the suite's derived data."""
 
-    def __init__(self, path: Path, suite: str, runs: list[dict[str, Any]] | None = None,
-                 records: Iterable[Record] = (), analysis: dict[str, Any] | None = None,
+    def __init__(self, path: Path, suite: str, runs: list[dict[str, Any]] | None = None,  # stored JSON
+                 records: Iterable[Record] = (), analysis: dict[str, Any] | None = None,  # stored JSON
                  upgraded_from: int | None = None) -> None:
         if suite not in SUITES:
             raise ValueError(f"unknown suite {suite!r}")
         self.path, self.suite = Path(path), suite
-        self.runs: list[dict[str, Any]] = list(runs or [])
-        self.analysis: dict[str, Any] = dict(analysis or {})
+        self.runs: list[dict[str, Any]] = list(runs or [])     # the file's runs (JSON)
+        self.analysis: dict[str, Any] = dict(analysis or {})     # the file's analysis (JSON)
         self.upgraded_from = upgraded_from
         self._records: dict[str, Record] = {}
         for r in records:

@@ -106,10 +106,10 @@ def typed(obj: dict[str, Any], ident: Identity,            # the record's JSON, 
 
 
 # specs: a stress task's JSON dict is decoded (Cell.from_dict); check: of the record's stored JSON
-def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
+def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,  # stress: JSON
               probes: Probes | None = None,
               on_record: Callable[[int, Record, Outputs | None], Record] | None = None,
-              check: Callable[[dict[str, Any]], str | None] | None = None,
+              check: Callable[[dict[str, Any]], str | None] | None = None,  # of stored JSON
               runner: Callable[[Cell], cells.Result] | None = None,
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
@@ -144,7 +144,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     idents = [c.identity() for c in plan]
 
     # got: the worker's JSON (or a kept record's, --resume)
-    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:
+    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:  # worker JSON
         inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
         if inputs and out is not None:
             out = {**inputs, **out}

@@ -131,7 +131,7 @@ class Suite(Command):
         """The ``time`` block of every repeat process (--processes)."""
 
     @property
-    def check(self) -> Callable[[dict[str, Any]], str | None] | None:
+    def check(self) -> Callable[[dict[str, Any]], str | None] | None:     # of stored JSON
         """Its records' own check beyond the common schema (its store's format, ``compare.results.formats``)."""
         from compare.results.formats import FORMATS
         store = self.store()

@@ -134,7 +134,7 @@ def saved_outputs(directory: Path, records: list[Record],
                 outputs[i] = got
 
 
-def render(out: Path, env: dict[str, Any], records: list[Record],
+def render(out: Path, env: dict[str, Any], records: list[Record],  # env: the stored run's
            outputs: dict[int, dict[str, np.ndarray]], plots: bool, clean: bool = False) -> None:
     """Plots (``run_plots.write_plots``: speed, time against error, each scenario's picture; an
     earlier run's removed first when ``clean``) and results.csv/.md in ``out``."""
@@ -186,7 +186,7 @@ class RunStore(Store):
     """results.json whose every save also rewrites results.csv and results.md from the same
     records (each atomically), so after an interruption the three agree; ``rerun`` names kept
     cells that --resume runs again (their --save-arrays files are missing)."""
-    env: dict[str, Any] = {}
+    env: dict[str, Any] = {}     # the run's environment, stored in results.json
     rerun: frozenset[str] = frozenset()
 
     def save(self) -> None:
@@ -327,7 +327,7 @@ def report_command(args: argparse.Namespace) -> int:
     """Rebuild tables and plots from saved results.json files (merged), without running anything.
     Records from different machines are told apart by a 'machine' field (GPU model or host)."""
     records: list[Record] = []
-    envs: list[dict[str, Any]] = []
+    envs: list[dict[str, Any]] = []     # stored runs
     outputs: dict[int, dict[str, np.ndarray]] = {}
     options.no_duplicates(args.files, "report")
     for opt in ("title", "notes"):
@@ -353,7 +353,7 @@ def report_command(args: argparse.Namespace) -> int:
         return report_claimed(args, out, envs, records, outputs, notes)
 
 
-def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any]],
+def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any]],  # stored runs
                    records: list[Record], outputs: dict[int, dict[str, np.ndarray]], notes: str) -> int:
     if args.page:
         page = Path(args.page)
