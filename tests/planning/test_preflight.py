@@ -51,8 +51,7 @@ def test_cells_over_the_available_memory_are_skipped_and_the_rest_run(work, monk
     memory they need (the plain `compare projectile --set batch=2^20` on a GPU machine: its CPU
     cells' tapes do not fit, its CUDA cells do)."""
     import psutil
-    spec = lambda prec: {"scenario": "saxpy", "backend": "numpy", "device": "cpu",  # noqa: E731
-                         "precision": prec, "params": {"n": 1 << 16}}
+    spec = lambda prec: Cell.make("saxpy", "numpy", "cpu", prec, params={"n": 1 << 16})  # noqa: E731
     small, big = preflight.cell_bytes(spec("float32"))[0], preflight.cell_bytes(spec("float64"))[0]
     assert small < big
 
