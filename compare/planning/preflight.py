@@ -126,15 +126,15 @@ def measured_need(plan: list[Cell], timeout: float | None, minis: calibrate.Mini
     return lambda cell: needs.get(calibrate.key(cell))
 
 
-def _extrapolate(cell: Cell, a: tuple[Cell, dict] | None, b: tuple[Cell, dict] | None) -> float | None:
+def _extrapolate(cell: Cell, a: calibrate.Miniature | None, b: calibrate.Miniature | None) -> float | None:
     points = []
     for got in (a, b):
         if got is None:                   # a miniature that did not run
             return None
-        peak = (got[1].get("memory") or {}).get("peak_host_rss_bytes")
-        if not peak or got[1].get("status") not in ("ok", "mismatch"):
+        peak = got.peak_host_rss_bytes
+        if not peak or got.status not in ("ok", "mismatch"):
             return None
-        points.append((calibrate.items(got[0]), float(peak)))
+        points.append((calibrate.items(got.cell), peak))
     (n1, m1), (n0, m0) = points
     if n1 <= n0:
         return None
