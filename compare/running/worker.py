@@ -366,14 +366,15 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver'
         with busy_cores(int((cell.tags or {}).get(BUSY_TAG) or 0)):
             record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps, gate=Gate(cell_dir))
         _SET_UP.add(ident)
-        found: dict[str, Any] = record.to_json()    # worker JSON: the record crosses to the driver once
+        text = json.dumps(jsonable(record.to_json()))     # the record crosses to the driver once, as JSON
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
-        found = {"status": "error", "reason": str(exc)}
+        text = json.dumps({"status": "error", "reason": str(exc)})
     except Exception as exc:  # the record says what went wrong; the parent keeps going
-        found = {"status": "error", "reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
-                 "traceback": traceback.format_exc()}
+        text = json.dumps({"status": "error",
+                           "reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
+                           "traceback": traceback.format_exc()})
     tmp = cell_dir / "record.json.tmp"     # the parent polls for record.json: never half a file
-    tmp.write_text(json.dumps(jsonable(found)))
+    tmp.write_text(text)
     os.replace(tmp, cell_dir / "record.json")
 
 
