@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from typing import Any, TypeVar
+from typing import Any, NotRequired, TypedDict, TypeVar
 
 import scenarios
 from backends.base import Device
@@ -29,6 +29,20 @@ KEPT_ON_RESUME = ("ok", "mismatch", "skipped")
 
 class SpecError(ValueError):
     """A malformed cell or record; one line naming the first problem."""
+
+
+ParamValue = int | float | str | bool | None      # a scenario parameter's value (its Params' fields)
+
+
+class Identity(TypedDict):
+    """What names a cell in every record, as plain JSON (``Cell.identity``, ``Record.identity``)."""
+    scenario: str
+    backend: str
+    device: str
+    precision: str
+    variant: str
+    params: dict[str, ParamValue]
+    tags: NotRequired[dict[str, Any]]     # a suite's own, as its stored records keep them (sweep knob, stress)
 
 
 BUSY_TAG = "busy_cores"     # tags: a cell timed while this many other processes keep cores busy
@@ -63,7 +77,7 @@ class Cell:
     precision: Precision
     variant: str = "default"
     params: Any = None                  # the scenario's Params dataclass, resolved (None: defaults)
-    tags: dict[str, Any] = dataclasses.field(default_factory=dict)
+    tags: dict[str, Any] = dataclasses.field(default_factory=dict)  # as stored in its records
     warmup: int = 2                     # timing.steady_state: untimed calls after the first
     repeat: int = 10                    # ... then at least this many timed calls
     min_time: float = 0.2               # ... and at least this many timed seconds
@@ -124,7 +138,7 @@ class Cell:
                    variant, resolved, **settings)
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "Cell":
+    def from_dict(cls, d: dict[str, Any]) -> "Cell":     # worker / Dask JSON
         """The decode of ``to_dict`` (in a worker, a Dask task). A hand-written dict may also
         give ``params`` as overrides and ``quick`` (see ``make``)."""
         if not isinstance(d, dict):
@@ -140,17 +154,18 @@ class Cell:
         except TypeError as exc:
             raise SpecError(f"cell spec: {exc}") from None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:     # worker / Dask JSON
         """Plain JSON types: the parameters as a mapping, device and precision as their names."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out.update(device=str(self.device), precision=str(self.precision),
                    params=dataclasses.asdict(self.params), tags=dict(self.tags))
         return out
 
-    def identity(self) -> dict[str, Any]:
+    def identity(self) -> Identity:
         """What every record of this cell carries to say which cell it is (``key`` of it), in
         plain JSON types as a record holds it."""
-        ident = {f: str(getattr(self, f)) for f in IDENTITY} | {"params": dataclasses.asdict(self.params)}
+        ident = Identity(scenario=self.scenario, backend=self.backend, device=str(self.device),
+                         precision=str(self.precision), variant=self.variant, params=dataclasses.asdict(self.params))
         if self.tags:
             ident["tags"] = self.tags
         return ident
@@ -159,12 +174,12 @@ class Cell:
         return key(self.identity())
 
 
-def as_cell(spec: Cell | dict[str, Any]) -> Cell:
+def as_cell(spec: Cell | dict[str, Any]) -> Cell:     # or its JSON (a stress task, a Dask task)
     """A Cell, or the decode of one given as a dict (``Cell.from_dict``)."""
     return spec if isinstance(spec, Cell) else Cell.from_dict(spec)
 
 
-def key(rec_or_spec: dict[str, Any]) -> str:
+def key(rec_or_spec: Identity | dict[str, Any]) -> str:   # or a stored record's JSON (samecheck)
     """The identity of a cell (spec or record) as a string: the same cell run twice has one key."""
     return json.dumps([rec_or_spec.get(f, "default" if f == "variant" else None) for f in IDENTITY]
                       + [rec_or_spec.get("params"), rec_or_spec.get("tags") or {}],

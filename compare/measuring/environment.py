@@ -9,7 +9,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -76,7 +76,7 @@ def dirty_paths() -> list[str]:
     return [line[3:].split(" -> ")[-1] for line in out.splitlines() if len(line) > 3]
 
 
-def collect(argv: list[str] | None = None) -> dict[str, Any]:
+def collect(argv: list[str] | None = None) -> dict[str, Any]:    # a run's environment: a results file's runs
     versions = {}
     for pkg in packages():
         try:
@@ -108,8 +108,15 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:
     }
 
 
-def run_stamp(env: dict[str, Any]) -> dict[str, Any]:
+class RunStamp(TypedDict):
+    """A record's ``run``: when its run started, the commit, whether the tree was dirty."""
+    created: str
+    commit: str | None
+    dirty: bool | None
+
+
+def run_stamp(env: dict[str, Any]) -> RunStamp:     # env: a run's environment (``collect``)
     """What a record keeps of the run that measured it (``Record.run``): when it started, the
     commit and whether the tree was dirty (None: unknown, a copied tree)."""
-    return {"created": str(env.get("created", "")), "commit": env.get("git_commit") or None,
-            "dirty": env.get("git_dirty")}
+    return RunStamp(created=str(env.get("created", "")), commit=env.get("git_commit") or None,
+                    dirty=env.get("git_dirty"))

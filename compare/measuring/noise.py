@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any, Mapping
+from typing import Any, Mapping, NotRequired, TypedDict
 
 from compare.results.record import Record
+from compare.results.record_parts import Timing
 
 MARK = "~"            # beside a figure whose cell is noisy, in every table and page
 SPREAD = 0.10
@@ -62,13 +63,34 @@ def _own_cpu_s() -> float:
     return t.user + t.system + t.children_user + t.children_system
 
 
+class HostLoad(TypedDict):
+    """The host meter's figures: the cores, the seconds measured and, where /proc/stat is read,
+    the cell's own use and other processes' use, in cores."""
+    cores: int
+    measured_s: float
+    own_cores: NotRequired[float]
+    others_cores: NotRequired[float]
+
+
+class Reason(TypedDict):
+    """One reason a cell's timings are noisy: the regime it concerns ('' for the whole cell) and why."""
+    regime: str
+    why: str
+
+
+class Noise(HostLoad):
+    """``time.noise``: whether the timings are noisy, why, and the host meter's figures."""
+    noisy: bool
+    reasons: list[Reason]
+
+
 class HostMeter:
     """Other processes' CPU use while a cell's clocks run, in cores."""
 
     def __init__(self) -> None:
         self._start = (time.perf_counter(), _host_busy_s(), _own_cpu_s())
 
-    def stop(self) -> dict[str, Any]:
+    def stop(self) -> HostLoad:
         wall = time.perf_counter() - self._start[0]
         host, own = _host_busy_s(), _own_cpu_s() - self._start[2]
         cores = os.cpu_count() or 1
@@ -78,7 +100,7 @@ class HostMeter:
         return {"cores": cores, "measured_s": wall, "own_cores": own / wall, "others_cores": others}
 
 
-def host_reason(host: dict[str, Any]) -> str | None:
+def host_reason(host: HostLoad) -> str | None:
     """Busy: other processes used more than an idle host's daemons and, with the cell's own use,
     (nearly) every core. The cell's own use is what it got, not what it wanted: a starved cell
     uses less, so "others above the cores the cell left free" alone would miss it."""
@@ -91,18 +113,18 @@ def host_reason(host: dict[str, Any]) -> str | None:
     return None
 
 
-def verdict(t: dict[str, Any], host: dict[str, Any]) -> dict[str, Any]:
+def verdict(t: Timing, host: HostLoad) -> Noise:
     """``time.noise`` from a record's ``time`` and the host meter's figures."""
-    reasons = [{"regime": r, "why": why} for r in REGIMES
+    reasons = [Reason(regime=r, why=why) for r in REGIMES
                for why in regime_reasons(t if r == "latency" else t.get(r))]
     busy = host_reason(host)
     if busy:
-        reasons.append({"regime": "", "why": busy})
+        reasons.append(Reason(regime="", why=busy))
     lat, thr = (t.get("wall") or {}).get("median_s"), (t.get("throughput") or {}).get("median_s")
     if isinstance(lat, (int, float)) and isinstance(thr, (int, float)) and lat > 0 and thr > SLOW_THROUGHPUT * lat:
-        reasons.append({"regime": "throughput", "why": f"per call {thr / lat:.1f}x the synchronised call's "
-                                                      "wall time (the host was taken between calls)"})
-    return {"noisy": bool(reasons), "reasons": reasons, **host}
+        reasons.append(Reason(regime="throughput", why=f"per call {thr / lat:.1f}x the synchronised call's "
+                                                       "wall time (the host was taken between calls)"))
+    return Noise(noisy=bool(reasons), reasons=reasons, **host)
 
 
 def reasons_for(rec: Record, regime: str | None = None) -> list[str]:

@@ -62,8 +62,8 @@ class Nvml:
         if mine is not None:
             self.peak_process = max(self.peak_process or 0, mine)
 
-    def figures(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"nvml_device_used_before_bytes": self.start_device,
+    def figures(self) -> dict[str, int | str]:
+        out: dict[str, int | str] = {"nvml_device_used_before_bytes": self.start_device,
                                "nvml_device_delta_peak_bytes": self.peak_device - self.start_device}
         if self.peak_process is not None:
             out["nvml_process_peak_bytes"] = self.peak_process

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any, Iterable
+from typing import Iterable
+
+from compare.results.record_parts import Timing
 
 LAUNCHED_ENV = "COMPARE_LAUNCHED_AT"     # the driver's time.time() when it started the worker
 
@@ -56,11 +58,11 @@ def since_launch() -> float:
         return 0.0
 
 
-def cell_parts(records: Iterable[dict[str, Any]]) -> dict[str, float]:
-    """The cells' parts summed over records (their JSON objects)."""
+def cell_parts(times: Iterable[Timing | None]) -> dict[str, float]:
+    """The cells' parts summed over their processes' ``time`` blocks (None: a process that timed nothing)."""
     total: dict[str, float] = {}
-    for r in records:
-        for part, s in ((r.get("time") or {}).get("phases") or {}).items():
+    for t in times:
+        for part, s in ((t.phases if t is not None else None) or {}).items():
             total[part] = total.get(part, 0.0) + float(s)
     return total
 

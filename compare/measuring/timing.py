@@ -25,12 +25,29 @@ downloads in ``outputs()``); both are timed separately by the worker.
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, TypedDict
 
 import numpy as np
 
 from backends.base import Backend, Device, EventTimer
 from compare.results.record_parts import Regime, Timing
+
+class ProfiledFunction(TypedDict):
+    """One function of ``host_profile``: where it is, its own and cumulative seconds per call."""
+    function: str
+    where: str
+    own_s: float
+    cumulative_s: float
+    calls: float
+
+
+class HostProfile(TypedDict):
+    """``time.host_profile`` (--host-profile): the top functions by own time in the throughput regime."""
+    calls: int
+    host_s: float
+    profiled_s: float
+    top: list[ProfiledFunction]
+
 
 CLOCK = "wall clock (time.perf_counter) around run() + backend synchronize"
 
@@ -66,7 +83,7 @@ def event_call(run: Callable[[], Any], sync: Callable[[Any], None], timer: Event
 
 def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: int = 10,
                  warmup: int = 2, min_time: float = 0.2, max_time: float = 10.0,
-                 max_calls: int = 100_000, timer: EventTimer | None = None) -> dict[str, Any]:
+                 max_calls: int = 100_000, timer: EventTimer | None = None) -> Timing:
     """Median/IQR/min of the wall clock around each synchronised call (the latency), plus
     ``wall`` (the same figures, the name older readers use) and, with ``timer``, ``events``: a
     separate pass of at least ``repeat`` calls (and ``min_time / 2`` seconds) timed by device events.
@@ -77,9 +94,9 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
         warm_s += call(run, sync)
         made += 1
     walls = until(lambda: call(run, sync), repeat, min_time, max_time, max_calls)
-    out: dict[str, Any] = dict(summarise(walls))    # the latency, and how it was reached
-    out.update({"warmup": made, "timed_total_s": float(sum(walls)),
-                "wall": {k: out[k] for k in ("median_s", "iqr_s", "min_s")}})
+    lat = summarise(walls)     # the latency, and how it was reached
+    wall = Regime.of(median_s=lat.median_s, iqr_s=lat.iqr_s, min_s=lat.min_s)
+    events: dict[str, Regime | str] = {}
     if timer is not None:
         spent = [0.0]
 
@@ -90,11 +107,11 @@ def steady_state(run: Callable[[], Any], sync: Callable[[Any], None], repeat: in
             return ev
         try:
             evs = until(timed, repeat, min(min_time / 2, max_time), max_time, max_calls, spent)
-            out["events"] = Regime.of(**summarise(evs), clock=getattr(timer, "description", "device events"))
+            events["events"] = Regime.of(**summarise(evs), clock=getattr(timer, "description", "device events"))
         except Exception as exc:  # an event API failing must not cost the cell's latency
-            out["events_error"] = f"{type(exc).__name__}: {exc}"
+            events["events_error"] = f"{type(exc).__name__}: {exc}"
             sync(None)
-    return out
+    return Timing.of(**lat, warmup=made, timed_total_s=float(sum(walls)), wall=wall, **events)
 
 
 def until(one: Callable[[], float], repeat: int, min_time: float, max_time: float, max_calls: int,
@@ -139,7 +156,7 @@ BATCH_S = 0.02     # the throughput regime's shortest batch (``pipelined``)
 
 def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: float = BATCH_S,
               repeat: int = 5, max_k: int = 1 << 16, max_time: float = 10.0,
-              latency: Mapping[str, Any] | None = None) -> Regime:
+              latency: Regime | None = None) -> Regime:
     """The throughput regime: ``k`` back-to-back ``run()`` calls, one synchronise, time / k.
 
     What a simulation loop that synchronises rarely pays per call: launches are queued while the
@@ -151,9 +168,9 @@ def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: floa
     batch is one call and one synchronise, which is the latency regime itself: its figures are
     returned (``same_as``) rather than timing the same thing again.
     """
-    if latency is not None and latency["median_s"] >= batch_s:
-        return Regime.of(**{f: latency[f] for f in ("median_s", "iqr_s", "min_s", "repeats")}, k=1,
-                         host_s=None, same_as="latency")
+    if latency is not None and (latency.median_s or 0.0) >= batch_s:
+        return Regime.of(median_s=latency.median_s, iqr_s=latency.iqr_s, min_s=latency.min_s,
+                         repeats=latency.repeats, k=1, host_s=None, same_as="latency")
     k, spent = 1, 0.0
     while True:
         t0 = time.perf_counter()
@@ -183,7 +200,7 @@ def pipelined(run: Callable[[], Any], sync: Callable[[Any], None], batch_s: floa
 
 
 def host_profile(run: Callable[[], Any], sync: Callable[[Any], None], calls: int,
-                 top: int) -> dict[str, Any]:
+                 top: int) -> HostProfile:
     """Where the host's time per call goes in the throughput regime: ``calls`` back-to-back
     ``run()`` under cProfile (which slows Python code, so these are shares, not timings to
     compare with the regimes), then one synchronise. Returns the ``top`` functions by own time,

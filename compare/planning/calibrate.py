@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 import scenarios
 from compare.running import cells
 from compare.measuring.timing import BATCH_S
+from compare.results.record_parts import Timing
 from compare.spec import Cell
 from scenarios.base import Precision
 
@@ -58,14 +59,13 @@ def items(cell: Cell) -> float:
     return _items(scenarios.get(cell.scenario), cell.params, cell.precision)
 
 
-def predict(cell: Cell, small: Cell, record: dict[str, Any]) -> tuple[float, float]:
+def predict(cell: Cell, small: Cell, t: Timing) -> tuple[float, float]:
     """(seconds the big cell's protocol takes, seconds of one of its calls) from its miniature's
-    record."""
+    ``time`` block."""
     sc = scenarios.get(cell.scenario)
-    t = record["time"]
     ratio = _items(sc, cell.params, cell.precision) / max(_items(sc, small.params, small.precision), 1e-300)
-    per_call = t["median_s"] * ratio
-    compile_s = max(0.0, t["first_call_s"] - t["median_s"])
+    per_call = t.median_s * ratio
+    compile_s = max(0.0, t.first_call_s - t.median_s)
     return compile_s + per_call * (1 + protocol_calls(per_call, cell)), per_call
 
 
@@ -84,7 +84,23 @@ def _when(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
-Miniatures = dict[tuple[Any, ...], tuple[Cell, dict[str, Any]]]
+class Miniature(NamedTuple):
+    """A big cell's miniature and what its one run found (its status, time block and peak RSS)."""
+    cell: Cell
+    status: str
+    time: Timing | None
+    peak_host_rss_bytes: float | None
+
+    @classmethod
+    def of(cls, cell: Cell, got: cells.Result) -> Miniature:
+        """From the worker's record (its JSON) of the miniature ``cell``."""
+        rec = got[0]
+        peak = (rec.get("memory") or {}).get("peak_host_rss_bytes")
+        return cls(cell, str(rec.get("status")), Timing.from_json(rec["time"]) if rec.get("time") else None,
+                   float(peak) if peak else None)
+
+
+Miniatures = dict[tuple[Any, ...], Miniature]
 
 
 def run_miniatures(plan: list[Cell], timeout: float | None, factor: int = FACTOR,
@@ -93,7 +109,7 @@ def run_miniatures(plan: list[Cell], timeout: float | None, factor: int = FACTOR
     the big cell's key (``key``), one at a time."""
     pairs = [(c, m) for c in plan if (m := miniature(c, factor)) is not None]
     run = run or (lambda c: cells.run(c, timeout))
-    return {key(cell): (small, run(small)[0]) for cell, small in pairs}
+    return {key(cell): Miniature.of(small, run(small)) for cell, small in pairs}
 
 
 def time_refusal(plan: list[Cell], timeout: float | None,
@@ -109,10 +125,10 @@ def time_refusal(plan: list[Cell], timeout: float | None,
     for cell in plan:
         if key(cell) not in minis:
             continue
-        small, rec = minis[key(cell)]
-        if rec.get("status") not in ("ok", "mismatch") or not rec.get("time"):
+        mini = minis[key(cell)]
+        if mini.status not in ("ok", "mismatch") or not mini.time:
             continue                  # the cell itself will say what is wrong
-        total, per_call = predict(cell, small, rec)
+        total, per_call = predict(cell, mini.cell, mini.time)
         if total > timeout:
             verdicts[key(cell)] = ("skipped", (
                 f"predicted to take about {_when(total)} here (one call about {_when(per_call)}, from a "

@@ -13,7 +13,7 @@ from typing import Any, Callable, Sequence
 
 import scenarios
 from compare.planning import calibrate, outdir
-from compare.spec import Cell, as_cell
+from compare.spec import Cell
 from scenarios.base import ParamError
 
 # The two miniature sizes of the memory estimate: the slope between them, where the fixed costs
@@ -35,9 +35,8 @@ PAGE_BYTES = 32 * 2**20            # results.csv, results.md and the plots of on
 STRESS_BYTES = 256 * 2**20
 
 
-def cell_bytes(spec: Cell | dict[str, Any]) -> tuple[float, float, float]:
+def cell_bytes(cell: Cell) -> tuple[float, float, float]:
     """(worker peak, bytes handed back to the driver, bytes --save-arrays writes) of one cell."""
-    cell = as_cell(spec)
     sc, p, prec = scenarios.get(cell.scenario), cell.params, cell.precision
     outputs = sc.output_bytes(p, prec)
     arrays = outputs + sc.input_bytes(p, prec)
@@ -51,9 +50,8 @@ def available() -> float:
     return float(psutil.virtual_memory().available)
 
 
-def measured_later(spec: Cell | dict[str, Any], have: float) -> bool:
+def measured_later(cell: Cell, have: float) -> bool:
     """A big cell whose model bound exceeds ``have``: its miniatures decide (``measured_need``)."""
-    cell = as_cell(spec)
     return cell_bytes(cell)[0] > have and calibrate.miniature(cell) is not None
 
 
@@ -65,7 +63,7 @@ def check_smallest(specs: list[Cell]) -> None:
         check_memory([min(specs, key=lambda s: cell_bytes(s)[0])], driver=False)
 
 
-def check_memory(specs: Sequence[Cell | dict[str, Any]], driver: bool = True, worker: bool = True) -> None:
+def check_memory(specs: Sequence[Cell], driver: bool = True, worker: bool = True) -> None:
     """Refuse a plan this machine's AVAILABLE memory cannot hold, before any worker starts: the
     largest cell's worker (interpreter and framework + Scenario.footprint, a bound checked
     against measured peaks by tests/planning/test_preflight.py; a cell its miniatures judge later left
@@ -79,7 +77,7 @@ def check_memory(specs: Sequence[Cell | dict[str, Any]], driver: bool = True, wo
     big = max(workers or range(len(specs)), key=lambda i: sizes[i][0])
     need = (sizes[big][0] if worker and workers else 0.0) + (sum(b for _, b, _ in sizes) if driver else 0.0)
     if need > have:
-        s = as_cell(specs[big])
+        s = specs[big]
         sc = scenarios.get(s.scenario)
         what = f"{sc.name} with {sc.size_text(s.params)}"
         parts = ([f"one {s.precision} cell's worker {outdir.gib(sizes[big][0])}"] if worker and workers else []) + \
@@ -128,15 +126,15 @@ def measured_need(plan: list[Cell], timeout: float | None, minis: calibrate.Mini
     return lambda cell: needs.get(calibrate.key(cell))
 
 
-def _extrapolate(cell: Cell, a: tuple[Cell, dict] | None, b: tuple[Cell, dict] | None) -> float | None:
+def _extrapolate(cell: Cell, a: calibrate.Miniature | None, b: calibrate.Miniature | None) -> float | None:
     points = []
     for got in (a, b):
         if got is None:                   # a miniature that did not run
             return None
-        peak = (got[1].get("memory") or {}).get("peak_host_rss_bytes")
-        if not peak or got[1].get("status") not in ("ok", "mismatch"):
+        peak = got.peak_host_rss_bytes
+        if not peak or got.status not in ("ok", "mismatch"):
             return None
-        points.append((calibrate.items(got[0]), float(peak)))
+        points.append((calibrate.items(got.cell), peak))
     (n1, m1), (n0, m0) = points
     if n1 <= n0:
         return None

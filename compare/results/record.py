@@ -36,7 +36,7 @@ from typing import Any, Callable, Mapping
 
 from compare.results import records
 from compare.results.record_parts import PARTS, Check, Gradient, Hardware, Memory, Part, Regime, Timing, plain
-from compare.spec import key as cell_key
+from compare.spec import Identity, key as cell_key
 from scenarios.base import Precision
 
 FORMAT_VERSION = 2
@@ -78,8 +78,8 @@ class Record:
     # what was measured, when the cell ran
     time: Timing | None = None          # first call, latency, throughput and graph regimes, noise
     error: Check | None = None          # against the float64 oracle and the reference backend
-    work: Block | None = None           # bytes, items, flops per call
-    throughput: Block | None = None     # work per second; the hardware floor and fraction
+    work: Mapping[str, float] | None = None     # bytes, items, flops per call
+    throughput: Block | None = None     # work per second; the hardware floor and fraction (mixed: figures and words)
     memory: Memory | None = None        # peak host RSS, device bytes
     gradient: Gradient | None = None    # how a gradient was obtained and its errors
     converged: Block | None = None      # the error sweep's distance to a converged reference
@@ -114,8 +114,8 @@ class Record:
             object.__setattr__(self, "layout", have + tuple(self.extra))
 
     @classmethod
-    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
-                  check: Callable[[dict[str, Any]], str | None] | None = None) -> Record:
+    def from_json(cls, obj: Any, upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None,  # stored JSON
+                  check: Callable[[dict[str, Any]], str | None] | None = None) -> Record:   # of stored JSON
         """The record a JSON object holds, validated; ``upgrade`` turns an older format's record
         into today's (applied once its basic shape is known good), ``check`` is its suite's own
         check (``compare.results.formats``) after the common schema's."""
@@ -130,7 +130,7 @@ class Record:
         named = {k: v for k, v in obj.items() if k in NAMED}
         return cls(**named, extra={k: v for k, v in obj.items() if k not in NAMED}, layout=tuple(obj))
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:     # the stored file's / worker's JSON
         """The record as the JSON object it was read from (plain dicts and lists)."""
         return {k: plain(getattr(self, k) if k in NAMED else self.extra[k]) for k in self.layout}
 
@@ -145,11 +145,13 @@ class Record:
         return cell_key(self.identity)
 
     @property
-    def identity(self) -> dict[str, Any]:
+    def identity(self) -> Identity:
         """Scenario, backend, device, precision, variant, and the params and tags it has, as
         plain JSON: what names the cell (its key, its saved arrays' file)."""
-        ident = {f: getattr(self, f) for f in ("scenario", "backend", "device", "precision", "variant")}
-        ident.update({f: plain(getattr(self, f)) for f in ("params", "tags") if getattr(self, f) is not None})
+        ident = Identity(scenario=self.scenario, backend=self.backend, device=self.device, precision=self.precision,
+                         variant=self.variant, params=plain(self.params))
+        if self.tags is not None:
+            ident["tags"] = plain(self.tags)
         return ident
 
 

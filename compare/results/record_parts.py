@@ -44,28 +44,30 @@ def _names(cls: type) -> frozenset[str]:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class Part(Mapping[str, Any]):
+class Part(Mapping[str, Any]):     # a read-only view of a stored JSON object
     """A JSON object with named, typed fields. ``layout`` is the object's keys in their order
     (which are present, null or not); ``extra`` holds the keys no field names."""
-    extra: Mapping[str, Any] = dataclasses.field(default_factory=dict, kw_only=True, repr=False)
+    extra: Mapping[str, Any] = dataclasses.field(default_factory=dict, kw_only=True, repr=False)  # stored JSON
     layout: tuple[str, ...] = dataclasses.field(default=(), kw_only=True, repr=False)
     NESTED: ClassVar[Mapping[str, type[Part]]] = {}      # field -> the part its object is
+    RENAMED: ClassVar[Mapping[str, str]] = {}            # JSON key -> its field, where the key is a Mapping method
 
     @classmethod
     def names(cls) -> frozenset[str]:
         return _names(cls)
 
     @classmethod
-    def from_json(cls, obj: Mapping[str, Any]) -> Self:
+    def from_json(cls, obj: Mapping[str, Any]) -> Self:     # stored / worker JSON
         """The part a (checked, ``compare.results.records``) JSON object holds, its keys kept in order."""
         names, kw, extra = cls.names(), {}, {}
         for k, v in obj.items():
-            if k not in names:
+            f = cls.RENAMED.get(k, k)
+            if f not in names:
                 extra[k] = frozen(v)
-            elif (sub := cls.NESTED.get(k)) is not None and isinstance(v, Mapping):
-                kw[k] = v if isinstance(v, sub) else sub.from_json(v)
+            elif (sub := cls.NESTED.get(f)) is not None and isinstance(v, Mapping):
+                kw[f] = v if isinstance(v, sub) else sub.from_json(v)
             else:
-                kw[k] = frozen(v)
+                kw[f] = frozen(v)
         return cls(**kw, extra=types.MappingProxyType(extra), layout=tuple(obj))
 
     @classmethod
@@ -74,14 +76,15 @@ class Part(Mapping[str, Any]):
         in the JSON; a field not given is absent); unnamed ones are kept as extra keys."""
         return cls.from_json(fields)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:     # stored / worker JSON
         return {k: plain(self[k]) for k in self.layout}
 
     # the read-only mapping of the JSON object
     def __getitem__(self, k: str) -> Any:
         if k not in self.layout:
             raise KeyError(k)
-        return getattr(self, k) if k in self.names() else self.extra[k]
+        f = self.RENAMED.get(k, k)
+        return getattr(self, f) if f in self.names() else self.extra[k]
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.layout)
@@ -125,6 +128,41 @@ class OwnTimer(Part):
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
+class Figure(Part):
+    """One figure over several worker processes (``compare.running.repeats.summary``): every
+    process's value (the JSON's ``values``), their median and its distribution-free interval at
+    its coverage."""
+    each: tuple[float, ...] = ()
+    RENAMED: ClassVar[Mapping[str, str]] = {"values": "each"}
+    median_s: float = math.nan
+    ci_lo_s: float = math.nan
+    ci_hi_s: float = math.nan
+    confidence: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Processes(Part):
+    """A ``time.processes`` block: a cell timed in ``count`` worker processes (compare.running.repeats),
+    how they were ordered, and each figure over them (``FIGURES``); ``failed`` repeat processes counted."""
+    count: int = 0
+    order: str | None = None
+    interval: str | None = None
+    latency: Figure | None = None
+    throughput: Figure | None = None
+    graph: Figure | None = None
+    events: Figure | None = None
+    first_result: Figure | None = None
+    failed: int | None = None
+    FIGURES: ClassVar[tuple[str, ...]] = ("latency", "throughput", "graph", "events", "first_result")
+    NESTED: ClassVar[Mapping[str, type[Part]]] = {k: Figure for k in FIGURES}
+
+    def figure(self, name: str) -> Figure | None:
+        """A figure by name (one of ``FIGURES``), None where no process measured it."""
+        f = getattr(self, name, None) if name in self.FIGURES else None
+        return f if isinstance(f, Figure) else None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
 class Timing(Part):
     """A cell's ``time`` block: the first call, the latency (the block's own median, iqr, min),
     the other regimes, and how the clocks were set up (docs/measurement.md)."""
@@ -151,12 +189,13 @@ class Timing(Part):
     first_call_clock: str | None = None
     cache: str | None = None
     window: tuple[float, ...] | None = None      # epoch seconds the timed window opened and closed
-    noise: Mapping[str, Any] | None = None
-    processes: Mapping[str, Any] | None = None   # over several worker processes (compare.running.repeats)
+    noise: Mapping[str, Any] | None = None     # stored JSON (compare.measuring.noise.Noise when measured)
+    processes: Processes | None = None   # over several worker processes (compare.running.repeats)
     phases: Mapping[str, float] | None = None
     host_profile: Mapping[str, Any] | None = None  # where the host's time per call goes (--host-profile)
     NESTED: ClassVar[Mapping[str, type[Part]]] = {**{k: Regime for k in ("wall", "events", "latency", "throughput",
-                                                                           "graph", "null")}, "own_timer": OwnTimer}
+                                                                           "graph", "null")}, "own_timer": OwnTimer,
+                                                 "processes": Processes}
 
     def regime(self, name: str) -> Regime | None:
         """A regime by name ('latency', 'throughput', 'graph', 'null', 'events')."""
@@ -178,7 +217,7 @@ class Check(Part):
     ill_conditioned: int | None = None
 
     @property
-    def details(self) -> Mapping[str, Any]:
+    def details(self) -> Mapping[str, Any]:     # the scenario's own, as stored
         """The scenario's own figures (``Scenario.check``'s details), by their names."""
         return self.extra
 
@@ -224,4 +263,4 @@ class Hardware(Part):
 PARTS: Mapping[str, type[Part]] = {"time": Timing, "error": Check, "memory": Memory, "gradient": Gradient,
                                    "hardware": Hardware}
 
-__all__ = ["Check", "Gradient", "Hardware", "Memory", "OwnTimer", "PARTS", "Part", "Regime", "Timing", "frozen", "plain"]
+__all__ = ["Check", "Figure", "Gradient", "Hardware", "Memory", "OwnTimer", "PARTS", "Part", "Processes", "Regime", "Timing", "frozen", "plain"]

@@ -38,22 +38,25 @@ class Leaf:
 
 @dataclasses.dataclass(frozen=True)
 class Obj:
-    fields: Mapping[str, Any] = dataclasses.field(default_factory=dict)   # name -> node
+    fields: Mapping[str, Node] = dataclasses.field(default_factory=dict)   # name -> node
     required: tuple[str, ...] = ()
-    rest: Any = None                # the node of every other key (None: not read, anything goes)
+    rest: Node | None = None        # the node of every other key (None: not read, anything goes)
     null: bool = True               # null may stand for the object (readers write `x or {}`)
 
 
 @dataclasses.dataclass(frozen=True)
 class Seq:
-    item: Any
+    item: Node
     null: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
 class Either:
     what: str
-    options: tuple[Any, ...]
+    options: tuple[Node, ...]
+
+
+Node = Leaf | Obj | Seq | Either      # a schema: what one JSON value must be
 
 
 def _real(v: Any) -> bool:
@@ -244,7 +247,7 @@ def _number(v: Any) -> bool:
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
 
 
-def record_problem(rec: dict[str, Any]) -> str | None:
+def record_problem(rec: dict[str, Any]) -> str | None:     # a stored record's JSON, as loaded
     """The first field of a record (already of the basic shape, ``shape_problem``) that a later
     step could not read, as 'FIELD must be ...', or None."""
     import scenarios
@@ -302,7 +305,7 @@ ANALYSIS = Obj({"rows": Seq(ROW, null=False), "series": Obj(null=False),
                null=False)
 
 
-def store_problem(data: dict[str, Any]) -> str | None:
+def store_problem(data: dict[str, Any]) -> str | None:     # a stored file's JSON, as loaded
     """The first problem of a parsed file's ``runs`` and ``analysis`` (its records are checked one
     by one as they load, ``compare.results.record.Record.from_json``), as 'runs[0].cores must be ...', or
     None."""
@@ -324,13 +327,13 @@ class Format:
     the suite's own checks on top of this module's (registered in ``compare.results.formats``)."""
     suite: str
     file: str
-    upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    upgrade: Callable[[dict[str, Any]], dict[str, Any]] | None = None   # stored JSON, older -> newer
     record_problem: Callable[[dict[str, Any]], str | None] | None = None   # one record, as loaded
     store_problem: Callable[[dict[str, Any]], str | None] | None = None    # the file's runs and analysis
 
 
 # ---- saved arrays -----------------------------------------------------------------------------
-def arrays_problem(rec: Mapping[str, Any], headers: dict[str, tuple[tuple[int, ...], int]]) -> str | None:
+def arrays_problem(rec: Mapping[str, Any], headers: dict[str, tuple[tuple[int, ...], int]]) -> str | None:  # stored JSON
     """Why the saved arrays (name -> (shape, bytes), read from their headers) of a loaded record
     must not be used, or None: a picture or distance drawn from them allocates by the record's
     parameters, so the shapes must be the ones those parameters declare and the cell must fit in

@@ -6,7 +6,7 @@ from typing import Any
 from compare.results.records import Format
 
 
-def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:
+def upgrade_record(rec: dict[str, Any]) -> dict[str, Any]:     # a stored record's JSON
     """A format-1 record: its distance to the reference backend was keyed ``vs_<name>``."""
     import backends
     err = rec.get("error")

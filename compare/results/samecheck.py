@@ -71,21 +71,21 @@ def _short(v: Any) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
-def _name(rec: dict[str, Any], params: bool = False) -> str:
+def _name(rec: dict[str, Any], params: bool = False) -> str:     # a stored record's JSON
     """A cell's identity in a line (its parameters where two cells may differ only in them)."""
     return "/".join(str(rec.get(f, "default")) for f in IDENTITY) + \
         (f" {json.dumps(rec.get('params'), sort_keys=True)}" if params else "") + \
         (f" {json.dumps(rec['tags'], sort_keys=True)}" if rec.get("tags") else "")
 
 
-def _array_name(folder: Path, rec: dict[str, Any]) -> str:
+def _array_name(folder: Path, rec: dict[str, Any]) -> str:     # a stored record's JSON
     try:
         return array_file(folder, rec).name
     except StoreError:
         return ""
 
 
-def read(folder: Path) -> dict[str, Any]:
+def read(folder: Path) -> dict[str, Any]:     # a stored results file's JSON
     """The one results file in ``folder`` as parsed JSON (not upgraded: the bytes as stored)."""
     found = [folder / f for f in SUITES.values() if (folder / f).is_file()]
     if len(found) != 1:

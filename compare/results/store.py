@@ -32,7 +32,7 @@ from compare.results.formats import FORMATS
 from compare.results.record import FORMAT_VERSION, Record, RecordError
 from compare.results.records import arrays_problem, store_problem
 from compare.results.records import show as _show
-from compare.spec import KEPT_ON_RESUME
+from compare.spec import KEPT_ON_RESUME, Identity
 
 SUITES = {name: f.file for name, f in FORMATS.items()}     # suite -> its file's name
 
@@ -87,12 +87,12 @@ def jsonable(x: Any) -> Any:
 OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
 
 
-def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:  # a stored file's runs
     """The run environments one entry of a store's ``runs`` stands for: the entry itself, or for
     a merged report's entry (``environments``, written by ``compare report``) those it merged, in
     order (a merge of merges flattened; the store bounds their nesting). A ``stress --merge``
     entry is its own run's environment that also names its inputs (``merged_from``): kept."""
-    out: list[Mapping[str, Any]] = []
+    out: list[Mapping[str, Any]] = []     # stored JSON
     todo = [env]
     while todo:
         e = todo.pop(0)
@@ -130,7 +130,7 @@ def remove_stale_temps(directory: Path) -> list[Path]:
     return removed
 
 
-def _upgrade(data: Any, path: Path) -> dict[str, Any]:
+def _upgrade(data: Any, path: Path) -> dict[str, Any]:     # the file's JSON
     """Any supported layout -> format 2 (in memory), its records loaded (``Record.from_json``)."""
     if not isinstance(data, dict):
         raise StoreError(f"{path}: not a results file (top level is {type(data).__name__}, not an object)")
@@ -180,14 +180,14 @@ class Store:
     """Records of one suite in one JSON file, keyed by cell (a later record of a key replaces
     the earlier one); ``analysis`` is the suite's derived data."""
 
-    def __init__(self, path: Path, suite: str, runs: list[dict[str, Any]] | None = None,
-                 records: Iterable[Record] = (), analysis: dict[str, Any] | None = None,
+    def __init__(self, path: Path, suite: str, runs: list[dict[str, Any]] | None = None,  # stored JSON
+                 records: Iterable[Record] = (), analysis: dict[str, Any] | None = None,  # stored JSON
                  upgraded_from: int | None = None) -> None:
         if suite not in SUITES:
             raise ValueError(f"unknown suite {suite!r}")
         self.path, self.suite = Path(path), suite
-        self.runs: list[dict[str, Any]] = list(runs or [])
-        self.analysis: dict[str, Any] = dict(analysis or {})
+        self.runs: list[dict[str, Any]] = list(runs or [])     # the file's runs (JSON)
+        self.analysis: dict[str, Any] = dict(analysis or {})     # the file's analysis (JSON)
         self.upgraded_from = upgraded_from
         self._records: dict[str, Record] = {}
         for r in records:
@@ -266,7 +266,7 @@ class Store:
 _NAME = re.compile(r"[A-Za-z0-9_]+")
 
 
-def array_file(directory: Path, cell: Mapping[str, Any]) -> Path:
+def array_file(directory: Path, cell: Identity | Mapping[str, Any]) -> Path:   # or a stored record's JSON
     """``DIR/arrays/<scenario>-<backend>-<device>-<precision>[-<variant>].npz`` of a cell (a loaded
     record's ``identity``, or the JSON of one being written); the parts come from a record, so each
     must be a plain name (letters, digits, '_'): no path can leave arrays/."""
@@ -280,7 +280,7 @@ def array_file(directory: Path, cell: Mapping[str, Any]) -> Path:
     return Path(directory) / "arrays" / ("-".join(parts) + ".npz")
 
 
-def save_arrays(directory: Path, cell: Mapping[str, Any], arrays: dict[str, np.ndarray]) -> None:
+def save_arrays(directory: Path, cell: Identity, arrays: dict[str, np.ndarray]) -> None:
     import io
     buf = io.BytesIO()
     # (numpy's stubs read ** as possibly setting savez's allow_pickle: bool)
@@ -288,7 +288,7 @@ def save_arrays(directory: Path, cell: Mapping[str, Any], arrays: dict[str, np.n
     atomic_write(array_file(directory, cell), buf.getvalue())
 
 
-def load_arrays(directory: Path, cell: Mapping[str, Any], names: Iterable[str]) -> dict[str, np.ndarray] | None:
+def load_arrays(directory: Path, cell: Identity, names: Iterable[str]) -> dict[str, np.ndarray] | None:
     """The named arrays of a cell saved beside a results file, or None (absent or unreadable:
     a truncated file must not take a report down)."""
     try:

@@ -9,7 +9,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, TypedDict
 
 import numpy as np
 
@@ -19,7 +19,13 @@ from compare.measuring import phases
 from compare.spec import Cell, as_cell
 
 ROOT = Path(__file__).resolve().parents[2]
-Result = tuple[dict[str, Any], "dict[str, np.ndarray] | None"]
+Result = tuple[dict[str, Any], "dict[str, np.ndarray] | None"]    # the worker's record JSON, its outputs
+
+
+class Probe(TypedDict):
+    """What probing one backend found (``probe``): per device None (usable) or why not."""
+    available: dict[str, str | None]
+    versions: dict[str, str]
 
 
 def worker_env(backend: str | None = None, variant: str = "default") -> dict[str, str]:
@@ -63,7 +69,7 @@ def collect(cell_dir: Path, cell: Cell) -> Result:
     return record, outputs
 
 
-def run_batch(specs: Sequence[Cell | dict[str, Any]], timeout: float | None = 600.0,
+def run_batch(specs: Sequence[Cell], timeout: float | None = 600.0,
               on_result: Callable[[int, Result], None] | None = None) -> list[Result]:
     """Run cells one after another in ONE fresh interpreter; returns (record, outputs) per spec.
 
@@ -138,10 +144,10 @@ def run_batch(specs: Sequence[Cell | dict[str, Any]], timeout: float | None = 60
     return results
 
 
-def run(spec: Cell | dict[str, Any], timeout: float | None = 600.0) -> Result:
+def run(spec: Cell | dict[str, Any], timeout: float | None = 600.0) -> Result:   # or its JSON (a Dask task)
     """Run one cell in a fresh interpreter; returns (record, outputs or None). ``spec``: a Cell
     or its ``to_dict`` (a Dask task ships that)."""
-    return run_batch([spec], timeout)[0]
+    return run_batch([as_cell(spec)], timeout)[0]
 
 
 PROBE = """
@@ -168,7 +174,7 @@ print("PROBE" + json.dumps(out))
 """
 
 
-def probe(name: str, timeout: float = 180.0) -> dict[str, Any]:
+def probe(name: str, timeout: float = 180.0) -> Probe:
     """Which devices a backend can use (and why not), checked in its own process."""
     try:
         proc = subprocess.run(lifeline.command("-c", PROBE, name), cwd=ROOT,
@@ -176,9 +182,9 @@ def probe(name: str, timeout: float = 180.0) -> dict[str, Any]:
                               capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
         why = f"availability probe timed out after {timeout:g} s"
-        return {"available": {d: why for d in DEVICES}, "versions": {}}
+        return Probe(available={d: why for d in DEVICES}, versions={})
     for line in proc.stdout.splitlines():
         if line.startswith("PROBE"):
             return json.loads(line[5:])[name]
     why = f"availability probe failed (exit {proc.returncode}): {tail(proc.stderr, 2)}"
-    return {"available": {d: why for d in DEVICES}, "versions": {}}
+    return Probe(available={d: why for d in DEVICES}, versions={})

@@ -11,33 +11,27 @@ a store can save it before the next cell starts.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import threading
-from typing import Any, Callable, Iterable, Mapping, TypedDict, cast
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
 import backends
 import scenarios
-from compare.running import cells, repeats
+from compare.running import cells
 from compare.results.record import Record, RecordError
-from compare.spec import IDENTITY, Cell, as_cell, key
+from compare.spec import IDENTITY, Cell, Identity, as_cell, key
 from compare.results.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
 Result = tuple[Record, Outputs | None]
 
 
-class Probe(TypedDict):
-    """What probing one backend found (``cells.probe``): per device None (usable) or why not."""
-    available: dict[str, str | None]
-    versions: dict[str, Any]
-
-
+Probe = cells.Probe
 Probes = dict[str, Probe]       # backend -> its probe
 
 
-def gpu_lane(item: Cell | dict[str, Any]) -> Any:
+def gpu_lane(item: Cell | dict[str, Any]) -> Any:    # or a stress task's JSON dict (compare.stress)
     """Cells (or a suite's tasks: dicts with 'backend' and 'device') that must not overlap:
     those of one backend on one GPU (None: no constraint).
 
@@ -78,7 +72,7 @@ def availability(names: Iterable[str]) -> Probes:
     (each backend in its own process: probing imports the framework)."""
     names = list(names)
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, len(names))) as pool:
-        return {n: cast(Probe, p) for n, p in zip(names, pool.map(cells.probe, names))}
+        return dict(zip(names, pool.map(cells.probe, names)))
 
 
 def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
@@ -101,8 +95,8 @@ def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
     return None
 
 
-def typed(obj: dict[str, Any], ident: Mapping[str, Any],
-          check: Callable[[dict[str, Any]], str | None] | None) -> Record:
+def typed(obj: dict[str, Any], ident: Identity,            # the record's JSON, from the worker or a file
+          check: Callable[[dict[str, Any]], str | None] | None) -> Record:   # a check of that JSON
     """A cell's record, checked; one that no reader could load fails its cell, not the whole file."""
     try:
         return Record.from_json(obj, check=check)
@@ -111,17 +105,16 @@ def typed(obj: dict[str, Any], ident: Mapping[str, Any],
                                  "time": None, "error": None})
 
 
-def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,
+# specs: a stress task's JSON dict is decoded (Cell.from_dict); check: of the record's stored JSON
+def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,  # stress: JSON
               probes: Probes | None = None,
               on_record: Callable[[int, Record, Outputs | None], Record] | None = None,
-              check: Callable[[dict[str, Any]], str | None] | None = None,
+              check: Callable[[dict[str, Any]], str | None] | None = None,  # of stored JSON
               runner: Callable[[Cell], cells.Result] | None = None,
               store: Store | None = None, resume: bool = False,
               share_process: bool = False,
               refuse: Callable[[Cell], tuple[str, str] | None] | None = None,
-              ahead: int = 0, footprint: Callable[[Cell], float] | None = None,
-              processes: int | str = 1, seed: int = 0,
-              on_repeat: Callable[[dict[str, Any]], None] | None = None) -> list[Result]:
+              ahead: int = 0, footprint: Callable[[Cell], float] | None = None) -> list[Result]:
     """Run every cell in a worker process; returns (record, outputs) per cell, in order. A dict
     is decoded into its Cell (``Cell.from_dict``) first.
 
@@ -140,10 +133,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     Every record is typed once (``Record.from_json``, with ``check``: its suite's own check,
     ``compare.results.formats``); ``on_record`` maps it to the record the store keeps (a function from
     Record to Record: it may add a yardstick, a run stamp, a converged error), checked again;
-    a record that fails a check becomes an ``error`` record of its cell.
-    ``processes``: more than 1 (or 'auto') times every cell that ran ok again in further worker
-    processes, in seeded rounds, and adds ``time.processes`` to its record (``compare.running.repeats``);
-    ``on_repeat`` sees each repeat process's ``time`` block (its parts, for the run's summary).
+    a record that fails a check becomes an ``error`` record of its cell. The plan runs once: the
+    repeats across processes (--processes) are the driver's (``compare.suites.driver.more_processes``).
     """
     plan = [as_cell(s) for s in specs]
     probes = probes if probes is not None else availability({c.backend for c in plan})
@@ -152,7 +143,8 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     failed: list[BaseException] = []
     idents = [c.identity() for c in plan]
 
-    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:
+    # got: the worker's JSON (or a kept record's, --resume)
+    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:  # worker JSON
         inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
         if inputs and out is not None:
             out = {**inputs, **out}
@@ -215,39 +207,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
                                lane=gpu_lane)
     else:
         pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
-    if repeats.plan(processes)[1] > 1:
-        ran = [i for idx in groups.values() for i in idx]
-        _more_processes(plan, done, ran, processes, seed, timeout, runner, store, lock, on_repeat)
     return [r for r in done if r is not None]
-
-
-def _more_processes(plan: list[Cell], done: list[Result | None], ran: list[int], processes: int | str,
-                    seed: int, timeout: float, runner: Callable[[Cell], cells.Result] | None,
-                    store: Store | None, lock: threading.Lock,
-                    on_repeat: Callable[[dict[str, Any]], None] | None = None) -> None:
-    """The repeat processes of every cell of ``ran`` that finished ok (``compare.running.repeats``)."""
-    first = {i: got[0].time for i in ran if (got := done[i]) is not None
-             and got[0].status == "ok" and got[0].time is not None}
-
-    def time_one(i: int) -> dict[str, Any] | None:
-        cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
-        rec, _ = runner(cell) if runner is not None else cells.run(cell, timeout)
-        if on_repeat is not None and rec.get("time"):
-            on_repeat(rec["time"])
-        return rec.get("time") if rec.get("status") == "ok" else None
-
-    def on_round(blocks: dict[int, dict[str, Any]]) -> None:
-        with lock:
-            for i, block in blocks.items():
-                rec, out = done[i]            # type: ignore[misc]
-                j = rec.to_json()
-                j["time"] = {**j["time"], "processes": block}
-                done[i] = (Record.from_json(jsonable(j)), out)
-                if store is not None:
-                    store.put(done[i][0])     # type: ignore[index]
-            if store is not None:
-                store.save()
-    repeats.run_rounds(first, processes, seed, time_one, on_round)
 
 
 QUIET_LINE_S = 300.0     # not a terminal: a progress line at least this often while cells run

@@ -29,7 +29,7 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from compare.measuring import environment
 from compare.results.record import Record
 
 # Stated peak non-tensor FLOP rates (NVIDIA datasheets, boost clock): the FLOP floors' denominators.
-STATED_PEAK_FLOPS = {
+STATED_PEAK_FLOPS: dict[str, dict[str, float | str]] = {
     "H100 80GB HBM3": {"float32": 66.9e12, "float64": 33.5e12, "source": "H100 SXM5 datasheet"},
     "H100 PCIe": {"float32": 51.2e12, "float64": 25.6e12, "source": "H100 PCIe datasheet"},
     "H200": {"float32": 66.9e12, "float64": 33.5e12, "source": "H200 SXM datasheet (H100 SXM5 compute)"},
@@ -74,7 +74,27 @@ def copy_in_slices(dst: np.ndarray, src: np.ndarray, pool: ThreadPoolExecutor, p
     list(pool.map(lambda i: np.copyto(dst[cut[i]:cut[i + 1]], src[cut[i]:cut[i + 1]]), range(parts)))
 
 
-def measure_cpu() -> dict[str, Any]:
+class Yardstick(TypedDict, total=False):
+    """A device's same-run yardstick (``measure``), as a run's environment keeps it (``hardware``):
+    the copy bandwidth (and, on CPU, its curve over sizes), the launch cost on CUDA, or ``error``."""
+    copy_bytes_per_s: float
+    copy_bytes: int
+    copy_median_s: float
+    copy_one_thread_bytes_per_s: float
+    copy_threads: int
+    copy_how: str
+    copy_curve: list[list[float]]          # [bytes per array, bandwidth]
+    launch_latency_s: float
+    launch_pipelined_s: float
+    launch_how: str
+    gpu: str
+    sm_clock_max_hz: float
+    nvml_error: str
+    peak_flops: dict[str, float | str]     # per precision, and its source
+    error: str
+
+
+def measure_cpu() -> Yardstick:
     """The faster of one thread's ``numpy.copyto`` and one per core on a slice each (copyto
     releases the GIL): the multi-threaded ports' copies beat one thread's (docs/measurement.md)."""
     n = 1 << 25                                    # float32: 128 MiB per array
@@ -94,28 +114,28 @@ def measure_cpu() -> dict[str, Any]:
                      _copy_seconds(lambda: copy_in_slices(b, a, pool, cores), reps))
             curve.append([nbytes, 2.0 * nbytes / tc])
     t, threads = (t1, 1) if t1 <= tn else (tn, cores)
-    return {"copy_bytes_per_s": 2.0 * src.nbytes / t, "copy_bytes": src.nbytes, "copy_median_s": t,
-            "copy_one_thread_bytes_per_s": 2.0 * src.nbytes / t1, "copy_threads": threads,
-            "copy_how": f"numpy.copyto of 128 MiB float32 in {threads} thread{'s' * (threads > 1)} "
-                        f"(the faster of 1 and {cores}), median of 10 (2 x bytes / time)",
-            "copy_curve": curve + [[src.nbytes, 2.0 * src.nbytes / t]]}
+    return Yardstick(copy_bytes_per_s=2.0 * src.nbytes / t, copy_bytes=src.nbytes, copy_median_s=t,
+                     copy_one_thread_bytes_per_s=2.0 * src.nbytes / t1, copy_threads=threads,
+                     copy_how=f"numpy.copyto of 128 MiB float32 in {threads} thread{'s' * (threads > 1)} "
+                              f"(the faster of 1 and {cores}), median of 10 (2 x bytes / time)",
+                     copy_curve=curve + [[src.nbytes, 2.0 * src.nbytes / t]])
 
 
 # bytes per array of the smaller copies (64 KiB to 64 MiB); 128 MiB is the main figure
 CURVE_BYTES = tuple(1 << k for k in range(16, 27))
 
 
-def matched_copy(hw: dict[str, Any], traffic: float) -> tuple[float, int] | None:
+def matched_copy(hw: Yardstick, traffic: float) -> tuple[float, int] | None:
     """(bandwidth, bytes per array) of the measured copy whose traffic (2 x its array: one read,
     one write) is nearest ``traffic`` (by ratio), or None without a curve or traffic."""
     curve = [(nbytes, bw) for nbytes, bw in hw.get("copy_curve") or [] if nbytes > 0 and bw > 0]
     if not curve or not traffic or traffic <= 0:
         return None
     nbytes, bw = min(curve, key=lambda p: abs(math.log(2 * p[0] / traffic)))
-    return bw, nbytes
+    return bw, int(nbytes)
 
 
-def measure_cuda() -> dict[str, Any]:
+def measure_cuda() -> Yardstick:
     cu = ctypes.CDLL("libcuda.so.1")
     P, U64, SZ = ctypes.c_void_p, ctypes.c_uint64, ctypes.c_size_t
     sig = {"cuInit": [ctypes.c_uint], "cuDeviceGet": [ctypes.POINTER(ctypes.c_int), ctypes.c_int],
@@ -175,11 +195,11 @@ def measure_cuda() -> dict[str, Any]:
         ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
         piped.append((time.perf_counter() - t0) / k)
     t = _median(copies)
-    out: dict[str, Any] = {"copy_bytes_per_s": 2.0 * n / t, "copy_bytes": n, "copy_median_s": t,
-                           "copy_how": "cuMemcpyDtoDAsync of 1 GiB, CUDA events, median of 20 (2 x bytes / time)",
-                           "launch_latency_s": _median(lat), "launch_pipelined_s": _median(piped[1:]),
-                           "launch_how": "empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize "
-                                         "(median of 2000); pipelined = 2000 launches, one synchronise, / 2000"}
+    out = Yardstick(copy_bytes_per_s=2.0 * n / t, copy_bytes=n, copy_median_s=t,
+                    copy_how="cuMemcpyDtoDAsync of 1 GiB, CUDA events, median of 20 (2 x bytes / time)",
+                    launch_latency_s=_median(lat), launch_pipelined_s=_median(piped[1:]),
+                    launch_how="empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize "
+                               "(median of 2000); pipelined = 2000 launches, one synchronise, / 2000")
     try:
         import pynvml
         pynvml.nvmlInit()
@@ -195,7 +215,7 @@ def measure_cuda() -> dict[str, Any]:
     return out
 
 
-def measure(device: str, timeout: float = 300.0) -> dict[str, Any]:
+def measure(device: str, timeout: float = 300.0) -> Yardstick:
     """The yardstick of ``device``, measured in a fresh process; {"error": reason} if it cannot be.
     The process is tied to this driver's life (compare.running.lifeline) as cell workers are: a driver
     killed mid-measurement leaves no yardstick running on."""
@@ -206,15 +226,15 @@ def measure(device: str, timeout: float = 300.0) -> dict[str, Any]:
                               env=lifeline.child_environment(worker_env()), capture_output=True, text=True,
                               timeout=timeout, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
-        return {"error": f"yardstick timed out after {timeout:g} s"}
+        return Yardstick(error=f"yardstick timed out after {timeout:g} s")
     for line in proc.stdout.splitlines():
         if line.startswith("YARDSTICK"):
             return json.loads(line[len("YARDSTICK"):])
     tail = " | ".join(proc.stderr.strip().splitlines()[-2:])
-    return {"error": f"yardstick process failed (exit {proc.returncode}): {tail}"}
+    return Yardstick(error=f"yardstick process failed (exit {proc.returncode}): {tail}")
 
 
-def annotated(rec: Record, hardware: dict[str, dict[str, Any]]) -> Record:
+def annotated(rec: Record, hardware: dict[str, Yardstick]) -> Record:
     """The record with its floor and hardware fraction added (``annotate`` on its JSON): a new record."""
     obj = rec.to_json()
     before = (obj.get("hardware"), dict(obj.get("throughput") or {}))   # (annotate updates throughput in place)
@@ -222,7 +242,7 @@ def annotated(rec: Record, hardware: dict[str, dict[str, Any]]) -> Record:
     return Record.from_json(obj) if (obj.get("hardware"), dict(obj.get("throughput") or {})) != before else rec
 
 
-def annotate(records: list[dict[str, Any]], hardware: dict[str, dict[str, Any]]) -> None:
+def annotate(records: list[dict[str, Any]], hardware: dict[str, Yardstick]) -> None:   # records' stored JSON
     """Add each timed cell's stated floor and hardware fraction (throughput regime)."""
     import scenarios
     for r in records:
@@ -239,8 +259,8 @@ def annotate(records: list[dict[str, Any]], hardware: dict[str, dict[str, Any]])
                                             "launch_latency_s", "gpu", "copy_bytes") if k in hw}
         params = sc.params(r["params"])
         match = matched_copy(hw, sc.work(params, r["precision"]).get("bytes") or 0)
-        cell_hw = hw if match is None else {**hw, "copy_bytes_per_s": match[0]}
-        floor = sc.floor(params, r["precision"], cell_hw)
+        cell_hw: Yardstick = hw if match is None else {**hw, "copy_bytes_per_s": match[0]}
+        floor = sc.floor(params, r["precision"], dict(cell_hw))
         if floor is None:
             continue
         if match is not None and floor["kind"] == "bandwidth" and match[1] < hw.get("copy_bytes", 0):

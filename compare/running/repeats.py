@@ -19,12 +19,14 @@ from __future__ import annotations
 import math
 import random
 import statistics
-from typing import Any, Callable, Mapping, Sequence
+from typing import Callable, Mapping, Sequence
+
+from compare.results.record_parts import Figure, Processes, Timing
 
 CONFIDENCE = 0.95
 TARGET = 0.05            # stop when the interval is within +-5 % of the median
 AUTO_MIN, AUTO_MAX = 6, 10
-FIGURES = ("latency", "throughput", "graph", "events", "first_result")
+FIGURES = Processes.FIGURES
 
 
 def interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float, float]:
@@ -43,13 +45,12 @@ def interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[f
     return best
 
 
-def figures(t: Mapping[str, Any]) -> dict[str, float]:
+def figures(t: Timing) -> dict[str, float]:
     """One process's figures from its record's ``time`` block."""
     out: dict[str, float] = {}
-    lat = t.get("latency") or {}
-    for name, part in (("latency", lat), ("throughput", t.get("throughput")), ("graph", t.get("graph")),
-                       ("events", t.get("events"))):
-        v = (part or {}).get("median_s") if isinstance(part, Mapping) else None
+    for name in ("latency", "throughput", "graph", "events"):
+        part = t.regime(name)
+        v = part.median_s if part is not None else None
         if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0:
             out[name] = float(v)
     first, setup = t.get("first_call_s"), t.get("setup_s")
@@ -58,31 +59,33 @@ def figures(t: Mapping[str, Any]) -> dict[str, float]:
     return out
 
 
-def summary(times: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """``time.processes`` from the time blocks of every process of a cell (the first included)."""
+def summary(times: Sequence[Timing], failed: int = 0) -> Processes:
+    """``time.processes`` from the time blocks of every process of a cell (the first included);
+    ``failed``: the repeat processes that failed (counted where any did)."""
     each = [figures(t) for t in times]
-    out: dict[str, Any] = {"count": len(times), "order": "rounds, a seeded shuffle of the open cells in each",
-                           "interval": "order statistics of the median (distribution-free)"}
+    found: dict[str, Figure] = {}
     for name in FIGURES:
         vals = [f[name] for f in each if name in f]
         if not vals:
             continue
         lo, hi, cover = interval(vals)
-        out[name] = {"values": vals, "median_s": statistics.median(vals), "ci_lo_s": lo, "ci_hi_s": hi,
-                     "confidence": round(cover, 4)}
-    return out
+        found[name] = Figure.of(values=vals, median_s=statistics.median(vals), ci_lo_s=lo, ci_hi_s=hi,
+                                confidence=round(cover, 4))
+    return Processes.of(count=len(times), order="rounds, a seeded shuffle of the open cells in each",
+                        interval="order statistics of the median (distribution-free)", **found,
+                        **({"failed": failed} if failed else {}))
 
 
-def settled(block: Mapping[str, Any], target: float = TARGET, confidence: float = CONFIDENCE) -> bool:
+def settled(block: Processes, target: float = TARGET, confidence: float = CONFIDENCE) -> bool:
     """Every figure's interval (at ``confidence``) lies within ``target`` of its median."""
     for name in FIGURES:
-        f = block.get(name)
-        if not isinstance(f, Mapping):
+        f = block.figure(name)
+        if f is None:
             continue
-        if f["confidence"] < confidence:
+        if f.confidence < confidence:
             return False
-        m = f["median_s"]
-        if f["ci_lo_s"] < (1 - target) * m or f["ci_hi_s"] > (1 + target) * m:
+        m = f.median_s
+        if f.ci_lo_s < (1 - target) * m or f.ci_hi_s > (1 + target) * m:
             return False
     return True
 
@@ -95,17 +98,17 @@ def plan(processes: int | str) -> tuple[int, int]:
     return n, n
 
 
-def run_rounds(first: Mapping[int, Mapping[str, Any]], processes: int | str, seed: int,
-               time_one: Callable[[int], Mapping[str, Any] | None],
-               on_round: Callable[[dict[int, dict[str, Any]]], None]) -> dict[int, dict[str, Any]]:
+def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
+               time_one: Callable[[int], Timing | None],
+               on_round: Callable[[dict[int, Processes]], None]) -> dict[int, Processes]:
     """More processes for the cells in ``first`` (index -> the first process's ``time`` block):
     rounds 2, 3, ..., each over the cells still open in a shuffle seeded by ``seed`` and the round.
     ``time_one(i)`` runs cell i once more and returns its time block (None: it failed, counted).
     ``on_round`` gets ``{i: time.processes}`` of the cells the round changed. Returns the same for all."""
     fewest, most = plan(processes)
-    times: dict[int, list[Mapping[str, Any]]] = {i: [t] for i, t in first.items()}
+    times: dict[int, list[Timing]] = {i: [t] for i, t in first.items()}
     failed: dict[int, int] = {i: 0 for i in first}
-    blocks: dict[int, dict[str, Any]] = {}
+    blocks: dict[int, Processes] = {}
     for rnd in range(2, most + 1):
         open_ = [i for i in times if rnd <= fewest or not settled(summary(times[i]))]
         if not open_:
@@ -119,9 +122,6 @@ def run_rounds(first: Mapping[int, Mapping[str, Any]], processes: int | str, see
                 times[i].append(got)
         changed = {}
         for i in open_:
-            b = summary(times[i])
-            if failed[i]:
-                b["failed"] = failed[i]
-            blocks[i] = changed[i] = b
+            blocks[i] = changed[i] = summary(times[i], failed[i])
         on_round(changed)
     return blocks

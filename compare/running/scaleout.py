@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import os
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, TypedDict
 
 from backends.base import visible_gpus
 from compare.spec import Cell
@@ -88,13 +88,21 @@ def gpu_workers(c: Any) -> int:
     return sum(1 for w in info.values() if (w.get("resources") or {}).get("GPU"))
 
 
-def placement(c: Any) -> dict[str, Any]:
+class Placement(TypedDict):
+    """What a run's environment records of its cluster (``scheduler``, beside its address)."""
+    workers: int
+    gpu_workers: int
+    mode: str
+    worker_names: list[str]
+
+
+def placement(c: Any) -> Placement:
     """What the run's environment records about the cluster: workers, GPU workers, mode."""
     info = c.scheduler_info().get("workers", {})
     gpus = gpu_workers(c)
-    return {"workers": len(info), "gpu_workers": gpus,
-            "mode": "one cell per GPU worker at a time" if gpus else "one cell at a time (no GPU resources)",
-            "worker_names": sorted(str(w.get("name", "")) for w in info.values())}
+    return Placement(workers=len(info), gpu_workers=gpus,
+                     mode="one cell per GPU worker at a time" if gpus else "one cell at a time (no GPU resources)",
+                     worker_names=sorted(str(w.get("name", "")) for w in info.values()))
 
 
 def runner(c: Any, timeout: float, plan: list[Cell],

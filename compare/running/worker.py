@@ -32,8 +32,9 @@ from compare.measuring import noise, phases, timing
 from compare.running import scaleout
 from compare.running.gate import Gate
 from compare.measuring.nvml import open_nvml
-from compare.results.record_parts import Check, Gradient, Memory, OwnTimer, Regime, Timing, plain
-from compare.spec import BUSY_TAG, Cell
+from compare.results.record import Record
+from compare.results.record_parts import Check, Gradient, Memory, OwnTimer, Regime, Timing
+from compare.spec import BUSY_TAG, IDENTITY, Cell
 from compare.results.store import jsonable
 from scenarios.base import Precision
 
@@ -123,7 +124,7 @@ def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> OwnTimer | 
             got = be.own_latency(device, lambda: sync(run()))
             if got is None:             # the framework ships no timer: nothing more to time
                 return None
-            last: dict[str, Any] = got
+            last = got
             times = timing.until(lambda: timing.call(run, sync), 10, OWN_TIMER_S, 1.0, 100_000)
             theirs.append(got["median_s"])
             ours.append(in_blocks(times, int(got.get("block") or 1)))
@@ -136,7 +137,7 @@ def own_latency(be: Backend, device: Device, run: Any, sync: Any) -> OwnTimer | 
                                "rounds": CROSS_ROUNDS})
 
 
-def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, Any]) -> str | None:
+def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict[str, np.ndarray]) -> str | None:
     """The first way the kernel's outputs break the scenario's declared contract, or None."""
     want = sc.output_shapes(params)
     missing = [k for k in want if k not in outputs]
@@ -155,7 +156,7 @@ def contract_violation(sc: Any, params: Any, precision: Precision, outputs: dict
     return None
 
 
-def device_memory(be: Backend, device: Device) -> dict[str, Any]:
+def device_memory(be: Backend, device: Device) -> dict[str, int | float | str]:
     """The backend's own device-memory figures; a failing reader is noted, not fatal."""
     try:
         return be.memory(device)
@@ -164,7 +165,7 @@ def device_memory(be: Backend, device: Device) -> dict[str, Any]:
 
 
 def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = False,
-             laps: phases.Laps | None = None, gate: Gate | None = None) -> dict[str, Any]:
+             laps: phases.Laps | None = None, gate: Gate | None = None) -> Record:
     """Build, time, download and check one cell. Exceptions propagate (the parent records them).
     ``laps``: where the cell's time goes (``time.phases``), begun before the caller's part.
     ``gate``: in an overlapped run, the driver's word before the clocks start (``compare.running.gate``);
@@ -204,16 +205,15 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     meter = noise.HostMeter()
     t = timing.steady_state(kernel.run, sync, warmup=cell.warmup, repeat=cell.repeat, min_time=cell.min_time,
                             max_time=cell.max_time, timer=timer)
-    if timer is None and clock != timing.CLOCK:   # why no events: kept beside the latency
-        t["events_error"] = clock
+    # why no events: kept beside the latency
+    events_error = {"events_error": clock} if timer is None and clock != timing.CLOCK else {}
     laps.lap("steady")
     if nvml:
         nvml.sample()
-    regimes: dict[str, Any] = {"latency": Regime.of(**{k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")},
-                                                  repeats=t["repeats"])}
+    latency = Regime.of(**{k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")}, repeats=t.repeats)
+    throughput: Regime | None = None
     if cell.throughput:
-        regimes["throughput"] = timing.pipelined(kernel.run, sync, max_time=cell.max_time,
-                                                 latency=regimes["latency"])
+        throughput = timing.pipelined(kernel.run, sync, max_time=cell.max_time, latency=latency)
         laps.lap("throughput")
         if nvml:
             nvml.sample()
@@ -227,32 +227,40 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         raise ContractError(f"contract: outputs() returned {type(got).__name__}, not a dict of arrays")
     outputs = {k: np.asarray(v) for k, v in got.items()}
 
-    if cell.throughput:     # after the download: a failed capture cannot touch the outputs
+    # the regimes after the latency, in the order the time block keeps them
+    regimes: dict[str, Regime | OwnTimer | timing.HostProfile] = {}
+    if throughput is not None:
+        regimes["throughput"] = throughput
+        # after the download: a failed capture cannot touch the outputs
         regimes["graph"] = graph_regime(be, device, kernel, sync, cell.max_time)
         laps.lap("graph")
-    if cell.host_profile and "throughput" in regimes:   # after the peaks and the download too
-        calls = max(20, min(regimes["throughput"]["k"], 2000))
+    if cell.host_profile and throughput is not None:   # after the peaks and the download too
+        calls = max(20, min(throughput.k or 0, 2000))
         regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, cell.host_profile)
         laps.lap("host_profile")
     regimes["null"] = timing.null_call(sync)   # the harness's floor, on the now idle device
     laps.lap("null")
     # the framework's own clock, to cross-check ours: once per cell (the first process), in the
     # same stretch of that process; a repeat process (compare.running.repeats) times the figures alone
-    if cell.check and regimes["latency"]["median_s"] < OWN_TIMER_BELOW_S:
+    if cell.check and (latency.median_s or 0.0) < OWN_TIMER_BELOW_S:
         if (own := own_latency(be, device, kernel.run, sync)) is not None:
             regimes["own_timer"] = own
         laps.lap("own_timer")
     gate.release()
-    times = {"first_call_s": first_call_s, **t, **regimes, "setup_s": setup_s, "download_s": download_s,
-             "clock": timing.CLOCK, "timer": "wall",
-             "first_call_clock": timing.CLOCK, "cache": cache_note,
-             "window": [round(w, 4) for w in gate.window]}   # epoch seconds: no two cells' overlap
-    times["noise"] = noise.verdict(times, host)
+
+    def timed() -> Timing:
+        """The ``time`` block, with the cell's phases so far."""
+        partial = Timing.of(first_call_s=first_call_s, **t, **events_error, latency=latency, **regimes,
+                            setup_s=setup_s, download_s=download_s, clock=timing.CLOCK, timer="wall",
+                            first_call_clock=timing.CLOCK, cache=cache_note,
+                            window=[round(w, 4) for w in gate.window])   # epoch seconds: no two cells' overlap
+        return Timing.of(**partial, noise=noise.verdict(partial, host),
+                         phases={k: round(v, 4) for k, v in laps.spent.items()})
+    params_json = dataclasses.asdict(params)
     if not cell.check:      # a repeat process (compare.running.repeats): the first process checked the cell
         # a miniature's (compare.planning.calibrate) peak, which the memory preflight scales to its big cell
-        return {"status": "ok", "reason": "", "params": dataclasses.asdict(params),
-                "time": Timing.of(**times, phases={k: round(v, 4) for k, v in laps.spent.items()}),
-                "memory": Memory.of(peak_host_rss_bytes=run_peak)}
+        return record_of(cell, status="ok", reason="", params=params_json, time=timed(),
+                         memory=Memory.of(peak_host_rss_bytes=run_peak))
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
@@ -262,31 +270,9 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
     laps.lap("check")
-    record: dict[str, Any] = {
-        "status": "ok" if check.ok else "mismatch",
-        "reason": "" if check.ok else f"error {check.error:.3g} exceeds tolerance {check.tolerance:.3g}",
-        "params": dataclasses.asdict(params),
-        "time": times,      # a Timing once the cell's phases are known (below)
-        # (a dict first: a detail named as a field takes its place, as before)
-        "error": Check.from_json({"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
-                                  **check.details, "checked_items": sampled.text() if sampled else "all"}),
-        "work": work,
-        # useful work per second in the throughput regime (the latency regime where not measured)
-        "throughput": {f"{k}_per_s": v / per_call for k, v in work.items()
-                       if (per_call := (regimes.get("throughput") or t)["median_s"]) > 0},
-        "memory": Memory.from_json({
-            "peak_host_rss_bytes": peak_rss_bytes(),
-            "host_bytes": max(0, run_peak - rss_before) if rss_before and run_peak else None,
-            **device_memory(be, device),
-            **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})}),
-        "info": kernel.info(),
-        "host": platform.node(),
-        "host_load_1m": os.getloadavg()[0],   # other processes on the host perturb CPU timings
-        "host_cores": len(os.sched_getaffinity(0)),   # fewer than the host's under a Dask core set
-        "versions": be.versions(),
-    }
+    gradient = None
     if sc.has_gradient:
-        record["gradient"] = Gradient.of(
+        gradient = Gradient.of(
             method=be.gradient_method,
             value=check.details.get("gradient_value", outputs["grad"]),
             reference=check.details.get("gradient_reference"),
@@ -297,6 +283,16 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
             tolerance=check.details.get("gradient_tolerance"),
             **{k: check.details[f"gradient_{k}"] for k in ("fd_agreement", "fd_resolved")
                if f"gradient_{k}" in check.details})
+    # useful work per second in the throughput regime (the latency regime where not measured)
+    per_call = (throughput or t).median_s
+    rates = {f"{k}_per_s": v / per_call for k, v in work.items() if per_call is not None and per_call > 0}
+    memory = Memory.from_json({
+        "peak_host_rss_bytes": peak_rss_bytes(),
+        "host_bytes": max(0, run_peak - rss_before) if rss_before and run_peak else None,
+        **device_memory(be, device),
+        **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})})
+    info, versions = kernel.info(), be.versions()
+    host_name, load, cores = platform.node(), os.getloadavg()[0], len(os.sched_getaffinity(0))
     laps.lap("record")
     # (numpy's stubs read ** as possibly setting savez's allow_pickle: bool)
     if cell.save_outputs:
@@ -305,8 +301,26 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         np.savez(out_dir / "inputs.npz", **inputs)  # type: ignore[arg-type]
     if cell.save_outputs or cell.save_inputs:
         laps.lap("save")
-    record["time"] = Timing.of(**times, phases={k: round(v, 4) for k, v in laps.spent.items()})
-    return record
+    return record_of(
+        cell, status="ok" if check.ok else "mismatch",
+        reason="" if check.ok else f"error {check.error:.3g} exceeds tolerance {check.tolerance:.3g}",
+        params=params_json, time=timed(),
+        # (a mapping first: a detail named as a field takes its place, as before)
+        error=Check.from_json({"vs_oracle": check.error, "tolerance": check.tolerance, "vs_reference": None,
+                               **check.details, "checked_items": sampled.text() if sampled else "all"}),
+        work=work, throughput=rates, memory=memory, info=info,
+        host=host_name,
+        host_load_1m=load,          # other processes on the host perturb CPU timings
+        host_cores=cores,           # fewer than the host's under a Dask core set
+        versions=versions, **({"gradient": gradient} if gradient is not None else {}))
+
+
+def record_of(cell: Cell, **measured: Any) -> Record:
+    """The cell's record: what the worker measured, then the cell's identity, in the order the
+    stored files keep (the measured fields, the identity, then tags)."""
+    layout = tuple(measured) + IDENTITY + (("tags",) if cell.tags else ())
+    return Record(scenario=cell.scenario, backend=cell.backend, device=str(cell.device), precision=cell.precision,
+                  variant=cell.variant, tags=cell.tags or None, **measured, layout=layout)
 
 
 class ContractError(RuntimeError):
@@ -333,7 +347,7 @@ def busy_cores(n: int) -> Iterator[None]:
             p.wait()
 
 
-def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
+def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver's JSON of the cell
     """One cell of the batch: its record (and outputs) in ``cell_dir``, whatever happens."""
     laps = phases.Laps(phases.since_launch() if not _SET_UP else 0.0)   # the process start: first cell only
     cell_dir.mkdir(parents=True, exist_ok=True)
@@ -352,13 +366,15 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:
         with busy_cores(int((cell.tags or {}).get(BUSY_TAG) or 0)):
             record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps, gate=Gate(cell_dir))
         _SET_UP.add(ident)
+        text = json.dumps(jsonable(record.to_json()))     # the record crosses to the driver once, as JSON
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
-        record = {"status": "error", "reason": str(exc)}
+        text = json.dumps({"status": "error", "reason": str(exc)})
     except Exception as exc:  # the record says what went wrong; the parent keeps going
-        record = {"status": "error", "reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
-                  "traceback": traceback.format_exc()}
+        text = json.dumps({"status": "error",
+                           "reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
+                           "traceback": traceback.format_exc()})
     tmp = cell_dir / "record.json.tmp"     # the parent polls for record.json: never half a file
-    tmp.write_text(json.dumps(jsonable(plain(record))))     # the parts' JSON, crossing to the driver once
+    tmp.write_text(text)
     os.replace(tmp, cell_dir / "record.json")
 
 

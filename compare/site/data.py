@@ -194,7 +194,7 @@ PROCESS_SPREAD = 0.10       # a median whose interval strays further than this i
 
 def process_count(rec: Record) -> int:
     """How many worker processes timed the record's cell (1 for a record without repeats)."""
-    n = ((rec.time.processes if rec.time else None) or {}).get("count")
+    n = rec.time.processes.count if rec.time and rec.time.processes else None
     return n if isinstance(n, int) and not isinstance(n, bool) else 1
 
 
@@ -202,7 +202,7 @@ def across_processes(rec: Record, regime: str) -> Timing | None:
     """The regime's figure over several worker processes (``time.processes``; 'first' is the time
     to first result, set-up + first call), or None for a one-process record. The bounds are the
     median's interval; the figure is noisy where the interval strays more than PROCESS_SPREAD."""
-    block = ((rec.time.processes if rec.time else None) or {}).get(regime)
+    block = rec.time.processes.get(regime) if rec.time and rec.time.processes else None
     if not isinstance(block, Mapping):
         return None
     med, lo, hi = num(block.get("median_s")), num(block.get("ci_lo_s")), num(block.get("ci_hi_s"))

@@ -20,14 +20,16 @@ from typing import Any, Callable, Generic, NamedTuple, TypeVar
 
 import numpy as np
 
-from compare.running import engine, overlap, scaleout
+from compare.running import cells as cells_, engine, overlap, repeats, scaleout
 from compare import options
 from compare.planning import outdir, preflight
 from compare.planning.calibrate import Refusal
 from compare.running.lock import DirectoryLock
 from compare.options import UsageError
 from compare.results.record import Record
-from compare.spec import Cell
+from compare.results.record_parts import Processes, Timing
+from compare.results.store import Store
+from compare.spec import Cell, key
 
 X = TypeVar("X")
 Blocked = tuple[str, str] | None
@@ -125,11 +127,11 @@ class Suite(Command):
         suite adds to a record (a new record: records are immutable) or reports it."""
         return rec
 
-    def on_repeat(self, block: dict[str, Any]) -> None:
+    def on_repeat(self, block: Timing) -> None:
         """The ``time`` block of every repeat process (--processes)."""
 
     @property
-    def check(self) -> Callable[[dict[str, Any]], str | None] | None:
+    def check(self) -> Callable[[dict[str, Any]], str | None] | None:     # of stored JSON
         """Its records' own check beyond the common schema (its store's format, ``compare.results.formats``)."""
         from compare.results.formats import FORMATS
         store = self.store()
@@ -198,12 +200,48 @@ def drive(suite: Suite, args: argparse.Namespace, argv: list[str]) -> int:
 def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
     """The plan's cells on the engine: locally one at a time (or overlapped set-ups), or on the
     cluster's workers; each record through ``suite.on_record`` into the suite's store; then the
-    repeats across processes (--processes), for every timed suite alike."""
+    repeats across processes (--processes), for every timed suite alike (``more_processes``)."""
     cells, args = run.cells, run.args
     runner = scaleout.runner(run.client, args.timeout, cells, run.probes) if run.client is not None else None
-    return engine.run_cells(cells, timeout=args.timeout, probes=run.probes, runner=runner,
-                            store=suite.store(), resume=getattr(args, "resume", False),
-                            on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
-                            footprint=lambda c: preflight.cell_bytes(c)[0],
-                            processes=getattr(args, "processes", 1) if suite.timed else 1,
-                            seed=suite.seed(), on_repeat=suite.on_repeat)
+    store, resume = suite.store(), getattr(args, "resume", False)
+    processes = getattr(args, "processes", 1) if suite.timed else 1
+    seed = suite.seed()
+    # the cells --resume keeps run in no process, the first or a repeat one
+    kept = {i for i, c in enumerate(cells) if store is not None and resume and store.done(key(c.identity()))}
+    results = engine.run_cells(cells, timeout=args.timeout, probes=run.probes, runner=runner,
+                               store=store, resume=resume,
+                               on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
+                               footprint=lambda c: preflight.cell_bytes(c)[0])
+    if repeats.plan(processes)[1] > 1:
+        ran = [i for i in range(len(cells)) if i not in kept]
+        more_processes(cells, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat)
+    return results
+
+
+def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], processes: int | str,
+                   seed: int, timeout: float, runner: Callable[[Cell], cells_.Result] | None = None,
+                   store: Store | None = None, on_repeat: Callable[[Timing], None] | None = None) -> None:
+    """The repeat processes of every cell of ``ran`` whose first process finished ok, in seeded
+    rounds (``compare.running.repeats.run_rounds``): each round's ``time.processes`` replaces the
+    record's in ``done`` and in the store, saved once a round. ``on_repeat`` sees each repeat
+    process's ``time`` block (its parts, for the run's summary)."""
+    first = {i: got[0].time for i in ran if (got := done[i])[0].status == "ok" and got[0].time is not None}
+
+    def time_one(i: int) -> Timing | None:
+        cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
+        rec, _ = runner(cell) if runner is not None else cells_.run(cell, timeout)
+        t = Timing.from_json(rec["time"]) if rec.get("time") else None     # the worker's JSON
+        if on_repeat is not None and t is not None:
+            on_repeat(t)
+        return t if rec.get("status") == "ok" else None
+
+    def on_round(blocks: dict[int, Processes]) -> None:
+        for i, block in blocks.items():
+            rec, out = done[i]
+            assert rec.time is not None           # a cell of ``first``: its first process timed it
+            done[i] = (rec.replace(time=Timing.from_json({**rec.time, "processes": block})), out)
+            if store is not None:
+                store.put(done[i][0])
+        if store is not None:
+            store.save()
+    repeats.run_rounds(first, processes, seed, time_one, on_round)

@@ -70,7 +70,7 @@ from compare import options
 from compare.planning import outdir
 from compare.suites.driver import Command, claim
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
-from compare.suites.publish_log import host, load_log, save_log, started, state
+from compare.suites.publish_log import Entry, Log, host, load_log, save_log, started, state
 from compare.planning.publish_plan import GROUPS, Part, plan
 
 LOCK = ".publish.lock"         # publish's own lock: each part locks DIR itself while it writes
@@ -181,8 +181,8 @@ def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: f
             print(f"publish: {part.name}: no stress experiment has run, nothing to merge", flush=True)
             continue
         print(f"publish: [{k}/{len(chosen)}] {part.name}: python -m compare {shlex.join(argv)}", flush=True)
-        entry: dict[str, Any] = {"name": part.name, "argv": list(argv), "started": started(),
-                                 "seconds": 0.0, "exit_code": None, "interrupted": False, "host": who}
+        entry = Entry(name=part.name, argv=list(argv), started=started(), seconds=0.0, exit_code=None,
+                      interrupted=False, host=who)
         log["parts"].append(entry)
         save_log(out, log)
         t0 = time.monotonic()
@@ -194,7 +194,8 @@ def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: f
             except OSError:
                 pass
         code, why = execute(list(argv), deadline, tick)
-        entry.update(seconds=round(time.monotonic() - t0, 1), exit_code=code, interrupted=why is not None)
+        entry["seconds"], entry["exit_code"] = round(time.monotonic() - t0, 1), code
+        entry["interrupted"] = why is not None
         save_log(out, log)
         print(f"publish: {part.name}: exit {code} after {entry['seconds']:.0f} s", flush=True)
         if why is not None:
@@ -206,7 +207,7 @@ def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: f
     return EXIT_FAIL if bad else EXIT_OK
 
 
-def print_list(parts: list[Part], chosen: list[Part], log: dict[str, Any], out_s: str,
+def print_list(parts: list[Part], chosen: list[Part], log: Log, out_s: str,
                devices: list[str], notes: list[str]) -> None:
     print(f"publish {out_s} (devices: {','.join(devices)}; {len(parts)} parts, in this order):")
     for p in chosen:

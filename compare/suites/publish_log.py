@@ -21,7 +21,7 @@ import dataclasses
 import datetime
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict, cast
 
 from compare.measuring import environment
 from compare.options import EXIT_INTERRUPTED
@@ -32,11 +32,36 @@ FORMAT_VERSION, LOG = 1, "publish.json"
 DONE_CODES = (0, 1)      # 1: the part ran to its end; the report marks its failed cells
 
 
-def load_log(out: Path) -> dict[str, Any]:
+class Host(TypedDict):
+    """The machine a part ran on."""
+    hostname: str
+    cpu: str
+    cores: int
+    gpus: list[dict[str, str]]
+
+
+class Entry(TypedDict):
+    """One attempt of a part, as the log keeps it (``exit_code`` None: still running, or killed)."""
+    name: str
+    argv: list[str]
+    started: str
+    seconds: float
+    exit_code: int | None
+    interrupted: bool
+    host: Host
+
+
+class Log(TypedDict):
+    """DIR/publish.json: every attempt of every part, in order."""
+    format_version: int
+    parts: list[Entry]
+
+
+def load_log(out: Path) -> Log:
     """DIR/publish.json (an empty log when absent); a malformed one is refused in one line."""
     path = Path(out) / LOG
     if not path.exists():
-        return {"format_version": FORMAT_VERSION, "parts": []}
+        return Log(format_version=FORMAT_VERSION, parts=[])
     try:
         data = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as exc:
@@ -48,7 +73,7 @@ def load_log(out: Path) -> dict[str, Any]:
             isinstance(e, dict) and isinstance(e.get("name"), str) and isinstance(e.get("argv"), list)
             and (e.get("exit_code") is None or type(e["exit_code"]) is int) for e in parts):
         raise StoreError(f"{path}: 'parts' must be a list of objects with a name, an argv, an exit_code")
-    return data
+    return cast(Log, data)   # the file's JSON, checked above (an older entry may lack a key: read with get)
 
 
 def identity(argv: Any, out: str) -> list[str]:
@@ -64,12 +89,12 @@ def identity(argv: Any, out: str) -> list[str]:
     return words
 
 
-def cut_off(e: dict[str, Any]) -> bool:
+def cut_off(e: Entry) -> bool:
     code = e.get("exit_code")
     return code is None or bool(e.get("interrupted")) or code == EXIT_INTERRUPTED or code < 0
 
 
-def state(part: Part, log: dict[str, Any], out: str) -> str:
+def state(part: Part, log: Log, out: str) -> str:
     """'done', 'done (exit 1 ...)', 'given up ...', or why the part is to run. A measuring part is
     judged by its latest attempt with the same command, a derived one by its latest attempt."""
     mine = [(i, e) for i, e in enumerate(log["parts"]) if e["name"] == part.name
@@ -88,14 +113,13 @@ def state(part: Part, log: dict[str, Any], out: str) -> str:
                          else f"last attempt exited {code}") + ")"
 
 
-def host() -> dict[str, Any]:
+def host() -> Host:
     import platform
     cores = environment.usable_cores()
-    return {"hostname": platform.node(), "cpu": environment.cpu_model(), "cores": cores,
-            "gpus": environment.gpus()}
+    return Host(hostname=platform.node(), cpu=environment.cpu_model(), cores=cores, gpus=environment.gpus())
 
 
-def save_log(out: Path, log: dict[str, Any]) -> None:
+def save_log(out: Path, log: Log) -> None:
     atomic_write(Path(out) / LOG, json.dumps(log, indent=1))
 
 

@@ -32,6 +32,7 @@ from compare.suites.driver import Planned, Run, Suite, drive
 from compare.planning.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
                                measured_need, memory_refusal)
 from compare.results.record import Record, plain
+from compare.results.record_parts import Timing
 from compare.spec import BUSY_TAG, Cell, key
 from compare.results.store import Store, StoreError, array_file, load_arrays, save_arrays
 from compare.options import UsageError
@@ -133,7 +134,7 @@ def saved_outputs(directory: Path, records: list[Record],
                 outputs[i] = got
 
 
-def render(out: Path, env: dict[str, Any], records: list[Record],
+def render(out: Path, env: dict[str, Any], records: list[Record],  # env: the stored run's
            outputs: dict[int, dict[str, np.ndarray]], plots: bool, clean: bool = False) -> None:
     """Plots (``run_plots.write_plots``: speed, time against error, each scenario's picture; an
     earlier run's removed first when ``clean``) and results.csv/.md in ``out``."""
@@ -185,7 +186,7 @@ class RunStore(Store):
     """results.json whose every save also rewrites results.csv and results.md from the same
     records (each atomically), so after an interruption the three agree; ``rerun`` names kept
     cells that --resume runs again (their --save-arrays files are missing)."""
-    env: dict[str, Any] = {}
+    env: dict[str, Any] = {}     # the run's environment, stored in results.json
     rerun: frozenset[str] = frozenset()
 
     def save(self) -> None:
@@ -209,7 +210,7 @@ class RunSuite(Suite):
 
     def __init__(self, chosen: list[scenarios.Scenario] | None = None) -> None:
         self.chosen = chosen            # None: from the command (``chosen_scenarios``)
-        self.ran: list[dict[str, Any]] = []     # the cells this run ran (not those --resume kept)
+        self.ran: list[Timing | None] = []     # the time blocks of the processes this run ran (not --resume's)
 
     add_arguments = staticmethod(add_arguments)
 
@@ -278,7 +279,7 @@ class RunSuite(Suite):
         return int(self.env.get("seed", 0))
 
     def on_record(self, i: int, rec: Record, outs: dict[str, np.ndarray] | None) -> Record:
-        self.ran.append({"time": rec.to_json()["time"]})
+        self.ran.append(rec.time)
         rec = hardware.annotated(rec, self.env["hardware"])   # judged against this run's yardstick
         rec = rec.replace(run=environment.run_stamp(self.env))    # and named as this run's
         if self.args.save_arrays and outs is not None:        # before its record is saved: a failed
@@ -286,8 +287,8 @@ class RunSuite(Suite):
         self.show(i, rec, outs)
         return rec
 
-    def on_repeat(self, block: dict[str, Any]) -> None:
-        self.ran.append({"time": block})
+    def on_repeat(self, block: Timing) -> None:
+        self.ran.append(block)
 
     def render(self, run: Run, results: list[engine.Result]) -> int:
         args, out, store, env, spent = run.args, run.out, self.store_, self.env, run.spent
@@ -326,7 +327,7 @@ def report_command(args: argparse.Namespace) -> int:
     """Rebuild tables and plots from saved results.json files (merged), without running anything.
     Records from different machines are told apart by a 'machine' field (GPU model or host)."""
     records: list[Record] = []
-    envs: list[dict[str, Any]] = []
+    envs: list[dict[str, Any]] = []     # stored runs
     outputs: dict[int, dict[str, np.ndarray]] = {}
     options.no_duplicates(args.files, "report")
     for opt in ("title", "notes"):
@@ -352,7 +353,7 @@ def report_command(args: argparse.Namespace) -> int:
         return report_claimed(args, out, envs, records, outputs, notes)
 
 
-def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any]],
+def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any]],  # stored runs
                    records: list[Record], outputs: dict[int, dict[str, np.ndarray]], notes: str) -> int:
     if args.page:
         page = Path(args.page)

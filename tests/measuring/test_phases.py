@@ -5,6 +5,7 @@ import time
 
 from compare.running import cells
 from compare.measuring import phases
+from compare.results.record_parts import Timing
 
 
 def test_a_cells_parts_are_named_positive_and_within_its_wall_time():
@@ -40,9 +41,8 @@ def test_summary_line_shares_add_up_to_the_cells_time():
 
 
 def test_records_parts_are_summed():
-    recs = [{"time": {"phases": {"start": 1.0, "steady": 2.0}}}, {"time": None},
-            {"time": {"phases": {"steady": 0.5}}}]
-    assert phases.cell_parts(recs) == {"start": 1.0, "steady": 2.5}
+    times = [Timing.of(phases={"start": 1.0, "steady": 2.0}), None, Timing.of(phases={"steady": 0.5})]
+    assert phases.cell_parts(times) == {"start": 1.0, "steady": 2.5}
 
 
 def test_summary_line_of_an_overlapped_run_shares_the_workers_time():

@@ -11,6 +11,7 @@ from pathlib import Path
 from compare import cli
 from compare.planning import outdir, preflight
 from compare.suites import run as run_suite
+from compare.spec import Cell
 from scenarios.base import ParamError
 from reliability_checks import FIGURES, assert_refused, working_directory
 
@@ -40,7 +41,7 @@ def test_memory_is_compared_with_available_not_total(monkeypatch):
     class Mem:
         total, available = 1 << 50, 1 << 20
     monkeypatch.setattr(psutil, "virtual_memory", lambda: Mem())
-    spec = {"scenario": "saxpy", "backend": "numba", "device": "cpu", "precision": "float32", "params": {}}
+    spec = Cell.make("saxpy", "numba", "cpu", "float32", params={})
     with pytest.raises(ParamError, match="available"):
         preflight.check_memory([spec])
 
@@ -50,8 +51,7 @@ def test_cells_over_the_available_memory_are_skipped_and_the_rest_run(work, monk
     memory they need (the plain `compare projectile --set batch=2^20` on a GPU machine: its CPU
     cells' tapes do not fit, its CUDA cells do)."""
     import psutil
-    spec = lambda prec: {"scenario": "saxpy", "backend": "numpy", "device": "cpu",  # noqa: E731
-                         "precision": prec, "params": {"n": 1 << 16}}
+    spec = lambda prec: Cell.make("saxpy", "numpy", "cpu", prec, params={"n": 1 << 16})  # noqa: E731
     small, big = preflight.cell_bytes(spec("float32"))[0], preflight.cell_bytes(spec("float64"))[0]
     assert small < big
 
@@ -196,7 +196,7 @@ def test_memory_estimate_bounds_measured_peaks():
     for spec, (rec, _) in zip(specs, results):
         assert rec.status == "ok", rec.reason
         peak = rec.memory["peak_host_rss_bytes"]
-        estimate = preflight.cell_bytes(spec)[0]
+        estimate = preflight.cell_bytes(Cell.from_dict(spec))[0]
         assert estimate >= peak, (spec["scenario"], spec["params"], peak / 2**20, estimate / 2**20)
         ratios.append(estimate / peak)
     FIGURES["memory"] = f"{len(specs)} cells, estimate/peak {min(ratios):.2f} to {max(ratios):.2f}"

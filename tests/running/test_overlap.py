@@ -14,6 +14,7 @@ import pytest
 
 from compare.running import overlap
 from compare.measuring import timing
+from compare.results.record_parts import Regime
 from compare.spec import Cell
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -107,12 +108,12 @@ def test_the_schedule_alternates_devices_and_frameworks():
 
 
 def test_a_call_that_fills_the_batch_is_its_own_throughput_regime():
-    latency = {"median_s": 0.03, "iqr_s": 0.001, "min_s": 0.029, "repeats": 10}
+    latency = Regime.of(median_s=0.03, iqr_s=0.001, min_s=0.029, repeats=10)
     calls = []
     got = timing.pipelined(lambda: calls.append(time.sleep(0.03)), lambda r: None, latency=latency)
     assert got["same_as"] == "latency" and got["k"] == 1 and got["median_s"] == 0.03
     assert not calls                                         # not one call timed again
-    fast = timing.pipelined(lambda: None, lambda r: None, latency={**latency, "median_s": 1e-6})
+    fast = timing.pipelined(lambda: None, lambda r: None, latency=Regime.of(**{**latency, "median_s": 1e-6}))
     assert "same_as" not in fast and fast["k"] > 1
 
 

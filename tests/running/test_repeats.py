@@ -10,6 +10,7 @@ import pytest
 
 from compare.running import repeats
 from compare.results.record import Record, plain
+from compare.results.record_parts import Figure, Processes, Timing
 from compare.site import data
 from conftest import ROOT
 
@@ -25,16 +26,15 @@ def test_too_few_processes_give_the_range_at_its_lower_confidence():
     assert repeats.summary([_t(v) for v in (3e-5, 1e-5, 2e-5, 1e-4)])["latency"]["median_s"] == 2.5e-5
 
 
-def _t(lat: float, first: float = 1.0) -> dict:
-    return {"latency": {"median_s": lat}, "throughput": {"median_s": lat / 2}, "first_call_s": first,
-            "setup_s": 0.5}
+def _t(lat: float, first: float = 1.0) -> Timing:
+    return Timing.of(latency={"median_s": lat}, throughput={"median_s": lat / 2}, first_call_s=first, setup_s=0.5)
 
 
 def test_summary_keeps_every_process_and_first_is_set_up_plus_first_call():
     b = repeats.summary([_t(1e-5), _t(2e-5, 2.0), _t(3e-5)])
-    assert b["count"] == 3 and b["latency"]["values"] == [1e-5, 2e-5, 3e-5]
-    assert b["latency"]["median_s"] == 2e-5 and b["throughput"]["median_s"] == 1e-5
-    assert b["first_result"]["values"] == [1.5, 2.5, 1.5]
+    assert b.count == 3 and b.latency is not None and b.latency.each == (1e-5, 2e-5, 3e-5)
+    assert b.latency.median_s == 2e-5 and b.throughput is not None and b.throughput.median_s == 1e-5
+    assert b.first_result is not None and b.first_result.each == (1.5, 2.5, 1.5)
     assert "graph" not in b and "events" not in b
 
 
@@ -42,7 +42,7 @@ def test_auto_stops_a_settled_cell_and_runs_a_scattered_one_to_the_maximum():
     calls: dict[int, int] = {0: 0, 1: 0}
     values = {0: iter([1e-5] * 20), 1: iter([1e-5, 2e-5] * 10)}
 
-    def time_one(i: int) -> dict:
+    def time_one(i: int) -> Timing:
         calls[i] += 1
         return _t(next(values[i]))
     rounds: list[list[int]] = []
@@ -65,7 +65,7 @@ def test_the_site_reads_the_median_of_processes_and_its_interval():
                                      "repeats": 10, "latency": {"median_s": 9e-6, "iqr_s": 0.0, "min_s": 9e-6,
                                                                 "repeats": 10},
                                      "processes": repeats.summary([_t(v) for v in (1e-5, 1.1e-5, 1e-5, 1e-5,
-                                                                                   1.05e-5, 1e-5)])},
+                                                                                   1.05e-5, 1e-5)]).to_json()},
                             "error": {"vs_oracle": 0.0, "tolerance": 1.0}})
     t = data.timing(rec, "latency")
     assert t.processes == 6 and t.median == 1e-5 and t.ci == (1e-5, 1.1e-5) and "disagree" not in t.noisy
@@ -89,13 +89,12 @@ def test_a_run_with_three_processes_keeps_all_three(tmp_path):
     assert doc["runs"][0]["processes"] == 3
 
 
-def test_the_engine_hands_each_repeat_process_to_on_repeat():
-    """The run's closing 'where the time went' counts the repeat processes' parts too."""
-    from compare.running import engine
-    from compare.spec import Cell
-    cell = Cell.make(scenario="saxpy", backend="numpy", device="cpu", precision="float32", quick=True,
-                     repeat=3, min_time=0.0)
-    seen: list[dict] = []
-    [(rec, _)] = engine.run_cells([cell], timeout=300, processes=3, on_repeat=seen.append)
-    assert rec.status == "ok" and rec.time["processes"]["count"] == 3
-    assert len(seen) == 2 and all("phases" in t for t in seen)
+def test_the_block_is_typed_and_its_json_is_the_stored_one():
+    """``time.processes`` is a ``Processes`` of ``Figure``s whose JSON keeps the stored keys in order."""
+    b = repeats.summary([_t(1e-5), _t(2e-5)], failed=1)
+    assert isinstance(b, Processes) and isinstance(b.latency, Figure) and b.latency.each == (1e-5, 2e-5)
+    j = b.to_json()
+    assert list(j) == ["count", "order", "interval", "latency", "throughput", "first_result", "failed"]
+    assert list(j["latency"]) == ["values", "median_s", "ci_lo_s", "ci_hi_s", "confidence"]
+    assert j["latency"]["values"] == [1e-5, 2e-5] and Processes.from_json(j).to_json() == j
+

@@ -89,3 +89,55 @@ def test_every_timed_suite_takes_processes() -> None:
         add(p)
         known = {a for action in p._actions for a in action.option_strings}
         assert "--processes" in known
+
+
+class OneSaxpy(driver.Suite):
+    """A timed suite of one tiny saxpy cell on NumPy, keeping its records itself (no store)."""
+    timed = True
+
+    def __init__(self) -> None:
+        self.repeats: list[Any] = []
+
+    def plan(self, args: argparse.Namespace) -> list[driver.Planned[None]]:
+        from compare.spec import Cell
+        return [driver.Planned(Cell.make(scenario="saxpy", backend="numpy", device="cpu", precision="float32",
+                                         quick=True, repeat=3, min_time=0.0), None)]
+
+    def check_output(self, args: argparse.Namespace) -> None:
+        pass
+
+    def on_repeat(self, block: Any) -> None:
+        self.repeats.append(block)
+
+    def seed(self) -> int:
+        return 7
+
+    def render(self, run: driver.Run, results: list[Any]) -> int:
+        self.results = results
+        return options.EXIT_OK
+
+
+def test_the_driver_runs_the_repeat_processes_in_rounds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """--processes 2: the engine runs the plan once, the driver the second process; the record
+    keeps both processes' figures, and ``on_repeat`` sees the repeat process's time block."""
+    from compare.running import engine, repeats
+    rounds: list[tuple[int, str | int, int]] = []
+    real = repeats.run_rounds
+
+    def spy(first: Any, processes: Any, seed: int, time_one: Any, on_round: Any) -> Any:
+        rounds.append((len(first), processes, seed))
+        return real(first, processes, seed, time_one, on_round)
+    monkeypatch.setattr(repeats, "run_rounds", spy)
+    once: list[Any] = []
+    real_cells = engine.run_cells
+    monkeypatch.setattr(engine, "run_cells", lambda *a, **k: once.append(k) or real_cells(*a, **k))
+    suite = OneSaxpy()
+    args = argparse.Namespace(out=str(tmp_path / "out"), timeout=300, processes=2)
+    assert driver.drive(suite, args, ["x"]) == options.EXIT_OK
+    [(rec, _)] = suite.results
+    assert rec.status == "ok" and len(once) == 1 and "processes" not in once[0]
+    assert rounds == [(1, 2, 7)]
+    block = rec.time["processes"]
+    assert block["count"] == 2 and len(block["latency"]["values"]) == 2
+    assert len(block["first_result"]["values"]) == 2
+    assert len(suite.repeats) == 1 and "phases" in suite.repeats[0]
