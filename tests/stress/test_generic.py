@@ -37,3 +37,30 @@ def test_race_detector_flags_a_synthetic_read_before_write():
     differing = numerics.bitwise_differences(clean, stale)
     assert differing > 0
     assert generic.race_verdict("cuda", differing, (True, False)).startswith("RACE DETECTED")
+
+
+def test_the_generic_experiments_name_no_scenario():
+    import scenarios
+    assert list(generic.EXPERIMENTS) == ["ulps", "races"]
+    assert not set(generic.EXPERIMENTS) & set(scenarios.SCENARIOS)
+    assert generic.EXPERIMENTS["ulps"].plot is generic.plot_ulps and generic.EXPERIMENTS["races"].plot is None
+
+
+def test_without_backends_there_are_no_controls_and_no_race_rows():
+    from compare.suites import stress_context as context
+    ctx = context.Ctx([], ["cpu"], True, 1, 1.0, {})
+    assert generic.controls(ctx) == []
+    assert generic.exp_races(ctx) == ([], {})
+
+
+def test_plot_ulps_draws_each_image_series():
+    import io
+
+    import matplotlib.pyplot as plt
+
+    from compare.stress.plots import _style
+    buf = io.BytesIO()
+    generic.plot_ulps({"warp/cpu/float32": {"ulps": [0.0, 0.5, 1.0], "frac": [0.5, 0.9, 1.0]},
+                       "warp/cpu/float32/fastmath": {"ulps": [0.0, 2.0], "frac": [0.4, 1.0]}}, buf, _style)
+    plt.close("all")
+    assert buf.getvalue().startswith(b"\x89PNG")

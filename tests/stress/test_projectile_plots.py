@@ -45,7 +45,7 @@ def closed():
 
 SERIES = {
     pp.plot_projectile_lr: {"histories": {"warp/cuda/gd/hard/0.01": [1.0, 0.5, 0.1],
-                                              "oracle64/host/adam/soft/0.2": [1.0, 2.0, 4.0]}},
+                                          "oracle64/host/adam/soft/0.2": [1.0, 2.0, 4.0]}},
     pp.plot_projectile_gradient: {"h": [1e-4, 1e-3], "lines": {"warp/cuda/float32/hard": [1e-3, 1e-2]},
                                   "gd_step": {"hard": 1e-3},
                                   "scans": {f"warp/cuda/{c}": {"vy": [6.0, 6.5], "loss": [1.0, 2.0], "dvy": [0.1, 0.2]}

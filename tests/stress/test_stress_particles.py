@@ -25,3 +25,22 @@ def test_emulation_finds_the_overflow_step():
     s64 = particles_stress.first_nonfinite_step({"n": 16, "bounce": 3.0}, "float64", 5000)
     assert s32 is not None and s64 is not None and s32 < s64
     assert particles_stress.first_nonfinite_step({"n": 16, "bounce": 0.5}, "float32", 500) is None
+
+
+def test_state_error_is_the_largest_per_particle_difference_and_finite_state_checks_all_four():
+    ref = {k: np.zeros(3) for k in particles_stress.STATE}
+    out = {k: np.zeros(3, np.float32) for k in particles_stress.STATE}
+    out["vx"][1], out["y"][2] = 0.5, -2.0
+    assert particles_stress.state_error(out, ref).tolist() == [0.0, 0.5, 2.0]
+    assert particles_stress.finite_state(out)
+    out["vy"][0] = np.inf
+    assert not particles_stress.finite_state(out) and particles_stress.state_error(out, ref)[0] == np.inf
+
+
+def test_particle_inputs_resolve_the_overrides():
+    p, inp = particles_stress.particle_inputs({"n": 8, "steps": 3}, "float32")
+    assert (p.n, p.steps) == (8, 3) and inp["x0"].dtype == np.float32 and inp["x0"].shape == (8,)
+
+
+def test_particle_experiments_are_registered():
+    assert {"particles-dt", "particles-long", "particles-inf"} <= set(particles_stress.EXPERIMENTS)
