@@ -137,14 +137,6 @@ def test_reference_block_on_a_tiny_store(base_run, tmp_path: Path, monkeypatch: 
     assert named[0].startswith(f"This run against the report in {ref}")
 
 
-def test_bad_against_is_refused_in_one_line(tmp_path: Path) -> None:
-    p = subprocess.run([sys.executable, "-m", "compare", "saxpy", "--quick", "--backends", "numpy",
-                        "--out", str(tmp_path / "o"), "--against", str(tmp_path)],
-                       cwd=ROOT, capture_output=True, text=True, timeout=600)
-    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "--against" in p.stderr, p.stderr
-    assert not (tmp_path / "o").exists()
-
-
 # ---- the grouping and the verbose listing, on records made here ---------------------------------
 def _rec(backend: str, device: str, status: str = "skipped", reason: str = "", scenario: str = "saxpy",
          precision: str = "float32", noisy: bool = False) -> Record:

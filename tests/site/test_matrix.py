@@ -94,10 +94,6 @@ def test_one_interval_is_not_enough():
     assert r.best == "warp" and "figures without a 95 % interval need 1.6×" in r.verdict
 
 
-def test_separation_rule_constants():
-    assert (ranking.SEPARATED_GAP, ranking.ONE_PROCESS_GAP) == (1.05, 1.6)
-
-
 # ---- exact ties -----------------------------------------------------------------------------
 def accurate(backend: str, share: float, scenario: str = "saxpy") -> Record:
     return rec(backend, scenario, error={"vs_oracle": share, "tolerance": 1.0}, time=latency(1e-3))

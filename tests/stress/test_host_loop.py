@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import require_device
 from compare.stress import host_loop, projectile_tasks as T
 from compare.stress.numerics import ORACLE
 
@@ -48,3 +49,21 @@ def test_non_finite_floats_cross_as_strings_and_come_back_as_floats():
     assert sent == {"h": [1.0, "inf", "nan"], "n": 3}
     back = host_loop._unstr(sent["h"])
     assert back[:2] == [1.0, math.inf] and math.isnan(back[2])
+
+
+@pytest.mark.parametrize("backend", [pytest.param(b, marks=getattr(pytest.mark, b))
+                                     for b in ("warp", "taichi", "jax", "numba")])
+def test_host_loop_scan_reuses_one_kernel_and_matches_the_oracle(backend):
+    """A scan moves v0 in place (set_input); in float64 every point must match the float64 adjoint,
+    so a stale v0 (the kernel not seeing the new input) fails here."""
+    require_device(backend, "cpu")
+    scans = {"s": [6.3, 6.45, 6.5, 6.7]}
+    task = T.Task("scan", backend, "cpu", "float64", ("hard", "soft"), 600.0, scans=scans)
+    got = host_loop.run(task, timeout=600)
+    assert got.why_not is None and got.scans, got
+    ref = T.execute(dataclasses.replace(task, backend="oracle64", device="host"))
+    for g, r in zip(got.scans, ref.scans):
+        assert g.contact == r.contact
+        assert len(set(g.loss)) == len(scans["s"])            # every point really evaluated
+        np.testing.assert_allclose(g.loss, r.loss, rtol=1e-10)
+        np.testing.assert_allclose(g.grad, r.grad, rtol=1e-8, atol=1e-8)

@@ -53,3 +53,28 @@ def test_check_of_gives_the_check_block_and_names_a_record_without_one():
 def test_log_floor_keeps_zeros_visible_and_non_numbers_as_nan():
     got = numerics.log_floor([0.0, 2.0, None, math.inf, np.float64(1e-30)], eps=1e-18)
     assert got[:2] == [1e-18, 2.0] and math.isnan(got[2]) and math.isnan(got[3]) and got[4] == 1e-18
+
+
+def _outputs(seed=0):
+    rng = np.random.default_rng(seed)
+    return {k: rng.standard_normal(100).astype(np.float32) for k in ("x", "y", "vx", "vy")}
+
+
+def test_bitwise_differences_counts_elements_and_treats_equal_nans_as_equal():
+    a = _outputs()
+    b = {k: v.copy() for k, v in a.items()}
+    assert numerics.bitwise_differences(a, b) == 0
+    a["x"][3] = b["x"][3] = np.nan
+    assert numerics.bitwise_differences(a, b) == 0
+    b["y"][7] = np.nextafter(b["y"][7], np.float32(np.inf))      # one ulp
+    b["vx"][0] = -b["vx"][0]
+    assert numerics.bitwise_differences(a, b) == 2
+    assert numerics.bitwise_differences({"z": np.float32([0.0])}, {"z": np.float32([-0.0])}) == 1
+    assert numerics.bitwise_differences(a, {**b, "extra": b["x"]}) == -1
+    assert numerics.bitwise_differences({"x": a["x"]}, {"x": a["x"][:5]}) == -1
+
+
+def test_ulps_of_correctly_rounded_results_are_at_most_half():
+    ref = np.random.default_rng(1).standard_normal(1000)
+    assert np.max(numerics.ulps(ref.astype(np.float32), ref)) <= 0.5
+    assert numerics.ulps(np.float32([1.0 + 2 ** -23]), np.array([1.0]))[0] == 1.0

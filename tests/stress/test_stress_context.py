@@ -10,6 +10,7 @@ from compare.results.record import Record
 from compare.spec import Cell
 from compare.stress.numerics import Row
 from compare.stress.projectile_tasks import Task
+from compare.suites import stress_context as context
 from compare.suites.stress_context import Ctx, lane
 from scenarios.base import ParamError, Precision
 
@@ -73,3 +74,65 @@ def test_lanes_keep_one_gpu_item_per_backend_and_let_cpu_items_overlap():
     task = Task("scan", "torch", "cuda", "float32", ("hard",), 60.0, scans={"s": [6.5]})
     assert lane(task) == ("torch", "cuda")
     assert lane(Task("scan", "oracle64", "host", "float64", ("hard",), 60.0)) is None
+
+
+def test_pool_map_runs_one_gpu_item_per_backend_at_a_time():
+    import threading
+    import time
+    ctx = context.Ctx(["a", "b"], ["cpu", "cuda"], True, 8, 1.0, {})
+    items = [(b, d, str(i)) for i in range(4) for b in ("a", "b") for d in ("cpu", "cuda")]
+    busy: dict = {}
+    peak: dict = {}
+    lock = threading.Lock()
+
+    def fn(it):
+        key = it[:2]
+        with lock:
+            busy[key] = busy.get(key, 0) + 1
+            peak[key] = max(peak.get(key, 0), busy[key])
+        time.sleep(0.02)
+        with lock:
+            busy[key] -= 1
+        return it[2]
+
+    assert ctx.map(fn, items) == [it[2] for it in items]    # order kept
+    assert peak[("a", "cuda")] == peak[("b", "cuda")] == 1
+    assert peak[("a", "cpu")] > 1                                          # CPU items overlap
+
+
+def test_targets_leave_out_variants_the_framework_lacks_on_a_device_and_say_why():
+    """A variant a backend declares unavailable on a device (a capability, e.g. graphs on CUDA
+    only) is no target there: its stress rows are 'skipped' with the reason, never CRASHED."""
+    import backends
+    limited = [(b, v, d) for b, be in backends.BACKENDS.items() for v in be.variants for d in ("cpu", "cuda")
+               if be.variant_unavailable(v, d)]
+    if not limited:
+        pytest.skip("no backend declares a variant unavailable on a device")
+    b, v, d = limited[0]
+    probes = {b: {"available": {"cpu": None, "cuda": None}}}
+    ctx = context.Ctx([b], [d], True, 1, 1.0, probes)
+    assert (b, d, v) not in ctx.targets(variants=True) and (b, d, "default") in ctx.targets(variants=True)
+    skips = ctx.skip_rows("ulps", variants=True)
+    assert [(r.backend, r.device, r.setting, r.verdict) for r in skips] == [(b, d, f"variant={v}", "skipped")]
+    assert skips[0].detail == backends.get(b).variant_unavailable(v, d)
+    assert ctx.skip_rows("ulps") == []
+
+
+def test_precisions_a_framework_lacks_on_a_device_are_skipped_rows_not_errors():
+    """A precision a backend declares unavailable on a device (MLX: no float64 on a GPU) is never
+    asked for there: the experiments take ``ctx.precisions`` and skip_rows says why, once per
+    backend, device and precision."""
+    import backends
+    limited = [(b, p, d) for b, be in backends.BACKENDS.items() for p in ("float32", "float64")
+               for d in ("cpu", "cuda") if be.precision_unavailable(p, d)]
+    if not limited:
+        pytest.skip("no backend declares a precision unavailable on a device")
+    b, p, d = limited[0]
+    probes = {b: {"available": {"cpu": None, "cuda": None}}}
+    ctx = context.Ctx([b], [d], False, 1, 1.0, probes)
+    both = ("float32", "float64")
+    assert p not in ctx.precisions(b, d, both) and len(ctx.precisions(b, d, both)) == 1
+    skips = ctx.skip_rows("particles-dt", precisions=both)
+    assert [(r.backend, r.device, r.precision, r.verdict) for r in skips] == [(b, d, p, "skipped")]
+    assert skips[0].detail == backends.get(b).precision_unavailable(p, d)
+    assert ctx.skip_rows("particles-dt") == []

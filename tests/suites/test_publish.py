@@ -18,7 +18,6 @@ from compare.suites import publish
 pytestmark = pytest.mark.cli
 # --allow-dirty: a developer's checkout may hold uncommitted changes (the guard has its own test)
 NUMPY = ["--backends", "numpy", "--devices", "cpu", "--quick", "--allow-dirty"]
-H100 = {"cpu": 120 * 2**30, "cuda": 79 * 2**30}
 
 
 def compare(*args):
@@ -43,37 +42,6 @@ def test_list_prints_every_part_and_its_command_and_writes_nothing(tmp_path):
     for state, cmd in zip(lines[1::2], lines[2::2]):
         assert state.endswith(": to run") and cmd.strip().startswith("python -m compare ")
     assert f"python -m compare site {out} --out {out / 'report'}" in p.stdout
-
-
-def test_cuda_plan_measures_what_the_h100_store_holds():
-    parts, notes = publish.plan("results/h100", ["cuda"], "all", have=H100)
-    assert not notes
-    order = names(parts)
-    assert order[:9] == ["all", "float64", "large-cuda-saxpy26", "large-cuda-saxpy28", "large-cuda-particles24",
-                         "bandwidth", "scaling", "error", "horizon"]
-    by = {p.name: p.argv for p in parts}
-    assert "--variants" in by["all"] and by["all"][by["all"].index("--variants") + 1] == "all"
-    assert all("--resume" in by[n] for n in order[:9])
-    # the matrix part is float32 in repeated processes; float64 (no row ranks it) once, apart
-    assert by["all"][by["all"].index("--precision") + 1] == "float32" and "--processes" in by["all"]
-    assert by["float64"][by["float64"].index("--precision") + 1] == "float64" and "--processes" not in by["float64"]
-    store = json.loads((ROOT / "docs/results/h100/results.json").read_text())
-    held = {(r["scenario"], r["params"].get("n"), r["variant"]) for r in store["records"]}
-    for n in order[2:5]:
-        argv = by[n]
-        size = int(argv[argv.index("--set") + 1].split("=")[1])
-        for v in argv[argv.index("--variants") + 1].split(","):
-            assert (argv[1], size, v) in held, (n, v)
-    assert "--check-sample" in by["large-cuda-particles24"]
-    stress = [p for p in parts if p.name.startswith("stress-") and p.name != "stress-merge"]
-    assert stress and all("--quick" not in p.argv for p in stress)      # full where CUDA is
-    assert by["stress-ulps"][by["stress-ulps"].index("--devices") + 1] == "cpu,cuda"
-    small, notes = publish.plan("r", ["cuda"], "all", have={"cpu": 16 * 2**30, "cuda": 8 * 2**30})
-    assert "large-cuda-saxpy28" not in names(small) and "large-cuda-saxpy28: left out" in notes[0]
-    cpu, _ = publish.plan("r", ["cpu"], "all", have={"cpu": 20 * 2**30})
-    assert [n for n in names(cpu) if n.startswith("large-")] == \
-        ["large-cpu-saxpy24", "large-cpu-saxpy26", "large-cpu-particles20"]
-    assert all("--quick" in p.argv for p in cpu if p.name.startswith("stress-") and p.name != "stress-merge")
 
 
 @pytest.mark.parametrize("args,needle", [
@@ -129,32 +97,6 @@ def test_a_run_names_its_uncommitted_paths(monkeypatch):
     assert environment.collect([])["git_dirty"] is False and "git_dirty_paths" not in environment.collect([])
     monkeypatch.setenv("COMPARE_GIT_COMMIT", "abc1234")
     assert environment.collect([])["git_dirty"] is None
-
-
-def test_states_of_the_log():
-    part = publish.Part("stress-ulps", ("stress", "--only", "ulps", "--out", "d/stress-parts/ulps"), resumes=False)
-    sweep = publish.Part("bandwidth", ("sweep", "bandwidth", "--resume", "--out", "d"))
-    site = publish.Part("site", ("site", "d", "--out", "d/report"), reads=("bandwidth", "stress-ulps"))
-
-    def entry(p, code, argv=None, interrupted=False):
-        return {"name": p.name, "argv": list(argv or p.argv), "exit_code": code, "interrupted": interrupted}
-    log = {"format_version": 1, "parts": []}
-    assert publish.state(sweep, log, "d") == "to run"
-    log["parts"] += [entry(sweep, 1, [*sweep.argv, "--timeout", "5"])]       # --timeout aside
-    assert publish.state(sweep, log, "d").startswith("done (exit 1")
-    assert publish.state(sweep, log, os.path.abspath("d")).startswith("done")     # DIR spelled otherwise
-    log["parts"] += [entry(sweep, 0, ["sweep", "bandwidth", "--backends", "numpy", "--out", "d"])]
-    assert publish.state(sweep, log, "d").startswith("done")                  # another command's attempt
-    log["parts"] += [entry(site, 0)]
-    assert publish.state(site, log, "d") == "done"
-    log["parts"] += [entry(part, 130, interrupted=True), entry(sweep, None), entry(sweep, -9)]
-    assert publish.state(site, log, "d") == "to run (bandwidth, stress-ulps ran since)"
-    assert publish.state(sweep, log, "d") == "to run (last attempt exited -9)"       # it resumes: retried
-    assert publish.state(part, log, "d") == "to run (interrupted)"
-    log["parts"] += [entry(part, None)]
-    assert publish.state(part, log, "d").startswith("given up (cut off twice")        # it does not resume
-    log["parts"] += [entry(part, 1, interrupted=True)]
-    assert not publish.state(part, log, "d").startswith("done")
 
 
 def test_merge_takes_the_stress_files_that_exist_oldest_first(tmp_path):

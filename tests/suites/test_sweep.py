@@ -1,6 +1,7 @@
-"""The sweep suite (issue 6): roofline and Pareto math, the sweep command on Warp/CPU in quick
-mode, its plan, record shape, page and plots; its points, converged references and stored format
-are in tests/sweep/, the measurements it is made of in tests/measuring/test_timing.py."""
+"""The sweep suite (issue 6, compare/suites/sweep.py): the sweep command on Warp/CPU in quick
+mode, its plan, record shape, page and plots; its metrics, page, plots, points, converged
+references and stored format are tested beside their modules in tests/sweep/, the measurements
+it is made of in tests/measuring/test_timing.py."""
 from __future__ import annotations
 
 import json
@@ -12,52 +13,11 @@ import pytest
 
 import backends
 import scenarios
-from compare.results.record import Record
-from compare.results.store import Store
-from compare.sweep import metrics as sweep_metrics
-from compare.sweep import page as sweep_page
-from compare.sweep import plots as sweep_plots
 from compare.suites import sweep
 from compare.sweep.points import sweeps
 from conftest import ROOT, require_device
 
 pytestmark = pytest.mark.cli
-
-
-# ---- roofline and Pareto math ---------------------------------------------------------------
-def _rec(role, backend, n, median, nbytes, wall=None, timer="wall", device="cuda"):
-    scenario = {"bandwidth": "saxpy"}.get(role, role)
-    return Record(tags={"sweep": "bandwidth", "role": role, "knob": {"name": "n", "value": n}},
-                  scenario=scenario, backend=backend,
-                  device=device, precision="float32", status="ok", params={"n": n},
-                  work={"bytes": nbytes},
-                  time={"median_s": median, "timer": timer,
-                        "wall": {"median_s": wall or median, "iqr_s": 0.0, "min_s": wall or median}})
-
-
-def test_roofline_and_bandwidth_rows():
-    recs = [_rec("copy", "a", 1 << 20, 1e-3, 2e9), _rec("copy", "b", 1 << 20, 2e-3, 2e9),
-            _rec("launch", "a", 1, 1e-5, 8, wall=1e-5),
-            _rec("bandwidth", "a", 1 << 10, 2e-6, 3e3, wall=1.2e-5, timer="events"),
-            _rec("bandwidth", "a", 1 << 28, 2e-3, 3e9, wall=2.1e-3, timer="events")]
-    roof = sweep_metrics.roofline(recs, "cuda")
-    assert roof["backend"] == "a" and math.isclose(roof["gbps"], 2000.0)
-    assert sweep_metrics.roofline(recs, "cpu") is None
-    small = sweep_metrics.bandwidth_row(recs[3], recs)
-    assert math.isclose(small["gbps"], 3e3 / 2e-6 / 1e9)              # primary clock (events)
-    assert math.isclose(small["wall_gbps"], 3e3 / 1.2e-5 / 1e9)
-    assert math.isclose(small["launch_share"], 1e-5 / 1.2e-5) and small["regime"] == "overhead-bound"
-    big = sweep_metrics.bandwidth_row(recs[4], recs)
-    assert math.isclose(big["roof_share"], 1500.0 / 2000.0) and big["regime"] == "bandwidth-bound"
-    assert sweep_metrics.regime(0.1, 0.2) == "mixed" and sweep_metrics.regime(None, None) == "-"
-    assert sweep_metrics.gbps(1e9, 0.5) == 2.0
-
-
-def test_pareto_front():
-    pts = [(1.0, 10.0), (2.0, 5.0), (3.0, 6.0), (4.0, 1.0), (2.0, 5.0), (0.5, 20.0), (5.0, 1.0)]
-    assert sweep_metrics.pareto_front(pts) == [True, True, False, True, True, True, False]
-    assert sweep_metrics.pareto_front([]) == []
-    assert sweep_metrics.pareto_front([(1.0, 1.0)]) == [True]
 
 
 # ---- the sweep command ----------------------------------------------------------------------
@@ -185,31 +145,6 @@ def test_plan_comes_from_the_scenarios_sweeps():
     assert {(s.backend, s.variant) for s, _ in hz} == {("warp", "default"), ("warp", "checkpoint"),
                                                              ("numba", "default")}
     assert {s.params.iters for s, _ in hz} == {0} and {s.precision for s, _ in hz} == {"float32", "float64"}
-
-
-@pytest.mark.parametrize("published,device,old_format", [
-    ("docs/results/cpu/sweep.json", "cpu", None),    # today's format
-    ("tests/data/format1-sweep.json", "cuda", 1)])   # a format-1 file, upgraded on reading
-def test_published_sweep_file_still_renders(tmp_path, published, device, old_format):
-    store = Store.read(ROOT / published, "sweep")
-    assert store.upgraded_from == old_format
-    data = sweep.contents(store)
-    assert all(r.tags is not None for r in data.records)
-    text = sweep_page.page(data, {}, tmp_path / "page.md", "t", ["sweep.json"])
-    for heading in (f"## {device}: launch overhead", f"## {device}: copy bandwidth (roofline)",
-                    f"## {device}: SAXPY bandwidth against size", "### projectile",
-                    f"## {device}: particles scaling"):
-        assert heading in text
-    assert "| 2^24 " in text and "| particle-steps/s " in text and "No data." not in text
-    assert "Roofline for this device" in text
-
-
-def test_plot_colours_belong_to_the_backend():
-    recs = [Record(scenario="saxpy", backend=b, device="cpu", precision="float32", status="ok")
-            for b in ("numba", "warp", "elsewhere")]
-    c = sweep_plots.colors(recs)
-    assert c["numba"] == backends.get("numba").color and c["warp"] == backends.get("warp").color
-    assert list(c)[:2] == ["warp", "numba"] and c["elsewhere"] not in (c["warp"], c["numba"])
 
 
 def test_sweep_stress_and_site_suites_name_no_framework_and_no_scenario():

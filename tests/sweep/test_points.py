@@ -1,5 +1,6 @@
-"""What each scenario sweeps (compare/sweep/points/): typed points that resolve to the scenario's
-parameters and cover the ranges the modules document."""
+"""What each scenario sweeps (compare/sweep/points/__init__.py, the registry): typed points that
+resolve to the scenario's parameters and cover the ranges the modules document. Each scenario's
+own module is tested in tests/sweep/points/ (test_copy, test_launch, test_points_<scenario>)."""
 from __future__ import annotations
 
 import dataclasses
@@ -81,18 +82,6 @@ def test_dt_points_reach_the_same_simulated_time_and_a_finer_reference(module, n
     assert SWEEPS[name].points("error", "cuda", quick) == pts                  # the same on every device
 
 
-def test_projectile_sweeps_batch_and_horizon_per_contact():
-    for (device, quick), batches in projectile.BATCH_SWEEP.items():
-        pts = SWEEPS["projectile"].points("scaling", device, quick)
-        assert [pt.params["batch"] for pt in pts] == list(batches)
-        assert all(pt.params["contact"] == "hard" and pt.params["iters"] == 20 for pt in pts)
-    hz = SWEEPS["projectile"].points("horizon", "cpu", False)
-    for contact, steps in projectile.HORIZON_STEPS[False].items():
-        assert [pt.params["steps"] for pt in hz if pt.params["contact"] == contact] == list(steps)
-    assert {pt.params["batch"] for pt in hz} == {projectile.HORIZON_BATCH["cpu", False]}
-    assert {pt.params["contact"] for pt in SWEEPS["projectile"].points("error", "cpu", False)} == {"soft"}
-
-
 def test_particles_scale_over_n_with_sampled_checks_and_sdf_over_resolution():
     for (device, quick), ns in particles.PARTICLES_N.items():
         pts = SWEEPS["particles"].points("scaling", device, quick)
@@ -104,7 +93,3 @@ def test_particles_scale_over_n_with_sampled_checks_and_sdf_over_resolution():
         assert [pt.knob for pt in pts] == [Knob("resolution", r) for r in res]
 
 
-def test_saxpy_error_point_varies_precision_only():
-    (pt,) = SWEEPS["saxpy"].points("error", "cpu", True)
-    assert pt.knob == Knob("precision") and pt.reference is None
-    assert pt.params == {"n": scenarios.get("saxpy").params(quick=True).n}

@@ -1,0 +1,101 @@
+"""compare/running/worker.py: one cell in a worker, its record whatever happens (fast tier: NumPy
+cells in this process; the driver's side is tested through compare/running/cells.py)."""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+import scenarios
+from compare.running import worker
+from compare.spec import Cell
+from scenarios.base import Precision
+
+
+def quick(**settings) -> Cell:
+    settings = {"cache": "warm", "warmup": 0, "repeat": 3, "min_time": 0.0, "max_time": 0.5, "throughput": False,
+                **settings}
+    return Cell.make("saxpy", "numpy", "cpu", "float32", params={"n": 1000}, **settings)
+
+
+@pytest.fixture(autouse=True)
+def fresh_process(monkeypatch):
+    """Each test is a worker's first cell."""
+    monkeypatch.setattr(worker, "_SET_UP", set())
+
+
+def record_in(cell_dir) -> dict:
+    assert not (cell_dir / "record.json.tmp").exists()
+    return json.loads((cell_dir / "record.json").read_text())
+
+
+def test_a_cell_leaves_its_record_as_json(tmp_path):
+    worker.run_one(quick().to_dict(), tmp_path / "cell-0")
+    rec = record_in(tmp_path / "cell-0")
+    assert rec["status"] == "ok" and rec["backend"] == "numpy" and rec["params"]["n"] == 1000
+    assert rec["time"]["repeats"] >= 3 and rec["error"]["vs_oracle"] <= rec["error"]["tolerance"]
+    assert rec["time"]["cache"].startswith("warm")
+
+
+def test_a_failing_cell_leaves_an_error_record_with_its_traceback(tmp_path):
+    worker.run_one({**quick().to_dict(), "backend": "no-such-framework"}, tmp_path / "c")
+    rec = record_in(tmp_path / "c")
+    assert rec["status"] == "error" and rec["reason"] and "Traceback" in rec["traceback"]
+
+
+def test_cells_sharing_a_worker_must_be_warm_and_of_one_set_up(tmp_path):
+    worker._SET_UP.add(("numpy", "cpu", "float32", "default"))
+    worker.run_one(quick(cache="cold").to_dict(), tmp_path / "cold")
+    assert record_in(tmp_path / "cold")["reason"] == "ValueError: only warm-cache cells may share a worker process"
+    worker.run_one(Cell.make("saxpy", "numpy", "cpu", "float64", params={"n": 10}, cache="warm").to_dict(),
+                   tmp_path / "other")
+    assert "must share backend, device, precision and variant" in record_in(tmp_path / "other")["reason"]
+
+
+def test_main_runs_every_cell_of_the_file_into_its_own_folder(tmp_path):
+    cells = tmp_path / "cells.json"
+    cells.write_text(json.dumps([quick().to_dict(), quick().to_dict()]))
+    assert worker.main([str(cells), str(tmp_path / "out")]) == 0
+    assert [record_in(tmp_path / "out" / f"cell-{i}")["status"] for i in (0, 1)] == ["ok", "ok"]
+
+
+def test_contract_violations_are_named():
+    sc = scenarios.get("saxpy")
+    p = sc.params({"n": 8})
+    good = {"out": np.zeros(8, np.float32)}
+    assert worker.contract_violation(sc, p, Precision.FLOAT32, good) is None
+    assert "returned no 'out'" in worker.contract_violation(sc, p, Precision.FLOAT32, {})
+    assert "undeclared output 'x'" in worker.contract_violation(sc, p, Precision.FLOAT32, {**good, "x": good["out"]})
+    assert "dtype float64" in worker.contract_violation(sc, p, Precision.FLOAT32, {"out": np.zeros(8)})
+    assert "shape (7,), expected (8,)" in worker.contract_violation(sc, p, Precision.FLOAT32,
+                                                                    {"out": np.zeros(7, np.float32)})
+
+
+class Caching:
+    name = "fake"
+
+    def cache_environment(self, cache):
+        return {"FAKE_CACHE_DIR": str(cache / "kernels"), "FAKE_CACHE_OFF": ""}
+
+
+def test_cold_caches_are_empty_folders_in_the_cell_and_warm_ones_untouched(tmp_path, monkeypatch):
+    for var in ("FAKE_CACHE_DIR", "FAKE_CACHE_OFF"):
+        monkeypatch.delenv(var, raising=False)
+    assert worker.apply_cache_policy("warm", Caching(), tmp_path).startswith("warm: framework default caches")
+    assert "FAKE_CACHE_DIR" not in os.environ
+    note = worker.apply_cache_policy("cold", Caching(), tmp_path)
+    assert note == "cold: FAKE_CACHE_DIR empty, FAKE_CACHE_OFF off"
+    assert os.environ["FAKE_CACHE_DIR"] == str(tmp_path / "cache" / "kernels") and (tmp_path / "cache" / "kernels").is_dir()
+    assert os.environ["FAKE_CACHE_OFF"] == ""
+
+
+def test_memory_figures_of_this_process():
+    assert worker.peak_rss_bytes() >= worker.current_rss_bytes() > 0
+
+
+def test_in_blocks_and_record_layout():
+    assert worker.in_blocks([1.0, 2.0, 3.0, 4.0], 2) == pytest.approx(worker.in_blocks([1.5, 3.5], 1))
+    rec = worker.record_of(quick(tags={"sweep": "x"}), status="ok", time=None)
+    assert rec.layout[:2] == ("status", "time") and rec.layout[-1] == "tags" and rec.tags == {"sweep": "x"}

@@ -1,0 +1,107 @@
+"""compare/site/assemble.py: the machine-and-method page and writing the whole site twice (HTML and
+Markdown), from the site's test store (fast tier: figures drawn but not rasterised; the built
+site's links and layout: tests/site/test_site.py)."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from compare.render import charts, figure_check
+from compare.site import assemble, data, pages, questions
+from compare.site import questions_pages as qp
+from compare.site.render import P, Table
+
+STORE = Path(__file__).resolve().parents[2] / "tests" / "data" / "site"
+
+
+@pytest.fixture(autouse=True)
+def unrendered(monkeypatch):
+    def save(fig, path):
+        Path(path).write_bytes(b"png")
+        charts.pyplot().close(fig)
+
+    def checked(draw, png):              # the plots that save themselves: not drawn here
+        Path(png).write_bytes(b"png")
+        return True
+    monkeypatch.setattr(charts, "save", save)
+    monkeypatch.setattr(figure_check, "checked", checked)
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    m = data.load([STORE])
+    return (m, *pages.evaluate(m))
+
+
+def ctx(m, rows, tmp_path):
+    return qp.Ctx(m, rows, tmp_path / "site", "STORE")
+
+
+def test_write_site_writes_every_page_twice_the_matrix_and_the_manifest(tmp_path, monkeypatch, loaded):
+    m = loaded[0]
+    for key in assemble.BUILDERS:              # the pages' own contents: their own tests
+        monkeypatch.setitem(assemble.BUILDERS, key, lambda c, key=key: [P(f"page {key}")])
+    monkeypatch.setattr(pages, "evaluate", lambda _m: (loaded[1], loaded[2]))      # the module's rows
+    monkeypatch.setattr(pages, "matrix_png", lambda path, *a: Path(path).write_bytes(b"png"))
+    into = tmp_path / "into"
+    into.mkdir()
+    written = assemble.write_site([STORE], tmp_path / "site", into, None, [], m, None)
+    stems = ["index", *questions.PAGES]
+    for stem in stems:
+        assert into / f"{stem}.html" in written and into / f"{stem}.md" in written
+        assert (into / f"{stem}.md").read_text().startswith("# ")
+        assert f"<p>page {stem}</p>" in (into / f"{stem}.html").read_text() or stem == "index"
+    assert "against.html" not in {p.name for p in written}
+    assert (into / "matrix.md").read_text().startswith("| question | ")
+    assert (into / assemble.OVERVIEW).is_file()
+    manifest = json.loads((into / assemble.MANIFEST).read_text())
+    assert manifest == {"inputs": ["tests/data/site"], "title": f"Framework comparison: {m.name()}", "against": []}
+    assert all(p.exists() for p in written)
+    html = (into / "index.html").read_text()
+    assert all(f'href="{k}.html"' in html for k in questions.PAGES)          # the navigation
+
+
+def test_the_machine_page_without_a_publish_log_or_a_rerun(tmp_path, loaded):
+    blocks = assemble.machine(ctx(*loaded[:2], tmp_path))
+    texts = [getattr(b, "text", "") for b in blocks]
+    assert "No publish log (publish.json)" in " ".join(texts)
+    assert "the rankings have not been rerun" in " ".join(texts)
+    packages = next(b for b in blocks if isinstance(b, Table) and b.headers == ("package", "version(s)"))
+    assert ("warp-lang", "1.19.0") in packages.rows
+
+
+def test_the_machine_page_reads_the_publish_log_and_a_rerun(tmp_path, loaded):
+    store = tmp_path / "store"
+    shutil.copytree(STORE, store)
+    (store / assemble.RERUN).mkdir()
+    shutil.copy(STORE / "results.json", store / assemble.RERUN)
+    (store / data.PUBLISH_LOG).write_text(json.dumps({"parts": [
+        {"name": "cuda-matrix", "argv": ["all", "--backends", "warp,jax"], "started": "t", "seconds": 60,
+         "exit_code": 0},
+        {"name": "cuda-matrix", "argv": [], "started": "t2", "seconds": 30, "exit_code": None}]}))
+    blocks = assemble.machine(ctx(data.load([store]), loaded[1], tmp_path))
+    text = " ".join(getattr(b, "text", "") for b in blocks)
+    assert "ran 1 parts on this machine in 90 s of wall time" in text
+    assert "significant orderings agree between the two runs; 0 became a tie in one of them (allowed), 0 reversed." in text
+    pub = next(b for b in blocks if isinstance(b, Table) and b.headers[0] == "part")
+    assert pub.rows == (("cuda-matrix", "warp,jax", "t", "60", "0"), ("cuda-matrix", "all", "t2", "30", "cut off"))
+
+
+def test_tree_and_argv_value():
+    assert assemble._tree({"git_dirty": False}) == "clean"
+    assert assemble._tree({"git_dirty": True, "git_dirty_paths": ["a.py"]}) == "uncommitted changes: a.py"
+    assert assemble._tree({"git_note": "no git"}) == "not known (no git)"
+    assert assemble._argv_value(["x", "--backends", "numpy"], "--backends") == "numpy"
+    assert assemble._argv_value(["x", "--backends"], "--backends") == "all" and assemble._argv_value(None, "-b") == "all"
+
+
+def test_store_label_names_a_store_in_the_repository_by_its_path(tmp_path):
+    assert assemble.store_label([STORE]) == "tests/data/site"
+    assert assemble.store_label([tmp_path]) == "STORE"
+
+
+def test_every_page_has_a_builder():
+    assert set(questions.PAGES) == set(assemble.BUILDERS)

@@ -1,0 +1,118 @@
+"""compare/site/data.py: the stores of one machine and the figures of one record (fast tier)."""
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+
+from compare.results.record import Record
+from compare.results.store import StoreError
+from compare.running import repeats
+from compare.site import data
+
+STORE = Path(__file__).resolve().parents[2] / "tests" / "data" / "site"
+
+
+def rec(scenario="saxpy", device="cuda", variant="default", **fields) -> Record:
+    return Record(scenario=scenario, backend="warp", device=device, precision="float32", status="ok",
+                  variant=variant, **fields)
+
+
+def test_load_reads_every_suite_of_a_folder():
+    m = data.load([STORE])
+    assert m.run and m.sweep and m.stress is not None and m.runs
+    assert m.primary_device == "cuda" and m.devices()[0] == "cuda"
+    assert "H100" in m.name() and m.name() == m.gpu_name()
+    assert m.records[:len(m.sweep)] == list(m.sweep)          # sweep first: the run's record wins
+    assert {"warp", "jax", "cupy"} <= set(m.frameworks)
+
+
+def test_load_refuses_a_folder_without_a_store(tmp_path):
+    with pytest.raises(StoreError, match="no results.json"):
+        data.load([tmp_path])
+
+
+def test_a_bad_publish_log_is_refused(tmp_path):
+    shutil.copy(STORE / "results.json", tmp_path)
+    (tmp_path / data.PUBLISH_LOG).write_text('{"parts": 3}')
+    with pytest.raises(StoreError, match="not a publish log"):
+        data.load([tmp_path])
+    (tmp_path / data.PUBLISH_LOG).write_text('{"parts": []}')
+    assert data.load([tmp_path]).publish == {"parts": []}
+
+
+@pytest.mark.parametrize("x,expected", [(1, 1.0), (2.5, 2.5), (True, None), ("nan", None), (math.inf, None),
+                                        (None, None)])
+def test_num_is_a_finite_float_or_none(x, expected):
+    assert data.num(x) == expected
+
+
+def test_timing_of_one_process_is_the_median_and_its_quartiles():
+    t = data.timing(rec(time={"median_s": 2e-6, "iqr_s": 1e-6, "repeats": 50,
+                              "latency": {"median_s": 2e-6, "iqr_s": 1e-6, "repeats": 50}}), "latency")
+    assert (t.median, t.repeats, t.processes, t.ci) == (2e-6, 50, 1, None)
+    assert (t.lo, t.hi) == pytest.approx((1.5e-6, 2.5e-6))
+    assert data.timing(rec(), "latency") is None
+    assert data.timing(rec(time={"first_call_s": 0.5}), "first").median == 0.5
+
+
+def test_first_result_is_setup_plus_first_call_or_nothing():
+    assert data.first_result(rec(time={"setup_s": 1.0, "first_call_s": 0.25})).median == 1.25
+    assert data.first_result(rec(time={"first_call_s": 0.25})) is None
+
+
+def processes(lo, hi, n=6):
+    cover = repeats.interval([float(i) for i in range(n)])[2]
+    return {"median_s": 1e-3, "iqr_s": 0, "processes": {"count": n, "latency": {
+        "values": [1e-3] * n, "median_s": 1e-3, "ci_lo_s": lo, "ci_hi_s": hi, "confidence": cover}}}
+
+
+def test_across_processes_gives_an_interval_and_flags_a_wide_one():
+    t = data.timing(rec(time=processes(0.95e-3, 1.05e-3)), "latency")
+    assert t.processes == 6 and t.ci == (0.95e-3, 1.05e-3) and not t.noisy
+    wide = data.timing(rec(time=processes(0.5e-3, 1.05e-3)), "latency")
+    assert "processes disagree" in wide.noisy
+    two = data.timing(rec(time=processes(0.99e-3, 1.01e-3, n=2)), "latency")
+    assert two.ci is None and "confidence" in two.noisy           # too few processes: no interval
+    assert data.process_count(rec(time=processes(0.9e-3, 1.1e-3))) == 6 and data.process_count(rec()) == 1
+
+
+def test_per_call_counts_a_graph_variant_as_the_graph_regime():
+    t = {"median_s": 1e-3, "iqr_s": 0, "latency": {"median_s": 1e-3, "iqr_s": 0},
+         "throughput": {"median_s": 4e-4, "iqr_s": 0}}
+    assert data.per_call(rec(variant="graph", time=t), "graph").median == 4e-4
+    assert data.per_call(rec(variant="graph", time=t), "latency") is None
+    assert data.per_call(rec(time=t), "throughput").median == 4e-4
+
+
+def test_size_and_defaults():
+    assert data.size(rec(params={"n": 10})) == 10.0 and data.size(rec(params={"batch": 4})) == 4.0
+    assert data.size(rec("sdf", params={"width": 8, "height": 4})) == 32.0 and data.size(rec()) == 0.0
+    d = data.defaults("saxpy")
+    assert d and data.at_defaults(rec(params=d)) and data.at_defaults(rec(params={}))
+    assert not data.at_defaults(rec(params={**d, "n": d["n"] + 1}))
+    assert data.defaults("no-such-scenario") == {}
+
+
+def test_l2_is_the_records_then_the_runs_then_the_stated_bound():
+    r = rec(hardware={"l2_bytes": 50e6})
+    assert data.l2_bytes(r) == (50e6, "l2_bytes")
+    assert data.l2_bytes(rec(), [{"gpus": [{"name": "x", "l2_cache_size": 40e6}]}]) == (40e6, "l2_cache_size")
+    assert data.l2_bytes(rec(), [{"gpus": [{"name": "NVIDIA H100 80GB"}]}])[0] == data.L2_BOUND["H100"]
+    assert data.l2_bytes(rec(), []) is None and data.l2_bytes(rec(device="cpu", hardware={"l2_bytes": 1})) is None
+
+
+@pytest.mark.parametrize("fraction,work,device,label", [
+    (0.8, 1e6, "cuda", "cache"),           # fits the L2
+    (0.8, 1e9, "cuda", ""),                # a plain fraction
+    (1.1, 1e9, "cuda", "above copy"),      # beyond the L2 and above the copy
+    (1.1, None, "cuda", "cache"),          # above the copy, working set unknown
+    (1.1, 1e9, "cpu", "above copy"),
+])
+def test_fraction_label(fraction, work, device, label):
+    r = rec(device=device, throughput={"hw_fraction": fraction}, work={"bytes": work} if work else {},
+            hardware={"l2_bytes": 50e6} if device == "cuda" else None)
+    assert data.fraction_label(r) == label
+    assert data.fraction_label(rec()) == ""

@@ -1,0 +1,39 @@
+"""compare/site/provenance.py: which runs a row's figures come from, in words (fast tier)."""
+from __future__ import annotations
+
+from compare.results.record import Record
+from compare.site import provenance
+
+
+def rec(run=None) -> Record:
+    return Record(scenario="saxpy", backend="numpy", device="cpu", precision="float32", status="ok", run=run)
+
+
+A = {"created": "2026-11-27T10:20:30+00:00", "commit": "abc1234", "dirty": False}
+B = {"created": "2026-11-28T08:00:00+00:00", "commit": "def5678", "dirty": True}
+
+
+def test_label_is_the_minute_commit_and_tree_state():
+    assert provenance.label(rec(A)) == "run 2026-11-27 10:20 UTC, commit abc1234"
+    assert provenance.label(rec(B)).endswith("commit def5678 (dirty tree)")
+    assert provenance.label(rec({"created": "2026-11-27T10:20"})) == \
+        "run 2026-11-27 10:20 UTC, commit unknown commit (tree state unknown)"
+    assert provenance.label(rec()) == ""
+
+
+def test_runs_of_are_distinct_in_first_seen_order():
+    assert provenance.runs_of([rec(B), rec(A), rec(B), rec()]) == (
+        provenance.label(rec(B)), provenance.label(rec(A)), "")
+
+
+def test_one_run_ranks_several_or_unstamped_do_not():
+    one = provenance.runs_of([rec(A), rec(A)])
+    assert provenance.one_run(one) and provenance.words(one).startswith("Every figure of this row comes from one run")
+    two = provenance.runs_of([rec(A), rec(B)])
+    assert not provenance.one_run(two) and "come from 2 run(s)" in provenance.words(two)
+    unstamped = provenance.runs_of([rec()])
+    assert not provenance.one_run(unstamped)
+    assert provenance.UNSTAMPED in provenance.words(unstamped) and "an unknown number of" in provenance.words(unstamped)
+    mixed = provenance.words(provenance.runs_of([rec(A), rec()]))
+    assert "1 run(s) and " + provenance.UNSTAMPED in mixed and "no best is named" in mixed
+    assert provenance.words(()) == "No records."

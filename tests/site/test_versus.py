@@ -1,0 +1,95 @@
+"""compare/site/versus.py: the closing block of ``compare all | run`` against a stored report
+(fast tier). The block on a real quick run: tests/render/test_console.py."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from compare.options import UsageError
+from compare.results.store import Store
+from compare.site import versus
+
+ROOT = Path(__file__).resolve().parents[2]
+STORE = ROOT / "tests" / "data" / "site" / "results.json"
+
+
+def slower(doc, scale):
+    """Every time in a stored document ``scale`` times longer."""
+    if isinstance(doc, dict):
+        return {k: (v * scale if k.endswith("_s") and isinstance(v, (int, float)) and not isinstance(v, bool)
+                    else [x * scale for x in v] if k == "values" and isinstance(v, list) else slower(v, scale))
+                for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [slower(x, scale) for x in doc]
+    return doc
+
+
+@pytest.fixture(scope="module")
+def mine():
+    store = Store.read(STORE)
+    return list(store.records), store.runs[0]
+
+
+def test_chosen_picks_the_report_of_the_machine_kind():
+    assert versus.chosen("none", {}) is None and versus.chosen(" NONE ", {}) is None
+    label, path = versus.chosen(None, {"gpus": [{"name": "NVIDIA H100"}]})
+    assert label.startswith("the H100 report") and path == versus.REFERENCES / "h100"
+    assert versus.chosen(None, {})[1] == versus.REFERENCES / "cpu"
+    assert versus.chosen("/x/y", {}) == ("the report in /x/y", Path("/x/y"))
+
+
+def test_check_refuses_a_reference_without_results(tmp_path):
+    versus.check(None)
+    versus.check("none")
+    with pytest.raises(UsageError, match="empty"):
+        versus.check("  ")
+    with pytest.raises(UsageError, match="no results.json there"):
+        versus.check(str(tmp_path))
+    (tmp_path / "results.json").write_text("{}")
+    versus.check(str(tmp_path))
+    versus.check(str(tmp_path / "results.json"))
+
+
+def test_every_ratio_of_a_twice_slower_reference_is_one_half(mine, tmp_path, monkeypatch):
+    records, env = mine
+    ref = tmp_path / "ref"
+    ref.mkdir()
+    (ref / "results.json").write_text(json.dumps(slower(json.loads(STORE.read_text()), 2.0)))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    lines = versus.block(records, env, out, against=str(ref))
+    assert lines[0].startswith(f"This run against the report in {ref}: NVIDIA H100") and "timed cells matched" in lines[0]
+    assert lines[1].endswith("every cell: out/against.md")
+    rows = [ln for ln in lines[2:] if ln.startswith("    ") and "cells," in ln]
+    assert rows and all(ln.split()[2] == "0.50×" for ln in rows), rows
+    assert (out / versus.PAGE).read_text().startswith("# This run against the reference")
+
+
+def test_nothing_to_compare_is_one_line(mine, tmp_path):
+    records, env = mine
+    assert versus.block(records, env, tmp_path, against="none") == []
+    assert versus.block(records, env, STORE.parent, against=str(STORE))[0].endswith(
+        "this run's --out is that report itself; nothing to compare")
+    assert versus.block(records, env, tmp_path / "o", against=str(tmp_path))[0].endswith(
+        "no stored report there (no results.json)")
+    (tmp_path / "r").mkdir()
+    (tmp_path / "r" / "results.json").write_text("not json")
+    assert "cannot read it" in versus.block(records, env, tmp_path / "o", against=str(tmp_path / "r"))[0]
+    other = [r.replace(params={**(r.params or {}), "seed": 12345}) for r in records]
+    none = versus.block(other, env, tmp_path / "o", against=str(STORE.parent), quick=True)
+    assert len(none) == 1 and "no timed cell of this run matches" in none[0] and "--quick never matches" in none[0]
+
+
+@pytest.mark.cli
+def test_bad_against_is_refused_in_one_line(tmp_path: Path) -> None:
+    p = subprocess.run([sys.executable, "-m", "compare", "saxpy", "--quick", "--backends", "numpy",
+                        "--out", str(tmp_path / "o"), "--against", str(tmp_path)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "--against" in p.stderr, p.stderr
+    assert not (tmp_path / "o").exists()

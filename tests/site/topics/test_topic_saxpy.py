@@ -1,0 +1,58 @@
+"""compare/site/topics/saxpy.py: SAXPY's matrix rows and its two pages, built from the site's test
+store (fast tier). Named test_topic_saxpy (not test_saxpy): pytest collects test files by their
+basename, and compare/sweep/points/ and compare/render/figures/ have a saxpy module too."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from compare.render import charts
+from compare.site import data, pages
+from compare.site import questions_pages as qp
+from compare.site.render import Figure, H
+from compare.site.topics import saxpy
+
+STORE = Path(__file__).resolve().parents[3] / "tests" / "data" / "site"
+
+
+@pytest.fixture(scope="module")
+def ctx(tmp_path_factory):
+    m = data.load([STORE])
+    return qp.Ctx(m, pages.evaluate(m)[0], tmp_path_factory.mktemp("site"), "STORE")
+
+
+@pytest.fixture(autouse=True)
+def unrendered(monkeypatch):
+    """Figures are drawn but not rasterised (tests/render/test_charts.py checks the drawing)."""
+    def save(fig, path):
+        Path(path).write_bytes(b"png")
+        charts.pyplot().close(fig)
+    monkeypatch.setattr(charts, "save", save)
+
+
+def test_its_rows_read_saxpy_and_are_the_bandwidth_and_per_call_questions():
+    assert saxpy.SCENARIO == "saxpy" and saxpy.SMALL
+    assert [r.key for r in saxpy.RULES] == ["bandwidth", "latency", "pipelined", "graph"]
+    assert {r.page for r in saxpy.RULES} == set(saxpy.PAGES) == {"bandwidth", "per-call"}
+
+
+def test_the_rows_rank_the_stores_saxpy_cells(ctx):
+    rows = {r.rule.key: r for r in ctx.rows}
+    for key in ("bandwidth", "latency", "pipelined"):
+        assert rows[key].top in ctx.m.frameworks and rows[key].cells[rows[key].top].ratio == 1.0
+    # the largest n a framework ran: the bandwidth row reads no default-size cell
+    assert rows["bandwidth"].scope != rows["latency"].scope
+
+
+@pytest.mark.parametrize("page", ["bandwidth", "per-call"])
+def test_each_page_has_its_verdicts_and_figures_that_exist(ctx, page):
+    label, build = saxpy.PAGES[page]
+    blocks = build(ctx)
+    heads = [b.text for b in blocks if isinstance(b, H)]
+    assert all(r.rule.question in heads for r in ctx.rows_of(page))
+    figs = [b for b in blocks if isinstance(b, Figure)]
+    assert figs, label
+    for f in figs:
+        assert (ctx.into / f.png).is_file() and (ctx.into / f.csv).is_file(), f.png
+        assert "python -m compare" in f.command
