@@ -24,7 +24,7 @@ FD_AGREE = 0.01                   # a gradient 'agrees' with finite differences 
 FD_STEPS = tuple(10.0 ** (e / 2) for e in range(2, -17, -1))     # 10 ... 1e-8, half decades
 
 
-# ---- verdict rules (unit-tested in tests/suites/test_stress.py) ------------------------------------------
+# ---- verdict rules (unit-tested in tests/stress/test_projectile_rules.py) ------------------------------------------
 
 def classify(history: Iterable[float], rel: float = CONVERGED_REL, worse: float = DIVERGED_REL) -> str:
     """converged / stalled / diverged from a loss history h[0..K].
