@@ -13,10 +13,11 @@ import argparse
 import re
 import textwrap
 from collections import Counter
-from typing import Any, Iterable
+from typing import Iterable
 
 from compare.measuring import noise
 from compare.render import report
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record
 
 WIDTH = 118
@@ -133,7 +134,7 @@ def noise_brief(records: list[Record]) -> list[str]:
     return textwrap.wrap(head, WIDTH, subsequent_indent="    ") + [full[-1]]
 
 
-def closing(records: list[Record], env: dict[str, Any], verbose: bool, wide: bool) -> list[str]:
+def closing(records: list[Record], env: RunEnvironment, verbose: bool, wide: bool) -> list[str]:
     """The end of a run up to the summary and noise lines (the driver adds the time, the files
     written and the reference block)."""
     if verbose:

@@ -29,11 +29,12 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, TypedDict
+from typing import Any
 
 import numpy as np
 
 from compare.measuring import environment
+from compare.results.environment import Yardstick
 from compare.results.record import Record
 
 # Stated peak non-tensor FLOP rates (NVIDIA datasheets, boost clock): the FLOP floors' denominators.
@@ -72,26 +73,6 @@ def copy_in_slices(dst: np.ndarray, src: np.ndarray, pool: ThreadPoolExecutor, p
     """``dst[:] = src`` as ``parts`` contiguous slices copied by the pool's threads at once."""
     cut = np.linspace(0, src.size, parts + 1).astype(np.int64)
     list(pool.map(lambda i: np.copyto(dst[cut[i]:cut[i + 1]], src[cut[i]:cut[i + 1]]), range(parts)))
-
-
-class Yardstick(TypedDict, total=False):
-    """A device's same-run yardstick (``measure``), as a run's environment keeps it (``hardware``):
-    the copy bandwidth (and, on CPU, its curve over sizes), the launch cost on CUDA, or ``error``."""
-    copy_bytes_per_s: float
-    copy_bytes: int
-    copy_median_s: float
-    copy_one_thread_bytes_per_s: float
-    copy_threads: int
-    copy_how: str
-    copy_curve: list[list[float]]          # [bytes per array, bandwidth]
-    launch_latency_s: float
-    launch_pipelined_s: float
-    launch_how: str
-    gpu: str
-    sm_clock_max_hz: float
-    nvml_error: str
-    peak_flops: dict[str, float | str]     # per precision, and its source
-    error: str
 
 
 def measure_cpu() -> Yardstick:

@@ -16,8 +16,9 @@ from typing import Any, Iterable, Mapping
 import scenarios
 from compare.measuring import noise
 from compare.running import repeats
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record
-from compare.spec import BUSY_TAG
+from compare.spec import BUSY_TAG, ParamValue
 from compare.results.store import SUITES, Store, StoreError, run_environments
 from compare.sweep.points import sweeps
 
@@ -31,7 +32,7 @@ class Machine:
     run: tuple[Record, ...]
     sweep: tuple[Record, ...]
     stress: Store | None
-    runs: tuple[Mapping[str, Any], ...]
+    runs: tuple[RunEnvironment, ...]
     publish: dict[str, Any] | None
     # the shared-host experiment (``run --busy``): cells timed idle and with cores kept busy by
     # other processes, tagged ``busy_cores``; its row alone reads them, no other reader sees them
@@ -71,7 +72,7 @@ class Machine:
         return None
 
     def cpu_name(self) -> str:
-        env = next((e for e in self.runs if e.get("cpu")), {})
+        env: RunEnvironment = next((e for e in self.runs if e.get("cpu")), RunEnvironment())
         return f"{env.get('cpu', 'CPU')} ({env.get('cores', '?')} cores)"
 
     def name(self) -> str:
@@ -231,7 +232,7 @@ def per_call(rec: Record, regime: str) -> Timing | None:
     return timing(rec, regime)
 
 
-def defaults(scenario: str) -> dict[str, Any]:
+def defaults(scenario: str) -> dict[str, ParamValue]:
     sc = scenarios.SCENARIOS.get(scenario)
     return dataclasses.asdict(sc.params()) if sc is not None else {}
 
@@ -278,7 +279,7 @@ L2_BOUND = {"H100": 60e6, "H200": 60e6}
 L2_KEYS = ("l2_bytes", "l2_cache_bytes", "l2_cache_size")
 
 
-def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float, str] | None:
+def l2_bytes(rec: Record, runs: Iterable[RunEnvironment] = ()) -> tuple[float, str] | None:
     """The L2 cache of the record's GPU and where it was read: an L2 field of the record's
     yardstick, else of its run's environment (``hardware[device]`` or a GPU entry), else the
     stated bound for a GPU of a class in L2_BOUND by name. None off CUDA or where unknown."""
@@ -286,7 +287,7 @@ def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float
         return None
     envs = [e for e in runs if isinstance(e, Mapping)]
     own = rec.hardware if isinstance(rec.hardware, Mapping) else {}
-    places: list[Mapping[str, Any]] = [own]
+    places: list[Mapping[str, object]] = [own]     # a yardstick or a GPU entry: read by the L2 keys
     for e in envs:
         hw = e.get("hardware")
         places += [hw[rec.device]] if isinstance(hw, Mapping) and isinstance(hw.get(rec.device), Mapping) else []
@@ -304,7 +305,7 @@ def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float
     return None
 
 
-def fraction_label(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> str:
+def fraction_label(rec: Record, runs: Iterable[RunEnvironment] = ()) -> str:
     """Why a hardware fraction is not a plain fraction of memory bandwidth: 'cache' where the
     working set (``work.bytes``) fits the GPU's L2, so it is served from cache, not from the
     DRAM the copy yardstick measures, and where it exceeds 1 on CUDA with no working set or L2

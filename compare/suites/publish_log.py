@@ -26,6 +26,7 @@ from typing import Any, TypedDict, cast
 from compare.measuring import environment
 from compare.options import EXIT_INTERRUPTED
 from compare.planning.publish_plan import Part
+from compare.results.environment import Gpu
 from compare.results.store import StoreError, atomic_write
 
 FORMAT_VERSION, LOG = 1, "publish.json"
@@ -37,7 +38,7 @@ class Host(TypedDict):
     hostname: str
     cpu: str
     cores: int
-    gpus: list[dict[str, str]]
+    gpus: list[Gpu]
 
 
 class Entry(TypedDict):

@@ -13,12 +13,13 @@ import math
 import os
 import statistics
 from pathlib import Path
-from typing import Any, Iterable, NamedTuple, TypedDict, cast
+from typing import Any, Iterable, NamedTuple
 
 from tabulate import tabulate
 
 import backends
 import scenarios
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record
 from compare.render.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
@@ -27,40 +28,10 @@ from compare.sweep.points import sweeps
 from compare.sweep.rows import (checked_items, event_s, knob, knob_value, label, need, ok, tag, throughput_s, timed,
                                 wall_s)
 
-class Gpu(TypedDict):
-    name: str
-    memory: str
-    driver: str
-
-
-class RunEnv(TypedDict, total=False):
-    """What the page reads of a run's environment (compare.measuring.environment.collect), as
-    stored in the store's ``runs``: older files may lack any of it."""
-    command: str
-    created: str
-    git_commit: str | None
-    git_dirty: bool
-    cpu: str
-    cores: int
-    memory_gib: float
-    gpus: list[Gpu]
-    cuda_toolkit: str | None
-    os: str
-    python: str
-    hostname: str
-    packages: dict[str, str]
-
-
 class Contents(NamedTuple):
     """What the page and plots are built from: the runs' environments and every record."""
-    runs: list[RunEnv]
+    runs: list[RunEnvironment]
     records: list[Record]
-
-
-def runs_of(stored: list[dict[str, Any]]) -> list[RunEnv]:     # JSON: the store's runs, as in sweep.json
-    """The store's ``runs`` (JSON read from, or to be written to, sweep.json: the file boundary)
-    as the environments the page reads; the file's loader checked they are objects."""
-    return [cast(RunEnv, r) for r in stored]
 
 
 # ---- records and scenarios --------------------------------------------------------------------
@@ -227,7 +198,7 @@ def _knob(r) -> str:
     return f"({k.name}={k.value})" if k.name and k.value is not None else ""
 
 
-def environment(runs: list[RunEnv], records: list[Record]) -> str:
+def environment(runs: list[RunEnvironment], records: list[Record]) -> str:
     if not runs:
         return ""
     env = runs[-1]
