@@ -126,8 +126,8 @@ def noise_brief(records: list[Record]) -> list[str]:
     if not full:
         return []
     noisy = [r for r in records if r.status == "ok" and noise.reasons_for(r)]
-    kinds = Counter(k for r in noisy for k in {_kind(x["why"]) for x in
-                                               ((r.time.noise if r.time else None) or {}).get("reasons") or []})
+    kinds = Counter(k for r in noisy for k in {_kind(x.why) for x in
+                                               (r.time.noise.reasons if r.time and r.time.noise else None) or ()})
     why = ", ".join(f"{k} {n}" for k, n in kinds.most_common())
     head = (f"{noise.MARK} {len(noisy)} of {sum(r.status == 'ok' for r in records)} timed cells are noisy: "
             f"{why} (why: results.md)")

@@ -82,8 +82,7 @@ def row(rec: Record) -> list[str]:
     if rec.status == "ok" and noise.reasons_for(rec):
         note = "; ".join(filter(None, [note, "noisy: " + "; ".join(noise.reasons_for(rec))]))
     device = rec.device + (f" ({rec.machine})" if rec.machine else "")
-    hw = (rec.throughput or {}).get("hw_fraction")
-    kind = (rec.throughput or {}).get("floor_kind", "")
+    hw, kind = hw_fraction(rec)
 
     def mark(regime: str) -> str:
         return NOISY_MARK if noise.reasons_for(rec, regime) else ""
@@ -145,13 +144,19 @@ def _median(rec: Record) -> float:
     return float(med)
 
 
+def hw_fraction(rec: Record) -> tuple[float | None, str]:
+    """The record's hardware fraction (None: not judged) and the kind of floor it is of."""
+    thr = rec.throughput
+    return (thr.hw_fraction, thr.floor_kind or "") if thr is not None else (None, "")
+
+
 def _noisy(rec: Record) -> bool:
     """The cell's figures are not to be read as they stand: a stored noise reason (any regime),
     or the summary's own regime spread too wide or too few repeats."""
     t = rec.time
     regime = call_time(rec)[2]
     part = (t.throughput if regime == "throughput" else t) if t else None
-    return bool(noise.reasons_for(rec) or noise.regime_reasons(part) or ((t.noise if t else None) or {}).get("noisy"))
+    return bool(noise.reasons_for(rec) or noise.regime_reasons(part) or (t and t.noise and t.noise.noisy))
 
 
 def _interval(rec: Record) -> tuple[float, float]:
@@ -220,8 +225,7 @@ def compact(records: list[Record], brief: bool = False) -> list[list[str]]:
                 out.append([f"{r.backend} {r.device}", "skipped", "-", "-", "-", "-", "-", r.reason])
                 continue
         full = row(r)
-        hw = (r.throughput or {}).get("hw_fraction")
-        kind = (r.throughput or {}).get("floor_kind", "")
+        hw, kind = hw_fraction(r)
         cells = [full[i] for i in idx]
         cells[COMPACT.index("hw fraction") - 1] = (f"{hw:.2g} {SHORT_KIND.get(kind, kind)}"
                                                    if isinstance(hw, (int, float)) else "-")

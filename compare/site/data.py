@@ -270,7 +270,7 @@ def item_rate(rec: Record, regime: str = "throughput") -> float | None:
 
 
 def hw_fraction(rec: Record) -> float | None:
-    return num((rec.throughput or {}).get("hw_fraction"))
+    return num(rec.throughput.hw_fraction) if rec.throughput else None
 
 
 # Where neither a record nor its run names the GPU's L2 size: a bound for the H100/H200 class

@@ -50,7 +50,7 @@ def peak(gpu: str | None) -> float | None:
 
 def fraction(rec: Record, runs: Iterable[RunEnvironment] = ()) -> float | None:
     """The record's achieved bandwidth (``throughput.bytes_per_s``) over its GPU's datasheet peak."""
-    bw, top = num((rec.throughput or {}).get("bytes_per_s")), peak(gpu_of(rec, runs))
+    bw, top = num(rec.throughput.bytes_per_s if rec.throughput else None), peak(gpu_of(rec, runs))
     return bw / top if bw is not None and top else None
 
 
