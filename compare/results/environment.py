@@ -96,10 +96,37 @@ class RunEnvironment(TypedDict, total=False):
     environments: list[RunEnvironment] | None     # a merged report's runs
 
 
+class Host(TypedDict):
+    """The machine a publish part ran on (``compare.suites.publish_log``)."""
+    hostname: str
+    cpu: str
+    cores: int
+    gpus: list[Gpu]
+
+
+class PublishEntry(TypedDict):
+    """One attempt of a publish part, as DIR/publish.json keeps it (``exit_code`` None: still
+    running, or killed); an older entry may lack a key (read with get)."""
+    name: str
+    argv: list[str]
+    started: str
+    seconds: float
+    exit_code: int | None
+    interrupted: bool
+    host: Host
+
+
+class PublishLog(TypedDict):
+    """DIR/publish.json (``compare publish``): every attempt of every part, in order."""
+    format_version: int
+    parts: list[PublishEntry]
+
+
 def environment_of(obj: Mapping[str, object]) -> RunEnvironment:    # a stored run, checked
     """A stored ``runs`` entry as the environment it is (the object itself: its key order and the
     keys this version does not name kept); the store checked it (``records.RUN``) first."""
     return cast(RunEnvironment, obj)
 
 
-__all__ = ["Gpu", "Phases", "Probe", "RunEnvironment", "Scheduler", "Yardstick", "environment_of"]
+__all__ = ["Gpu", "Host", "Phases", "Probe", "PublishEntry", "PublishLog", "RunEnvironment", "Scheduler", "Yardstick",
+           "environment_of"]

@@ -314,7 +314,7 @@ Rate = float | str | None       # a figure per second as stored ('nan', 'inf' as
 @dataclasses.dataclass(frozen=True, eq=False)
 class Throughput(Part):
     """A cell's ``throughput`` block: its work per second (compare.running.worker) and, judged against
-    the run's yardstick (compare.running.hardware.annotate), the floor it is held to and the fraction
+    the run's yardstick (compare.running.hardware.annotated), the floor it is held to and the fraction
     of it reached; other rates are extra keys."""
     items_per_s: Rate = None
     bytes_per_s: Rate = None

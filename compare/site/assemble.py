@@ -82,7 +82,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                      "bandwidth-bound cells and the driver's empty-kernel launch that floors per-call cost."),
                    Table(("run", "device", "copy bandwidth", "launch + sync", "launch pipelined", "how"), tuple(yard))]
     blocks += reproducibility(c)
-    pub = [p for p in ((m.publish or {}).get("parts") or []) if isinstance(p, dict)]
+    pub = [p for p in ((m.publish.get("parts") if m.publish else None) or []) if isinstance(p, dict)]
     blocks += [H("Publish run time")]
     if pub:
         total = sum(data.num(p.get("seconds")) or 0.0 for p in pub)

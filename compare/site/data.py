@@ -11,12 +11,12 @@ import dataclasses
 import json
 import math
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, cast
 
 import scenarios
 from compare.measuring import noise
 from compare.running import repeats
-from compare.results.environment import RunEnvironment
+from compare.results.environment import PublishLog, RunEnvironment
 from compare.results.record import Record
 from compare.spec import BUSY_TAG, ParamValue
 from compare.results.store import SUITES, Store, StoreError, run_environments
@@ -33,7 +33,7 @@ class Machine:
     sweep: tuple[Record, ...]
     stress: Store | None
     runs: tuple[RunEnvironment, ...]
-    publish: dict[str, Any] | None
+    publish: PublishLog | None      # DIR/publish.json, where ``compare publish`` made the records
     # the shared-host experiment (``run --busy``): cells timed idle and with cores kept busy by
     # other processes, tagged ``busy_cores``; its row alone reads them, no other reader sees them
     busy: tuple[Record, ...] = ()
@@ -94,7 +94,7 @@ def load(paths: Iterable[Path]) -> Machine:
     """The stores at ``paths`` merged by suite (a later record of the same cell wins)."""
     merged: dict[str, Store] = {}
     sources: list[Path] = []
-    publish = None
+    publish: PublishLog | None = None
     for p in paths:
         p = Path(p)
         for f in _suite_files(p):
@@ -108,11 +108,12 @@ def load(paths: Iterable[Path]) -> Machine:
         if log.is_file():
             from compare.results.store import read_bounded
             try:
-                publish = json.loads(read_bounded(log, 16 * 2**20))
+                obj = json.loads(read_bounded(log, 16 * 2**20))
             except (OSError, ValueError, RecursionError) as exc:
                 raise StoreError(f"cannot read {log}: {exc}") from None
-            if not isinstance(publish, dict) or not isinstance(publish.get("parts", []), list):
+            if not isinstance(obj, dict) or not isinstance(obj.get("parts", []), list):
                 raise StoreError(f"{log}: not a publish log (an object with a list of parts)")
+            publish = cast(PublishLog, obj)      # typed once read: its entries are read with get
     runs = [e for s in merged.values() for env in s.runs for e in run_environments(env)]     # a merge: its runs
     run = tuple(merged["run"].records) if "run" in merged else ()
     return Machine(tuple(sources), tuple(r for r in run if tag(r, BUSY_TAG) is None),
