@@ -28,6 +28,7 @@ from typing import Any, Iterable, Mapping, Self
 import numpy as np
 
 from compare.files import TEMP_MARK, TEMP_SUFFIX, atomic_write
+from compare.results.analysis import Analysis, analysis_of
 from compare.results.environment import RunEnvironment, environment_of
 from compare.results.formats import FORMATS
 from compare.results.record import FORMAT_VERSION, Record, RecordError
@@ -182,13 +183,13 @@ class Store:
     the earlier one); ``analysis`` is the suite's derived data."""
 
     def __init__(self, path: Path, suite: str, runs: list[RunEnvironment] | None = None,
-                 records: Iterable[Record] = (), analysis: dict[str, Any] | None = None,  # stored JSON
+                 records: Iterable[Record] = (), analysis: Analysis | None = None,
                  upgraded_from: int | None = None) -> None:
         if suite not in SUITES:
             raise ValueError(f"unknown suite {suite!r}")
         self.path, self.suite = Path(path), suite
         self.runs: list[RunEnvironment] = list(runs or [])     # the file's runs
-        self.analysis: dict[str, Any] = dict(analysis or {})     # the file's analysis (JSON)
+        self.analysis: Analysis = analysis.copy() if analysis else {}     # the file's analysis (stress: its findings)
         self.upgraded_from = upgraded_from
         self._records: dict[str, Record] = {}
         for r in records:
@@ -217,7 +218,7 @@ class Store:
         if suite is not None and data["suite"] != suite:
             raise StoreError(f"{path}: holds {data['suite']} results, not {suite} results")
         runs = [environment_of(e) for e in data["runs"]]       # typed once read (checked: records.RUN)
-        return cls(path, data["suite"], runs, data["records"], data["analysis"], data["upgraded_from"])
+        return cls(path, data["suite"], runs, data["records"], analysis_of(data["analysis"]), data["upgraded_from"])
 
     @classmethod
     def open(cls, directory: str | Path, suite: str, keep: bool = True) -> Self:

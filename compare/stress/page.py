@@ -15,24 +15,13 @@ from typing import Any, TypedDict, cast
 
 import backends
 from compare.render.report import fmt_num
+from compare.results.analysis import Provenance, RunInfo
 from compare.results.environment import RunEnvironment
 from compare.results.store import Store, atomic_write, jsonable
 from compare.stress import plots
 from compare.stress.numerics import COLUMNS, Experiment, Finding, Row, Series
 
 Registry = dict[str, Experiment]
-
-
-class RunInfo(TypedDict, total=False):
-    """The run that produced an experiment's rows (its provenance); ``backends``: the ones it
-    gave, where a merge took the experiment's other backends from another run."""
-    command: str | None
-    created: str | None
-    git_commit: str | None
-    backends: list[str]
-
-
-Provenance = dict[str, RunInfo | list[RunInfo]]
 
 
 class PageData(TypedDict, total=False):
