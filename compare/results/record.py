@@ -19,8 +19,8 @@ version below and saves the newest; users load these files with pandas, so keys 
       Each suite's format upgrades its records (``compare.results.formats``).
 
 The measured blocks are typed parts (``compare.results.record_parts``: ``Timing`` with its ``Regime``s,
-``Check``, ``Memory``, ``Gradient``, ``Hardware``), built by the worker where it measures them and
-read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
+``Noise`` and ``HostProfile``, ``Check``, ``Memory``, ``Gradient``, ``Hardware``, ``Throughput``,
+``Converged``), built where they are measured and read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
 
 ``Record.from_json`` is the one validating loader: every record a reader sees (report, resume,
 merge, the site, the sweep and stress pages) and every record the engine stores went through it,
