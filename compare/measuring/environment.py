@@ -9,7 +9,9 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import TypedDict
+
+from compare.results.environment import Gpu, RunEnvironment
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -55,15 +57,15 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
-def gpus() -> list[dict[str, str]]:
+def gpus() -> list[Gpu]:
     if not shutil.which("nvidia-smi"):
         return []
     out = _run(["nvidia-smi", "--query-gpu=name,driver_version,memory.total", "--format=csv,noheader"])
-    rows = []
+    rows: list[Gpu] = []
     for line in out.splitlines():
         parts = [p.strip() for p in line.split(",")]
         if len(parts) == 3:
-            rows.append({"name": parts[0], "driver": parts[1], "memory": parts[2]})
+            rows.append(Gpu(name=parts[0], driver=parts[1], memory=parts[2]))
     return rows
 
 
@@ -76,8 +78,9 @@ def dirty_paths() -> list[str]:
     return [line[3:].split(" -> ")[-1] for line in out.splitlines() if len(line) > 3]
 
 
-def collect(argv: list[str] | None = None) -> dict[str, Any]:    # a run's environment: a results file's runs
-    versions = {}
+def collect(argv: list[str] | None = None) -> RunEnvironment:
+    """This run's environment (a results file's ``runs`` entry): the machine, packages, commit, command."""
+    versions: dict[str, str] = {}
     for pkg in packages():
         try:
             versions[pkg] = importlib.metadata.version(pkg)
@@ -88,7 +91,7 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:    # a run's envir
     cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []
     commit = os.environ.get("COMPARE_GIT_COMMIT", "").strip()
     dirty = [] if commit else dirty_paths()
-    return {
+    env: RunEnvironment = {
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "hostname": platform.node(),
         "os": platform.platform(),
@@ -101,11 +104,12 @@ def collect(argv: list[str] | None = None) -> dict[str, Any]:    # a run's envir
         # names the commit it copied in COMPARE_GIT_COMMIT, and dirtiness is unknown (None).
         "git_commit": commit or _run(["git", "rev-parse", "--short", "HEAD"]),
         "git_dirty": None if commit else bool(dirty),
-        **({"git_dirty_paths": dirty[:DIRTY_PATHS_KEPT] + ([f"... and {len(dirty) - DIRTY_PATHS_KEPT} more"]
-                                                         if len(dirty) > DIRTY_PATHS_KEPT else [])}
-           if dirty else {}),
-        "command": " ".join(["python -m compare"] + (argv if argv is not None else sys.argv[1:])),
     }
+    if dirty:
+        env["git_dirty_paths"] = dirty[:DIRTY_PATHS_KEPT] + ([f"... and {len(dirty) - DIRTY_PATHS_KEPT} more"]
+                                                             if len(dirty) > DIRTY_PATHS_KEPT else [])
+    env["command"] = " ".join(["python -m compare"] + (argv if argv is not None else sys.argv[1:]))
+    return env
 
 
 class RunStamp(TypedDict):
@@ -115,7 +119,7 @@ class RunStamp(TypedDict):
     dirty: bool | None
 
 
-def run_stamp(env: dict[str, Any]) -> RunStamp:     # env: a run's environment (``collect``)
+def run_stamp(env: RunEnvironment) -> RunStamp:
     """What a record keeps of the run that measured it (``Record.run``): when it started, the
     commit and whether the tree was dirty (None: unknown, a copied tree)."""
     return RunStamp(created=str(env.get("created", "")), commit=env.get("git_commit") or None,

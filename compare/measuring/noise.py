@@ -129,9 +129,9 @@ def verdict(t: Timing, host: HostLoad) -> Noise:
 
 def reasons_for(rec: Record, regime: str | None = None) -> list[str]:
     """The record's stored noise reasons that concern ``regime`` (all when None), as text."""
-    noise = (rec.time.noise if rec.time else None) or {}
+    noise = rec.time.noise if rec.time else None
     out = []
-    for r in noise.get("reasons") or []:
-        if regime is None or r.get("regime") in ("", regime):
-            out.append(f"{r['regime']}: {r['why']}" if regime is None and r.get("regime") else r["why"])
+    for r in (noise.reasons if noise else None) or ():
+        if regime is None or r.regime in ("", regime):
+            out.append(f"{r.regime}: {r.why}" if regime is None and r.regime else r.why)
     return out

@@ -13,10 +13,11 @@ import argparse
 import re
 import textwrap
 from collections import Counter
-from typing import Any, Iterable
+from typing import Iterable
 
 from compare.measuring import noise
 from compare.render import report
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record
 
 WIDTH = 118
@@ -125,15 +126,15 @@ def noise_brief(records: list[Record]) -> list[str]:
     if not full:
         return []
     noisy = [r for r in records if r.status == "ok" and noise.reasons_for(r)]
-    kinds = Counter(k for r in noisy for k in {_kind(x["why"]) for x in
-                                               ((r.time.noise if r.time else None) or {}).get("reasons") or []})
+    kinds = Counter(k for r in noisy for k in {_kind(x.why) for x in
+                                               (r.time.noise.reasons if r.time and r.time.noise else None) or ()})
     why = ", ".join(f"{k} {n}" for k, n in kinds.most_common())
     head = (f"{noise.MARK} {len(noisy)} of {sum(r.status == 'ok' for r in records)} timed cells are noisy: "
             f"{why} (why: results.md)")
     return textwrap.wrap(head, WIDTH, subsequent_indent="    ") + [full[-1]]
 
 
-def closing(records: list[Record], env: dict[str, Any], verbose: bool, wide: bool) -> list[str]:
+def closing(records: list[Record], env: RunEnvironment, verbose: bool, wide: bool) -> list[str]:
     """The end of a run up to the summary and noise lines (the driver adds the time, the files
     written and the reference block)."""
     if verbose:

@@ -10,6 +10,7 @@ from typing import Any, Iterable, Mapping
 from tabulate import tabulate
 
 from compare.measuring import noise, timing
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record, Regime, Timing
 from compare.render.results_csv import csv_text, params_text
 from compare.results.store import atomic_write, run_environments
@@ -81,8 +82,7 @@ def row(rec: Record) -> list[str]:
     if rec.status == "ok" and noise.reasons_for(rec):
         note = "; ".join(filter(None, [note, "noisy: " + "; ".join(noise.reasons_for(rec))]))
     device = rec.device + (f" ({rec.machine})" if rec.machine else "")
-    hw = (rec.throughput or {}).get("hw_fraction")
-    kind = (rec.throughput or {}).get("floor_kind", "")
+    hw, kind = hw_fraction(rec)
 
     def mark(regime: str) -> str:
         return NOISY_MARK if noise.reasons_for(rec, regime) else ""
@@ -144,13 +144,19 @@ def _median(rec: Record) -> float:
     return float(med)
 
 
+def hw_fraction(rec: Record) -> tuple[float | None, str]:
+    """The record's hardware fraction (None: not judged) and the kind of floor it is of."""
+    thr = rec.throughput
+    return (thr.hw_fraction, thr.floor_kind or "") if thr is not None else (None, "")
+
+
 def _noisy(rec: Record) -> bool:
     """The cell's figures are not to be read as they stand: a stored noise reason (any regime),
     or the summary's own regime spread too wide or too few repeats."""
     t = rec.time
     regime = call_time(rec)[2]
     part = (t.throughput if regime == "throughput" else t) if t else None
-    return bool(noise.reasons_for(rec) or noise.regime_reasons(part) or ((t.noise if t else None) or {}).get("noisy"))
+    return bool(noise.reasons_for(rec) or noise.regime_reasons(part) or (t and t.noise and t.noise.noisy))
 
 
 def _interval(rec: Record) -> tuple[float, float]:
@@ -219,8 +225,7 @@ def compact(records: list[Record], brief: bool = False) -> list[list[str]]:
                 out.append([f"{r.backend} {r.device}", "skipped", "-", "-", "-", "-", "-", r.reason])
                 continue
         full = row(r)
-        hw = (r.throughput or {}).get("hw_fraction")
-        kind = (r.throughput or {}).get("floor_kind", "")
+        hw, kind = hw_fraction(r)
         cells = [full[i] for i in idx]
         cells[COMPACT.index("hw fraction") - 1] = (f"{hw:.2g} {SHORT_KIND.get(kind, kind)}"
                                                    if isinstance(hw, (int, float)) else "-")
@@ -272,7 +277,7 @@ def images_in(plots: Path, relative_to: Path) -> dict[str, str]:
     return {p.stem: os.path.relpath(p, relative_to) for p in sorted(plots.glob("*.png"))}
 
 
-def header_lines(env: Mapping[str, Any]) -> list[str]:
+def header_lines(env: RunEnvironment) -> list[str]:
     """results.md's opening: each run's environment and yardstick, a merge's inputs first."""
     merged = env.get("merged_from")
     lines = [f"- merged from: {', '.join(f'`{f}`' for f in merged)}"] if merged else []
@@ -281,7 +286,7 @@ def header_lines(env: Mapping[str, Any]) -> list[str]:
     return lines
 
 
-def environment_lines(env: Mapping[str, Any]) -> list[str]:
+def environment_lines(env: RunEnvironment) -> list[str]:
     gpus = ", ".join(f"{g.get('name')} ({g.get('memory')}, driver {g.get('driver')})" for g in env.get("gpus") or [])
     pkgs = ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items())
     dirty = {True: " (with uncommitted changes)", None: " (copied tree: dirtiness not known)"}.get(env.get("git_dirty"), "")
@@ -292,7 +297,7 @@ def environment_lines(env: Mapping[str, Any]) -> list[str]:
             f"- OS: {env.get('os')}; Python {env.get('python')}", f"- packages: {pkgs}"]
 
 
-def yardstick_lines(env: Mapping[str, Any]) -> list[str]:
+def yardstick_lines(env: RunEnvironment) -> list[str]:
     """The run's hardware yardstick per device, in words (``env['hardware']``)."""
     out = []
     for device, hw in (env.get("hardware") or {}).items():
@@ -309,7 +314,7 @@ def yardstick_lines(env: Mapping[str, Any]) -> list[str]:
     return out
 
 
-def page(title: str, envs: list[dict[str, Any]], records: list[Record], images: dict[str, str],
+def page(title: str, envs: list[RunEnvironment], records: list[Record], images: dict[str, str],
          notes: str = "", rebuild: str = "") -> str:
     """A results page: title, hand-written notes, environments, time against error, then each
     scenario's table and picture. Every number comes from ``records``."""
@@ -331,7 +336,7 @@ def page(title: str, envs: list[dict[str, Any]], records: list[Record], images: 
     return "\n".join(out) + "\n" + tables(records, "github", images)
 
 
-def write_tables(out: Path, environment: dict[str, Any], records: list[Record],
+def write_tables(out: Path, environment: RunEnvironment, records: list[Record],
                  images: dict[str, str] | None = None) -> None:
     """results.csv and results.md beside results.json (which the store writes), atomically."""
     atomic_write(out / "results.csv", csv_text(records))

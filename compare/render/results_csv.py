@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
-from typing import Any, Mapping
+from typing import Mapping
 
 from compare.measuring import noise, timing
 from compare.results.record import Record, plain
@@ -43,9 +43,12 @@ CSV_COLUMNS = {
 }
 
 
-def tidy(rec: Record) -> dict[str, Any]:
+CsvValue = str | int | float      # a results.csv cell: a number, a word, or '' (a bool is an int)
+
+
+def tidy(rec: Record) -> dict[str, CsvValue]:
     """One results.csv row: every CSV_COLUMNS quantity of the record, or '' where it has none."""
-    out: dict[str, Any] = {}
+    out: dict[str, CsvValue] = {}
     for col, path in CSV_COLUMNS.items():
         if col == "params":
             out[col] = params_text(rec)
@@ -55,13 +58,14 @@ def tidy(rec: Record) -> dict[str, Any]:
             continue
         if col == "events_median_s":
             ev = timing.events_of(rec.time)
-            out[col] = ev.median_s if ev and "median_s" in ev else ""
+            m = ev.median_s if ev and "median_s" in ev else None
+            out[col] = m if isinstance(m, (str, int, float)) else ""
             continue
         assert path is not None, col         # every column without a path is handled above
-        v: Any = getattr(rec, path[0])
+        v: object = getattr(rec, path[0])
         for k in path[1:]:
             v = v.get(k) if isinstance(v, Mapping) else None
-        out[col] = "" if v is None or isinstance(v, (Mapping, tuple)) else v
+        out[col] = v if isinstance(v, (str, int, float)) else ""     # None, an object or a list: none
     return out
 
 

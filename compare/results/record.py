@@ -19,8 +19,8 @@ version below and saves the newest; users load these files with pandas, so keys 
       Each suite's format upgrades its records (``compare.results.formats``).
 
 The measured blocks are typed parts (``compare.results.record_parts``: ``Timing`` with its ``Regime``s,
-``Check``, ``Memory``, ``Gradient``, ``Hardware``), built by the worker where it measures them and
-read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
+``Noise`` and ``HostProfile``, ``Check``, ``Memory``, ``Gradient``, ``Hardware``, ``Throughput``,
+``Converged``), built where they are measured and read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
 
 ``Record.from_json`` is the one validating loader: every record a reader sees (report, resume,
 merge, the site, the sweep and stress pages) and every record the engine stores went through it,
@@ -35,7 +35,8 @@ import types
 from typing import Any, Callable, Mapping
 
 from compare.results import records
-from compare.results.record_parts import PARTS, Check, Gradient, Hardware, Memory, Part, Regime, Timing, plain
+from compare.results.record_parts import (PARTS, Check, Converged, Gradient, Hardware, Memory, Part, Regime, Throughput,
+                                          Timing, plain)
 from compare.spec import Identity, key as cell_key
 from scenarios.base import Precision
 
@@ -79,10 +80,10 @@ class Record:
     time: Timing | None = None          # first call, latency, throughput and graph regimes, noise
     error: Check | None = None          # against the float64 oracle and the reference backend
     work: Mapping[str, float] | None = None     # bytes, items, flops per call
-    throughput: Block | None = None     # work per second; the hardware floor and fraction (mixed: figures and words)
+    throughput: Throughput | None = None    # work per second; the hardware floor and fraction
     memory: Memory | None = None        # peak host RSS, device bytes
     gradient: Gradient | None = None    # how a gradient was obtained and its errors
-    converged: Block | None = None      # the error sweep's distance to a converged reference
+    converged: Converged | None = None  # the error sweep's distance to a converged reference
     hardware: Hardware | None = None    # the yardstick the cell was judged against
     info: Block | None = None           # the kernel's own notes
     versions: Block | None = None       # the framework's packages
@@ -157,5 +158,5 @@ class Record:
 
 NAMED = tuple(f.name for f in dataclasses.fields(Record) if f.name not in ("extra", "layout"))
 
-__all__ = ["Block", "Check", "FORMAT_VERSION", "Gradient", "Hardware", "Memory", "Record", "RecordError", "Regime",
-           "Timing", "plain"]
+__all__ = ["Block", "Check", "Converged", "FORMAT_VERSION", "Gradient", "Hardware", "Memory", "Record", "RecordError",
+           "Regime", "Throughput", "Timing", "plain"]

@@ -43,13 +43,23 @@ def _names(cls: type) -> frozenset[str]:
     return frozenset(f.name for f in dataclasses.fields(cls)) - {"extra", "layout"}
 
 
+def _field(sub: type[Part] | None, v: Any) -> Any:
+    """A field's value read from JSON: the part ``sub`` its object is (or a tuple, one per object
+    of its list), else ``v`` read-only."""
+    if sub is not None and isinstance(v, Mapping):
+        return v if isinstance(v, sub) else sub.from_json(v)
+    if sub is not None and isinstance(v, (list, tuple)) and all(isinstance(x, Mapping) for x in v):
+        return tuple(x if isinstance(x, sub) else sub.from_json(x) for x in v)
+    return frozen(v)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Part(Mapping[str, Any]):     # a read-only view of a stored JSON object
     """A JSON object with named, typed fields. ``layout`` is the object's keys in their order
     (which are present, null or not); ``extra`` holds the keys no field names."""
     extra: Mapping[str, Any] = dataclasses.field(default_factory=dict, kw_only=True, repr=False)  # stored JSON
     layout: tuple[str, ...] = dataclasses.field(default=(), kw_only=True, repr=False)
-    NESTED: ClassVar[Mapping[str, type[Part]]] = {}      # field -> the part its object is
+    NESTED: ClassVar[Mapping[str, type[Part]]] = {}      # field -> the part its object (or each object of its list) is
     RENAMED: ClassVar[Mapping[str, str]] = {}            # JSON key -> its field, where the key is a Mapping method
 
     @classmethod
@@ -64,10 +74,8 @@ class Part(Mapping[str, Any]):     # a read-only view of a stored JSON object
             f = cls.RENAMED.get(k, k)
             if f not in names:
                 extra[k] = frozen(v)
-            elif (sub := cls.NESTED.get(f)) is not None and isinstance(v, Mapping):
-                kw[f] = v if isinstance(v, sub) else sub.from_json(v)
             else:
-                kw[f] = frozen(v)
+                kw[f] = _field(cls.NESTED.get(f), v)
         return cls(**kw, extra=types.MappingProxyType(extra), layout=tuple(obj))
 
     @classmethod
@@ -163,6 +171,47 @@ class Processes(Part):
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
+class NoiseReason(Part):
+    """One reason a cell's timings are noisy: the regime it concerns ('' for the whole cell) and why."""
+    regime: str = ""
+    why: str = ""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Noise(Part):
+    """A ``time.noise`` block (compare.measuring.noise.verdict): whether the timings are noisy,
+    why, and the host meter's figures (cores, seconds measured, the cell's and others' use)."""
+    noisy: bool | None = None
+    reasons: tuple[NoiseReason, ...] | None = None
+    cores: int | None = None
+    measured_s: float | None = None
+    own_cores: float | None = None
+    others_cores: float | None = None
+    NESTED: ClassVar[Mapping[str, type[Part]]] = {"reasons": NoiseReason}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class HostFunction(Part):
+    """One function of a host profile: where it is, its own and cumulative seconds per call."""
+    function: str | None = None
+    where: str | None = None
+    own_s: float | None = None
+    cumulative_s: float | None = None
+    calls: float | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class HostProfile(Part):
+    """A ``time.host_profile`` block (--host-profile, compare.measuring.timing.host_profile): the
+    top functions by own time in the throughput regime."""
+    calls: int | None = None
+    host_s: float | None = None
+    profiled_s: float | None = None
+    top: tuple[HostFunction, ...] | None = None
+    NESTED: ClassVar[Mapping[str, type[Part]]] = {"top": HostFunction}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
 class Timing(Part):
     """A cell's ``time`` block: the first call, the latency (the block's own median, iqr, min),
     the other regimes, and how the clocks were set up (docs/measurement.md)."""
@@ -189,13 +238,13 @@ class Timing(Part):
     first_call_clock: str | None = None
     cache: str | None = None
     window: tuple[float, ...] | None = None      # epoch seconds the timed window opened and closed
-    noise: Mapping[str, Any] | None = None     # stored JSON (compare.measuring.noise.Noise when measured)
+    noise: Noise | None = None           # whether the figures are noisy, why (compare.measuring.noise)
     processes: Processes | None = None   # over several worker processes (compare.running.repeats)
     phases: Mapping[str, float] | None = None
-    host_profile: Mapping[str, Any] | None = None  # where the host's time per call goes (--host-profile)
+    host_profile: HostProfile | None = None  # where the host's time per call goes (--host-profile)
     NESTED: ClassVar[Mapping[str, type[Part]]] = {**{k: Regime for k in ("wall", "events", "latency", "throughput",
                                                                            "graph", "null")}, "own_timer": OwnTimer,
-                                                 "processes": Processes}
+                                                 "processes": Processes, "noise": Noise, "host_profile": HostProfile}
 
     def regime(self, name: str) -> Regime | None:
         """A regime by name ('latency', 'throughput', 'graph', 'null', 'events')."""
@@ -259,8 +308,72 @@ class Hardware(Part):
     error: str | None = None
 
 
+Rate = float | str | None       # a figure per second as stored ('nan', 'inf' as jsonable writes them)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Throughput(Part):
+    """A cell's ``throughput`` block: its work per second (compare.running.worker) and, judged against
+    the run's yardstick (compare.running.hardware.annotated), the floor it is held to and the fraction
+    of it reached; other rates are extra keys."""
+    items_per_s: Rate = None
+    bytes_per_s: Rate = None
+    flops_per_s: Rate = None
+    gradients_per_s: Rate = None
+    floor_s: float | None = None        # the stated floor of one call
+    floor_kind: str | None = None
+    floor: str | None = None            # the floor in words
+    hw_fraction: float | None = None    # floor_s / the call's time
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ReferenceInfo(Part):
+    """What a converged reference is (a ``converged.reference``): a note, and for a dt reference its
+    dt, steps, simulated time and self-difference (its own error scale), for the sdf field its
+    evaluation grid. Built in code, its JSON has the fields it has in the format's order."""
+    note: str | None = None
+    dt: float | None = None
+    steps: int | None = None
+    simulated_time_s: float | None = None
+    self_difference: float | None = None
+    eval_grid: int | None = None
+    ORDER: ClassVar[tuple[str, ...]] = ("dt", "steps", "simulated_time_s", "self_difference", "eval_grid", "note")
+
+    def __post_init__(self) -> None:
+        if not self.layout:         # built in code (an empty object read has no field either)
+            object.__setattr__(self, "layout", tuple(k for k in self.ORDER if getattr(self, k) is not None))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Converged(Part):
+    """An error-sweep cell's distance to a converged reference (``Sweeps.converged_error``): ``error``
+    in ``metric``, the metric's other ``figures`` (e.g. rms, max: extra keys), and the reference.
+    The record's ``converged`` block; built in code its JSON is error, figures, metric, reference."""
+    error: float | str | None = None    # a figure as the record writes it ('nan', 'inf'); None: none
+    metric: str = ""
+    reference: ReferenceInfo | None = None
+    NESTED: ClassVar[Mapping[str, type[Part]]] = {"reference": ReferenceInfo}
+
+    def __post_init__(self) -> None:
+        if not self.layout:
+            object.__setattr__(self, "layout", ("error", *self.extra, "metric", "reference"))
+
+    @classmethod
+    def measured(cls, figures: Mapping[str, float], metric: str, reference: ReferenceInfo) -> Converged:
+        """From an error function's figures: 'error', then the others in their order."""
+        return cls.of(error=figures["error"], **{k: v for k, v in figures.items() if k != "error"},
+                      metric=metric, reference=reference)
+
+    @property
+    def figures(self) -> Mapping[str, float]:
+        """The metric's other figures (rms, max, ...), by name."""
+        return self.extra
+
+
 # the record fields that are parts
 PARTS: Mapping[str, type[Part]] = {"time": Timing, "error": Check, "memory": Memory, "gradient": Gradient,
-                                   "hardware": Hardware}
+                                   "hardware": Hardware, "throughput": Throughput, "converged": Converged}
 
-__all__ = ["Check", "Figure", "Gradient", "Hardware", "Memory", "OwnTimer", "PARTS", "Part", "Processes", "Regime", "Timing", "frozen", "plain"]
+__all__ = ["Check", "Converged", "Figure", "Gradient", "Hardware", "HostFunction", "HostProfile", "Memory", "Noise",
+           "NoiseReason", "OwnTimer", "PARTS", "Part", "Processes", "Rate", "ReferenceInfo", "Regime", "Throughput",
+           "Timing", "frozen", "plain"]

@@ -28,6 +28,8 @@ from typing import Any, Iterable, Mapping, Self
 import numpy as np
 
 from compare.files import TEMP_MARK, TEMP_SUFFIX, atomic_write
+from compare.results.analysis import Analysis, analysis_of
+from compare.results.environment import RunEnvironment, environment_of
 from compare.results.formats import FORMATS
 from compare.results.record import FORMAT_VERSION, Record, RecordError
 from compare.results.records import arrays_problem, store_problem
@@ -87,12 +89,12 @@ def jsonable(x: Any) -> Any:
 OUTPUT_SUBDIRS = ("", "arrays", "plots")    # where a suite writes inside its --out
 
 
-def run_environments(env: Mapping[str, Any]) -> list[Mapping[str, Any]]:  # a stored file's runs
+def run_environments(env: RunEnvironment) -> list[RunEnvironment]:
     """The run environments one entry of a store's ``runs`` stands for: the entry itself, or for
     a merged report's entry (``environments``, written by ``compare report``) those it merged, in
     order (a merge of merges flattened; the store bounds their nesting). A ``stress --merge``
     entry is its own run's environment that also names its inputs (``merged_from``): kept."""
-    out: list[Mapping[str, Any]] = []     # stored JSON
+    out: list[RunEnvironment] = []
     todo = [env]
     while todo:
         e = todo.pop(0)
@@ -180,14 +182,14 @@ class Store:
     """Records of one suite in one JSON file, keyed by cell (a later record of a key replaces
     the earlier one); ``analysis`` is the suite's derived data."""
 
-    def __init__(self, path: Path, suite: str, runs: list[dict[str, Any]] | None = None,  # stored JSON
-                 records: Iterable[Record] = (), analysis: dict[str, Any] | None = None,  # stored JSON
+    def __init__(self, path: Path, suite: str, runs: list[RunEnvironment] | None = None,
+                 records: Iterable[Record] = (), analysis: Analysis | None = None,
                  upgraded_from: int | None = None) -> None:
         if suite not in SUITES:
             raise ValueError(f"unknown suite {suite!r}")
         self.path, self.suite = Path(path), suite
-        self.runs: list[dict[str, Any]] = list(runs or [])     # the file's runs (JSON)
-        self.analysis: dict[str, Any] = dict(analysis or {})     # the file's analysis (JSON)
+        self.runs: list[RunEnvironment] = list(runs or [])     # the file's runs
+        self.analysis: Analysis = analysis.copy() if analysis else {}     # the file's analysis (stress: its findings)
         self.upgraded_from = upgraded_from
         self._records: dict[str, Record] = {}
         for r in records:
@@ -215,8 +217,8 @@ class Store:
         data = _upgrade(data, path)
         if suite is not None and data["suite"] != suite:
             raise StoreError(f"{path}: holds {data['suite']} results, not {suite} results")
-        return cls(path, data["suite"], data["runs"], data["records"], data["analysis"],
-                   data["upgraded_from"])
+        runs = [environment_of(e) for e in data["runs"]]       # typed once read (checked: records.RUN)
+        return cls(path, data["suite"], runs, data["records"], analysis_of(data["analysis"]), data["upgraded_from"])
 
     @classmethod
     def open(cls, directory: str | Path, suite: str, keep: bool = True) -> Self:

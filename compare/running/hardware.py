@@ -13,7 +13,7 @@ Run as ``python -m compare.running.hardware DEVICE`` in its own process (it must
 context with a framework); ``measure`` returns its JSON, or ``{"error": reason}``.
 
 The floors each scenario states (``Scenario.floor``) use these figures and, for FLOP floors, the
-vendor's stated peak rates below. ``annotate`` adds to each cell ``throughput.floor_s`` (with the
+vendor's stated peak rates below. ``annotated`` adds to each cell ``throughput.floor_s`` (with the
 floor's kind and derivation) and ``throughput.hw_fraction`` = floor / throughput-regime time:
 1 is the hardware's limit. On the CPU a cell's bandwidth floor uses the copy of the smallest
 measured size that moves at least the cell's bytes (``copy_curve``), so a cache-resident cell is
@@ -29,12 +29,13 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, TypedDict
+from typing import Any, Mapping
 
 import numpy as np
 
 from compare.measuring import environment
-from compare.results.record import Record
+from compare.results.environment import Yardstick
+from compare.results.record import Record, plain
 
 # Stated peak non-tensor FLOP rates (NVIDIA datasheets, boost clock): the FLOP floors' denominators.
 STATED_PEAK_FLOPS: dict[str, dict[str, float | str]] = {
@@ -72,26 +73,6 @@ def copy_in_slices(dst: np.ndarray, src: np.ndarray, pool: ThreadPoolExecutor, p
     """``dst[:] = src`` as ``parts`` contiguous slices copied by the pool's threads at once."""
     cut = np.linspace(0, src.size, parts + 1).astype(np.int64)
     list(pool.map(lambda i: np.copyto(dst[cut[i]:cut[i + 1]], src[cut[i]:cut[i + 1]]), range(parts)))
-
-
-class Yardstick(TypedDict, total=False):
-    """A device's same-run yardstick (``measure``), as a run's environment keeps it (``hardware``):
-    the copy bandwidth (and, on CPU, its curve over sizes), the launch cost on CUDA, or ``error``."""
-    copy_bytes_per_s: float
-    copy_bytes: int
-    copy_median_s: float
-    copy_one_thread_bytes_per_s: float
-    copy_threads: int
-    copy_how: str
-    copy_curve: list[list[float]]          # [bytes per array, bandwidth]
-    launch_latency_s: float
-    launch_pipelined_s: float
-    launch_how: str
-    gpu: str
-    sm_clock_max_hz: float
-    nvml_error: str
-    peak_flops: dict[str, float | str]     # per precision, and its source
-    error: str
 
 
 def measure_cpu() -> Yardstick:
@@ -234,41 +215,37 @@ def measure(device: str, timeout: float = 300.0) -> Yardstick:
     return Yardstick(error=f"yardstick process failed (exit {proc.returncode}): {tail}")
 
 
-def annotated(rec: Record, hardware: dict[str, Yardstick]) -> Record:
-    """The record with its floor and hardware fraction added (``annotate`` on its JSON): a new record."""
-    obj = rec.to_json()
-    before = (obj.get("hardware"), dict(obj.get("throughput") or {}))   # (annotate updates throughput in place)
-    annotate([obj], hardware)          # adds ``hardware`` and the throughput's floor, nothing else
-    return Record.from_json(obj) if (obj.get("hardware"), dict(obj.get("throughput") or {})) != before else rec
-
-
-def annotate(records: list[dict[str, Any]], hardware: dict[str, Yardstick]) -> None:   # records' stored JSON
-    """Add each timed cell's stated floor and hardware fraction (throughput regime)."""
+def annotated(rec: Record, hardware: Mapping[str, Yardstick]) -> Record:
+    """The record judged against its run's yardstick of its device (a new record; the record
+    itself where nothing changes): a timed cell (throughput regime) gets the yardstick it was
+    judged against (``hardware``) and, where its scenario states a floor, the throughput's
+    ``floor_s``, ``floor_kind``, ``floor`` and hardware fraction."""
     import scenarios
-    for r in records:
-        thr = (r.get("time") or {}).get("throughput")
-        device = r.get("device")
-        hw = hardware.get(device, {}) if isinstance(device, str) else {}     # (no str key is another type)
-        if r.get("status") not in ("ok", "mismatch") or not thr or "error" in hw or not hw:
-            continue
-        sc = scenarios.SCENARIOS.get(r["scenario"])
-        if sc is None:
-            continue
-        # the yardstick the cell was judged against travels with it (pages are functions of records)
-        r["hardware"] = {k: hw[k] for k in ("copy_bytes_per_s", "copy_how", "launch_pipelined_s",
-                                            "launch_latency_s", "gpu", "copy_bytes") if k in hw}
-        params = sc.params(r["params"])
-        match = matched_copy(hw, sc.work(params, r["precision"]).get("bytes") or 0)
-        cell_hw: Yardstick = hw if match is None else {**hw, "copy_bytes_per_s": match[0]}
-        floor = sc.floor(params, r["precision"], dict(cell_hw))
-        if floor is None:
-            continue
+    thr = rec.time.throughput if rec.time else None
+    hw = hardware.get(rec.device) or Yardstick()
+    sc = scenarios.SCENARIOS.get(rec.scenario)
+    if rec.status not in ("ok", "mismatch") or not thr or "error" in hw or not hw or sc is None:
+        return rec
+    # the yardstick the cell was judged against travels with it (pages are functions of records)
+    stamp = {k: hw[k] for k in ("copy_bytes_per_s", "copy_how", "launch_pipelined_s",
+                                "launch_latency_s", "gpu", "copy_bytes") if k in hw}
+    obj = rec.to_json()
+    obj["hardware"] = stamp
+    params = sc.params(plain(rec.params))
+    match = matched_copy(hw, sc.work(params, rec.precision).get("bytes") or 0)
+    cell_hw: Yardstick = hw if match is None else {**hw, "copy_bytes_per_s": match[0]}
+    floor = sc.floor(params, rec.precision, dict(cell_hw))
+    if floor is not None:
         if match is not None and floor["kind"] == "bandwidth" and match[1] < hw.get("copy_bytes", 0):
             floor["derivation"] += (f" of a copy of the same size ({match[1] / 2**20:.3g} MiB per array: "
                                     "it fits the same caches)")
-        r.setdefault("throughput", {}).update(
-            floor_s=floor["seconds"], floor_kind=floor["kind"], floor=floor["derivation"],
-            hw_fraction=floor["seconds"] / thr["median_s"] if thr["median_s"] > 0 else None)
+        per_call = thr.median_s
+        obj["throughput"] = {**(obj.get("throughput") or {}), "floor_s": floor["seconds"], "floor_kind": floor["kind"],
+                             "floor": floor["derivation"],
+                             "hw_fraction": floor["seconds"] / per_call if per_call and per_call > 0 else None}
+    before = rec.to_json()
+    changed = (obj.get("hardware"), obj.get("throughput")) != (before.get("hardware"), before.get("throughput"))
+    return Record.from_json(obj) if changed else rec
 
 
 def main(argv: list[str]) -> int:

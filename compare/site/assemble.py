@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from compare.site import data, fmt, pages, questions, topics
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.render import H, Items, P, Table, page_html, page_md
+from compare.results.environment import RunEnvironment
 from compare.results.store import atomic_write
 
 
@@ -59,7 +60,7 @@ def machine(c: qp.Ctx) -> list[Any]:
     envs = list(m.runs)
     gpus = sorted({f"{g.get('name')} (driver {g.get('driver')}, {g.get('memory')})"
                    for e in envs for g in e.get("gpus") or [] if isinstance(g, dict)})
-    first = next((e for e in envs if e.get("cpu")), {})
+    first: RunEnvironment = next((e for e in envs if e.get("cpu")), RunEnvironment())
     blocks: list[Any] = [H("Hardware and software"), Items(tuple(x for x in (
         f"GPU: {'; '.join(gpus)}" if gpus else "GPU: none",
         f"CPU: {m.cpu_name()}, {first.get('memory_gib', '?')} GiB memory",
@@ -81,7 +82,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                      "bandwidth-bound cells and the driver's empty-kernel launch that floors per-call cost."),
                    Table(("run", "device", "copy bandwidth", "launch + sync", "launch pipelined", "how"), tuple(yard))]
     blocks += reproducibility(c)
-    pub = [p for p in ((m.publish or {}).get("parts") or []) if isinstance(p, dict)]
+    pub = [p for p in ((m.publish.get("parts") if m.publish else None) or []) if isinstance(p, dict)]
     blocks += [H("Publish run time")]
     if pub:
         total = sum(data.num(p.get("seconds")) or 0.0 for p in pub)
@@ -109,7 +110,7 @@ def machine(c: qp.Ctx) -> list[Any]:
     return blocks
 
 
-def _tree(env: Mapping[str, Any]) -> str:
+def _tree(env: RunEnvironment) -> str:
     """Whether the run's checkout was committed: clean, its uncommitted paths, or not known."""
     if env.get("git_dirty") is None:
         return "not known" + (f" ({env['git_note']})" if env.get("git_note") else "")

@@ -11,13 +11,14 @@ import dataclasses
 import json
 import math
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, cast
 
 import scenarios
 from compare.measuring import noise
 from compare.running import repeats
+from compare.results.environment import PublishLog, RunEnvironment
 from compare.results.record import Record
-from compare.spec import BUSY_TAG
+from compare.spec import BUSY_TAG, ParamValue
 from compare.results.store import SUITES, Store, StoreError, run_environments
 from compare.sweep.points import sweeps
 
@@ -31,8 +32,8 @@ class Machine:
     run: tuple[Record, ...]
     sweep: tuple[Record, ...]
     stress: Store | None
-    runs: tuple[Mapping[str, Any], ...]
-    publish: dict[str, Any] | None
+    runs: tuple[RunEnvironment, ...]
+    publish: PublishLog | None      # DIR/publish.json, where ``compare publish`` made the records
     # the shared-host experiment (``run --busy``): cells timed idle and with cores kept busy by
     # other processes, tagged ``busy_cores``; its row alone reads them, no other reader sees them
     busy: tuple[Record, ...] = ()
@@ -71,7 +72,7 @@ class Machine:
         return None
 
     def cpu_name(self) -> str:
-        env = next((e for e in self.runs if e.get("cpu")), {})
+        env: RunEnvironment = next((e for e in self.runs if e.get("cpu")), RunEnvironment())
         return f"{env.get('cpu', 'CPU')} ({env.get('cores', '?')} cores)"
 
     def name(self) -> str:
@@ -93,7 +94,7 @@ def load(paths: Iterable[Path]) -> Machine:
     """The stores at ``paths`` merged by suite (a later record of the same cell wins)."""
     merged: dict[str, Store] = {}
     sources: list[Path] = []
-    publish = None
+    publish: PublishLog | None = None
     for p in paths:
         p = Path(p)
         for f in _suite_files(p):
@@ -107,11 +108,12 @@ def load(paths: Iterable[Path]) -> Machine:
         if log.is_file():
             from compare.results.store import read_bounded
             try:
-                publish = json.loads(read_bounded(log, 16 * 2**20))
+                obj = json.loads(read_bounded(log, 16 * 2**20))
             except (OSError, ValueError, RecursionError) as exc:
                 raise StoreError(f"cannot read {log}: {exc}") from None
-            if not isinstance(publish, dict) or not isinstance(publish.get("parts", []), list):
+            if not isinstance(obj, dict) or not isinstance(obj.get("parts", []), list):
                 raise StoreError(f"{log}: not a publish log (an object with a list of parts)")
+            publish = cast(PublishLog, obj)      # typed once read: its entries are read with get
     runs = [e for s in merged.values() for env in s.runs for e in run_environments(env)]     # a merge: its runs
     run = tuple(merged["run"].records) if "run" in merged else ()
     return Machine(tuple(sources), tuple(r for r in run if tag(r, BUSY_TAG) is None),
@@ -231,7 +233,7 @@ def per_call(rec: Record, regime: str) -> Timing | None:
     return timing(rec, regime)
 
 
-def defaults(scenario: str) -> dict[str, Any]:
+def defaults(scenario: str) -> dict[str, ParamValue]:
     sc = scenarios.SCENARIOS.get(scenario)
     return dataclasses.asdict(sc.params()) if sc is not None else {}
 
@@ -269,7 +271,7 @@ def item_rate(rec: Record, regime: str = "throughput") -> float | None:
 
 
 def hw_fraction(rec: Record) -> float | None:
-    return num((rec.throughput or {}).get("hw_fraction"))
+    return num(rec.throughput.hw_fraction) if rec.throughput else None
 
 
 # Where neither a record nor its run names the GPU's L2 size: a bound for the H100/H200 class
@@ -278,7 +280,7 @@ L2_BOUND = {"H100": 60e6, "H200": 60e6}
 L2_KEYS = ("l2_bytes", "l2_cache_bytes", "l2_cache_size")
 
 
-def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float, str] | None:
+def l2_bytes(rec: Record, runs: Iterable[RunEnvironment] = ()) -> tuple[float, str] | None:
     """The L2 cache of the record's GPU and where it was read: an L2 field of the record's
     yardstick, else of its run's environment (``hardware[device]`` or a GPU entry), else the
     stated bound for a GPU of a class in L2_BOUND by name. None off CUDA or where unknown."""
@@ -286,7 +288,7 @@ def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float
         return None
     envs = [e for e in runs if isinstance(e, Mapping)]
     own = rec.hardware if isinstance(rec.hardware, Mapping) else {}
-    places: list[Mapping[str, Any]] = [own]
+    places: list[Mapping[str, object]] = [own]     # a yardstick or a GPU entry: read by the L2 keys
     for e in envs:
         hw = e.get("hardware")
         places += [hw[rec.device]] if isinstance(hw, Mapping) and isinstance(hw.get(rec.device), Mapping) else []
@@ -304,7 +306,7 @@ def l2_bytes(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> tuple[float
     return None
 
 
-def fraction_label(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> str:
+def fraction_label(rec: Record, runs: Iterable[RunEnvironment] = ()) -> str:
     """Why a hardware fraction is not a plain fraction of memory bandwidth: 'cache' where the
     working set (``work.bytes``) fits the GPU's L2, so it is served from cache, not from the
     DRAM the copy yardstick measures, and where it exceeds 1 on CUDA with no working set or L2

@@ -13,8 +13,9 @@ socket, none of which a model name fixes, so the page says so and keeps the copy
 """
 from __future__ import annotations
 
-from typing import Any, Iterable, Mapping
+from typing import Iterable, Mapping
 
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record
 from compare.site.data import num
 
@@ -27,7 +28,7 @@ PEAK_BYTES_PER_S: dict[str, float] = {
 }
 
 
-def gpu_of(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> str | None:
+def gpu_of(rec: Record, runs: Iterable[RunEnvironment] = ()) -> str | None:
     """The GPU a CUDA record ran on: its own yardstick's ``gpu``, else its run's first GPU."""
     if rec.device != "cuda":
         return None
@@ -47,9 +48,9 @@ def peak(gpu: str | None) -> float | None:
     return PEAK_BYTES_PER_S.get(gpu.strip()) if gpu else None
 
 
-def fraction(rec: Record, runs: Iterable[Mapping[str, Any]] = ()) -> float | None:
+def fraction(rec: Record, runs: Iterable[RunEnvironment] = ()) -> float | None:
     """The record's achieved bandwidth (``throughput.bytes_per_s``) over its GPU's datasheet peak."""
-    bw, top = num((rec.throughput or {}).get("bytes_per_s")), peak(gpu_of(rec, runs))
+    bw, top = num(rec.throughput.bytes_per_s if rec.throughput else None), peak(gpu_of(rec, runs))
     return bw / top if bw is not None and top else None
 
 

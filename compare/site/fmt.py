@@ -2,11 +2,12 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Mapping
 
 from compare.render.colors import BANDS
 from compare.measuring.noise import MARK as NOISY_MARK
 from compare.site.matrix import Cell
+from compare.spec import ParamValue
 
 BAND_EMOJI = {b.name: b.emoji for b in BANDS}
 REFERENCE_MARK = "✎"           # a cell shown beside the ranking, never in it (a hand adjoint)
@@ -109,7 +110,7 @@ def cell_title(c: Cell, unit: str, reference: str = "a reference") -> str:
     return "; ".join(parts)
 
 
-def params_text(p: Mapping[str, Any], defaults: dict[str, Any]) -> str:
+def params_text(p: Mapping[str, ParamValue], defaults: Mapping[str, ParamValue]) -> str:
     """The parameters that differ from the scenario's defaults, as ``k=v`` (or 'defaults')."""
     diff = [f"{k}={v}" for k, v in (p or {}).items() if defaults.get(k, v) != v]
     return ", ".join(diff) if diff else "defaults"

@@ -16,7 +16,7 @@ from compare.site.data import Machine
 from compare.site.matrix import Row
 from compare.site.pages_stability import stability  # noqa: F401 (a page of the site)
 from compare.site.render import Figure, H, Items, P, Raw, Table
-from compare.sweep.rows import need, wall_s
+from compare.sweep.rows import converged, wall_s
 
 # ---- the matrix -------------------------------------------------------------------------------
 def matrix_html(rows: list[Row], frameworks: list[str]) -> str:
@@ -209,7 +209,7 @@ def accuracy(c: qp.Ctx) -> list[Any]:
                                                        "wall median s", "error"),
                              [(r.scenario, r.backend, r.variant, r.precision,
                                fmt.params_text(r.params or {}, data.defaults(r.scenario)),
-                               wall_s(r), need(r, "converged")["error"]) for r in pts])
+                               wall_s(r), converged(r).error) for r in pts])
             fws = ", ".join(f for f in c.m.frameworks if any(r.backend == f for r in swept))
             blocks += [H("Run time against error"),
                        Figure(rel, "Time against error against a converged float64 reference, both "

@@ -46,11 +46,11 @@ def _host(r: Record) -> list[str]:
     out = []
     if host is not None and per and host / per >= HOST_BOUND:
         out.append(f"host-bound: issuing a call takes {fmt.pct(min(host / per, 1.0))} of its time")
-    top = [f for f in (((t.host_profile if t else None) or {}).get("top") or ())
-           if (data.num(f.get("calls")) or 0) >= HOST_LOOP]
+    profile = t.host_profile if t else None
+    top = [f for f in (profile.top if profile else None) or () if (data.num(f.calls) or 0) >= HOST_LOOP]
     if top:     # the loop that costs the most: the largest cumulative time
-        f = max(top, key=lambda f: data.num(f.get("cumulative_s")) or 0)
-        out.append(f"`{f.get('function')}` runs {data.num(f.get('calls')):g}× per call (host profile)")
+        f = max(top, key=lambda f: data.num(f.cumulative_s) or 0)
+        out.append(f"`{f.function}` runs {data.num(f.calls):g}× per call (host profile)")
     return out
 
 

@@ -11,7 +11,7 @@ thread, and with a core taken one thread waits for the other process.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Literal
 
 from compare.results.record import Record
 from compare.site import data, fmt
@@ -64,8 +64,9 @@ def cells(m: data.Machine, device: str) -> dict[str, Cell]:
     return out
 
 
-def _cores(r: Record, key: str) -> float | None:
-    return data.num(((r.time.noise if r.time else None) or {}).get(key))
+def _cores(r: Record, key: Literal["own_cores", "others_cores"]) -> float | None:
+    n = r.time.noise if r.time else None
+    return data.num(None if n is None else n.own_cores if key == "own_cores" else n.others_cores)
 
 
 def why(idle: Record, busy: Record) -> str:

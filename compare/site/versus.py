@@ -16,9 +16,10 @@ import os
 import statistics
 import textwrap
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from compare.options import UsageError
+from compare.results.environment import RunEnvironment, Yardstick
 from compare.results.record import Record
 
 # the stored reports, one folder per machine kind (a test points this at its own)
@@ -28,7 +29,7 @@ PAGE = "against.md"
 PREFERRED = ("throughput", "latency", "graph")      # the regime a cell's ratio is taken from
 
 
-def chosen(against: str | None, env: dict[str, Any]) -> tuple[str, Path] | None:
+def chosen(against: str | None, env: RunEnvironment) -> tuple[str, Path] | None:
     """(words naming the reference, its folder); None for ``--against none``."""
     if against is not None and against.strip().lower() == "none":
         return None
@@ -62,16 +63,20 @@ def _ratio(r: float) -> str:
     return fmt.ratio(r)
 
 
-def _hardware(env: dict[str, Any], ref_runs: tuple[Mapping[str, Any], ...], devices: list[str]) -> str:
+def _figure(env: RunEnvironment, device: str, name: str) -> object:
+    """The copy bandwidth (``name`` 'copy') or launch latency of a run's yardstick of ``device``."""
+    hw: Yardstick = (env.get("hardware") or {}).get(device) or {}
+    return hw.get("copy_bytes_per_s") if name == "copy" else hw.get("launch_latency_s")
+
+
+def _hardware(env: RunEnvironment, ref_runs: tuple[RunEnvironment, ...], devices: list[str]) -> str:
     """The two machines before any framework: copy bandwidth and launch latency per device (this
     run's yardstick against the median of the reference runs'), and cores."""
     parts = []
     for dev in devices:
-        mine = (env.get("hardware") or {}).get(dev) or {}
-        for what, name, unit in (("copy_bytes_per_s", "copy", "GB/s"), ("launch_latency_s", "launch", "µs")):
-            a = mine.get(what)
-            bs = [v for e in ref_runs if isinstance(v := ((e.get("hardware") or {}).get(dev) or {}).get(what),
-                                                     (int, float))]
+        for name, unit in (("copy", "GB/s"), ("launch", "µs")):
+            a = _figure(env, dev, name)
+            bs = [v for e in ref_runs if isinstance(v := _figure(e, dev, name), (int, float))]
             if not isinstance(a, (int, float)) or not bs or not a:
                 continue
             b = statistics.median(bs)
@@ -91,7 +96,7 @@ def _quartiles(xs: list[float]) -> tuple[float, float, float]:
     return q1, q2, q3
 
 
-def block(records: list[Record], env: dict[str, Any], out: Path, against: str | None = None,
+def block(records: list[Record], env: RunEnvironment, out: Path, against: str | None = None,
           quick: bool = False) -> list[str]:
     """The closing block (several lines, or one where nothing compares); writes ``out/against.md``
     when some cell matched."""

@@ -14,34 +14,16 @@ from typing import Any, BinaryIO, Callable, Iterable, Mapping, Protocol, Sequenc
 
 import numpy as np
 
+from compare.results.analysis import Finding, Series, Value
 from compare.results.record import Record
 from compare.results.record_parts import Check
 from compare.spec import Cell
 
 ORACLE = "oracle64"      # the float64 Python reference, as a row's backend ('host' device)
 
-Value = str | int | float | bool | None         # a finding's figure, as JSON holds it
 # a cell's parameter overrides (the scenario resolves and checks them: ``Scenario.params``)
 Overrides = Mapping[str, int | float | str | bool]
-# an experiment's plot series: kept in stress.json's analysis.series and redrawn from the file
-# (merged parts too), so its shape is the experiment's own JSON: a file boundary
-Series = dict[str, Any]
 Outputs = dict[str, np.ndarray]
-
-
-class Finding(TypedDict):
-    """One row of ``analysis.rows`` as stress.json stores it (the columns of stress.md;
-    ``compare.results.records.ROW`` checks them as a file loads). The page and the experiments'
-    page hooks read findings in this form, from the file."""
-    experiment: str
-    backend: str
-    device: str
-    precision: str
-    setting: str
-    figure: str
-    value: Value                        # a string, number, boolean or null
-    verdict: str
-    detail: str
 
 
 @dataclasses.dataclass(frozen=True)

@@ -15,32 +15,19 @@ from typing import Any, TypedDict, cast
 
 import backends
 from compare.render.report import fmt_num
+from compare.results.analysis import Provenance, RunInfo
+from compare.results.environment import RunEnvironment
 from compare.results.store import Store, atomic_write, jsonable
 from compare.stress import plots
 from compare.stress.numerics import COLUMNS, Experiment, Finding, Row, Series
 
 Registry = dict[str, Experiment]
-# a run's environment (``environment.collect``) as stress.json keeps it in ``runs``: written to
-# the file and read back from parts (--merge), a file boundary
-Environment = dict[str, Any]
-
-
-class RunInfo(TypedDict, total=False):
-    """The run that produced an experiment's rows (its provenance); ``backends``: the ones it
-    gave, where a merge took the experiment's other backends from another run."""
-    command: str | None
-    created: str | None
-    git_commit: str | None
-    backends: list[str]
-
-
-Provenance = dict[str, RunInfo | list[RunInfo]]
 
 
 class PageData(TypedDict, total=False):
     """What the page is made from: stress.json's analysis and its run's environment (``_out``:
     the folder the page and plots are in)."""
-    environment: Environment
+    environment: RunEnvironment
     rows: list[Finding]
     series: dict[str, Series]
     provenance: Provenance
@@ -187,7 +174,7 @@ def old_provenance(store: Store) -> Provenance:
     return provenance(stored(store))
 
 
-def write_outputs(store: Store, env: Environment, rows: list[Row] | list[Finding], series: dict[str, Series],
+def write_outputs(store: Store, env: RunEnvironment, rows: list[Row] | list[Finding], series: dict[str, Series],
                   ran: list[str], experiments: Registry, plots_: bool = True,
                   prov: Provenance | None = None) -> list[Finding]:
     """Findings of the experiments in ``ran`` replace the store's (the others are kept); save
@@ -255,7 +242,7 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     target = Store.open(out, "stress")
     rows: list[Finding] = []
     series: dict[str, Series] = {}
-    envs: list[Environment] = []
+    envs: list[RunEnvironment] = []
     prov: dict[str, list[RunInfo]] = {}
     seen: list[Finding] = []
     for f in files:
@@ -286,7 +273,7 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
         for k, v in run_env.get("packages", {}).items():
             if v not in versions.setdefault(k, []):
                 versions[k].append(v)
-    env = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files}
+    env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files}
     write_outputs(target, env, in_table_order(rows, seen), series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})
     print(f"merged {len(files)} files into {target.path} ({len(rows)} rows)", file=sys.stderr)

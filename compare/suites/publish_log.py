@@ -21,40 +21,16 @@ import dataclasses
 import datetime
 import json
 from pathlib import Path
-from typing import Any, TypedDict, cast
+from typing import Any, cast
 
 from compare.measuring import environment
 from compare.options import EXIT_INTERRUPTED
 from compare.planning.publish_plan import Part
+from compare.results.environment import Host, PublishEntry as Entry, PublishLog as Log
 from compare.results.store import StoreError, atomic_write
 
 FORMAT_VERSION, LOG = 1, "publish.json"
 DONE_CODES = (0, 1)      # 1: the part ran to its end; the report marks its failed cells
-
-
-class Host(TypedDict):
-    """The machine a part ran on."""
-    hostname: str
-    cpu: str
-    cores: int
-    gpus: list[dict[str, str]]
-
-
-class Entry(TypedDict):
-    """One attempt of a part, as the log keeps it (``exit_code`` None: still running, or killed)."""
-    name: str
-    argv: list[str]
-    started: str
-    seconds: float
-    exit_code: int | None
-    interrupted: bool
-    host: Host
-
-
-class Log(TypedDict):
-    """DIR/publish.json: every attempt of every part, in order."""
-    format_version: int
-    parts: list[Entry]
 
 
 def load_log(out: Path) -> Log:

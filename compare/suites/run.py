@@ -15,7 +15,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -31,6 +31,7 @@ from compare.site import versus
 from compare.suites.driver import Planned, Run, Suite, drive
 from compare.planning.preflight import (PAGE_BYTES, RECORD_BYTES, cell_bytes, check_memory, check_smallest, disk_need,
                                measured_need, memory_refusal)
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record, plain
 from compare.results.record_parts import Timing
 from compare.spec import BUSY_TAG, Cell, key
@@ -134,7 +135,7 @@ def saved_outputs(directory: Path, records: list[Record],
                 outputs[i] = got
 
 
-def render(out: Path, env: dict[str, Any], records: list[Record],  # env: the stored run's
+def render(out: Path, env: RunEnvironment, records: list[Record],
            outputs: dict[int, dict[str, np.ndarray]], plots: bool, clean: bool = False) -> None:
     """Plots (``run_plots.write_plots``: speed, time against error, each scenario's picture; an
     earlier run's removed first when ``clean``) and results.csv/.md in ``out``."""
@@ -186,7 +187,7 @@ class RunStore(Store):
     """results.json whose every save also rewrites results.csv and results.md from the same
     records (each atomically), so after an interruption the three agree; ``rerun`` names kept
     cells that --resume runs again (their --save-arrays files are missing)."""
-    env: dict[str, Any] = {}     # the run's environment, stored in results.json
+    env: RunEnvironment = {}     # the run's environment, stored in results.json
     rerun: frozenset[str] = frozenset()
 
     def save(self) -> None:
@@ -280,7 +281,7 @@ class RunSuite(Suite):
 
     def on_record(self, i: int, rec: Record, outs: dict[str, np.ndarray] | None) -> Record:
         self.ran.append(rec.time)
-        rec = hardware.annotated(rec, self.env["hardware"])   # judged against this run's yardstick
+        rec = hardware.annotated(rec, self.env.get("hardware") or {})   # judged against this run's yardstick
         rec = rec.replace(run=environment.run_stamp(self.env))    # and named as this run's
         if self.args.save_arrays and outs is not None:        # before its record is saved: a failed
             save_arrays(self.out, rec.identity, outs)         # write leaves the cell to be run again
@@ -327,7 +328,7 @@ def report_command(args: argparse.Namespace) -> int:
     """Rebuild tables and plots from saved results.json files (merged), without running anything.
     Records from different machines are told apart by a 'machine' field (GPU model or host)."""
     records: list[Record] = []
-    envs: list[dict[str, Any]] = []     # stored runs
+    envs: list[RunEnvironment] = []     # stored runs
     outputs: dict[int, dict[str, np.ndarray]] = {}
     options.no_duplicates(args.files, "report")
     for opt in ("title", "notes"):
@@ -337,7 +338,7 @@ def report_command(args: argparse.Namespace) -> int:
         store = Store.read(f, "run")
         for env in store.runs:
             envs.append(env)
-        machine = next(((e.get("gpus") or [{}])[0].get("name") or e.get("hostname") for e in store.runs), "?")
+        machine = next((next((g["name"] for g in e.get("gpus") or []), "") or e.get("hostname") for e in store.runs), "?")
         recs = [r if r.machine is not None else r.replace(machine=machine) for r in store.records]
         mine: dict[int, dict[str, np.ndarray]] = {}
         saved_outputs(Path(f).parent, recs, mine)     # --save-arrays outputs redraw the pictures
@@ -353,7 +354,7 @@ def report_command(args: argparse.Namespace) -> int:
         return report_claimed(args, out, envs, records, outputs, notes)
 
 
-def report_claimed(args: argparse.Namespace, out: Path, envs: list[dict[str, Any]],  # stored runs
+def report_claimed(args: argparse.Namespace, out: Path, envs: list[RunEnvironment],  # stored runs
                    records: list[Record], outputs: dict[int, dict[str, np.ndarray]], notes: str) -> int:
     if args.page:
         page = Path(args.page)

@@ -180,7 +180,7 @@ def variants(kind: str, backend: str, swept_scenarios: list[scenarios.Scenario])
 # ---- records and the results file ----------------------------------------------------------
 def contents(store: Store) -> pages.Contents:
     """What the page and plots read: the store's runs and records."""
-    return pages.Contents(pages.runs_of(store.runs), store.records)
+    return pages.Contents(store.runs, store.records)
 
 
 # ---- running --------------------------------------------------------------------------------
@@ -280,7 +280,7 @@ class SweepSuite(Suite):
                                                         reference=self.references[j])
             if conv is not None:
                 rec = rec.replace(converged=conv.to_json())     # stored in sweep.json
-        rec = hardware.annotated(rec, self.env["hardware"]).replace(run=environment.run_stamp(self.env))
+        rec = hardware.annotated(rec, self.env.get("hardware") or {}).replace(run=environment.run_stamp(self.env))
         self.show(next(self.count), rec, outputs)
         return rec
 

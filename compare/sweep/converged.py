@@ -13,6 +13,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from compare.results.record_parts import Converged, ReferenceInfo
 from scenarios.base import Scenario
 from scenarios.particles import simulate
 from scenarios.projectile import CONSTANTS
@@ -33,50 +34,6 @@ class Reference:
     (None: the scenario's default). A property of the sweep, not of the cell: the suite hands it
     back to ``converged_error`` and never stores it in the cell's identity."""
     dt: float | None = None
-
-
-@dataclasses.dataclass(frozen=True)
-class ReferenceInfo:
-    """What a converged reference is, as the record's ``converged.reference`` tells it: a note,
-    and for a dt reference its dt, steps, simulated time and self-difference (its own error
-    scale), for the sdf field its evaluation grid."""
-    note: str
-    dt: float | None = None
-    steps: int | None = None
-    simulated_time_s: float | None = None
-    self_difference: float | None = None
-    eval_grid: int | None = None
-
-    def to_json(self) -> dict[str, float | int | str]:
-        """The stored object: the fields it has, in the order the format has always had them."""
-        order = ("dt", "steps", "simulated_time_s", "self_difference", "eval_grid", "note")
-        return {k: v for k in order if (v := getattr(self, k)) is not None}
-
-
-@dataclasses.dataclass(frozen=True)
-class Converged:
-    """An error-sweep cell's distance to a converged reference (``Sweeps.converged_error``):
-    ``error`` in ``metric``, the metric's other ``figures`` (e.g. rms, max), and the reference.
-    Stored as the record's ``converged`` block (``to_json``)."""
-    error: float | str | None           # a figure as the record writes it ('nan', 'inf'); None: none
-    metric: str
-    reference: ReferenceInfo
-    figures: dict[str, float] = dataclasses.field(default_factory=dict)
-
-    @classmethod
-    def of(cls, figures: Mapping[str, float], metric: str, reference: ReferenceInfo) -> Converged:
-        """From an error function's figures: 'error', then the others in their order."""
-        return cls(figures["error"], metric, reference, {k: v for k, v in figures.items() if k != "error"})
-
-    def to_json(self) -> dict[str, float | str | None | dict[str, float | int | str]]:
-        """The record's ``converged`` block: error, the other figures, metric, reference."""
-        return {"error": self.error, **self.figures, "metric": self.metric, "reference": self.reference.to_json()}
-
-    @classmethod
-    def from_json(cls, obj: Mapping[str, Any]) -> Converged:      # JSON: a block as stored in sweep.json
-        """A stored ``converged`` block (JSON read from a results file: the file boundary)."""
-        rest = {k: float(v) for k, v in obj.items() if k not in ("error", "metric", "reference")}
-        return cls(obj["error"], obj["metric"], ReferenceInfo(**obj["reference"]), rest)
 
 
 def dt_reference(cache: Cache, sc: Scenario, params: Mapping[str, Param], reference: Reference | None,

@@ -113,7 +113,7 @@ def error_points(records: list[Record], device: str, scenario: str) -> list[Erro
     """Time-against-error points (ok cells with a finite error), with Pareto flags."""
     pts: list[ErrorPoint] = []
     for r in ok(records, sweep="error", device=device, scenario=scenario):
-        e = (r.converged or {}).get("error")
+        e = r.converged.error if r.converged else None
         if isinstance(e, (int, float)) and math.isfinite(e):
             pts.append({"rec": r, "time": wall_s(r), "error": max(float(e), ERROR_FLOOR)})
     overall = pareto_front([(p["time"], p["error"]) for p in pts])

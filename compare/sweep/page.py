@@ -13,54 +13,25 @@ import math
 import os
 import statistics
 from pathlib import Path
-from typing import Any, Iterable, NamedTuple, TypedDict, cast
+from typing import Any, Iterable, NamedTuple
 
 from tabulate import tabulate
 
 import backends
 import scenarios
+from compare.results.environment import RunEnvironment
 from compare.results.record import Record
 from compare.render.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
 from compare.sweep.metrics import bandwidth_row, device_bytes, error_points, gbps, roofline
 from compare.sweep.points import sweeps
-from compare.sweep.rows import (checked_items, event_s, knob, knob_value, label, need, ok, tag, throughput_s, timed,
-                                wall_s)
-
-class Gpu(TypedDict):
-    name: str
-    memory: str
-    driver: str
-
-
-class RunEnv(TypedDict, total=False):
-    """What the page reads of a run's environment (compare.measuring.environment.collect), as
-    stored in the store's ``runs``: older files may lack any of it."""
-    command: str
-    created: str
-    git_commit: str | None
-    git_dirty: bool
-    cpu: str
-    cores: int
-    memory_gib: float
-    gpus: list[Gpu]
-    cuda_toolkit: str | None
-    os: str
-    python: str
-    hostname: str
-    packages: dict[str, str]
-
+from compare.sweep.rows import (checked_items, converged, event_s, knob, knob_value, label, need, ok, tag, throughput_s,
+                                timed, wall_s)
 
 class Contents(NamedTuple):
     """What the page and plots are built from: the runs' environments and every record."""
-    runs: list[RunEnv]
+    runs: list[RunEnvironment]
     records: list[Record]
-
-
-def runs_of(stored: list[dict[str, Any]]) -> list[RunEnv]:     # JSON: the store's runs, as in sweep.json
-    """The store's ``runs`` (JSON read from, or to be written to, sweep.json: the file boundary)
-    as the environments the page reads; the file's loader checked they are objects."""
-    return [cast(RunEnv, r) for r in stored]
 
 
 # ---- records and scenarios --------------------------------------------------------------------
@@ -154,7 +125,7 @@ def size_table(records, device, scenario) -> str:
                      fmt_bytes(w["bytes"]), fmt_time(wall_s(r)), fmt_time(event_s(r)),
                      f"{b['gbps']:.3g}", pct(b["roof_share"]), pct(b["launch_share"]), b["regime"],
                      fmt_time(thr), f"{gbps(w['bytes'], thr):.3g}" if thr else "-",
-                     pct((r.throughput or {}).get("hw_fraction"))])
+                     pct(r.throughput.hw_fraction if r.throughput else None)])
     return _table(rows, ["backend", "variant", "precision", knob(mine[0]).name or "size", "bytes/call",
                          "wall median", "CUDA-event median", "GB/s", "% of copy roofline",
                          "launch share", "regime", "throughput: per call", "throughput: GB/s",
@@ -168,7 +139,7 @@ def error_table(records, device, scenario) -> str:
                                         p["rec"].precision, knob(p["rec"]).value or 0)):
         r = p["rec"]
         rows.append([r.backend, r.variant, r.precision, knob_text(r),
-                     fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(need(r, "converged")["error"]),
+                     fmt_time(p["time"]), fmt_time(event_s(r)), fmt_num(converged(r).error),
                      "yes" if p["front_backend"] else "", "yes" if p["front_all"] else ""])
     return _table(rows, ["backend", "variant", "precision", "knob", "wall median",
                          "CUDA-event median", "error", "on backend's front",
@@ -183,7 +154,7 @@ def front_table(records, device, scenario) -> str:
                     key=lambda p: p["time"]):
         r = p["rec"]
         iqr = r.time.wall.iqr_s if r.time and r.time.wall else None
-        rows.append([fmt_num(need(r, "converged")["error"]), fmt_time(p["time"]), fmt_time(iqr),
+        rows.append([fmt_num(converged(r).error), fmt_time(p["time"]), fmt_time(iqr),
                      r.backend, r.variant, r.precision, knob_text(r)])
     return _table(rows, ["error reached", "wall median", "wall IQR", "backend", "variant",
                          "precision", "knob"]) if rows else ""
@@ -227,7 +198,7 @@ def _knob(r) -> str:
     return f"({k.name}={k.value})" if k.name and k.value is not None else ""
 
 
-def environment(runs: list[RunEnv], records: list[Record]) -> str:
+def environment(runs: list[RunEnvironment], records: list[Record]) -> str:
     if not runs:
         return ""
     env = runs[-1]
@@ -268,10 +239,10 @@ def _launch_section(records, d) -> list[str]:
 
 def _error_section(records, d, s) -> str:
     rec = error_points(records, d, s)[0]["rec"]
-    conv = need(rec, "converged")         # an error point has its converged error
-    ref = conv.get("reference", {})
+    conv = converged(rec)         # an error point has its converged error
+    ref = conv.reference if conv.reference is not None else {}
     refline = "; ".join(f"{k} = {fmt_num(v) if not isinstance(v, str) else v}" for k, v in ref.items())
-    return (f"### {s}\n\nError: {conv['metric']}. Reference: {refline}.\n\n"
+    return (f"### {s}\n\nError: {conv.metric}. Reference: {refline}.\n\n"
             "Fastest at each accuracy (the Pareto front over all backends; rows whose "
             "times differ by less than their IQRs are ties):\n\n"
             f"{front_table(records, d, s)}\nAll cells:\n\n{error_table(records, d, s)}")

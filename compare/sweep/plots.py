@@ -18,7 +18,7 @@ from compare.sweep import horizon
 from compare.sweep.metrics import ERROR_FLOOR, ErrorPoint, device_bytes, error_points, gbps, launch_wall, roofline
 from compare.sweep.page import error_scenarios, plot_key, swept, with_role
 from compare.sweep.converged import Param
-from compare.sweep.rows import event_s, knob, knob_value, label, need, ok, wall_s
+from compare.sweep.rows import converged, event_s, knob, knob_value, label, need, ok, wall_s
 from scenarios.base import Precision
 
 MARKERS = {"float64": "o", "float32": "^"}
@@ -177,7 +177,7 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
                 notes.append(ax.annotate(f"{k.name}={k.value}", (p["time"], p["error"]), fontsize=6,
                                          color="0.25", xytext=(4, 3), textcoords="offset points"))
         ax.set_xlabel("median wall time per run [s] (log)")
-        metric = need(pts[0]["rec"], "converged").get("metric", "error")
+        metric = converged(pts[0]["rec"]).metric
         ax.set_ylabel(label(s, "error_axis", metric).format(floor=ERROR_FLOOR), fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
         _tidy_log(ax)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, Iterable, Literal
 
 import scenarios
-from compare.results.record import Block, Check, Record, Timing
+from compare.results.record import Block, Check, Converged, Record, Timing
 from compare.measuring.timing import events_of
 from compare.sweep.points import Knob, sweeps
 
@@ -31,7 +31,7 @@ def knob_value(rec: Record) -> float:
     return v
 
 
-def need(rec: Record, block: Literal["params", "time", "error", "work", "memory", "converged"]) -> Block:
+def need(rec: Record, block: Literal["params", "time", "error", "work", "memory"]) -> Block:
     """``rec``'s ``block`` where a sweep reader indexes it directly: an ok, timed sweep record has
     it (``compare.results.records`` refuses one without it on load; the callers filter on what they
     read), so a missing one is a bug upstream, raised here by name."""
@@ -39,6 +39,14 @@ def need(rec: Record, block: Literal["params", "time", "error", "work", "memory"
     if b is None:
         raise TypeError(f"{rec.key}: a sweep record without its {block} block, where one is read")
     return b
+
+
+def converged(rec: Record) -> Converged:
+    """``rec``'s converged error where a sweep reader reads it (an error point has one; ``need``)."""
+    c = rec.converged
+    if c is None:
+        raise TypeError(f"{rec.key}: a sweep record without its converged block, where one is read")
+    return c
 
 
 def ok(records: Iterable[Record], sweep: str | None = None, role: str | None = None,

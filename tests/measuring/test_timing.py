@@ -189,14 +189,24 @@ def test_cpu_cells_are_judged_against_a_copy_of_their_own_size():
 
     curve = [[1 << 20, 100e9], [1 << 27, 20e9]]      # a fast cache, a slow DRAM
     fake = {"copy_bytes_per_s": 20e9, "copy_bytes": 1 << 27, "copy_curve": curve, "copy_how": "test"}
-    small = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32", "status": "ok",
-             "params": {"n": 2**18}, "time": {"throughput": {"median_s": 1e-4}}}
-    big = {**small, "params": {"n": 2**27}, "time": {"throughput": {"median_s": 1.0}}}
-    hardware.annotate([small, big], {"cpu": fake})
-    assert small["throughput"]["floor_s"] == pytest.approx(3 * 4 * 2**18 / 100e9)
-    assert "same size (1 MiB per array" in small["throughput"]["floor"]
-    assert big["throughput"]["floor_s"] == pytest.approx(3 * 4 * 2**27 / 20e9)
-    assert "same size" not in big["throughput"]["floor"]
+    from compare.results.record import Record
+
+    def cell(n: int, per_call: float) -> Record:
+        return Record.from_json({"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
+                                 "status": "ok", "params": {"n": n},
+                                 "time": {"first_call_s": per_call, "median_s": per_call, "iqr_s": 0.0,
+                                          "min_s": per_call, "repeats": 3, "throughput": {"median_s": per_call}},
+                                 "error": {"vs_oracle": 0.0, "tolerance": 1e-6}})
+    small = hardware.annotated(cell(2**18, 1e-4), {"cpu": fake})
+    big = hardware.annotated(cell(2**27, 1.0), {"cpu": fake})
+    assert small.throughput is not None and big.throughput is not None
+    assert small.throughput.floor_s == pytest.approx(3 * 4 * 2**18 / 100e9)
+    assert "same size (1 MiB per array" in (small.throughput.floor or "")
+    assert big.throughput.floor_s == pytest.approx(3 * 4 * 2**27 / 20e9)
+    assert "same size" not in (big.throughput.floor or "")
+    assert small.hardware is not None and small.hardware.copy_how == "test"
+    assert small.throughput.hw_fraction == pytest.approx(small.throughput.floor_s / 1e-4)
+    assert hardware.annotated(small, {"cpu": fake}) is small        # judged once: nothing changes
 
 
 def test_the_own_timer_is_compared_in_its_own_statistic():

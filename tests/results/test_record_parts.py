@@ -7,6 +7,8 @@ from pathlib import Path
 
 from compare.measuring import timing
 from compare.results.record import Check, Memory, Record, Regime, Timing
+from compare.results.record_parts import (Converged, HostFunction, HostProfile, Noise, NoiseReason, ReferenceInfo,
+                                          Throughput)
 from compare.results.store import Store
 from scenarios.base import Precision
 
@@ -52,3 +54,44 @@ def test_a_record_built_in_code_takes_parts_or_their_json() -> None:
     b = Record("saxpy", "numpy", "cpu", "float32", "ok", time=time)  # type: ignore[arg-type]
     assert a == b and isinstance(b.time, Timing) and b.time.latency and b.time.latency.median_s == 0.01
     assert b.precision is Precision.FLOAT32 and math.isnan(Timing().median_s)
+
+
+def test_the_throughput_noise_and_host_profile_blocks_read_by_attribute() -> None:
+    """Every stored run record: its throughput, noise and host profile are typed parts, and the
+    record writes back the object it was read from."""
+    path = ROOT / "docs" / "results" / "h100" / "results.json"
+    store = Store.read(path)
+    raw = json.loads(path.read_text())["records"]
+    assert [r.to_json() for r in store.records] == raw
+    judged = [r for r in store.records if r.throughput and r.throughput.hw_fraction is not None]
+    assert judged and all(isinstance(r.throughput, Throughput) for r in judged)
+    r = judged[0]
+    assert r.throughput is not None and r.throughput.hw_fraction == r.throughput["hw_fraction"]
+    assert r.throughput.floor_kind == r.throughput.get("floor_kind") and isinstance(r.throughput.floor, str)
+    noisy = [r.time.noise for r in store.records if r.time and r.time.noise]
+    assert noisy and all(isinstance(n, Noise) and isinstance(n.reasons, tuple) for n in noisy)
+    assert all(isinstance(x, NoiseReason) and isinstance(x.why, str) for n in noisy for x in n.reasons or ())
+    profiled = [r.time.host_profile for r in store.records if r.time and r.time.host_profile]
+    assert profiled and all(isinstance(p, HostProfile) for p in profiled)
+    assert all(isinstance(f, HostFunction) and isinstance(f.function, str) for p in profiled for f in p.top or ())
+
+
+def test_a_stored_converged_block_is_the_sweeps_converged_part() -> None:
+    path = ROOT / "docs" / "results" / "h100" / "sweep.json"
+    store = Store.read(path)
+    conv = [r.converged for r in store.records if r.converged is not None]
+    assert conv and all(isinstance(c, Converged) and c.metric for c in conv)
+    assert all(isinstance(c.reference, ReferenceInfo) for c in conv)
+    assert [r.to_json() for r in store.records] == json.loads(path.read_text())["records"]
+
+
+def test_a_converged_part_built_in_code_has_the_formats_key_order() -> None:
+    info = ReferenceInfo("a note", dt=0.01, steps=300)
+    c = Converged(0.5, "rms", info)
+    assert json.dumps(c.to_json()) == json.dumps(
+        {"error": 0.5, "metric": "rms", "reference": {"dt": 0.01, "steps": 300, "note": "a note"}})
+    m = Converged.measured({"rms": 0.25, "error": 0.5}, "max", info)
+    assert list(m) == ["error", "rms", "metric", "reference"] and m.figures == {"rms": 0.25}
+    rec = Record("sdf", "numpy", "cpu", Precision.FLOAT64, "ok", converged=m.to_json())   # as the sweep stores it
+    assert isinstance(rec.converged, Converged) and rec.converged.reference == info
+    assert rec.to_json()["converged"] == m.to_json()

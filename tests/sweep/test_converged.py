@@ -69,7 +69,7 @@ def test_reference_info_keeps_the_stored_key_order():
     info = ReferenceInfo("a note", dt=0.01, steps=300, simulated_time_s=3.0, self_difference=1e-9)
     assert list(info.to_json()) == ["dt", "steps", "simulated_time_s", "self_difference", "note"]
     assert ReferenceInfo("field", eval_grid=2001).to_json() == {"eval_grid": 2001, "note": "field"}
-    c = Converged.of({"error": 0.5, "rms": 0.25}, "max |d|", ReferenceInfo("field", eval_grid=2001))
+    c = Converged.measured({"error": 0.5, "rms": 0.25}, "max |d|", ReferenceInfo("field", eval_grid=2001))
     assert json.dumps(c.to_json()) == json.dumps(
         {"error": 0.5, "rms": 0.25, "metric": "max |d|", "reference": {"eval_grid": 2001, "note": "field"}})
     assert Converged.from_json(json.loads(json.dumps(c.to_json()))) == c

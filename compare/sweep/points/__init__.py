@@ -97,7 +97,7 @@ class Sweeps:
         ``error(*outputs, *reference)`` compares (compare/sweep/converged.py)."""
         ref, info = dt_reference(cache, scenarios.get(self.scenario), params, reference, default_dt, converge,
                                  lambda a, b: error(*a, *b)["error"], t)
-        return Converged.of(error(*(outputs[k] for k in names), *ref), self.error_metric, info)
+        return Converged.measured(error(*(outputs[k] for k in names), *ref), self.error_metric, info)
 
     def state_bytes_per_step(self, precision: Precision) -> float | None:
         """Bytes of state one item carries per step: the least a tape storing every step keeps

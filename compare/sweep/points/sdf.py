@@ -28,7 +28,7 @@ class SdfSweeps(Sweeps):
                         cache: Cache, reference: Reference | None = None) -> Converged | None:
         if outputs is None:
             return None
-        return Converged.of(converged.reconstruction_error(outputs["image"], cache), self.error_metric,
+        return Converged.measured(converged.reconstruction_error(outputs["image"], cache), self.error_metric,
                             ReferenceInfo("analytic field, float64", eval_grid=SDF_EVAL))
 
 

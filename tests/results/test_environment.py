@@ -1,0 +1,61 @@
+"""A run's environment (compare.results.environment): one typed object from ``collect`` to the
+stored ``runs`` and back, the JSON unchanged (keys, their order, keys this version does not name)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from compare.measuring import environment
+from compare.results import records
+from compare.results.environment import RunEnvironment
+from compare.results.store import Store, run_environments
+
+ROOT = Path(__file__).resolve().parents[2]
+# the order every stored run has kept its first keys in (collect's)
+COLLECTED = ("created", "hostname", "os", "cpu", "cores", "memory_gib", "gpus", "cuda_toolkit", "python", "packages",
+             "git_commit", "git_dirty", "command")
+
+
+def test_every_key_the_store_checks_is_a_typed_field() -> None:
+    assert set(records.RUN.fields) <= set(RunEnvironment.__annotations__)
+    assert RunEnvironment.__required_keys__ == frozenset()       # older files may lack any key
+
+
+def test_collect_gives_the_typed_environment_in_the_stored_order() -> None:
+    env = environment.collect(["run", "saxpy"])
+    assert [k for k in env if k != "git_dirty_paths"] == list(COLLECTED)
+    assert set(env) <= set(RunEnvironment.__annotations__)
+    assert env["command"] == "python -m compare run saxpy" and isinstance(env["cores"], int)
+    assert all(set(g) == {"name", "driver", "memory"} for g in env["gpus"])
+    assert environment.run_stamp(env) == {"created": env["created"], "commit": env["git_commit"] or None,
+                                          "dirty": env["git_dirty"]}
+
+
+def test_a_stored_run_is_typed_once_read_and_saved_byte_for_byte(tmp_path: Path) -> None:
+    """Keys in an unusual order and keys this version does not name come back as they were."""
+    run = {"hostname": "h", "created": "2026-01-01T00:00:00+00:00", "a_later_key": {"x": [1, 2]}, "cores": 4,
+           "gpus": [{"name": "G", "driver": "1", "memory": "2 MiB"}], "git_dirty": None,
+           "hardware": {"cpu": {"copy_bytes_per_s": 1e10, "copy_how": "test", "copy_curve": [[1, 2.5]]}}}
+    text = json.dumps({"format_version": 2, "suite": "run", "runs": [run], "records": [], "analysis": {}}, indent=1)
+    path = tmp_path / "results.json"
+    path.write_text(text)
+    store = Store.read(path)
+    env = store.runs[0]
+    assert list(env) == list(run) and env.get("cores") == 4 and env.get("git_dirty") is None
+    assert (env.get("hardware") or {})["cpu"].get("copy_bytes_per_s") == 1e10
+    store.save()
+    assert path.read_text() == text
+
+
+def test_a_merged_entry_stands_for_the_runs_it_merged() -> None:
+    a: RunEnvironment = {"hostname": "a"}
+    b: RunEnvironment = {"hostname": "b"}
+    merged: RunEnvironment = {"merged_from": ["x", "y"], "environments": [a, {"environments": [b]}]}
+    assert run_environments(merged) == [a, b] and run_environments(a) == [a]
+
+
+def test_every_stored_run_reads_as_an_environment() -> None:
+    for path in sorted((ROOT / "docs" / "results").glob("*/results.json")):
+        for env in (e for run in Store.read(path).runs for e in run_environments(run)):
+            assert isinstance(env.get("packages", {}), dict) and all(isinstance(g["name"], str)
+                                                                    for g in env.get("gpus") or [])
