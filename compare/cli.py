@@ -23,6 +23,7 @@ import backends
 import scenarios
 from compare.running import engine
 from compare import options
+from compare.suites import formats as suite_formats
 from compare.suites import run as run_suite
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
 from compare.spec import SpecError
@@ -123,6 +124,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv: list[str]) -> int:
+    suite_formats.register()        # every suite's results-file format, before any file is read
     try:
         options.check_utf8(argv)
         if argv and not argv[0].startswith("-") and argv[0] not in known_commands():
