@@ -102,7 +102,9 @@ def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
     return None
 
 
-def typed(obj: dict[str, Any], ident: Identity,            # the record's JSON, from the worker or a file
+# obj: a record's JSON as the worker wrote it (record.json, from its process) or an on_record
+# hook's record written back (its figures may be NumPy scalars: the one loader checks them again)
+def typed(obj: dict[str, Any], ident: Identity,
           check: Callable[[dict[str, Any]], str | None] | None) -> Record:   # a check of that JSON
     """A cell's record, checked; one that no reader could load fails its cell, not the whole file."""
     try:
@@ -148,8 +150,9 @@ def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
     failed: list[BaseException] = []
     idents = [c.identity() for c in plan]
 
-    # got: the worker's JSON (or a kept record's, --resume)
-    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:  # worker JSON
+    # got: the worker's record JSON (cells.Result: read from its process's record.json), or the
+    # status and reason of a cell that never started, in that JSON's shape
+    def finish(i: int, got: dict[str, Any], out: Outputs | None, flush: bool = True) -> None:
         inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
         if inputs and out is not None:
             out = {**inputs, **out}
@@ -162,10 +165,10 @@ def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
             if failed:                            # the store could not save (a full disk): no
                 raise failed[0]                   # other cell's record may pretend to be kept
             record = typed(rec, idents[i], check)
-            if on_record is not None and save:    # first: it may add to the record (a sweep's
+            if on_record is not None:             # first: it may add to the record (a sweep's
                 # converged error) before the store keeps it; its figures may be NumPy scalars
                 record = typed(jsonable(on_record(i, record, out).to_json()), idents[i], check)
-            if store is not None and save:
+            if store is not None:
                 store.put(record)
                 try:
                     if flush:
@@ -175,13 +178,13 @@ def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
                     raise
         done[i] = (record, out)
 
-    groups: dict[Any, list[int]] = {}
+    groups: dict[tuple[str | int, ...], list[int]] = {}     # (backend, device, precision, variant) or ("solo", i)
     deferred = False
     for i, cell in enumerate(plan):
         if store is not None and resume and store.done(key(idents[i])):
             kept = store.get(key(idents[i]))
             assert kept is not None               # done() is true only for a record it holds
-            finish(i, kept.to_json(), None, save=False)
+            done[i] = (kept, None)                # as read and checked (Store.read), not run again
             continue
         blocked = not_runnable(cell, probes) or (refuse(cell) if refuse is not None else None)
         if blocked:       # nothing ran: saved once with the others below, not a file write each

@@ -164,8 +164,9 @@ class Suite(Command):
     def on_repeat(self, block: Timing) -> None:
         """The ``time`` block of every repeat process (--processes)."""
 
+    # a check of a record's JSON, as the worker wrote it (its process's record.json) or a file keeps it
     @property
-    def check(self) -> Callable[[dict[str, Any]], str | None] | None:     # of stored JSON
+    def check(self) -> Callable[[dict[str, Any]], str | None] | None:
         """Its records' own check beyond the common schema (its store's format, ``compare.results.formats``)."""
         from compare.results.formats import FORMATS
         store = self.store()
@@ -175,7 +176,7 @@ class Suite(Command):
         """The seed of the repeats' interleaved rounds (the run's environment's)."""
         return 0
 
-    def store(self) -> Any:
+    def store(self) -> Store | None:
         """The store that keeps every record as it arrives (None: the suite keeps them)."""
         return None
 
