@@ -21,7 +21,7 @@ import sys
 import compare.site
 import scenarios
 from compare import options
-from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
+from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_USAGE, Parser, UsageError
 from compare.results.store import StoreError
 from compare.site import agree
 from compare.spec import SpecError
