@@ -17,94 +17,59 @@ from __future__ import annotations
 import argparse
 import errno
 import sys
-from typing import Any
 
-import backends
+import compare.site
 import scenarios
-from compare.running import engine
 from compare import options
-from compare.suites import run as run_suite
-from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
-from compare.spec import SpecError
+from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_USAGE, Parser, UsageError
 from compare.results.store import StoreError
+from compare.site import agree
+from compare.spec import SpecError
+from compare.suites import formats as suite_formats
+from compare.suites import stress, sweep
+from compare.suites.driver import Command, module_command
+from compare.suites.listing import Listing
+from compare.suites.publish import Publish
+from compare.suites.report import Report
+from compare.suites.run import RunSuite
 from scenarios.base import ParamError
 
+# The subcommands after the run suite's and report, in --help's order.
+OWN: dict[str, type[Command]] = {"sweep": module_command(sweep), "stress": module_command(stress),
+                                 "site": module_command(compare.site), "publish": Publish,
+                                 "agree": module_command(agree)}
 
-# The subcommands with a module of their own: each has add_arguments, run and a docstring.
-SUITE_MODULES = {"sweep": "compare.suites.sweep", "stress": "compare.suites.stress", "site": "compare.site",
-                 "publish": "compare.suites.publish", "agree": "compare.site.agree"}
 
-
-def suite_modules() -> dict[str, Any]:
-    import importlib
-    return {name: importlib.import_module(module) for name, module in SUITE_MODULES.items()}
+def commands() -> dict[str, type[Command]]:
+    """Every subcommand's Command class by name, in --help's order: the run suite's under all,
+    run and each scenario's name."""
+    return {"list": Listing, "all": RunSuite, "run": RunSuite, **{name: RunSuite for name in scenarios.SCENARIOS},
+            "report": Report, **OWN}
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="python -m compare", description=__doc__,
                formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=Parser)
-    sub.add_parser("list", help="scenarios, backends, devices (and why one is unavailable)")
-    run_suite.add_arguments(sub.add_parser("all", help="every scenario in 'all'"))
-    r = sub.add_parser("run", help="the named scenarios")
-    r.add_argument("scenarios", nargs="+", metavar="SCENARIO", help=", ".join(scenarios.SCENARIOS))
-    run_suite.add_arguments(r)
-    for sc in scenarios.SCENARIOS.values():
-        rules = "\n".join(f"  {name} (default {default!r}): {rule}" for name, default, rule in sc.param_rules())
-        run_suite.add_arguments(sub.add_parser(
-            sc.name, help=sc.title, formatter_class=argparse.RawDescriptionHelpFormatter,
-            epilog=f"{sc.title}. Parameters (--set NAME=VALUE):\n{rules}"))
-    rep = sub.add_parser("report", help="rebuild tables/plots (or a page) from saved results.json files")
-    rep.add_argument("files", nargs="+", metavar="RESULTS_JSON")
-    options.add_output(rep, "results")
-    options.add_page(rep)
-    for name, mod in suite_modules().items():
-        sp = sub.add_parser(name, help=(mod.__doc__ or "").strip().splitlines()[0])
-        mod.add_arguments(sp)
+    for name, command in commands().items():
+        if name == "all":
+            sp = sub.add_parser("all", help="every scenario in 'all'")
+        elif name == "run":
+            sp = sub.add_parser("run", help="the named scenarios")
+            sp.add_argument("scenarios", nargs="+", metavar="SCENARIO", help=", ".join(scenarios.SCENARIOS))
+        elif name in scenarios.SCENARIOS:
+            sc = scenarios.SCENARIOS[name]
+            rules = "\n".join(f"  {n} (default {default!r}): {rule}" for n, default, rule in sc.param_rules())
+            sp = sub.add_parser(sc.name, help=sc.title, formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog=f"{sc.title}. Parameters (--set NAME=VALUE):\n{rules}")
+        else:
+            sp = sub.add_parser(name, help=command.summary())
+        command.add_arguments(sp)
     return p
 
 
 def known_commands() -> list[str]:
-    return ["list", "all", "run", *scenarios.SCENARIOS, "report", *suite_modules()]
-
-
-def scenario_problems() -> list[str]:
-    """Kernel files a backend lacks: required (every scenario in 'all') or optional."""
-    out = []
-    for name, b in backends.BACKENDS.items():
-        if isinstance(b, backends.Broken):
-            continue
-        where = type(b).__module__.replace(".", "/")
-        missing = [sc for sc in scenarios.SCENARIOS.values() if not b.has_kernel(sc.name)]
-        req = [sc.name for sc in missing if sc.in_all]
-        opt = [sc.name for sc in missing if not sc.in_all]
-        if req:
-            out.append(f"{name}: missing required {', '.join(f'{where}/{s}.py' for s in req)} (its cells are errors)")
-        if opt:
-            out.append(f"{name}: no optional {', '.join(f'{where}/{s}.py' for s in opt)} (skipped in the sweeps)")
-    return out
-
-
-def cmd_list() -> int:
-    probes = engine.availability(backends.BACKENDS)
-    print("scenarios:")
-    for sc in scenarios.SCENARIOS.values():
-        tag = "" if sc.in_all else " [measurement-only, not in 'all']"
-        print(f"  {sc.name:11s} {sc.title}{tag}; defaults: {sc.describe_params()}")
-    print("backends (device: available, or why not):")
-    width = max(map(len, backends.BACKENDS), default=7)
-    for name, b in backends.BACKENDS.items():
-        avail = probes[name]["available"]
-        devs = "; ".join(f"{d}: {'yes' if avail.get(d) is None else avail.get(d)}" for d in backends.DEVICES)
-        ref = " (reference)" if b.is_reference else ""
-        print(f"  {name:{width}s}{ref} gradient={b.gradient_method} variants={','.join(b.variants)}"
-              + "".join(f" (+{sc}: {','.join(vs)})" for sc, vs in b.scenario_variants.items()) + f"; {devs}")
-    problems = backends.PROBLEMS + scenario_problems()
-    if problems:
-        print("problems:")
-        for line in problems:
-            print(f"  {line}")
-    return EXIT_OK
+    return list(commands())
 
 
 def parse(argv: list[str]) -> argparse.Namespace:
@@ -123,18 +88,13 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv: list[str]) -> int:
+    suite_formats.register()        # every suite's results-file format, before any file is read
     try:
         options.check_utf8(argv)
         if argv and not argv[0].startswith("-") and argv[0] not in known_commands():
             raise UsageError(f"unknown scenario or command {argv[0]!r} (known: {', '.join(known_commands())})")
         args = parse(argv)
-        if args.command == "list":
-            return cmd_list()
-        if args.command == "report":
-            return run_suite.report_command(args)
-        if args.command in suite_modules():
-            return suite_modules()[args.command].run(args, argv)
-        return run_suite.run(args, argv)      # all, run S..., <S>
+        return commands()[args.command]().run(args, argv)
     except (UsageError, ParamError, StoreError, SpecError) as exc:
         print(f"error: {options.shown(str(exc))}", file=sys.stderr)   # a path's newline stays escaped
         return EXIT_USAGE

@@ -178,7 +178,8 @@ def add_page(p: argparse.ArgumentParser) -> None:
                    help="hand-written Markdown put under the title (never numbers)")
 
 
-def given(args: argparse.Namespace, add_arguments: Any, *positional: str) -> list[str]:
+def given(args: argparse.Namespace, add_arguments: Callable[[argparse.ArgumentParser], None],
+          *positional: str) -> list[str]:
     """The options of ``args`` that differ from their defaults (as ``--name``), where
     ``add_arguments`` builds the subcommand's parser and ``positional`` satisfies it."""
     p = Parser(add_help=False)
@@ -189,7 +190,8 @@ def given(args: argparse.Namespace, add_arguments: Any, *positional: str) -> lis
             for k, a in dests.items() if k in defaults and getattr(args, k, defaults[k]) != defaults[k]]
 
 
-def refuse_inapplicable(args: argparse.Namespace, add_arguments: Any, allowed: Iterable[str],
+def refuse_inapplicable(args: argparse.Namespace, add_arguments: Callable[[argparse.ArgumentParser], None],
+                        allowed: Iterable[str],
                         where: str, *positional: str) -> None:
     """A one-line UsageError for the first option given that does not apply ``where``."""
     allowed = set(allowed)
@@ -256,9 +258,10 @@ def parse_sets(pairs: list[str]) -> dict[str, str]:
     return raw
 
 
-def scenario_sets(raw: dict[str, str], chosen: list[scenarios.Scenario]) -> dict[str, dict[str, Any]]:
+def scenario_sets(raw: dict[str, str], chosen: list[scenarios.Scenario]) -> dict[str, dict[str, str]]:
     """Split --set values among the chosen scenarios (a key applies to every scenario that has
-    it); a key no chosen scenario knows is refused."""
+    it); a key no chosen scenario knows is refused. The values stay the strings given: each
+    scenario coerces them into its ``Params`` (``Scenario.params``)."""
     known = {sc.name: {f.name for f in dataclasses.fields(sc.Params)} for sc in chosen}
     unknown = [k for k in raw if not any(k in fields for fields in known.values())]
     if unknown:

@@ -174,11 +174,6 @@ class Cell:
         return key(self.identity())
 
 
-def as_cell(spec: Cell | dict[str, Any]) -> Cell:     # or its JSON (a stress task, a Dask task)
-    """A Cell, or the decode of one given as a dict (``Cell.from_dict``)."""
-    return spec if isinstance(spec, Cell) else Cell.from_dict(spec)
-
-
 def key(rec_or_spec: Identity | dict[str, Any]) -> str:   # or a stored record's JSON (samecheck)
     """The identity of a cell (spec or record) as a string: the same cell run twice has one key."""
     return json.dumps([rec_or_spec.get(f, "default" if f == "variant" else None) for f in IDENTITY]

@@ -19,9 +19,13 @@ if str(ROOT) not in sys.path:
 import adversarial  # noqa: E402
 import parallel  # noqa: E402
 from compare.running import cells, engine  # noqa: E402
+from compare.spec import Cell  # noqa: E402
+from compare.suites import formats as suite_formats  # noqa: E402
 # pytest-xdist's workers, groups and `alone` tests (tests/parallel.py)
 from parallel import (pytest_collection_finish, pytest_configure, pytest_runtest_protocol,  # noqa: E402,F401
                       pytest_unconfigure, pytest_xdist_auto_num_workers, pytest_xdist_make_scheduler)
+
+suite_formats.register()        # as the command line's start-up does: every results-file format
 
 
 # The spec keys of a cell run for its outputs, not its timings: reuse compiled kernels (framework
@@ -121,7 +125,7 @@ def run_cell(backend: str, scenario: str, precision: str, params: dict, device: 
     spec = {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
             "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "variant": variant,
             **CORRECTNESS}
-    record, outputs = cells.run(spec, timeout=600)
+    record, outputs = cells.run(Cell.from_dict(spec), timeout=600)
     assert record["status"] in ("ok", "mismatch"), \
         f"{record.get('reason')}\n{record.get('traceback', '')}"
     return record, outputs
@@ -148,7 +152,7 @@ def shared_cell(name: str, cases: list[Case], backend: str, scenario: str, preci
         specs = [{"scenario": s, "backend": b, "device": d, "precision": p, "params": o, "quick": True,
                   "repeat": 1, "min_time": 0.0, "variant": v, **CORRECTNESS}
                  for b, s, p, o, d, v in runnable]
-        results = engine.run_cells(specs, timeout=900, share_process=True,
+        results = engine.run_cells([Cell.from_dict(s) for s in specs], timeout=900, share_process=True,
                                    probes={c[0]: probe(c[0]) for c in runnable})
         # the record as the worker path's JSON object (what cells.run gives a test)
         _SHARED[name] = {_case_key(c): (r.to_json(), o) for c, (r, o) in zip(runnable, results)}

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from compare.running import cells
+from compare.spec import Cell
 
 GPU_CASES = [("saxpy", {}), ("sdf", {}), ("particles", {"record_every": 30}), ("launch", {}), ("copy", {}),
              ("projectile", {"contact": "hard"}), ("projectile", {"contact": "soft"}),
@@ -18,7 +19,7 @@ def assert_gpu_cell_with_events_graph_and_memory(backend: str, scenario: str, ov
     """One GPU cell through the worker path, with the throughput regime (its graph replay)."""
     spec = {"scenario": scenario, "backend": backend, "device": "cuda", "precision": precision,
             "params": overrides, "quick": True, "repeat": 3, "min_time": 0.0, "throughput": True}
-    record, outputs = cells.run(spec, timeout=600)
+    record, outputs = cells.run(Cell.from_dict(spec), timeout=600)
     assert record["status"] == "ok", f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
     assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
     assert record["time"]["events"]["median_s"] > 0, record["time"].get("events_error")

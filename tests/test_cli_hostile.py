@@ -27,6 +27,7 @@ from compare import cli
 from compare.planning import outdir
 from compare.options import UsageError
 from compare.results.store import Store
+from compare.suites import listing
 
 ROOT = Path(__file__).resolve().parents[1]
 FAULTY = ROOT / "tests" / "extra_backends"     # COMPARE_BACKENDS_EXTRA: the tests' faulty backend
@@ -133,7 +134,7 @@ def test_a_name_too_long_mid_run_is_exit_2_without_disk_advice(capsys: pytest.Ca
     def boom(*_: object) -> int:
         raise OSError(36, "File name too long", "/x/" + LONG)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cli, "cmd_list", boom)
+        mp.setattr(listing.Listing, "run", boom)
         assert cli.main(["list"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "name too long" in err[0] and "free some space" not in err[0], err

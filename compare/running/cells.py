@@ -16,7 +16,7 @@ import numpy as np
 from backends.base import DEVICES
 from compare.running import lifeline
 from compare.measuring import phases
-from compare.spec import Cell, as_cell
+from compare.spec import Cell
 
 ROOT = Path(__file__).resolve().parents[2]
 Result = tuple[dict[str, Any], "dict[str, np.ndarray] | None"]    # the worker's record JSON, its outputs
@@ -87,7 +87,7 @@ def run_batch(specs: Sequence[Cell], timeout: float | None = 600.0,
 
     if not specs:
         return []
-    batch = [as_cell(s) for s in specs]
+    batch = list(specs)
     results: list[Result] = []
     # under this driver's temporary root: deleted even if the driver is killed (compare.running.lifeline)
     with lifeline.temp_dir("cells-") as tmp:
@@ -144,10 +144,15 @@ def run_batch(specs: Sequence[Cell], timeout: float | None = 600.0,
     return results
 
 
-def run(spec: Cell | dict[str, Any], timeout: float | None = 600.0) -> Result:   # or its JSON (a Dask task)
-    """Run one cell in a fresh interpreter; returns (record, outputs or None). ``spec``: a Cell
-    or its ``to_dict`` (a Dask task ships that)."""
-    return run_batch([as_cell(spec)], timeout)[0]
+def run(cell: Cell, timeout: float | None = 600.0) -> Result:
+    """Run one cell in a fresh interpreter; returns (record, outputs or None)."""
+    return run_batch([cell], timeout)[0]
+
+
+def run_task(spec: dict[str, Any], timeout: float | None = 600.0) -> Result:   # a Dask task's JSON
+    """``run`` as a Dask task (``compare.running.scaleout``): the cell crosses to the cluster's
+    worker as its ``Cell.to_dict`` and is decoded there."""
+    return run(Cell.from_dict(spec), timeout)
 
 
 PROBE = """

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import threading
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Hashable, Iterable, TypeVar
 
 import numpy as np
 
@@ -20,7 +20,7 @@ import backends
 import scenarios
 from compare.running import cells
 from compare.results.record import Record, RecordError
-from compare.spec import IDENTITY, Cell, Identity, as_cell, key
+from compare.spec import IDENTITY, Cell, Identity, key
 from compare.results.store import Store, jsonable
 
 Outputs = dict[str, np.ndarray]
@@ -31,28 +31,35 @@ Probe = cells.Probe
 Probes = dict[str, Probe]       # backend -> its probe
 
 
-def gpu_lane(item: Cell | dict[str, Any]) -> Any:    # or a stress task's JSON dict (compare.stress)
-    """Cells (or a suite's tasks: dicts with 'backend' and 'device') that must not overlap:
-    those of one backend on one GPU (None: no constraint).
+Lane = tuple[str, str] | None      # (backend, GPU) whose items run one after another; None: free
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+def device_lane(backend: str, device: str) -> Lane:
+    """The lane of work of ``backend`` on ``device``: one per backend per GPU (None: no constraint).
 
     Frameworks reserve device memory per process (some size local memory for every thread the GPU
     can hold resident: docs/stress.md, "Running it on a GPU"), so several processes of one framework on one GPU can run
     out of memory at launch. One process per backend per GPU still lets different backends overlap.
     """
-    backend, device = ((item.backend, str(item.device)) if isinstance(item, Cell)
-                       else (item.get("backend"), item.get("device")))
     return None if device in ("cpu", "host") else (backend, device)
 
 
-def pool_map(fn: Callable[[Any], Any], items: list[Any], jobs: int = 1,
-             lane: Callable[[Any], Any] = gpu_lane) -> list[Any]:
+def gpu_lane(cell: Cell) -> Lane:
+    """Cells that must not overlap: those of one backend on one GPU (``device_lane``)."""
+    return device_lane(cell.backend, str(cell.device))
+
+
+def pool_map(fn: Callable[[T], R], items: list[T], *, lane: Callable[[T], Hashable | None],
+             jobs: int = 1) -> list[R]:
     """``fn`` over ``items``, ``jobs`` at a time, items of one ``lane`` (not None) one after another;
     results in the order of ``items``."""
-    groups: dict[Any, list[int]] = {}
+    groups: dict[Hashable, list[int]] = {}
     for i, it in enumerate(items):
         key = lane(it)
         groups.setdefault(("solo", i) if key is None else key, []).append(i)
-    results: list[Any] = [None] * len(items)
+    results: dict[int, R] = {}
 
     def run_group(idx: list[int]) -> None:
         for i in idx:
@@ -64,7 +71,7 @@ def pool_map(fn: Callable[[Any], Any], items: list[Any], jobs: int = 1,
     else:
         with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
             list(pool.map(run_group, groups.values()))
-    return results
+    return [results[i] for i in range(len(items))]
 
 
 def availability(names: Iterable[str]) -> Probes:
@@ -95,7 +102,9 @@ def not_runnable(cell: Cell, probes: Probes) -> tuple[str, str] | None:
     return None
 
 
-def typed(obj: dict[str, Any], ident: Identity,            # the record's JSON, from the worker or a file
+# obj: a record's JSON as the worker wrote it (record.json, from its process) or an on_record
+# hook's record written back (its figures may be NumPy scalars: the one loader checks them again)
+def typed(obj: dict[str, Any], ident: Identity,
           check: Callable[[dict[str, Any]], str | None] | None) -> Record:   # a check of that JSON
     """A cell's record, checked; one that no reader could load fails its cell, not the whole file."""
     try:
@@ -105,8 +114,7 @@ def typed(obj: dict[str, Any], ident: Identity,            # the record's JSON, 
                                  "time": None, "error": None})
 
 
-# specs: a stress task's JSON dict is decoded (Cell.from_dict); check: of the record's stored JSON
-def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: int = 1,  # stress: JSON
+def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
               probes: Probes | None = None,
               on_record: Callable[[int, Record, Outputs | None], Record] | None = None,
               check: Callable[[dict[str, Any]], str | None] | None = None,  # of stored JSON
@@ -115,8 +123,7 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
               share_process: bool = False,
               refuse: Callable[[Cell], tuple[str, str] | None] | None = None,
               ahead: int = 0, footprint: Callable[[Cell], float] | None = None) -> list[Result]:
-    """Run every cell in a worker process; returns (record, outputs) per cell, in order. A dict
-    is decoded into its Cell (``Cell.from_dict``) first.
+    """Run every cell in a worker process; returns (record, outputs) per cell, in order.
 
     A record always carries the cell's identity (scenario, backend, device, precision, variant,
     resolved params, tags). A cell that must not start (``not_runnable``) gets its record without
@@ -136,15 +143,16 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
     a record that fails a check becomes an ``error`` record of its cell. The plan runs once: the
     repeats across processes (--processes) are the driver's (``compare.suites.driver.more_processes``).
     """
-    plan = [as_cell(s) for s in specs]
+    plan = list(specs)
     probes = probes if probes is not None else availability({c.backend for c in plan})
     lock = threading.Lock()
     done: list[Result | None] = [None] * len(plan)
     failed: list[BaseException] = []
     idents = [c.identity() for c in plan]
 
-    # got: the worker's JSON (or a kept record's, --resume)
-    def finish(i: int, got: dict[str, Any], out: Outputs | None, save: bool = True, flush: bool = True) -> None:  # worker JSON
+    # got: the worker's record JSON (cells.Result: read from its process's record.json), or the
+    # status and reason of a cell that never started, in that JSON's shape
+    def finish(i: int, got: dict[str, Any], out: Outputs | None, flush: bool = True) -> None:
         inputs = got.pop("_inputs", None)     # --save-arrays: kept beside the outputs
         if inputs and out is not None:
             out = {**inputs, **out}
@@ -157,10 +165,10 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
             if failed:                            # the store could not save (a full disk): no
                 raise failed[0]                   # other cell's record may pretend to be kept
             record = typed(rec, idents[i], check)
-            if on_record is not None and save:    # first: it may add to the record (a sweep's
+            if on_record is not None:             # first: it may add to the record (a sweep's
                 # converged error) before the store keeps it; its figures may be NumPy scalars
                 record = typed(jsonable(on_record(i, record, out).to_json()), idents[i], check)
-            if store is not None and save:
+            if store is not None:
                 store.put(record)
                 try:
                     if flush:
@@ -170,13 +178,13 @@ def run_cells(specs: Iterable[Cell | dict[str, Any]], *, timeout: float, jobs: i
                     raise
         done[i] = (record, out)
 
-    groups: dict[Any, list[int]] = {}
+    groups: dict[tuple[str | int, ...], list[int]] = {}     # (backend, device, precision, variant) or ("solo", i)
     deferred = False
     for i, cell in enumerate(plan):
         if store is not None and resume and store.done(key(idents[i])):
             kept = store.get(key(idents[i]))
             assert kept is not None               # done() is true only for a record it holds
-            finish(i, kept.to_json(), None, save=False)
+            done[i] = (kept, None)                # as read and checked (Store.read), not run again
             continue
         blocked = not_runnable(cell, probes) or (refuse(cell) if refuse is not None else None)
         if blocked:       # nothing ran: saved once with the others below, not a file write each

@@ -113,9 +113,9 @@ def runner(c: Any, timeout: float, plan: list[Cell],
     from compare.running import cells, engine
     runnable = [cell for cell in plan if not engine.not_runnable(cell, probes)]
     if not gpu_workers(c):      # nothing declares a device: never overlap two timed cells
-        return lambda cell: c.submit(cells.run, cell.to_dict(), timeout, pure=False).result()
+        return lambda cell: c.submit(cells.run_task, cell.to_dict(), timeout, pure=False).result()
     futures = {json.dumps(cell.to_dict(), sort_keys=True):
-               c.submit(cells.run, cell.to_dict(), timeout, pure=False,
+               c.submit(cells.run_task, cell.to_dict(), timeout, pure=False,
                         resources={"GPU": 1} if cell.device != "cpu" else None)
                for cell in runnable}
     return lambda cell: futures[json.dumps(cell.to_dict(), sort_keys=True)].result()

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
 from pathlib import Path
-from typing import Any, Callable, Generic, NamedTuple, TypeVar
+from typing import Any, Callable, ClassVar, Generic, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 
@@ -65,7 +66,13 @@ class Run:
 
 
 class Command:
-    """A subcommand: its arguments, then its run."""
+    """A subcommand: its arguments, then its run (an instance per invocation: ``compare.cli``)."""
+    help: ClassVar[str | None] = None     # its line in ``--help`` (None: its module's docstring's first)
+
+    @classmethod
+    def summary(cls) -> str:
+        """The line ``python -m compare --help`` lists it by."""
+        return cls.help if cls.help is not None else first_line(sys.modules[cls.__module__].__doc__)
 
     @staticmethod
     def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -73,6 +80,33 @@ class Command:
 
     def run(self, args: argparse.Namespace, argv: list[str]) -> int:
         raise NotImplementedError
+
+
+def first_line(doc: str | None) -> str:
+    return (doc or "").strip().splitlines()[0] if (doc or "").strip() else ""
+
+
+class CommandModule(Protocol):
+    """A module that defines a subcommand as functions: ``add_arguments``, ``run`` (and its
+    docstring, whose first line ``--help`` shows)."""
+    def add_arguments(self, p: argparse.ArgumentParser) -> None: ...
+    def run(self, args: argparse.Namespace, argv: list[str]) -> int: ...
+
+
+def module_command(module: CommandModule) -> type[Command]:
+    """The ``Command`` of a module that defines one as functions: the sweep and stress suites'
+    (whose ``run`` also routes ``sweep report`` and ``stress --merge``) and the site's ``site``
+    and ``agree`` (a stage below this one: they cannot subclass ``Command``)."""
+    class ModuleCommand(Command):
+        help = first_line(module.__doc__)
+
+        @staticmethod
+        def add_arguments(p: argparse.ArgumentParser) -> None:
+            module.add_arguments(p)
+
+        def run(self, args: argparse.Namespace, argv: list[str]) -> int:
+            return module.run(args, argv)
+    return ModuleCommand
 
 
 class Suite(Command):
@@ -130,8 +164,9 @@ class Suite(Command):
     def on_repeat(self, block: Timing) -> None:
         """The ``time`` block of every repeat process (--processes)."""
 
+    # a check of a record's JSON, as the worker wrote it (its process's record.json) or a file keeps it
     @property
-    def check(self) -> Callable[[dict[str, Any]], str | None] | None:     # of stored JSON
+    def check(self) -> Callable[[dict[str, Any]], str | None] | None:
         """Its records' own check beyond the common schema (its store's format, ``compare.results.formats``)."""
         from compare.results.formats import FORMATS
         store = self.store()
@@ -141,7 +176,7 @@ class Suite(Command):
         """The seed of the repeats' interleaved rounds (the run's environment's)."""
         return 0
 
-    def store(self) -> Any:
+    def store(self) -> Store | None:
         """The store that keeps every record as it arrives (None: the suite keeps them)."""
         return None
 

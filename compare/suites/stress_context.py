@@ -26,13 +26,15 @@ _In = TypeVar("_In")
 _Out = TypeVar("_Out")
 
 
-def lane(item: Cell | HostTask[object] | tuple[str, ...]) -> Any:
-    """Items that must not overlap (``engine.gpu_lane``): a cell, a host-loop task, or a
-    (backend, device, ...) tuple."""
+def lane(item: object) -> engine.Lane:
+    """Items that must not overlap (``engine.device_lane``): a cell, a host-loop task
+    (``HostTask``: its backend and device) or a (backend, device, ...) tuple; any other item
+    (host work of no device) has no constraint."""
     if isinstance(item, Cell):
         return engine.gpu_lane(item)
-    backend, device = item[:2] if isinstance(item, tuple) else (item.backend, item.device)
-    return engine.gpu_lane({"backend": backend, "device": device})
+    backend, device = (item[:2] if isinstance(item, tuple) and len(item) >= 2 else
+                       (getattr(item, "backend", None), getattr(item, "device", None)))
+    return engine.device_lane(backend, device) if isinstance(backend, str) and isinstance(device, str) else None
 
 
 @dataclasses.dataclass

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from compare.running import cells
+from compare.spec import Cell
 from conftest import ROOT, require_device, shared_cell
 from oracle_checks import FD, FRAMES, assert_frames_match_the_oracle, assert_gradient_matches_finite_differences
 
@@ -25,7 +26,7 @@ def _run(scenario: str, precision: str, params: dict, device: str = "cpu", varia
     require_device("jax", device)
     spec = {"scenario": scenario, "backend": "jax", "device": device, "precision": precision,
             "variant": variant, "params": params, "quick": True, "repeat": 1, "min_time": 0.0}
-    record, outputs = cells.run(spec, timeout=600)
+    record, outputs = cells.run(Cell.from_dict(spec), timeout=600)
     assert record["status"] == "ok", \
         f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
     return record, outputs

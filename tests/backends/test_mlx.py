@@ -12,6 +12,7 @@ import pytest
 
 import scenarios
 from compare.running import cells
+from compare.spec import Cell
 from conftest import require_device, run_script
 from oracle_checks import FRAMES, assert_frames_match_the_oracle
 from scenarios.projectile import CONSTANTS
@@ -30,7 +31,7 @@ def _run(scenario: str, precision: str, params: dict, device: str = "cpu"):
     # every fused kernel with g++); test_cold_cache_compiles_into_the_cells_directory covers cold
     spec = {"scenario": scenario, "backend": "mlx", "device": device, "precision": precision,
             "params": params, "quick": True, "repeat": 1, "min_time": 0.0, "cache": "warm"}
-    record, outputs = cells.run(spec, timeout=900)
+    record, outputs = cells.run(Cell.from_dict(spec), timeout=900)
     assert record["status"] == "ok", \
         f"{record['status']}: {record.get('reason')}\n{record.get('traceback', '')}"
     return record, outputs

@@ -14,6 +14,7 @@ import pytest
 
 import backends
 from compare.running import engine
+from compare.spec import Cell
 from conftest import probe, require_device
 
 CASES = [
@@ -62,7 +63,7 @@ def run_case(backend, device, precision, scenario, overrides):
     test of the group runs them all): the framework starts once, not once per case."""
     group = (backend, device, precision)
     if group not in _runs:
-        results = engine.run_cells([_spec(*group, s, o) for s, o in CASES], timeout=900, share_process=True,
+        results = engine.run_cells([Cell.from_dict(_spec(*group, s, o)) for s, o in CASES], timeout=900, share_process=True,
                                    probes={backend: probe(backend)})
         _runs[group] = {(s, tuple(sorted(o.items()))): r for (s, o), r in zip(CASES, results)}
     return _runs[group][(scenario, tuple(sorted(overrides.items())))]

@@ -12,6 +12,7 @@ import pytest
 import backends
 import scenarios
 from compare.running import engine
+from compare.spec import Cell
 from conftest import require_device
 
 pytestmark = pytest.mark.torch
@@ -39,7 +40,7 @@ def cells(precision, variant, device="cpu"):
     key = (precision, variant, device)
     if key not in _cells:
         specs = [_spec(s, precision, variant, device) for s in SMALL]
-        results = engine.run_cells(specs, timeout=900, share_process=True)
+        results = engine.run_cells([Cell.from_dict(s) for s in specs], timeout=900, share_process=True)
         _cells[key] = dict(zip(SMALL, results))
     return _cells[key]
 

@@ -30,6 +30,7 @@ import pytest
 import backends
 import scenarios
 from compare.running import cells
+from compare.spec import Cell
 from conftest import ROOT, availability
 from hand_adjoint import GPU_CASES, assert_gpu_cell_with_events_graph_and_memory, row0_and_replay
 
@@ -214,7 +215,7 @@ def interp_cells(backend: str, precision: str) -> dict:
         old = os.environ.get("TRITON_INTERPRET")
         os.environ["TRITON_INTERPRET"] = "1"          # the workers inherit it (cells.worker_env)
         try:
-            results = cells.run_batch(specs, timeout=900)
+            results = cells.run_batch([Cell.from_dict(s) for s in specs], timeout=900)
         finally:
             os.environ.pop("TRITON_INTERPRET") if old is None else os.environ.__setitem__("TRITON_INTERPRET", old)
         _runs[key] = dict(zip(range(len(INTERP_CASES)), results))

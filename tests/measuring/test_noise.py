@@ -14,6 +14,7 @@ import time
 import pytest
 
 from compare.running import cells
+from compare.spec import Cell
 from compare.measuring import noise
 from compare.render import report, results_csv
 from compare.results.record import Record
@@ -59,7 +60,7 @@ def test_host_busy_means_others_working_on_a_saturated_host(host: dict, busy: bo
 def _cell(repeat: int = 30) -> Record:
     spec = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
             "params": {"n": 200_000}, "quick": True, "repeat": repeat, "min_time": 0.5, "variant": "default"}
-    record, _ = cells.run(spec, timeout=300)
+    record, _ = cells.run(Cell.from_dict(spec), timeout=300)
     assert record["status"] == "ok", record.get("reason")
     return Record.from_json({**{k: spec[k] for k in ("scenario", "backend", "device", "precision", "variant")},
                              **record})

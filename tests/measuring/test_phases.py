@@ -4,6 +4,7 @@ from __future__ import annotations
 import time
 
 from compare.running import cells
+from compare.spec import Cell
 from compare.measuring import phases
 from compare.results.record_parts import Timing
 
@@ -12,7 +13,7 @@ def test_a_cells_parts_are_named_positive_and_within_its_wall_time():
     spec = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
             "params": {"n": 4096}, "quick": True, "repeat": 3, "min_time": 0.0, "throughput": True}
     t0 = time.perf_counter()
-    record, _ = cells.run(spec, timeout=300)
+    record, _ = cells.run(Cell.from_dict(spec), timeout=300)
     wall = time.perf_counter() - t0
     assert record["status"] == "ok", record.get("reason")
     parts = record["time"]["phases"]

@@ -10,6 +10,7 @@ import pytest
 
 import backends
 from compare.running import cells
+from compare.spec import Cell
 from compare.measuring import timing
 from compare.results.record import Timing
 from conftest import require_device
@@ -24,7 +25,7 @@ def test_launch_and_copy_cells(backend, scenario, params):
     require_device(backend, "cpu")
     spec = {"scenario": scenario, "backend": backend, "device": "cpu", "precision": "float32",
             "params": params, "repeat": 2, "min_time": 0.0}
-    rec, out = cells.run(spec, timeout=600)
+    rec, out = cells.run(Cell.from_dict(spec), timeout=600)
     assert rec["status"] == "ok", f"{rec.get('reason')}\n{rec.get('traceback', '')}"
     assert rec["error"]["vs_oracle"] == 0.0 and rec["error"]["checked_items"] == "all"
     t = rec["time"]
@@ -42,7 +43,7 @@ def test_check_sample_checks_a_seeded_sample():
             "params": {"n": 50_001}, "repeat": 1, "min_time": 0.0, "check_sample": 1000,
             "save_outputs": False, "cache": "warm"}
     require_device("warp", "cpu")
-    rec, out = cells.run(spec, timeout=600)
+    rec, out = cells.run(Cell.from_dict(spec), timeout=600)
     assert rec["status"] == "ok", rec.get("reason")
     assert rec["error"]["checked_items"] == ("1000 of 50001 (seeded random: row 0, last, "
                                              "extremes + random, seed 0)")
@@ -59,7 +60,7 @@ def test_big_particles_are_checked_on_a_sample_by_default():
             "params": {"n": n, "steps": 20}, "repeat": 1, "min_time": 0.0, "save_outputs": False,
             "throughput": False, "cache": "warm"}
     for k, expect in ((0, f"{PARTICLES_CHECKED} of {n} particles (seeded random"), (n, "all")):
-        rec, _ = cells.run({**base, "check_sample": k}, timeout=600)
+        rec, _ = cells.run(Cell.from_dict({**base, "check_sample": k}), timeout=600)
         assert rec["status"] == "ok", rec.get("reason")
         assert rec["error"]["checked_items"].startswith(expect), rec["error"]
         assert rec["error"]["well_conditioned"] + rec["error"]["ill_conditioned"] == (PARTICLES_CHECKED if k == 0 else n)

@@ -191,7 +191,7 @@ def test_memory_estimate_bounds_measured_peaks():
     probes = engine.availability(["warp"])
     if probes["warp"]["available"]["cpu"]:
         pytest.skip(probes["warp"]["available"]["cpu"])
-    results = engine.run_cells(specs, timeout=600, probes=probes, jobs=2)     # a process each: own peak
+    results = engine.run_cells([Cell.from_dict(s) for s in specs], timeout=600, probes=probes, jobs=2)     # a process each: own peak
     ratios = []
     for spec, (rec, _) in zip(specs, results):
         assert rec.status == "ok", rec.reason

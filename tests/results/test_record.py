@@ -150,7 +150,7 @@ def test_the_engine_stores_no_record_a_reader_could_not_load(tmp_path: Path) -> 
             "params": {"n": 1000}, "quick": True}
     probes = {"numpy": {"available": {"cpu": None}, "versions": {}}}
     store = Store(tmp_path / "results.json", "run")
-    (rec, _), = engine.run_cells([cell], timeout=60, probes=probes, store=store,
+    (rec, _), = engine.run_cells([spec.Cell.from_dict(cell)], timeout=60, probes=probes, store=store,
                                  runner=lambda s: (copy.deepcopy(bad), None))
     assert isinstance(rec, Record) and rec.status == "error"
     assert rec.reason == "malformed record: time.median_s must be a finite number > 0, got 0.0"
@@ -170,7 +170,7 @@ def test_cells_that_cannot_start_are_stored_in_one_write_before_any_cell_runs(tm
     monkeypatch.setattr(Store, "save", lambda self: (saved.append([r.status for r in self.records]),
                                                      real_save(self))[1])
     good = {"status": "skipped", "reason": "stand-in for a run"}
-    results = engine.run_cells(cells, timeout=60, probes=probes, store=store,
+    results = engine.run_cells([spec.Cell.from_dict(c) for c in cells], timeout=60, probes=probes, store=store,
                                runner=lambda s: (copy.deepcopy(good), None))
     assert [r.status for r, _ in results] == ["skipped"] * 4
     assert saved == [["skipped"] * 2, ["skipped"] * 3, ["skipped"] * 4]

@@ -141,3 +141,36 @@ def test_the_driver_runs_the_repeat_processes_in_rounds(tmp_path: Path, monkeypa
     assert block["count"] == 2 and len(block["latency"]["values"]) == 2
     assert len(block["first_result"]["values"]) == 2
     assert len(suite.repeats) == 1 and "phases" in suite.repeats[0]
+
+
+def test_every_subcommand_is_a_command_class_dispatched_alike() -> None:
+    """compare/cli.py: one typed table of Command classes (list and report included), each
+    instantiated afresh per invocation; a module's functions become one through module_command."""
+    from compare import cli
+    from compare.suites.listing import Listing
+    from compare.suites.report import Report
+    table = cli.commands()
+    assert list(table) == cli.known_commands() and list(table)[:3] == ["list", "all", "run"]
+    assert all(isinstance(c, type) and issubclass(c, driver.Command) for c in table.values())
+    assert table["list"] is Listing and table["report"] is Report and table["all"] is run_suite.RunSuite
+    assert table["publish"] is publish.Publish
+    assert Listing.summary() == "scenarios, backends, devices (and why one is unavailable)"
+    assert publish.Publish.summary() == (publish.__doc__ or "").strip().splitlines()[0]
+    assert table["sweep"].summary() == (sweep_suite.__doc__ or "").strip().splitlines()[0]
+    seen: list[tuple[Any, list[str]]] = []
+
+    class Module:
+        """a module-like command: its docstring's first line is its help"""
+        @staticmethod
+        def add_arguments(p: argparse.ArgumentParser) -> None:
+            p.add_argument("--flag", action="store_true")
+
+        @staticmethod
+        def run(args: argparse.Namespace, argv: list[str]) -> int:
+            seen.append((args.flag, argv))
+            return 3
+    command = driver.module_command(Module)
+    p = options.Parser()
+    command.add_arguments(p)
+    assert command().run(p.parse_args(["--flag"]), ["x", "--flag"]) == 3 and seen == [(True, ["x", "--flag"])]
+    assert command.summary() == "a module-like command: its docstring's first line is its help"

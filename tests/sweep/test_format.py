@@ -39,9 +39,11 @@ def test_a_record_of_neither_shape_is_left_alone():
 
 
 def test_old_files_upgrade_without_importing_the_suite():
-    """The store upgrades a format-1 file's records itself (no import side effect needed), so
-    saving it never writes old-shape records under format 2."""
-    code = ("from compare.results.store import Store; s = Store.read('tests/data/format1-sweep.json', 'sweep'); "
+    """The store upgrades a format-1 file's records itself (the formats registered by an explicit
+    call, as the command line's start-up makes it; no import side effect), so saving it never
+    writes old-shape records under format 2."""
+    code = ("from compare.suites import formats; formats.register()\n"
+            "from compare.results.store import Store; s = Store.read('tests/data/format1-sweep.json', 'sweep'); "
             "assert s.upgraded_from == 1 and s.records and all(r.tags is not None for r in s.records), 'not upgraded'")
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert p.returncode == 0, p.stderr

@@ -28,6 +28,9 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from compare.results.store import Store, jsonable  # noqa: E402
+from compare.suites import formats  # noqa: E402
+
+formats.register()      # the sweep's and stress suite's formats, as the command line's start-up does
 
 Record = dict[str, Any]
 # The size parameters of the compare-all cells (the scenarios' defaults when these were run);
