@@ -1,6 +1,7 @@
 """Each suite's results-file format is registered (compare.results.formats), not imported by side effect:
 the sweep's and stress suite's are handed in at start-up (compare.suites.formats.register), a file
-of every old format loads through its suite's format, and reading one loads no suite's driver."""
+of every old format loads through its suite's format (the run suite's own upgrade:
+tests/results/test_run_format.py), and reading one loads no suite's driver."""
 from __future__ import annotations
 
 import json
@@ -8,7 +9,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import backends
 import pytest
 
 from compare.results import formats
@@ -44,25 +44,6 @@ def test_a_file_of_a_format_not_registered_is_refused(monkeypatch: pytest.Monkey
     Store.read(CPU / "results.json")           # the run suite's format is the results stage's own
     with pytest.raises(ValueError, match="unknown format"):
         formats.register(formats.Format("sweep", "other.json"))
-
-
-def test_a_format_1_run_file_loads_upgraded(tmp_path: Path) -> None:
-    """Format 1 of results.json: {"environment", "records"}, the reference's distance ``vs_<name>``."""
-    new = json.loads((CPU / "results.json").read_text())
-    ref = backends.reference()
-    records = []
-    for r in new["records"]:
-        err = r.get("error")
-        if isinstance(err, dict) and err.get("reference") == ref:
-            err = {("vs_" + ref if k == "vs_reference" else f"vs_{ref}_device" if k == "vs_reference_device" else k): v
-                   for k, v in err.items() if k != "reference"}
-            r = {**r, "error": err}
-        records.append(r)
-    old = tmp_path / "results.json"
-    old.write_text(json.dumps({"environment": new["runs"][0], "records": records}))
-    store, today = Store.read(old, "run"), Store.read(CPU / "results.json")
-    assert store.upgraded_from == 1
-    assert [r.error for r in store.records] == [r.error for r in today.records]
 
 
 def test_a_format_1_stress_file_loads_upgraded(tmp_path: Path) -> None:
