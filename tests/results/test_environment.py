@@ -47,13 +47,6 @@ def test_a_stored_run_is_typed_once_read_and_saved_byte_for_byte(tmp_path: Path)
     assert path.read_text() == text
 
 
-def test_a_merged_entry_stands_for_the_runs_it_merged() -> None:
-    a: RunEnvironment = {"hostname": "a"}
-    b: RunEnvironment = {"hostname": "b"}
-    merged: RunEnvironment = {"merged_from": ["x", "y"], "environments": [a, {"environments": [b]}]}
-    assert run_environments(merged) == [a, b] and run_environments(a) == [a]
-
-
 def test_every_stored_run_reads_as_an_environment() -> None:
     for path in sorted((ROOT / "docs" / "results").glob("*/results.json")):
         for env in (e for run in Store.read(path).runs for e in run_environments(run)):
