@@ -3,7 +3,8 @@ stored object unchanged, immutable in between.
 
 Every committed store loads through it (format 1 upgraded); each record's JSON round-trips key for
 key (a whole file saved to the same bytes: tests/results/test_store.py); a malformed field is one
-line naming it; a record cannot be changed in place; the engine stores nothing a reader could not load.
+line naming it; a record cannot be changed in place (the engine stores nothing a reader could not
+load: tests/running/test_engine.py).
 """
 from __future__ import annotations
 
@@ -16,7 +17,6 @@ from typing import Any
 import pytest
 from conftest import ROOT
 
-from compare.running import engine
 from compare import spec
 from compare.results.record import FORMAT_VERSION, Record, RecordError
 from compare.results.store import Store
@@ -120,40 +120,3 @@ def test_a_malformed_field_is_one_line_naming_it(change: Any, needle: str) -> No
 def test_not_an_object_is_refused() -> None:
     with pytest.raises(RecordError, match="a record must be an object, got list"):
         Record.from_json([1, 2])
-
-
-def test_the_engine_stores_no_record_a_reader_could_not_load(tmp_path: Path) -> None:
-    """A worker's record that fails the loader's checks becomes an error record of its cell (the
-    reason names the field), so the results file stays readable."""
-    bad = {k: copy.deepcopy(v) for k, v in OK_RUN.items()
-           if k not in ("scenario", "backend", "device", "precision", "variant", "params", "tags")}
-    bad["time"]["median_s"] = 0.0
-    cell = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32",
-            "params": {"n": 1000}, "quick": True}
-    probes = {"numpy": {"available": {"cpu": None}, "versions": {}}}
-    store = Store(tmp_path / "results.json", "run")
-    (rec, _), = engine.run_cells([spec.Cell.from_dict(cell)], timeout=60, probes=probes, store=store,
-                                 runner=lambda s: (copy.deepcopy(bad), None))
-    assert isinstance(rec, Record) and rec.status == "error"
-    assert rec.reason == "malformed record: time.median_s must be a finite number > 0, got 0.0"
-    assert (rec.scenario, rec.backend, rec.params["n"]) == ("saxpy", "numpy", 1000)
-    assert [r.status for r in Store.read(store.path).records] == ["error"]
-
-
-def test_cells_that_cannot_start_are_stored_in_one_write_before_any_cell_runs(tmp_path, monkeypatch):
-    """Skipped cells (here: a device no backend has) cost no file write each; they are in the
-    store before the first cell runs, and every cell that runs is saved as it finishes."""
-    probes = {"numpy": {"available": {"cpu": None, "cuda": "NumPy runs on the CPU only"}, "versions": {}}}
-    cells = [{"scenario": "saxpy", "backend": "numpy", "device": d, "precision": p, "params": {"n": 1000},
-              "quick": True} for d in ("cuda", "cpu") for p in ("float32", "float64")]
-    store = Store(tmp_path / "results.json", "run")
-    saved: list[list[str]] = []
-    real_save = Store.save
-    monkeypatch.setattr(Store, "save", lambda self: (saved.append([r.status for r in self.records]),
-                                                     real_save(self))[1])
-    good = {"status": "skipped", "reason": "stand-in for a run"}
-    results = engine.run_cells([spec.Cell.from_dict(c) for c in cells], timeout=60, probes=probes, store=store,
-                               runner=lambda s: (copy.deepcopy(good), None))
-    assert [r.status for r, _ in results] == ["skipped"] * 4
-    assert saved == [["skipped"] * 2, ["skipped"] * 3, ["skipped"] * 4]
-    assert len(Store.read(store.path).records) == 4
