@@ -13,29 +13,34 @@ from compare.running import hardware
 HW = {"copy_bytes_per_s": 20e9, "copy_bytes": 1 << 27, "copy_how": "test copy", "launch_latency_s": 5e-6}
 
 
-def cell(status="ok", scenario="saxpy", median=1e-3, device="cpu") -> dict:
-    return {"scenario": scenario, "backend": "numpy", "device": device, "precision": "float32", "status": status,
-            "params": {"n": 2**20}, "time": {"throughput": {"median_s": median}}}
+TIME = {"median_s": 1e-3, "iqr_s": 0.0, "min_s": 1e-3, "repeats": 10, "first_call_s": 0.1}
+
+
+def cell(status="ok", median=1e-3, device="cpu", throughput=True) -> dict:
+    """A record's JSON: an ok cell is checked and timed (with a throughput regime unless not)."""
+    timed = status in ("ok", "mismatch")
+    return {"scenario": "saxpy", "backend": "numpy", "device": device, "precision": "float32", "status": status,
+            "reason": "" if timed else "not run", "params": {"n": 2**20},
+            **({"error": {"vs_oracle": 0.0, "tolerance": 1.0},
+                "time": {**TIME, **({"throughput": {"median_s": median}} if throughput else {})}} if timed else {})}
 
 
 def test_a_timed_cell_gets_its_yardstick_floor_and_fraction():
-    r = cell()
-    hardware.annotate([r], {"cpu": HW})
-    assert r["hardware"] == {"copy_bytes_per_s": 20e9, "copy_how": "test copy", "launch_latency_s": 5e-6,
-                             "copy_bytes": 1 << 27}
-    t = r["throughput"]
-    assert t["floor_kind"] == "bandwidth" and t["floor_s"] == pytest.approx(3 * 4 * 2**20 / 20e9)
-    assert t["hw_fraction"] == pytest.approx(t["floor_s"] / 1e-3)
+    r = hardware.annotated(Record.from_json(cell()), {"cpu": HW})
+    assert r.to_json()["hardware"] == {"copy_bytes_per_s": 20e9, "copy_how": "test copy", "launch_latency_s": 5e-6,
+                                       "copy_bytes": 1 << 27}
+    t = r.throughput
+    assert t is not None and t.floor_kind == "bandwidth" and t.floor_s == pytest.approx(3 * 4 * 2**20 / 20e9)
+    assert t.hw_fraction == pytest.approx(t.floor_s / 1e-3)
 
 
 @pytest.mark.parametrize("r,hw", [
     (cell(status="error"), {"cpu": HW}), (cell(status="skipped"), {"cpu": HW}),
     (cell(), {"cpu": {"error": "no yardstick"}}), (cell(), {}), (cell(device="cuda"), {"cpu": HW}),
-    (cell(scenario="no-such-scenario"), {"cpu": HW}), ({**cell(), "time": {}}, {"cpu": HW})])
+    (cell(throughput=False), {"cpu": HW})])
 def test_cells_without_a_yardstick_or_a_timing_are_left_alone(r, hw):
-    before = json.dumps(r, sort_keys=True)
-    hardware.annotate([r], hw)
-    assert json.dumps(r, sort_keys=True) == before
+    rec = Record.from_json(r)
+    assert hardware.annotated(rec, hw) is rec
 
 
 def test_annotated_returns_a_new_record_only_where_something_was_added():
