@@ -157,3 +157,21 @@ def test_compare_imports_only_downward():
 
 def test_every_compare_module_has_a_stage():
     assert [m for m in project_modules() if m.startswith("compare") and stage(m) is None] == []
+
+
+def own_test(module: Path, names: set[str]) -> bool:
+    """Whether ``module`` (under compare/) has a test file of its own name; where two modules share
+    a name, the test's name carries its folder (test_topic_saxpy, test_figure_saxpy, ...)."""
+    folder = module.parent.name
+    prefixes = ("", f"{folder}_", f"{folder.removesuffix('s')}_")     # points_, topic_, figure_
+    return any(f"test_{p}{module.stem}.py" in names for p in prefixes)
+
+
+def test_every_compare_module_has_its_own_test_file_and_basenames_are_unique():
+    tests = sorted((ROOT / "tests").rglob("test_*.py"))
+    names = [t.name for t in tests]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    assert not twice, f"pytest collects one basename once (no __init__.py in tests/): {twice}"
+    missing = [str(m.relative_to(ROOT)) for m in sorted((ROOT / "compare").rglob("*.py"))
+               if m.name not in ("__init__.py", "__main__.py") and not own_test(m, set(names))]
+    assert not missing, f"modules without a test file of their own name: {missing}"
