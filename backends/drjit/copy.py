@@ -14,12 +14,15 @@ import numpy as np
 
 from . import download, real_type, upload
 from ..base import ScenarioKernel
+from scenarios.copy import CopyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 class Kernel(ScenarioKernel):
     """One evaluated expression of x per call (launch.py reuses it with its own ``expression``)."""
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: CopyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.dtype, self.n = np.dtype(precision), params.n
         self.x = upload(inputs["x"], real_type(device, precision))

@@ -17,6 +17,9 @@ from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
 
 from . import download, fast_math, jit_module, real_type, scalar, upload
 from ..base import ScenarioKernel
+from scenarios.particles import ParticlesParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def rollout(steps: int, record_every: int, state: tuple, c: dict[str, Any], uint: Any,
@@ -66,7 +69,7 @@ def rollout(steps: int, record_every: int, state: tuple, c: dict[str, Any], uint
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ParticlesParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         import drjit as dr
         cls = real_type(device, precision)

@@ -43,6 +43,9 @@ import numpy as np
 
 from . import download, fast_math, jit_module, real_type, scalar, upload
 from ..base import ScenarioKernel
+from scenarios.projectile import ProjectileParams
+from ..base import Device
+from scenarios.base import Precision
 
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
 VARIANTS = ("default", "checkpoint", "evaluated")
@@ -106,7 +109,7 @@ def simulate(steps: int, contact: str, c: dict[str, Any], vx: Any, vy: Any, uint
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ProjectileParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         import drjit as dr
         if variant not in VARIANTS:

@@ -14,10 +14,13 @@ import numpy as np
 
 from . import download, fast_math, real_type, scalar, upload
 from ..base import ScenarioKernel
+from scenarios.saxpy import SaxpyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SaxpyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         cls = real_type(device, precision)
         self.dtype, self.n = np.dtype(precision), params.n

@@ -14,6 +14,9 @@ import numpy as np
 
 from . import download, fast_math, jit_module, real_type, scalar
 from ..base import ScenarioKernel
+from scenarios.sdf import SdfParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def image(cls: Any, uint: Any, width: int, height: int, wm1: Any, hm1: Any) -> Any:
@@ -35,7 +38,7 @@ def image(cls: Any, uint: Any, width: int, height: int, wm1: Any, hm1: Any) -> A
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SdfParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.cls, self.uint = real_type(device, precision), jit_module(device).UInt32
         self.dtype, self.w, self.h = np.dtype(precision), params.width, params.height

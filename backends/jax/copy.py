@@ -11,6 +11,9 @@ import numpy as np
 
 from . import Program, jax_device, put
 from ..base import ScenarioKernel
+from scenarios.copy import CopyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _copy(x, out):
@@ -23,7 +26,7 @@ class Kernel(ScenarioKernel):
     """One jitted program from x into the donated out (launch.py reuses it with its own)."""
     body = staticmethod(_copy)
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: CopyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         import jax.numpy as jnp
         dev = jax_device(device)

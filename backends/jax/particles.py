@@ -19,6 +19,9 @@ from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
 
 from . import UNROLL, Program, jax_device, jax_dtype, put
 from ..base import ScenarioKernel
+from scenarios.particles import ParticlesParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _rollout(steps: int, record_every: int, unroll: int, state0, consts, out):
@@ -68,7 +71,7 @@ def _rollout(steps: int, record_every: int, unroll: int, state0, consts, out):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ParticlesParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str, unroll: int | None = None) -> None:
         import jax.numpy as jnp
         dev = jax_device(device)

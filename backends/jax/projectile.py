@@ -30,6 +30,9 @@ import numpy as np
 
 from . import UNROLL, Program, jax_device, put
 from ..base import ScenarioKernel
+from scenarios.projectile import ProjectileParams
+from ..base import Device
+from scenarios.base import Precision
 
 # Shared scalar constants; v0 and target are per trajectory.
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
@@ -113,7 +116,7 @@ def _optimise(steps: int, iters: int, contact: str, remat_segment: int, unroll: 
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ProjectileParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str, remat_segment: int | None = None, unroll: int | None = None) -> None:
         import jax.numpy as jnp
         if variant not in VARIANTS:

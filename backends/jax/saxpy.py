@@ -7,6 +7,9 @@ import numpy as np
 
 from . import Program, jax_device, put
 from ..base import ScenarioKernel
+from scenarios.saxpy import SaxpyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _saxpy(a, x, y, out):
@@ -15,7 +18,7 @@ def _saxpy(a, x, y, out):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SaxpyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         import jax.numpy as jnp
         dev = jax_device(device)

@@ -7,6 +7,9 @@ import numpy as np
 
 from . import Program, jax_device, jax_dtype, put
 from ..base import ScenarioKernel
+from scenarios.sdf import SdfParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 # The scenario's literals, rounded to the cell's dtype and passed in at run time: as compile-time
@@ -40,7 +43,7 @@ def _sdf(wm1, hm1, lit, image):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SdfParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         import jax.numpy as jnp
         dev = jax_device(device)

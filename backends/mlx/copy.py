@@ -13,10 +13,13 @@ import numpy as np
 
 from . import download, kernel_info, launch, put
 from ..base import ScenarioKernel
+from scenarios.copy import CopyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: CopyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.device, self.precision = device, precision
         self.x = put(inputs["x"], precision)

@@ -11,6 +11,9 @@ import numpy as np
 
 from . import Program, download, kernel_info, launch, put
 from ..base import ScenarioKernel
+from scenarios.launch import LaunchParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _plus_one(x: Any) -> Any:
@@ -18,7 +21,7 @@ def _plus_one(x: Any) -> Any:
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: LaunchParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.device, self.precision = device, precision
         self.x = put(inputs["x"], precision)

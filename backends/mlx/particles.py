@@ -23,6 +23,9 @@ from scenarios.particles import INITIAL, STATE, step_constants
 
 from . import Program, download, kernel_info, launch, put
 from ..base import ScenarioKernel
+from scenarios.particles import ParticlesParams
+from ..base import Device
+from scenarios.base import Precision
 
 CHUNK = 32          # steps per async_eval: overlaps graph building with computing
 
@@ -46,7 +49,7 @@ def _step(x: Any, y: Any, u: Any, v: Any, c: dict[str, Any]) -> tuple[Any, Any, 
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ParticlesParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.params, self.device, self.precision = params, device, precision
         # derived once per run (gdt, lo, hi), rounded in the cell's dtype as the oracle's are

@@ -29,6 +29,9 @@ import numpy as np
 
 from . import Program, download, exp, kernel_info, launch, put
 from ..base import ScenarioKernel
+from scenarios.projectile import ProjectileParams
+from ..base import Device
+from scenarios.base import Precision
 
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
 
@@ -91,7 +94,7 @@ def make_iteration(steps: int, contact: str, batched: bool,
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ProjectileParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.params, self.device, self.precision = params, device, precision
         self.c = {k: put(inputs[k], precision) for k in CONSTANTS}

@@ -13,6 +13,9 @@ import numpy as np
 
 from . import Program, download, kernel_info, launch, put
 from ..base import ScenarioKernel
+from scenarios.saxpy import SaxpyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _saxpy(a: Any, x: Any, y: Any) -> Any:
@@ -20,7 +23,7 @@ def _saxpy(a: Any, x: Any, y: Any) -> Any:
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SaxpyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.device, self.precision = device, precision
         self.a, self.x, self.y = (put(inputs[k], precision) for k in ("a", "x", "y"))

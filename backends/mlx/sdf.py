@@ -16,6 +16,9 @@ import numpy as np
 
 from . import Program, download, exp, kernel_info, launch, put, sin
 from ..base import ScenarioKernel
+from scenarios.sdf import SdfParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _sdf(i: Any, j: Any, wm1: Any, hm1: Any) -> Any:
@@ -34,7 +37,7 @@ def _sdf(i: Any, j: Any, wm1: Any, hm1: Any) -> Any:
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SdfParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.device, self.precision = device, precision
         self.i = put(np.arange(params.width), precision)       # exact: width, height <= 65536

@@ -49,6 +49,7 @@ import quadrants as qd
 from quadrants.lang import impl
 
 from ..taichi.projectile_common import HARD, SOFT, build
+from scenarios.projectile import ProjectileParams
 
 _init, _loss, _init_k, _loss_k, _reset, _update, FieldKernel = build(qd)
 
@@ -110,7 +111,7 @@ def _step_k(s: qd.i32, contact: qd.template(), dt: float, gravity: float, bounce
 class Kernel(FieldKernel):
     fused: bool = True                 # False: one launch per step (tests compare the two)
 
-    def _allocate(self, params: Any, device: str, variant: str) -> list:
+    def _allocate(self, params: ProjectileParams, device: str, variant: str) -> list:
         n, nb = params.steps + 1, self.batch
         self.state = [qd.field(float, (n, nb), needs_grad=True) for _ in range(4)]  # xs ys vxs vys
         self.nsteps = qd.field(qd.i32, ())   # the step loop's bound, read by the adstack sizer

@@ -16,6 +16,9 @@ import numpy as np
 
 from . import built_on_first_use, framework_config_info
 from ..base import ScenarioKernel
+from scenarios.copy import CopyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 @functools.cache
@@ -28,8 +31,8 @@ def build(ti: ModuleType) -> tuple[Any, type[ScenarioKernel]]:
             out[i] = x[i]
 
     class Kernel(ScenarioKernel):
-        def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str,
-                     precision: str, variant: str) -> None:
+        def __init__(self, params: CopyParams, inputs: dict[str, np.ndarray], device: Device,
+                     precision: Precision, variant: str) -> None:
             self.x, self.out = (ti.field(float, shape=params.n) for _ in range(2))
             self.x.from_numpy(inputs["x"])
 

@@ -24,6 +24,9 @@ from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
 
 from . import built_on_first_use, framework_config_info
 from ..base import ScenarioKernel
+from scenarios.particles import ParticlesParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 @functools.cache
@@ -72,7 +75,7 @@ def build(ti: ModuleType) -> tuple[Any, type[ScenarioKernel]]:
             vy_out[p] = v
 
     class Kernel(ScenarioKernel):
-        def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+        def __init__(self, params: ParticlesParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                      variant: str) -> None:
             self.params = params
             n = params.n

@@ -65,6 +65,7 @@ import taichi as ti
 from taichi.lang import impl
 
 from .projectile_common import HARD, SOFT, build
+from scenarios.projectile import ProjectileParams
 
 ADSTACK_MARGIN = 2     # the deepest adstack holds steps + 1 entries (measured); one spare
 
@@ -197,7 +198,7 @@ class Kernel(FieldKernel):
     segment: int | None = None         # checkpoint variant's segment length (None: ~sqrt(steps))
     layout: str | None = None          # memory order of the [s, b] fields (None: by device)
 
-    def _allocate(self, params: Any, device: str, variant: str) -> list:
+    def _allocate(self, params: ProjectileParams, device: str, variant: str) -> list:
         nb = self.batch
         self.checkpoint = variant == "checkpoint"
         self.layout = self.layout or ("step-major" if device == "cuda" else "trajectory-major")

@@ -20,6 +20,9 @@ import numpy as np
 
 from . import framework_config_info
 from ..base import ScenarioKernel
+from scenarios.projectile import ProjectileParams
+from ..base import Device
+from scenarios.base import Precision
 
 NONE, HARD, SOFT = 0, 1, 2
 CONTACT = {"none": NONE, "hard": HARD, "soft": SOFT}
@@ -98,8 +101,8 @@ def build(ti: ModuleType) -> tuple[Any, ...]:
         """A port's ``Kernel`` implements ``_allocate`` (its state fields) and ``_evaluate``, and
         says whether the rollout is ``fused``."""
 
-        def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str,
-                     precision: str, variant: str) -> None:
+        def __init__(self, params: ProjectileParams, inputs: dict[str, np.ndarray], device: Device,
+                     precision: Precision, variant: str) -> None:
             self.p = params
             self.batch = nb = int(params.batch)
             self.contact = CONTACT[params.contact]
@@ -117,7 +120,7 @@ def build(ti: ModuleType) -> tuple[Any, ...]:
             self.history = ti.field(float, (params.iters + 1, nb))
             self.grad0 = ti.field(float, (nb, 2))
 
-        def _allocate(self, params: Any, device: str, variant: str) -> list:
+        def _allocate(self, params: ProjectileParams, device: str, variant: str) -> list:
             """Allocate ``self.state`` (xs, ys, vxs, vys, indexed [s, b]) and whatever else the
             port needs; return the fields whose gradients the update kernel clears."""
             raise NotImplementedError

@@ -18,6 +18,9 @@ import numpy as np
 
 from . import built_on_first_use, framework_config_info
 from ..base import ScenarioKernel
+from scenarios.saxpy import SaxpyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 @functools.cache
@@ -31,8 +34,8 @@ def build(ti: ModuleType) -> tuple[Any, type[ScenarioKernel]]:
             out[i] = a * x[i] + y[i]
 
     class Kernel(ScenarioKernel):
-        def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str,
-                     precision: str, variant: str) -> None:
+        def __init__(self, params: SaxpyParams, inputs: dict[str, np.ndarray], device: Device,
+                     precision: Precision, variant: str) -> None:
             self.a = float(inputs["a"])   # already rounded; the kernel's default_fp argument
             self.x, self.y, self.out = (ti.field(float, shape=params.n) for _ in range(3))
             self.x.from_numpy(inputs["x"])

@@ -18,6 +18,9 @@ import numpy as np
 
 from . import built_on_first_use, framework_config_info
 from ..base import ScenarioKernel
+from scenarios.sdf import SdfParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 @functools.cache
@@ -40,8 +43,8 @@ def build(ti: ModuleType) -> tuple[Any, type[ScenarioKernel]]:
             image[j, i] = ti.exp(-18.0 * ti.abs(d))
 
     class Kernel(ScenarioKernel):
-        def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str,
-                     precision: str, variant: str) -> None:
+        def __init__(self, params: SdfParams, inputs: dict[str, np.ndarray], device: Device,
+                     precision: Precision, variant: str) -> None:
             self.w, self.h = params.width, params.height
             self.image = ti.field(float, shape=(self.h, self.w))
 

@@ -12,6 +12,9 @@ import numpy as np
 
 from . import check_variant, compiled, download, empty, kernel_info, put
 from ..base import ScenarioKernel
+from scenarios.copy import CopyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _copy(x, out):
@@ -23,7 +26,7 @@ class Kernel(ScenarioKernel):
     ``body`` is the compile variant's function of ``args``, ``eager`` the default variant's call."""
     body = staticmethod(_copy)
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: CopyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         check_variant(variant)
         self.variant = variant

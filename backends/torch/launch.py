@@ -11,6 +11,9 @@ import numpy as np
 
 from . import kernel_info, put
 from .copy import Kernel as CopyKernel
+from scenarios.launch import LaunchParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _plus_one(x, one, out):
@@ -20,7 +23,7 @@ def _plus_one(x, one, out):
 class Kernel(CopyKernel):
     body = staticmethod(_plus_one)
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: LaunchParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         super().__init__(params, inputs, device, precision, variant)
         self.one = put(1.0, precision, device)

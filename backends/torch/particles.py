@@ -21,6 +21,9 @@ from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
 
 from . import check_variant, compiled, download, empty, kernel_info, put
 from ..base import ScenarioKernel
+from scenarios.particles import ParticlesParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _step(x, y, u, v, dt, gdt, radius, lo, hi, neg_bounce, damping):
@@ -46,7 +49,7 @@ def _step(x, y, u, v, dt, gdt, radius, lo, hi, neg_bounce, damping):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ParticlesParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         import torch
         check_variant(variant)

@@ -21,6 +21,9 @@ import numpy as np
 
 from . import check_variant, compiled, download, empty, kernel_info, put, torch_device, torch_dtype
 from ..base import ScenarioKernel
+from scenarios.projectile import ProjectileParams
+from ..base import Device
+from scenarios.base import Precision
 
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
 # "compile": steps per compiled call. The whole unrolled rollout (180 steps) is one kernel of
@@ -75,7 +78,7 @@ def make_losses(contact: str, steps: int, segment: int = 0):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ProjectileParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         check_variant(variant)
         self.variant, self.params = variant, params

@@ -15,6 +15,9 @@ import numpy as np
 
 from . import check_variant, compiled, download, empty, kernel_info, put
 from ..base import ScenarioKernel
+from scenarios.saxpy import SaxpyParams
+from ..base import Device
+from scenarios.base import Precision
 
 
 def _saxpy(a, x, y, out):
@@ -22,7 +25,7 @@ def _saxpy(a, x, y, out):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SaxpyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         check_variant(variant)
         self.variant = variant

@@ -15,6 +15,9 @@ import numpy as np
 
 from . import check_variant, compiled, download, empty, kernel_info, put
 from ..base import ScenarioKernel
+from scenarios.sdf import SdfParams
+from ..base import Device
+from scenarios.base import Precision
 
 LITERALS = ("one", "two", "c035", "c028", "c025", "c015", "c018", "c8", "cm18")
 VALUES = (1.0, 2.0, 0.35, 0.28, 0.25, 0.15, 0.18, 8.0, -18.0)
@@ -36,7 +39,7 @@ def _sdf(i, j, wm1, hm1, lit, image):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SdfParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         check_variant(variant)
         self.variant = variant

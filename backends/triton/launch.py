@@ -15,6 +15,9 @@ import triton.language as tl
 
 from . import download, empty, kernel_info, launch_options, put
 from ..base import ScenarioKernel
+from scenarios.launch import LaunchParams
+from ..base import Device
+from scenarios.base import Precision
 
 LAUNCH_BLOCK, LAUNCH_WARPS = 1024, 4
 
@@ -27,7 +30,7 @@ def plus_one_kernel(x_ptr, out_ptr, n, BLOCK_SIZE: tl.constexpr):
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: LaunchParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.x = put(inputs["x"], precision, device)
         self.out = empty((params.n,), precision, device)

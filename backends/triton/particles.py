@@ -21,6 +21,9 @@ from scenarios.particles import CONSTANTS, INITIAL, STATE, n_frames
 
 from . import download, empty, kernel_info, launch_options, put
 from ..base import ScenarioKernel
+from scenarios.particles import ParticlesParams
+from ..base import Device
+from scenarios.base import Precision
 # One particle a thread, 128 threads a program (a serial rollout per thread; smaller programs
 # spread a modest n over more SMs).
 WARPS = 4
@@ -74,7 +77,7 @@ def particles_kernel(consts_ptr, x0_ptr, y0_ptr, vx0_ptr, vy0_ptr,
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ParticlesParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.params = params
         n = params.n

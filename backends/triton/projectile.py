@@ -30,6 +30,9 @@ import triton.language as tl
 from . import download, empty, kernel_info, launch_options, put
 from ..base import ScenarioKernel
 from .fmath import div, exp, log
+from scenarios.projectile import ProjectileParams
+from ..base import Device
+from scenarios.base import Precision
 
 CONTACT = {"none": 0, "hard": 1, "soft": 2}
 CONSTANTS = ("dt", "gravity", "bounce", "damping", "stiffness", "softness", "lr")
@@ -130,7 +133,7 @@ def projectile_kernel(consts_ptr, v0_ptr, target_ptr, v_ptr, ys_ptr, hit_ptr, hi
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: ProjectileParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.single = params.batch == 1          # outputs without the batch axis
         self.precision = precision

@@ -25,6 +25,9 @@ import triton.language as tl
 
 from . import download, empty, interpreting, kernel_info, launch_options, put, tuned
 from ..base import ScenarioKernel
+from scenarios.saxpy import SaxpyParams
+from ..base import Device
+from scenarios.base import Precision
 
 # (BLOCK_SIZE, num_warps): 4 to 16 elements a thread, the range Triton's own pointwise heuristics use
 CONFIGS = ((1024, 4), (2048, 4), (2048, 8), (4096, 8))
@@ -69,7 +72,7 @@ class Kernel(ScenarioKernel):
     ``elementwise`` (copy.py reuses it with its own)."""
     kernel, operands = saxpy_kernel, ("a", "x", "y")
 
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SaxpyParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         self.args = [put(inputs[k], precision, device) for k in self.operands]
         self.out = empty((params.n,), precision, device)

@@ -22,6 +22,9 @@ import triton.language as tl
 from . import download, empty, interpreting, kernel_info, launch_options, tuned
 from ..base import ScenarioKernel
 from .fmath import div, exp, sin, sqrt
+from scenarios.sdf import SdfParams
+from ..base import Device
+from scenarios.base import Precision
 
 # (BLOCK_H, BLOCK_W, num_warps): 1024 or 2048 pixels a program, rows of 64 to 256 pixels
 CONFIGS = ((8, 128, 4), (4, 256, 4), (16, 64, 4), (16, 128, 8))
@@ -55,7 +58,7 @@ def autotuned() -> Any:
 
 
 class Kernel(ScenarioKernel):
-    def __init__(self, params: Any, inputs: dict[str, np.ndarray], device: str, precision: str,
+    def __init__(self, params: SdfParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         w, h = params.width, params.height
         self.image = empty((h, w), precision, device)
