@@ -3,32 +3,8 @@ store (fast tier). Named test_topic_particles (not test_particles): pytest colle
 basename, and compare/sweep/points/ and compare/render/figures/ have a particles module too."""
 from __future__ import annotations
 
-from pathlib import Path
-
-import pytest
-
-from compare.render import charts
-from compare.site import data, pages
-from compare.site import questions_pages as qp
 from compare.site.render import Figure, H
 from compare.site.topics import particles
-
-STORE = Path(__file__).resolve().parents[3] / "tests" / "data" / "site"
-
-
-@pytest.fixture(scope="module")
-def ctx(tmp_path_factory):
-    m = data.load([STORE])
-    return qp.Ctx(m, pages.evaluate(m)[0], tmp_path_factory.mktemp("site"), "STORE")
-
-
-@pytest.fixture(autouse=True)
-def unrendered(monkeypatch):
-    """Figures are drawn but not rasterised (tests/render/test_charts.py checks the drawing)."""
-    def save(fig, path):
-        Path(path).write_bytes(b"png")
-        charts.pyplot().close(fig)
-    monkeypatch.setattr(charts, "save", save)
 
 
 def test_its_rows_are_the_small_and_large_particle_loops():

@@ -7,30 +7,15 @@ from pathlib import Path
 
 import pytest
 
-from compare.render import charts
-from compare.site import data, pages
-from compare.site import questions_pages as qp
 from compare.results.record import Record
 from compare.site.render import Figure, H
 from compare.site.topics import projectile
 
-STORE = Path(__file__).resolve().parents[3] / "tests" / "data" / "site"
-
-
-@pytest.fixture(scope="module")
-def ctx(tmp_path_factory):
-    m = data.load([STORE])
-    return qp.Ctx(m, pages.evaluate(m)[0], tmp_path_factory.mktemp("site"), "STORE")
-
 
 @pytest.fixture(autouse=True)
-def unrendered(monkeypatch):
-    """Figures are drawn but not rasterised (tests/render/test_charts.py checks the drawing)."""
-    def save(fig, path):
-        Path(path).write_bytes(b"png")
-        charts.pyplot().close(fig)
-    monkeypatch.setattr(charts, "save", save)
-    from compare.sweep import plots as sweep_plots        # the horizon plot: tests/sweep/test_sweep_plots.py
+def unrendered_horizon(monkeypatch):
+    """The horizon plot is not drawn either (tests/sweep/test_sweep_plots.py checks it)."""
+    from compare.sweep import plots as sweep_plots
 
     def horizon(records, device, path, scenario):
         Path(path).write_bytes(b"png")
