@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from compare.site.render import Figure, H
 from compare.site.topics import particles
+from site_topics import ctx, unrendered  # noqa: F401  (the shared fixtures)
 
 
 def test_its_rows_are_the_small_and_large_particle_loops():

@@ -10,6 +10,7 @@ import pytest
 from compare.results.record import Record
 from compare.site.render import Figure, H
 from compare.site.topics import projectile
+from site_topics import ctx, unrendered  # noqa: F401  (the shared fixtures)
 
 
 @pytest.fixture(autouse=True)

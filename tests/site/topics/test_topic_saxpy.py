@@ -7,6 +7,7 @@ import pytest
 
 from compare.site.render import Figure, H
 from compare.site.topics import saxpy
+from site_topics import ctx, unrendered  # noqa: F401  (the shared fixtures)
 
 
 def test_its_rows_read_saxpy_and_are_the_bandwidth_and_per_call_questions():

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from compare.site.render import Figure, H
 from compare.site.topics import sdf
+from site_topics import ctx, unrendered  # noqa: F401  (the shared fixtures)
 
 
 def test_sdf_is_a_small_kernel_without_rows_or_pages():

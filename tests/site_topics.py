@@ -1,5 +1,5 @@
-"""The topic pages' tests share one context: the site's test store, evaluated once per module, and
-figures drawn but not rasterised (tests/render/test_charts.py checks the drawing)."""
+"""The topic pages' tests (tests/site/topics/) share one context: the site's test store, evaluated
+once per module, and figures drawn but not rasterised (tests/render/test_charts.py checks the drawing)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,7 +10,7 @@ from compare.render import charts
 from compare.site import data, pages
 from compare.site import questions_pages as qp
 
-STORE = Path(__file__).resolve().parents[3] / "tests" / "data" / "site"
+STORE = Path(__file__).resolve().parent / "data" / "site"
 
 
 @pytest.fixture(scope="module")
