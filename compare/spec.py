@@ -89,7 +89,8 @@ class Cell:
     host_profile: int = 0               # >0: cProfile the throughput regime, keep this many functions
     save_outputs: bool = True           # hand the outputs back (cross-backend comparison)
     save_inputs: bool = False           # also the inputs (--save-arrays)
-    check: bool = True                  # False: a repeat process of a checked cell, its timings alone
+    check: bool = True                  # False: a repeat process of a checked cell, its figures alone
+                                        # (no download, oracle, host profile, null call or own timer)
 
     def __post_init__(self) -> None:
         device, precision = _identity(*(getattr(self, f) for f in IDENTITY))

@@ -78,6 +78,43 @@ def dirty_paths() -> list[str]:
     return [line[3:].split(" -> ")[-1] for line in out.splitlines() if len(line) > 3]
 
 
+def files_digest(commit: str | None = None) -> str:
+    """A digest of a tree's files, path and content (not modes: a copy may drop an executable
+    bit): of ``commit``'s tree, or (None) of this checkout's files as they are, tracked and
+    untracked by .gitignore's rules, through a throwaway index, which needs no current .git
+    history, so a copied tree whose .git is stale can be checked against the commit it claims
+    (``python -m compare.measuring.environment COMMIT`` prints the commit's). Empty: git cannot tell."""
+    import hashlib
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "GIT_INDEX_FILE": str(Path(tmp) / "index")}
+        steps = ([["git", "ls-tree", "-r", "-z", commit]] if commit else
+                 [["git", "add", "-A", "."], ["git", "ls-files", "-s", "-z"]])
+        try:
+            for cmd in steps:
+                done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, env=env)
+                if done.returncode != 0:
+                    return ""
+        except (OSError, subprocess.SubprocessError):
+            return ""
+    # ls-tree: "<mode> blob <hash>\t<path>"; ls-files -s: "<mode> <hash> <stage>\t<path>"
+    rows = sorted(f"{meta.split()[2] if commit else meta.split()[1]} {path}"
+                  for meta, _, path in (e.partition("\t") for e in done.stdout.split("\0") if e)
+                  if not commit or meta.split()[1] == "blob")
+    return hashlib.sha256("\n".join(rows).encode()).hexdigest() if rows else ""
+
+
+def copy_dirty() -> bool | None:
+    """A copied tree's state: COMPARE_GIT_TREE (``files_digest`` of the claimed commit, made where
+    that commit lives) against the copy's own files: False (the commit's files exactly), True
+    (they differ), None (none named, or git cannot tell)."""
+    want = os.environ.get("COMPARE_GIT_TREE", "").strip()
+    if not want:
+        return None
+    have = files_digest()
+    return None if not have else have != want
+
+
 def collect(argv: list[str] | None = None) -> RunEnvironment:
     """This run's environment (a results file's ``runs`` entry): the machine, packages, commit, command."""
     versions: dict[str, str] = {}
@@ -101,9 +138,10 @@ def collect(argv: list[str] | None = None) -> RunEnvironment:
         "python": sys.version.split()[0],
         "packages": versions,
         # A copied tree (e.g. on a lent GPU machine) may carry a stale or no .git: the caller then
-        # names the commit it copied in COMPARE_GIT_COMMIT, and dirtiness is unknown (None).
+        # names the commit it copied in COMPARE_GIT_COMMIT, and its tree in COMPARE_GIT_TREE,
+        # against which the copy's files are checked (without it, dirtiness is unknown: None).
         "git_commit": commit or _run(["git", "rev-parse", "--short", "HEAD"]),
-        "git_dirty": None if commit else bool(dirty),
+        "git_dirty": copy_dirty() if commit else bool(dirty),
     }
     if dirty:
         env["git_dirty_paths"] = dirty[:DIRTY_PATHS_KEPT] + ([f"... and {len(dirty) - DIRTY_PATHS_KEPT} more"]
@@ -124,3 +162,7 @@ def run_stamp(env: RunEnvironment) -> RunStamp:
     commit and whether the tree was dirty (None: unknown, a copied tree)."""
     return RunStamp(created=str(env.get("created", "")), commit=env.get("git_commit") or None,
                     dirty=env.get("git_dirty"))
+
+
+if __name__ == "__main__":      # the digest a copied tree is checked against (COMPARE_GIT_TREE)
+    print(files_digest(sys.argv[1] if len(sys.argv) > 1 else "HEAD"))

@@ -16,6 +16,7 @@ HOST_PROFILE_TOP, CHECK_SAMPLE, STAGED = 12, 4096, "stress-parts"
 SWEEPS = ("bandwidth", "scaling", "error", "horizon")
 GROUPS = ("large", "stress")
 MATRIX_PROCESSES = "auto"      # the matrix part: every figure from interleaved processes (compare.running.repeats)
+MATRIX_OVERLAP = "auto"        # ... whose set-ups run side by side, each cell timed alone (compare.running.overlap)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,7 +74,7 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     sel = ["--backends", backends_arg]
     tmo = ["--timeout", f"{timeout:g}"] if timeout is not None else []
     tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
-    procs = () if quick else ("--processes", MATRIX_PROCESSES)
+    procs = () if quick else ("--processes", MATRIX_PROCESSES, "--overlap", MATRIX_OVERLAP)
     alone = ("--against", "none")      # a store is a reference itself: no block against another
     # The matrix part is what the matrix reads (float32) in repeated processes; float64 cells
     # (parity with the oracle, no row ranks them) run once, in their own part after it.

@@ -208,11 +208,9 @@ def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
 
     solo = [idx[0] for idx in groups.values() if len(idx) == 1]
     if ahead > 0 and runner is None and jobs <= 1 and len(solo) == len(groups) and len(solo) > 1:
-        import psutil
         from compare.running import overlap
         overlap.run_overlapped([plan[i] for i in solo], timeout, lambda k, res: finish(solo[k], *res),
-                               ahead, need=footprint, budget=0.9 * psutil.virtual_memory().available,
-                               lane=gpu_lane)
+                               ahead, need=footprint, budget=overlap.memory_budget(), lane=gpu_lane)
     else:
         pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
     return [r for r in done if r is not None]

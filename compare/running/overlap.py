@@ -85,13 +85,21 @@ class _Job:
                 pass
 
 
+def memory_budget() -> float:
+    """Host memory the overlapped workers may hold together: 90 % of what is available now."""
+    import psutil
+    return 0.9 * float(psutil.virtual_memory().available)
+
+
 def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[[int, Result], None],
                    ahead: int, need: Callable[[Cell], float] | None = None,
-                   budget: float | None = None, lane: Callable[[Cell], Any] | None = None) -> None:
+                   budget: float | None = None, lane: Callable[[Cell], Any] | None = None,
+                   ordered: bool = False) -> None:
     """Run every cell of ``plan`` (one process each), calling ``on_result(i, result)`` as each
     finishes. ``need``/``budget``: a worker's host-memory estimate and what the workers may hold
-    together; ``lane``: cells of one lane never run at the same time (None: no constraint)."""
-    todo = schedule(plan)
+    together; ``lane``: cells of one lane never run at the same time (None: no constraint).
+    ``ordered``: keep the plan's order (a repeat round's seeded shuffle) rather than ``schedule``'s."""
+    todo = list(range(len(plan))) if ordered else schedule(plan)
     active: list[_Job] = []
     with lifeline.temp_dir("overlap-") as tmp:
         root = Path(tmp)

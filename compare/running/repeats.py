@@ -99,12 +99,14 @@ def plan(processes: int | str) -> tuple[int, int]:
 
 
 def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
-               time_one: Callable[[int], Timing | None],
+               time_round: Callable[[list[int]], Sequence[Timing | None]],
                on_round: Callable[[dict[int, Processes]], None]) -> dict[int, Processes]:
     """More processes for the cells in ``first`` (index -> the first process's ``time`` block):
     rounds 2, 3, ..., each over the cells still open in a shuffle seeded by ``seed`` and the round.
-    ``time_one(i)`` runs cell i once more and returns its time block (None: it failed, counted).
-    ``on_round`` gets ``{i: time.processes}`` of the cells the round changed. Returns the same for all."""
+    ``time_round(order)`` runs each cell of ``order`` once more, in that order (one after another,
+    or with set-ups side by side: ``compare.running.overlap``), and returns their time blocks in
+    that order (None: it failed, counted). ``on_round`` gets ``{i: time.processes}`` of the cells
+    the round changed. Returns the same for all."""
     fewest, most = plan(processes)
     times: dict[int, list[Timing]] = {i: [t] for i, t in first.items()}
     failed: dict[int, int] = {i: 0 for i in first}
@@ -114,12 +116,14 @@ def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
         if not open_:
             break
         random.Random(seed * 1000 + rnd).shuffle(open_)
-        for i in open_:
-            got = time_one(i)
-            if got is None:
+        got = list(time_round(open_))
+        if len(got) != len(open_):
+            raise RuntimeError(f"repeats: {len(got)} time blocks for a round of {len(open_)} cells")
+        for i, t in zip(open_, got):
+            if t is None:
                 failed[i] += 1
             else:
-                times[i].append(got)
+                times[i].append(t)
         changed = {}
         for i in open_:
             blocks[i] = changed[i] = summary(times[i], failed[i])

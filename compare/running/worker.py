@@ -97,6 +97,17 @@ def graph_regime(be: Backend, device: Device, kernel: Any, sync: Any, max_time: 
         return Regime.of(failed=f"{type(exc).__name__}: {first}")
 
 
+PROFILE_S = 2.0     # --host-profile's budget: shares of a call settle within a few seconds of calls
+
+
+def profile_calls(throughput: Regime) -> int:
+    """Calls ``timing.host_profile`` makes: the throughput regime's batch (20 to 2000 calls), fewer
+    where those would outlast ``PROFILE_S`` (at least 3: a long call repeats its own work)."""
+    calls = max(20, min(throughput.k or 0, 2000))
+    per_call = throughput.median_s or 0.0
+    return max(3, min(calls, int(PROFILE_S / per_call))) if per_call > 0 else calls
+
+
 OWN_TIMER_BELOW_S = 0.01     # the framework's own timer cross-checks per-call cells, not long ones
 
 
@@ -219,13 +230,19 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
             nvml.sample()
     host = meter.stop()
     run_peak = peak_rss_bytes()               # before the download and the oracle add theirs
-    t0 = time.perf_counter()
-    got = kernel.outputs()
-    download_s = time.perf_counter() - t0
-    laps.lap("download")
-    if not isinstance(got, dict):
-        raise ContractError(f"contract: outputs() returned {type(got).__name__}, not a dict of arrays")
-    outputs = {k: np.asarray(v) for k, v in got.items()}
+    # a repeat process (compare.running.repeats) times the figures alone: the first process
+    # downloaded, checked, profiled and cross-checked the cell; no figure reads those again
+    first = cell.check
+    download_s: float | None = None
+    outputs: dict[str, np.ndarray] = {}
+    if first:
+        t0 = time.perf_counter()
+        got = kernel.outputs()
+        download_s = time.perf_counter() - t0
+        laps.lap("download")
+        if not isinstance(got, dict):
+            raise ContractError(f"contract: outputs() returned {type(got).__name__}, not a dict of arrays")
+        outputs = {k: np.asarray(v) for k, v in got.items()}
 
     # the regimes after the latency, in the order the time block keeps them
     regimes: dict[str, Regime | OwnTimer | timing.HostProfile] = {}
@@ -234,12 +251,13 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         # after the download: a failed capture cannot touch the outputs
         regimes["graph"] = graph_regime(be, device, kernel, sync, cell.max_time)
         laps.lap("graph")
-    if cell.host_profile and throughput is not None:   # after the peaks and the download too
-        calls = max(20, min(throughput.k or 0, 2000))
-        regimes["host_profile"] = timing.host_profile(kernel.run, sync, calls, cell.host_profile)
+    if first and cell.host_profile and throughput is not None:   # after the peaks and the download too
+        regimes["host_profile"] = timing.host_profile(kernel.run, sync, profile_calls(throughput),
+                                                      cell.host_profile)
         laps.lap("host_profile")
-    regimes["null"] = timing.null_call(sync)   # the harness's floor, on the now idle device
-    laps.lap("null")
+    if first:
+        regimes["null"] = timing.null_call(sync)   # the harness's floor, on the now idle device
+        laps.lap("null")
     # the framework's own clock, to cross-check ours: once per cell (the first process), in the
     # same stretch of that process; a repeat process (compare.running.repeats) times the figures alone
     if cell.check and (latency.median_s or 0.0) < OWN_TIMER_BELOW_S:

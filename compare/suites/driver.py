@@ -249,26 +249,42 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
                                footprint=lambda c: preflight.cell_bytes(c)[0])
     if repeats.plan(processes)[1] > 1:
         ran = [i for i in range(len(cells)) if i not in kept]
-        more_processes(cells, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat)
+        more_processes(cells, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat,
+                       ahead=run.ahead, footprint=lambda c: preflight.cell_bytes(c)[0])
     return results
 
 
 def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], processes: int | str,
                    seed: int, timeout: float, runner: Callable[[Cell], cells_.Result] | None = None,
-                   store: Store | None = None, on_repeat: Callable[[Timing], None] | None = None) -> None:
+                   store: Store | None = None, on_repeat: Callable[[Timing], None] | None = None,
+                   ahead: int = 0, footprint: Callable[[Cell], float] | None = None) -> None:
     """The repeat processes of every cell of ``ran`` whose first process finished ok, in seeded
     rounds (``compare.running.repeats.run_rounds``): each round's ``time.processes`` replaces the
     record's in ``done`` and in the store, saved once a round. ``on_repeat`` sees each repeat
-    process's ``time`` block (its parts, for the run's summary)."""
+    process's ``time`` block (its parts, for the run's summary). ``ahead`` > 0 (--overlap, local
+    workers): a round's workers set up side by side, in the round's order, each timed alone
+    (``compare.running.overlap``), as the first round's were."""
     first = {i: got[0].time for i in ran if (got := done[i])[0].status == "ok" and got[0].time is not None}
 
-    def time_one(i: int) -> Timing | None:
-        cell = dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
-        rec, _ = runner(cell) if runner is not None else cells_.run(cell, timeout)
-        t = Timing.from_json(rec["time"]) if rec.get("time") else None     # the worker's JSON
+    def again(i: int) -> Cell:      # a repeat process: no check, no files, only the figures
+        return dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
+
+    def figures_of(rec: dict[str, Any]) -> Timing | None:       # the worker's record JSON
+        t = Timing.from_json(rec["time"]) if rec.get("time") else None
         if on_repeat is not None and t is not None:
             on_repeat(t)
         return t if rec.get("status") == "ok" else None
+
+    def time_round(order: list[int]) -> list[Timing | None]:
+        if runner is not None or ahead <= 0 or len(order) < 2:
+            return [figures_of((runner(again(i)) if runner is not None else cells_.run(again(i), timeout))[0])
+                    for i in order]
+        got: dict[int, Timing | None] = {}
+        overlap.run_overlapped([again(i) for i in order], timeout,
+                               lambda k, result: got.__setitem__(k, figures_of(result[0])), ahead,
+                               need=footprint, budget=overlap.memory_budget(), lane=engine.gpu_lane,
+                               ordered=True)
+        return [got.get(k) for k in range(len(order))]
 
     def on_round(blocks: dict[int, Processes]) -> None:
         for i, block in blocks.items():
@@ -279,4 +295,4 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
                 store.put(done[i][0])
         if store is not None:
             store.save()
-    repeats.run_rounds(first, processes, seed, time_one, on_round)
+    repeats.run_rounds(first, processes, seed, time_round, on_round)

@@ -6,8 +6,10 @@
 DIR is one machine's store, as docs/results/h100/ and cpu/ are: results.json, sweep.json,
 stress.json, and the site in DIR/report/. The parts, in order (``--list`` prints each command):
 
-  all             every scenario in 'all', float32 and float64, every variant, both timing regimes,
+  all             every scenario in 'all', float32, every variant, both timing regimes,
                   --host-profile, each cell in 6-10 interleaved processes (--processes auto)
+                  whose set-ups run side by side, each cell timed alone (--overlap auto)
+  float64         the same cells in float64, one process each (parity with the oracle)
   large-DEV-SCn   a kernel-dominated size, float32, the default variant and those that change how
                   a bandwidth-bound kernel is issued or loads memory (graph, vector, tile). CUDA:
                   saxpy n=2^26 and 2^28, particles 2^24 (as the H100 store). CPU: saxpy 2^24 and
@@ -45,7 +47,9 @@ a 10-minute call limit, --budget 540 leaves time to copy DIR out).
 
 A checkout with uncommitted changes is refused (exit 2) unless --allow-dirty: a published store
 names the commit that measured it (each run keeps ``git_dirty_paths``). A copied tree whose .git
-may be stale names its commit in COMPARE_GIT_COMMIT and is taken on its word.
+may be stale names its commit in COMPARE_GIT_COMMIT and that commit's tree in COMPARE_GIT_TREE,
+which its files must match (its runs then say clean); with the commit alone it is taken on its
+word (tree state unknown).
 
 Exit: 0 every selected part done with 0; 1 some part ended with 1 or failed (rerun); 2 bad usage
 (one line, nothing written); 3 stopped by --budget with parts left; 130 Ctrl-C.
@@ -220,9 +224,15 @@ def print_list(parts: list[Part], chosen: list[Part], log: Log, out_s: str,
 
 def refuse_dirty(allowed: bool) -> None:
     """A published store names the commit that measured it: a checkout with uncommitted changes
-    is refused unless allowed. A copied tree names its commit (COMPARE_GIT_COMMIT) and is taken
-    on its word: its .git may be stale."""
-    if allowed or os.environ.get("COMPARE_GIT_COMMIT", "").strip():
+    is refused unless allowed. A copied tree (its .git may be stale) names its commit
+    (COMPARE_GIT_COMMIT) and that commit's tree (COMPARE_GIT_TREE), which its files must match;
+    with the commit alone it is taken on its word (its runs say the tree state is unknown)."""
+    if allowed:
+        return
+    if os.environ.get("COMPARE_GIT_COMMIT", "").strip():
+        if environment.copy_dirty():
+            raise UsageError("the copied tree's files differ from COMPARE_GIT_TREE (the tree of "
+                             "COMPARE_GIT_COMMIT): copy a clean checkout of that commit, or pass --allow-dirty")
         return
     paths = environment.dirty_paths()
     if paths:

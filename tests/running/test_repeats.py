@@ -46,7 +46,8 @@ def test_auto_stops_a_settled_cell_and_runs_a_scattered_one_to_the_maximum():
         calls[i] += 1
         return _t(next(values[i]))
     rounds: list[list[int]] = []
-    out = repeats.run_rounds({0: _t(1e-5), 1: _t(2e-5)}, "auto", 0, time_one, lambda b: rounds.append(sorted(b)))
+    out = repeats.run_rounds({0: _t(1e-5), 1: _t(2e-5)}, "auto", 0, lambda order: [time_one(i) for i in order],
+                             lambda b: rounds.append(sorted(b)))
     assert calls == {0: repeats.AUTO_MIN - 1, 1: repeats.AUTO_MAX - 1}
     assert out[0]["count"] == repeats.AUTO_MIN and out[1]["count"] == repeats.AUTO_MAX
     assert repeats.settled(out[0]) and not repeats.settled(out[1])
@@ -54,8 +55,26 @@ def test_auto_stops_a_settled_cell_and_runs_a_scattered_one_to_the_maximum():
 
 
 def test_a_failed_repeat_is_counted_not_hidden():
-    out = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda i: None, lambda b: None)
+    out = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda order: [None] * len(order), lambda b: None)
     assert out[0]["count"] == 1 and out[0]["failed"] == 2
+
+
+def test_a_round_is_timed_in_its_seeded_order_and_must_answer_for_every_cell():
+    """Each round hands the whole shuffled order to ``time_round`` at once (so set-ups may run
+    side by side), the same order for the same seed; an answer that skips a cell is refused."""
+    orders: list[list[int]] = []
+
+    def time_round(order: list[int]) -> list[Timing]:
+        orders.append(list(order))
+        return [_t(1e-5) for _ in order]
+    first = {i: _t(1e-5) for i in range(8)}
+    repeats.run_rounds(first, 3, 5, time_round, lambda b: None)
+    again: list[list[int]] = []
+    repeats.run_rounds(first, 3, 5, lambda o: again.append(list(o)) or [_t(1e-5) for _ in o], lambda b: None)
+    assert len(orders) == 2 and orders == again and sorted(orders[0]) == list(range(8))
+    assert orders[0] != orders[1]          # each round its own shuffle
+    with pytest.raises(RuntimeError, match="time blocks for a round"):
+        repeats.run_rounds(first, 2, 5, lambda o: [_t(1e-5)], lambda b: None)
 
 
 def test_the_site_reads_the_median_of_processes_and_its_interval():

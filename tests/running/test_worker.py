@@ -99,3 +99,30 @@ def test_in_blocks_and_record_layout():
     assert worker.in_blocks([1.0, 2.0, 3.0, 4.0], 2) == pytest.approx(worker.in_blocks([1.5, 3.5], 1))
     rec = worker.record_of(quick(tags={"sweep": "x"}), status="ok", time=None)
     assert rec.layout[:2] == ("status", "time") and rec.layout[-1] == "tags" and rec.tags == {"sweep": "x"}
+
+
+def test_a_repeat_process_times_the_figures_alone(tmp_path):
+    """check=False (compare.running.repeats): the figures the rounds read, without the download,
+    the oracle, the host profile, the null call or the framework's own timer, which the first
+    process of the cell made once."""
+    settings = {"throughput": True, "host_profile": 3}
+    worker.run_one(quick(**settings).to_dict(), tmp_path / "first")
+    worker.run_one(quick(check=False, **settings).to_dict(), tmp_path / "again")
+    first, again = record_in(tmp_path / "first"), record_in(tmp_path / "again")
+    assert first["status"] == again["status"] == "ok"
+    for k in ("host_profile", "null"):
+        assert k in first["time"] and k not in again["time"], k
+    assert first["time"]["download_s"] is not None and again["time"].get("download_s") is None
+    assert "error" in first and again.get("error") is None
+    assert "download" not in again["time"]["phases"] and "check" not in again["time"]["phases"]
+    for k in ("latency", "throughput", "first_call_s", "setup_s"):
+        assert again["time"][k] is not None, k
+    assert not (tmp_path / "again" / "outputs.npz").exists()
+
+
+def test_the_host_profile_is_bounded_by_its_time_budget():
+    from compare.results.record_parts import Regime
+    assert worker.profile_calls(Regime.of(median_s=1e-5, k=4096)) == 2000      # the batch, at most 2000
+    assert worker.profile_calls(Regime.of(median_s=1e-5, k=4)) == 20            # at least 20 short calls
+    assert worker.profile_calls(Regime.of(median_s=0.5, k=1)) == 4              # PROFILE_S of long ones
+    assert worker.profile_calls(Regime.of(median_s=30.0, k=1)) == 3             # never fewer than 3

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +11,7 @@ import pytest
 from compare.suites import driver, publish, run as run_suite
 from compare import options
 from compare.options import UsageError
+from compare.results.record import Record
 from compare.suites import stress as stress_suite
 from compare.suites import sweep as sweep_suite
 
@@ -174,3 +176,29 @@ def test_every_subcommand_is_a_command_class_dispatched_alike() -> None:
     command.add_arguments(p)
     assert command().run(p.parse_args(["--flag"]), ["x", "--flag"]) == 3 and seen == [(True, ["x", "--flag"])]
     assert command.summary() == "a module-like command: its docstring's first line is its help"
+
+
+def test_overlapped_repeat_rounds_keep_the_rounds_order(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """--overlap with --processes: each repeat round's workers set up side by side
+    (overlap.run_overlapped, every cell timed alone) in the round's seeded order, and every cell's
+    record keeps every process's figures."""
+    from compare.running import overlap
+    from compare.spec import Cell
+    calls: list[tuple[list[str], bool, int]] = []
+    real = overlap.run_overlapped
+
+    def spy(plan: list[Any], timeout: Any, on_result: Any, ahead: int, **kw: Any) -> None:
+        calls.append(([c.variant for c in plan], kw.get("ordered", False), ahead))
+        assert all(not c.check and not c.save_outputs for c in plan)     # repeat processes
+        real(plan, timeout, on_result, ahead, **kw)
+    monkeypatch.setattr(overlap, "run_overlapped", spy)
+    cell = Cell.make(scenario="saxpy", backend="numpy", device="cpu", precision="float32", quick=True,
+                     repeat=3, min_time=0.0, cache="warm")
+    plan = [cell, dataclasses.replace(cell, params=dataclasses.replace(cell.params, n=cell.params.n + 1))]
+    from compare.running import cells as cells_
+    done = [(Record.from_json({**cells_.run(c, 300)[0], **c.identity()}), None) for c in plan]
+    driver.more_processes(plan, done, [0, 1], 3, 7, 300.0, ahead=1)
+    assert len(calls) == 2 and all(ordered and ahead == 1 and len(v) == 2 for v, ordered, ahead in calls)
+    for rec, _ in done:
+        block = rec.time["processes"]
+        assert block["count"] == 3 and len(block["latency"]["values"]) == 3

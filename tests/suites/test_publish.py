@@ -11,7 +11,7 @@ import time
 import pytest
 
 from conftest import ROOT
-from compare import cli
+from compare import cli, options
 from compare.measuring import environment
 from compare.suites import publish
 
@@ -83,7 +83,15 @@ def test_a_dirty_checkout_is_refused_unless_allowed(tmp_path, capsys, monkeypatc
     assert cli.main([*args, "--list"]) == 0 and not out.exists()      # listing runs nothing
     publish.refuse_dirty(allowed=True)                                 # allowed: the runs name the paths
     monkeypatch.setenv("COMPARE_GIT_COMMIT", "abc1234")                # a copied tree names its commit
+    monkeypatch.delenv("COMPARE_GIT_TREE", raising=False)
+    monkeypatch.setattr(environment, "files_digest", lambda commit=None: "mine")
+    publish.refuse_dirty(allowed=False)                                # ... alone: taken on its word
+    monkeypatch.setenv("COMPARE_GIT_TREE", "mine")                     # ... and its files' digest
     publish.refuse_dirty(allowed=False)
+    monkeypatch.setenv("COMPARE_GIT_TREE", "theirs")                   # the copy is not that commit's
+    with pytest.raises(options.UsageError, match="differ from COMPARE_GIT_TREE"):
+        publish.refuse_dirty(allowed=False)
+    publish.refuse_dirty(allowed=True)
 
 
 def test_a_run_names_its_uncommitted_paths(monkeypatch):

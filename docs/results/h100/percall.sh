@@ -6,15 +6,17 @@
 # seconds, then copies what is finished to $OUT:
 #
 #   device calls 1..N: bash .gpu/pK/install.sh   (the wheels the GPU image lacks: ../shared/gpu/stage-wheels)
-#   device call N:     ... && COMMIT=<this checkout's HEAD> bash docs/results/h100/percall.sh start
-#   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT)
+#   device call N:     ... && COMMIT=$(git rev-parse HEAD) TREE=$(python -m compare.measuring.environment HEAD) \
+#                      bash docs/results/h100/percall.sh start      (both expanded here)
+#   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT, and say
+#   clean only where the copy's files are the commit's, by the digest TREE: COMPARE_GIT_TREE)
 #   next calls:        bash docs/results/h100/percall.sh          (until it says "ended")
 # RUNS names the runs (default "a b"); they run in a copy of the tree (/root/tree), so that a later
 # call's fresh copy of the working tree cannot change a module under a running worker.
 set -u
 W=/root/percall
 WAIT=${WAIT:-540}
-export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 COMPARE_GIT_COMMIT=${COMMIT:-}
+export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 COMPARE_GIT_COMMIT=${COMMIT:-} COMPARE_GIT_TREE=${TREE:-}
 # ROW picks the rows: percall (SAXPY n = 10^6, every variant), defaults, or gradients (the batched projectile
 # at the scaling sweep's largest point: batch 2^20, hard contact, 20 iterations; both gradient rows).
 case ${ROW:-percall} in
@@ -25,7 +27,7 @@ case ${ROW:-percall} in
   *) echo "ROW: percall, gradients or defaults"; exit 2 ;;
 esac
 if [ "${1:-wait}" = start ]; then
-  [ -n "${COMMIT:-}" ] || { echo "name the commit: COMMIT=<sha> bash $0 start"; exit 2; }
+  [ -n "${COMMIT:-}" ] && [ -n "${TREE:-}" ] || { echo "name the commit and its tree: COMMIT=<sha> TREE=<sha> bash $0 start"; exit 2; }
   mkdir -p "$W" && rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu . | tar -x -C /root/tree
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
   script="cd /root/tree; export PYTHONPATH=/tmp/site:/root/tree; "

@@ -5,9 +5,10 @@
 # copies what it has so far to $OUT:
 #
 #   device calls 1..N: bash .gpu/pK/install.sh   (wheels the GPU image lacks: ../shared/gpu/stage-wheels)
-#   device call N:     ... && COMMIT=<this checkout's HEAD> bash docs/results/h100/publish.sh start "BACKENDS:PARTS" ...
-#   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT; commit first,
-#   as publish refuses uncommitted changes)
+#   device call N:     ... && COMMIT=$(git rev-parse HEAD) TREE=$(python -m compare.measuring.environment HEAD) \
+#                      bash docs/results/h100/publish.sh start "BACKENDS:PARTS" ...   (both expanded here)
+#   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT, and publish
+#   checks the copy's files against the digest TREE, COMPARE_GIT_TREE: commit first, nothing untracked)
 #   (a later machine: unpack the last publish.tgz into .pubstate/ and carry it in that call)
 #   next calls:        bash docs/results/h100/publish.sh wait     (until it says "publish ended")
 #
@@ -18,16 +19,19 @@
 set -u
 W=/root/publish
 WAIT=${WAIT:-540}
-export PYTHONPATH=/tmp/site:$PWD COMPARE_GIT_COMMIT=${COMMIT:-}
+export PYTHONPATH=/tmp/site:/root/tree COMPARE_GIT_COMMIT=${COMMIT:-} COMPARE_GIT_TREE=${TREE:-} PYTHONUNBUFFERED=1
 if [ "${1:-wait}" = start ]; then
   shift
-  [ -n "${COMMIT:-}" ] || { echo "name the commit: COMMIT=<sha> bash $0 start ..."; exit 2; }
+  [ -n "${COMMIT:-}" ] && [ -n "${TREE:-}" ] || { echo "name the commit and its tree: COMMIT=<sha> TREE=<sha> bash $0 start ..."; exit 2; }
   mkdir -p "$W"
+  # the parts run in a copy of the tree (/root/tree): a later call's fresh copy of the working tree
+  # cannot change a module under a running worker
+  rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu --exclude=./.pubstate . | tar -x -C /root/tree
   # a carried .pubstate/ (an earlier machine's --out, unpacked) lets --resume skip what it finished
   [ -d .pubstate ] && cp -r .pubstate/. "$W"/ && rm -f "$W"/.*.lock
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
   [ "$#" -gt 0 ] || set -- "all:all,large"
-  script=""
+  script="cd /root/tree; "
   for run in "$@"; do
     script+="python -m compare publish --out $W --devices cuda --backends ${run%%:*} --part ${run#*:}; "
   done
