@@ -88,8 +88,9 @@ def files_digest(commit: str | None = None) -> str:
     import tempfile
     with tempfile.TemporaryDirectory() as tmp:
         env = {**os.environ, "GIT_INDEX_FILE": str(Path(tmp) / "index")}
-        steps = ([["git", "ls-tree", "-r", "-z", commit]] if commit else
-                 [["git", "add", "-A", "."], ["git", "ls-files", "-s", "-z"]])
+        git = ["git", "-c", "safe.directory=*"]      # a copy may belong to another user (root on a lent machine)
+        steps = ([[*git, "ls-tree", "-r", "-z", commit]] if commit else
+                 [[*git, "add", "-A", "."], [*git, "ls-files", "-s", "-z"]])
         try:
             for cmd in steps:
                 done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, env=env)

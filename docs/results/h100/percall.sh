@@ -28,7 +28,7 @@ case ${ROW:-percall} in
 esac
 if [ "${1:-wait}" = start ]; then
   [ -n "${COMMIT:-}" ] && [ -n "${TREE:-}" ] || { echo "name the commit and its tree: COMMIT=<sha> TREE=<sha> bash $0 start"; exit 2; }
-  mkdir -p "$W" && rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu . | tar -x -C /root/tree
+  mkdir -p "$W" && rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu . | tar -x --no-same-owner -C /root/tree
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
   script="cd /root/tree; export PYTHONPATH=/tmp/site:/root/tree; "
   for r in ${RUNS:-a b}; do script+="$run --out $W/$r; "; done

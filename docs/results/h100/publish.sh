@@ -26,7 +26,7 @@ if [ "${1:-wait}" = start ]; then
   mkdir -p "$W"
   # the parts run in a copy of the tree (/root/tree): a later call's fresh copy of the working tree
   # cannot change a module under a running worker
-  rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu --exclude=./.pubstate . | tar -x -C /root/tree
+  rm -rf /root/tree && mkdir /root/tree && tar -c --exclude=./.gpu --exclude=./.pubstate . | tar -x --no-same-owner -C /root/tree
   # a carried .pubstate/ (an earlier machine's --out, unpacked) lets --resume skip what it finished
   [ -d .pubstate ] && cp -r .pubstate/. "$W"/ && rm -f "$W"/.*.lock
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$W/gpu.txt"
