@@ -19,7 +19,7 @@ from typing import Any, Iterable, Mapping
 
 from compare.render import charts
 from compare.results.record import Record
-from compare.site import data, fmt
+from compare.site import data, fmt, provenance
 from compare.site.data import Machine, Timing
 from compare.site.questions_pages import Ctx
 from compare.site.render import Block, Figure, H, Items, P, Table
@@ -66,7 +66,7 @@ def _env_rows(m: Machine) -> dict[str, str]:
             "OS": _distinct(e.get("os") for e in envs),
             "Python": _distinct(e.get("python") for e in envs),
             "CUDA toolkit": _distinct(e.get("cuda_toolkit") for e in envs),
-            "commits": _distinct(str(e.get("git_commit")) + (" (dirty)" if e.get("git_dirty") else "")
+            "commits": _distinct(provenance.short(e.get("git_commit")) + (" (dirty)" if e.get("git_dirty") else "")
                                  for e in envs if e.get("git_commit"))}
     load = host_load(m)
     rows["host load while timing (1-min average, median over cells)"] = f"{load:.1f}" if load is not None else "-"

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from compare.site import data, fmt, pages, questions, topics
+from compare.site import data, fmt, pages, provenance, questions, topics
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.render import H, Items, P, Table, page_html, page_md
@@ -66,7 +66,7 @@ def machine(c: qp.Ctx) -> list[Any]:
         f"CPU: {m.cpu_name()}, {first.get('memory_gib', '?')} GiB memory",
         f"OS: {first.get('os', '?')}; Python {', '.join(sorted({str(e.get('python')) for e in envs if e.get('python')}))}",
         "CUDA toolkit: " + ", ".join(sorted({str(e['cuda_toolkit']) for e in envs if e.get("cuda_toolkit")}) or ["-"]),
-        f"Commits: {', '.join(sorted({str(e.get('git_commit')) for e in envs if e.get('git_commit')}))}",
+        f"Commits: {', '.join(sorted({provenance.short(e.get('git_commit')) for e in envs if e.get('git_commit')}))}",
     )))]
     blocks += [H("Package versions"), Table(("package", "version(s)"), tuple(_packages(m)))]
     yard = []
@@ -102,7 +102,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                         "the runs below, not by one `python -m compare publish`."))
     blocks += [H("Runs that produced these records"),
                Table(("created", "commit", "tree", "command"), tuple(
-                   (str(e.get("created", "?"))[:19], str(e.get("git_commit", "?")), _tree(e), str(e.get("command", "?")))
+                   (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e), str(e.get("command", "?")))
                    for e in envs))]
     blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
                              + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "

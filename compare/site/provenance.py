@@ -6,11 +6,19 @@ that reads any of them, or records of several runs, shows its figures and names 
 """
 from __future__ import annotations
 
+import re
 from typing import Iterable
 
 from compare.results.record import Record
 
 UNSTAMPED = "records without a run stamp (made before runs were recorded)"
+
+
+def short(sha: object) -> str:
+    """A commit as pages name it: a full 40-digit hash (a lent machine's COMPARE_GIT_COMMIT)
+    shortened to git's 7, anything else as given."""
+    text = str(sha)
+    return text[:7] if re.fullmatch(r"[0-9a-f]{40}", text) else text
 
 
 def label(rec: Record) -> str:
@@ -19,7 +27,7 @@ def label(rec: Record) -> str:
     created = str(run.get("created") or "")
     if not created:
         return ""
-    commit = run.get("commit") or "unknown commit"
+    commit = short(run.get("commit")) if run.get("commit") else "unknown commit"
     dirty = run.get("dirty")
     state = " (dirty tree)" if dirty else "" if dirty is False else " (tree state unknown)"
     return f"run {created[:16].replace('T', ' ')} UTC, commit {commit}{state}"

@@ -37,3 +37,9 @@ def test_one_run_ranks_several_or_unstamped_do_not():
     mixed = provenance.words(provenance.runs_of([rec(A), rec()]))
     assert "1 run(s) and " + provenance.UNSTAMPED in mixed and "no best is named" in mixed
     assert provenance.words(()) == "No records."
+
+
+def test_a_full_commit_hash_is_shortened_on_pages_and_anything_else_kept():
+    from compare.site import provenance
+    assert provenance.short("0ffd82b02e538da2c427e5697a9f567f429b5845") == "0ffd82b"
+    assert provenance.short("ae30861") == "ae30861" and provenance.short("?") == "?"
