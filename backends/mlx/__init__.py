@@ -147,8 +147,9 @@ class MlxBackend(Backend):
     related_packages = ("mlx-cpu", "mlx-cuda-12", "mlx-cuda-13", "mlx-metal")
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
-        # MLX keeps the CPU's compiled kernels (.cpp and .so) under temp_directory_path()/mlx
-        return {"TMPDIR": str(cache_dir / "mlx-tmp")}
+        # MLX keeps the CPU's compiled kernels (.cpp and .so) under temp_directory_path()/mlx, and
+        # the CUDA JIT's PTX there too unless MLX_PTX_CACHE_DIR (a user's own, here replaced) says
+        return {"TMPDIR": str(cache_dir / "mlx-tmp"), "MLX_PTX_CACHE_DIR": str(cache_dir / "mlx-ptx")}
 
     def available(self) -> dict[str, str | None]:
         reason = not_installed("mlx.core", self.package, extra="mlx")

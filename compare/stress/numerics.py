@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Iterable, Mapping, Protocol, Sequence, TypedDict, TypeVar
+from typing import Any, BinaryIO, Callable, Iterable, Mapping, Protocol, Sequence, TypedDict, TypeVar, cast
 
 import numpy as np
 
@@ -40,10 +40,9 @@ class Row:
     detail: str = ""
 
     def to_json(self) -> Finding:
-        """The stored form: the COLUMNS, in their order."""
-        return Finding(experiment=self.experiment, backend=self.backend, device=self.device,
-                       precision=self.precision, setting=self.setting, figure=self.figure, value=self.value,
-                       verdict=self.verdict, detail=self.detail)
+        """The stored form: the COLUMNS, in their order (``Finding`` lists the same columns: a
+        test holds the two together)."""
+        return cast(Finding, {c: getattr(self, c) for c in COLUMNS})
 
 
 # the columns of a finding (stress.md, stress.json's analysis.rows), in order

@@ -220,6 +220,8 @@ def test_cold_cache_compiles_into_the_cells_directory(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     built = list(Path(env["TMPDIR"]).rglob("*.so"))
     assert built and all(str(b).startswith(str(tmp_path)) for b in built), os.listdir(tmp_path)
+    # the CUDA JIT's PTX cache too, whatever MLX_PTX_CACHE_DIR the user had set
+    assert Path(env["MLX_PTX_CACHE_DIR"]).parent == tmp_path
 
 
 def test_devices_and_precisions_say_why():

@@ -78,3 +78,13 @@ def test_ulps_of_correctly_rounded_results_are_at_most_half():
     ref = np.random.default_rng(1).standard_normal(1000)
     assert np.max(numerics.ulps(ref.astype(np.float32), ref)) <= 0.5
     assert numerics.ulps(np.float32([1.0 + 2 ** -23]), np.array([1.0]))[0] == 1.0
+
+
+def test_a_row_and_its_stored_form_list_the_same_columns_in_order():
+    """numerics.Row (the row an experiment makes) and results.analysis.Finding (its form in
+    stress.json, which the pages read) are one row in two places: their columns must agree."""
+    from compare.results.analysis import Finding
+    from compare.stress.numerics import COLUMNS, Row
+    assert tuple(Finding.__annotations__) == COLUMNS
+    row = Row("ulps", "numpy", "cpu", "float32", "n=1", "max ulp", 1, "ok")
+    assert list(row.to_json()) == list(COLUMNS) and row.to_json()["detail"] == ""
