@@ -114,4 +114,3 @@ def params_text(p: Mapping[str, ParamValue], defaults: Mapping[str, ParamValue])
     """The parameters that differ from the scenario's defaults, as ``k=v`` (or 'defaults')."""
     diff = [f"{k}={v}" for k, v in (p or {}).items() if defaults.get(k, v) != v]
     return ", ".join(diff) if diff else "defaults"
-
