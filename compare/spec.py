@@ -91,6 +91,8 @@ class Cell:
     save_inputs: bool = False           # also the inputs (--save-arrays)
     check: bool = True                  # False: a repeat process of a checked cell, its figures alone
                                         # (no download, oracle, host profile, null call or own timer)
+    cache_dir: str = ""                 # cold caches in this directory, which outlives the process: empty,
+                                        # this process fills it; filled, it starts from them ('kept')
 
     def __post_init__(self) -> None:
         device, precision = _identity(*(getattr(self, f) for f in IDENTITY))
@@ -119,6 +121,8 @@ class Cell:
                 raise SpecError(f"cell spec: {f} must be an integer >= 0, got {v!r}")
         if self.timer not in ("auto", "wall") or self.cache not in ("cold", "warm"):
             raise SpecError(f"cell spec: timer must be auto|wall and cache cold|warm, got {self.timer!r}, {self.cache!r}")
+        if not isinstance(self.cache_dir, str) or (self.cache_dir and self.cache != "cold"):
+            raise SpecError(f"cell spec: cache_dir must be a path (with cache cold), got {self.cache_dir!r}")
 
     @classmethod
     def make(cls, scenario: str, backend: str, device: str, precision: str, variant: str = "default",

@@ -54,6 +54,8 @@ def test_make_resolves_overrides_over_the_quick_sizes_over_the_defaults() -> Non
     ({"warmup": -1}, "warmup must be an integer >= 0"),
     ({"timer": "cycles"}, "timer must be auto|wall"),
     ({"tags": [1]}, "tags must be a mapping"),
+    ({"cache_dir": 3}, "cache_dir must be a path"),
+    ({"cache_dir": "/tmp/x", "cache": "warm"}, "cache_dir must be a path (with cache cold)"),
 ])
 def test_a_malformed_cell_is_one_line_naming_its_field(d: dict, needle: str) -> None:
     good = {"scenario": "saxpy", "backend": "numpy", "device": "cpu", "precision": "float32"}

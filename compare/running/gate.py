@@ -3,8 +3,11 @@ the cell's clocks start, and say when they have stopped.
 
 The driver passes the read end of a pipe (``COMPARE_GATE_FD``); the worker writes ``ready`` in
 its cell directory and blocks on the pipe until the driver writes a byte, then writes ``timed``
-when its timed regions are over. Without the variable (a plain worker, a Dask task) both are
-no-ops: the cell's clocks start as soon as it is set up.
+when its timed regions are over. Once its record is written it *parks*: it blocks on the same pipe
+until the driver closes it, so that its exit (a framework's teardown, seconds for some) runs while
+the next workers set up, never while another cell is timed, and no gate waits for it. Without the
+variable (a plain worker, a Dask task) all three are no-ops: the cell's clocks start as soon as it
+is set up and the process exits when it is done.
 """
 from __future__ import annotations
 
@@ -30,7 +33,6 @@ class Gate:
             (self.dir / READY).touch()
             if not os.read(self.fd, 1):              # the driver is gone: no clock may start
                 raise SystemExit("the driver closed the gate")
-            os.close(self.fd)
         self.window = [time.time()]
 
     def release(self) -> None:
@@ -40,3 +42,17 @@ class Gate:
         self.window.append(time.time())
         if self.fd is not None:
             (self.dir / TIMED).touch()
+
+    def park(self) -> None:
+        """The record is written: idle until the driver closes the pipe (or is gone), then return
+        so the process exits. A worker that failed before its gate parks the same way."""
+        if self.fd is None:
+            return
+        try:
+            while os.read(self.fd, 1):
+                pass
+        except OSError:
+            pass
+        finally:
+            os.close(self.fd)
+            self.fd = None

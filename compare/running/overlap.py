@@ -16,7 +16,10 @@ workers set up at the same time, then their gates open one after another:
   estimates together within the budget;
 - each cell still has its own process and empty kernel caches, so its first call is as cold
   as one at a time; waiting at the gate is its own part (``time.phases.wait``) and does not
-  count against ``timeout``.
+  count against ``timeout``;
+- a worker whose record is in *parks* (``Gate.park``): idle, it neither holds a gate nor exits
+  until no window is open or due; then its pipe is closed and it exits while the next workers
+  set up, and no gate opens before it is gone. Its lane and memory stay taken until then.
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable, IO
+from typing import Any, Callable, IO, Sequence
 
 from compare.running import cells, lifeline
 from compare.measuring import environment, phases
@@ -72,17 +75,20 @@ class _Job:
     gate: int                      # the write end of the worker's gate pipe
     err: IO[str]
     launched: float
-    state: str = "start"           # start -> ready -> timed -> after -> (exit)
+    state: str = "start"           # start -> ready -> timed -> after -> (parked -> exiting) -> (exit)
     ready_at: float = 0.0
     waited: float = 0.0
     result: Result | None = None
 
     def close(self) -> None:
-        for f in (lambda: os.close(self.gate), self.err.close):
+        """Once only: a closed descriptor's number may already be another worker's pipe."""
+        if self.gate >= 0:
             try:
-                f()
+                os.close(self.gate)
             except OSError:
                 pass
+            self.gate = -1
+        self.err.close()
 
 
 def memory_budget() -> float:
@@ -101,21 +107,29 @@ def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[
     ``ordered``: keep the plan's order (a repeat round's seeded shuffle) rather than ``schedule``'s."""
     todo = list(range(len(plan))) if ordered else schedule(plan)
     active: list[_Job] = []
+    idle: list[_Job] = []          # parked or exiting: results in, processes not yet gone
     with lifeline.temp_dir("overlap-") as tmp:
         root = Path(tmp)
         try:
-            while todo or active:
+            while todo or active or idle:
                 now = time.monotonic()
                 for job in list(active):
-                    if _advance(job, now, timeout):
-                        active.remove(job)
+                    over = _advance(job, now, timeout)
+                    if not over and job.state != "parked":
+                        continue
+                    active.remove(job)
+                    if job.result is None:      # _advance finishes a job only once it has one
+                        raise RuntimeError(f"overlap: cell {job.i} finished without a result")
+                    on_result(job.i, job.result)
+                    if over:
                         job.close()
-                        if job.result is None:      # _advance finishes a job only once it has one
-                            raise RuntimeError(f"overlap: cell {job.i} finished without a result")
-                        on_result(job.i, job.result)
                         _remove(job.dir)
-                _grant(active)
-                started = _launchable(todo, active, plan, ahead, need, budget, lane)
+                    else:
+                        idle.append(job)
+                idle = _release(idle, active, now)
+                if not any(j.state == "exiting" for j in idle):
+                    _grant(active)
+                started = _launchable(todo, active, plan, ahead, need, budget, lane, idle)
                 if started is not None:
                     todo.remove(started)
                     active.append(_launch(started, plan[started], root, timeout))
@@ -123,7 +137,7 @@ def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[
                 # while a window is open the driver's own polling is other work: rarely then
                 time.sleep(0.01 if any(j.state == "timed" for j in active) else 0.002)
         finally:                       # the driver gives up (a full disk, Ctrl-C): no worker runs on
-            for job in active:
+            for job in active + idle:
                 if job.proc.poll() is None:
                     job.proc.kill()
                     job.proc.wait()
@@ -160,6 +174,9 @@ def _advance(job: _Job, now: float, timeout: float | None) -> bool:
     alive = job.proc.poll() is None
     if job.result is not None and not alive:
         return True
+    if job.result is not None and job.state == "after":     # its worker parks (Gate.park): idle
+        job.state = "parked"
+        return False
     spent = now - job.launched - job.waited - (now - job.ready_at if job.state == "ready" else 0.0)
     if alive and (timeout is None or spent <= timeout):
         return False
@@ -175,6 +192,30 @@ def _advance(job: _Job, now: float, timeout: float | None) -> bool:
         why = cells.died(job.proc, job.err.read())
     job.result = ({"status": "error", "reason": why}, None)
     return True
+
+
+EXIT_S = 60.0       # a released worker that has not exited by then is killed (its record is in)
+
+
+def _release(idle: list[_Job], active: list[_Job], now: float) -> list[_Job]:
+    """Close the pipes of the parked workers once no window is open or due (no active worker is
+    ready or timed), so they exit while the next workers set up; the idle jobs still alive."""
+    if not any(j.state in ("ready", "timed") for j in active):
+        for job in idle:
+            if job.state == "parked":
+                job.close()
+                job.state, job.ready_at = "exiting", now
+    left = []
+    for job in idle:
+        if job.state == "exiting" and job.proc.poll() is None and now - job.ready_at > EXIT_S:
+            job.proc.kill()
+            job.proc.wait()
+        if job.proc.poll() is None:
+            left.append(job)
+        else:
+            job.close()
+            _remove(job.dir)
+    return left
 
 
 def _grant(active: list[_Job]) -> None:
@@ -194,18 +235,19 @@ def _grant(active: list[_Job]) -> None:
 
 def _launchable(todo: list[int], active: list[_Job], plan: list[Cell], ahead: int,
                 need: Callable[[Cell], float] | None, budget: float | None,
-                lane: Callable[[Cell], Any] | None) -> int | None:
+                lane: Callable[[Cell], Any] | None, idle: Sequence[_Job] = ()) -> int | None:
     """The next cell to start now, or None: at most 1 + ``ahead`` workers, and only while none is
     ready or timed (set-ups start together, then the gates open one by one); within the memory
-    budget and the lanes."""
+    budget and the lanes, which ``idle`` workers (parked or exiting) still hold."""
     if not todo or len(active) > ahead:
         return None
-    if not active:
+    if not active and not idle:
         return todo[0]
     if any(j.state in ("ready", "timed") for j in active):
         return None
-    held = sum(need(j.cell) for j in active) if need else 0.0
-    lanes = {lane(j.cell) for j in active} if lane else set()
+    present = [*active, *idle]
+    held = sum(need(j.cell) for j in present) if need else 0.0
+    lanes = {lane(j.cell) for j in present} if lane else set()
     for i in todo[:1 + ahead]:
         cell = plan[i]
         if need and budget is not None and held + need(cell) > budget:

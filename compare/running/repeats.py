@@ -8,11 +8,17 @@ others time the same cell again without the check (``Cell.check``), in rounds, e
 every cell still open in a seeded shuffle, so that drift of the host reaches every framework alike.
 
 Per figure (latency, throughput, graph, device events, time to first result = set-up + first
-call) the record keeps every process's value and the median with its distribution-free interval
+call, from the cold processes alone) the record keeps every process's value and the median with its distribution-free interval
 (order statistics of the binomial: the narrowest ``[x_(j), x_(n+1-j)]`` whose coverage is at least
 ``CONFIDENCE``; with fewer than 6 processes no such pair exists, the interval is the range and its
 coverage, below 95 %, is stored). ``auto``: processes are added until every figure's interval
 lies within ``TARGET`` of its median, from ``AUTO_MIN`` to ``AUTO_MAX`` processes.
+
+Time to first result needs cold kernel caches, the other figures do not: a first call that
+compiles for a minute (MLX's) would otherwise fill every repeat process. So the first ``COLD``
+processes of a cell start from empty caches; the ``COLD``-th keeps its caches in a directory
+(``Cell.cache_dir``) that the later processes start from (their ``time.cache`` says ``kept``), and
+the first-result figure is the ``COLD`` cold processes' (it does not keep a round open after them).
 """
 from __future__ import annotations
 
@@ -26,6 +32,7 @@ from compare.results.record_parts import Figure, Processes, Timing
 CONFIDENCE = 0.95
 TARGET = 0.05            # stop when the interval is within +-5 % of the median
 AUTO_MIN, AUTO_MAX = 6, 10
+COLD = 3                 # processes with cold caches: the first-result figure's
 FIGURES = Processes.FIGURES
 
 
@@ -54,9 +61,16 @@ def figures(t: Timing) -> dict[str, float]:
         if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0:
             out[name] = float(v)
     first, setup = t.get("first_call_s"), t.get("setup_s")
+    if kept(t):
+        return out
     if isinstance(first, (int, float)) and isinstance(setup, (int, float)):
         out["first_result"] = float(first) + float(setup)
     return out
+
+
+def kept(t: Timing) -> bool:
+    """The process started from the kernel caches an earlier one of its cell left (not cold)."""
+    return str(t.get("cache") or "").startswith("kept")
 
 
 def summary(times: Sequence[Timing], failed: int = 0) -> Processes:
@@ -76,11 +90,13 @@ def summary(times: Sequence[Timing], failed: int = 0) -> Processes:
                         **({"failed": failed} if failed else {}))
 
 
-def settled(block: Processes, target: float = TARGET, confidence: float = CONFIDENCE) -> bool:
-    """Every figure's interval (at ``confidence``) lies within ``target`` of its median."""
+def settled(block: Processes, target: float = TARGET, confidence: float = CONFIDENCE,
+            closed: Sequence[str] = ()) -> bool:
+    """Every figure's interval (at ``confidence``) lies within ``target`` of its median; the
+    ``closed`` figures (no further process adds to them) are not asked."""
     for name in FIGURES:
         f = block.figure(name)
-        if f is None:
+        if f is None or name in closed:
             continue
         if f.confidence < confidence:
             return False
@@ -99,24 +115,26 @@ def plan(processes: int | str) -> tuple[int, int]:
 
 
 def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
-               time_round: Callable[[list[int]], Sequence[Timing | None]],
+               time_round: Callable[[list[int], int], Sequence[Timing | None]],
                on_round: Callable[[dict[int, Processes]], None]) -> dict[int, Processes]:
     """More processes for the cells in ``first`` (index -> the first process's ``time`` block):
     rounds 2, 3, ..., each over the cells still open in a shuffle seeded by ``seed`` and the round.
-    ``time_round(order)`` runs each cell of ``order`` once more, in that order (one after another,
-    or with set-ups side by side: ``compare.running.overlap``), and returns their time blocks in
-    that order (None: it failed, counted). ``on_round`` gets ``{i: time.processes}`` of the cells
-    the round changed. Returns the same for all."""
+    ``time_round(order, round)`` runs each cell of ``order`` once more, in that order (one after
+    another, or with set-ups side by side: ``compare.running.overlap``; from round ``COLD`` on
+    with the cell's kept caches, ``Cell.cache_dir``), and returns their time blocks in that order
+    (None: it failed, counted). ``on_round`` gets ``{i: time.processes}`` of the cells the round
+    changed. Returns the same for all."""
     fewest, most = plan(processes)
     times: dict[int, list[Timing]] = {i: [t] for i, t in first.items()}
     failed: dict[int, int] = {i: 0 for i in first}
     blocks: dict[int, Processes] = {}
     for rnd in range(2, most + 1):
-        open_ = [i for i in times if rnd <= fewest or not settled(summary(times[i]))]
+        closed = ("first_result",) if rnd > COLD else ()     # a later process is not cold
+        open_ = [i for i in times if rnd <= fewest or not settled(summary(times[i]), closed=closed)]
         if not open_:
             break
         random.Random(seed * 1000 + rnd).shuffle(open_)
-        got = list(time_round(open_))
+        got = list(time_round(open_, rnd))
         if len(got) != len(open_):
             raise RuntimeError(f"repeats: {len(got)} time blocks for a round of {len(open_)} cells")
         for i, t in zip(open_, got):

@@ -30,6 +30,7 @@ import scenarios
 from backends.base import OWN_TIMER_S, Backend, Device
 from compare.measuring import noise, phases, timing
 from compare.running import scaleout
+from compare.running import caches
 from compare.running.gate import Gate
 from compare.measuring.nvml import open_nvml
 from compare.results.record import Record
@@ -66,22 +67,6 @@ def peak_rss_bytes() -> int:
     import resource
     scale = 1 if sys.platform == "darwin" else 1024                          # bytes on macOS, KiB on Linux
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * scale
-
-
-def apply_cache_policy(policy: str, backend: Backend, out_dir: Path) -> str:
-    """Point the backend's on-disk kernel caches at empty directories inside the cell's own
-    temporary directory (deleted with it), so first_call_s always includes compilation; set before
-    the framework is imported. Returns the note recorded with the time."""
-    if policy == "warm":
-        return "warm: framework default caches, which may hold kernels compiled by earlier runs"
-    cache = out_dir / "cache"
-    env = backend.cache_environment(cache)
-    for var, value in env.items():
-        if value and cache in Path(value).parents:     # a cache directory (not a flag's value)
-            Path(value).mkdir(parents=True, exist_ok=True)
-        os.environ[var] = value
-    return "cold: " + (", ".join(f"{k} empty" if v else f"{k} off" for k, v in env.items())
-                       or "the framework keeps no kernel cache on disk")
 
 
 def graph_regime(be: Backend, device: Device, kernel: Any, sync: Any, max_time: float) -> Regime:
@@ -369,11 +354,12 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver'
     """One cell of the batch: its record (and outputs) in ``cell_dir``, whatever happens."""
     laps = phases.Laps(phases.since_launch() if not _SET_UP else 0.0)   # the process start: first cell only
     cell_dir.mkdir(parents=True, exist_ok=True)
+    gate = Gate(cell_dir)       # gated (an overlapped run): the driver's word before the clocks and the exit
     try:
         cell = Cell.from_dict(raw)
         be = backends.get(cell.backend)
         if not _SET_UP:       # the first cell of the process sets the caches, then the framework
-            cache_note = apply_cache_policy(cell.cache, be, cell_dir)
+            cache_note = caches.apply(cell.cache, be, cell_dir, cell.cache_dir)
         else:
             if cell.cache != "warm":
                 raise ValueError("only warm-cache cells may share a worker process")
@@ -382,7 +368,7 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver'
         if _SET_UP and ident not in _SET_UP:
             raise ValueError(f"cells sharing a worker must share backend, device, precision and variant; got {ident}")
         with busy_cores(int((cell.tags or {}).get(BUSY_TAG) or 0)):
-            record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps, gate=Gate(cell_dir))
+            record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps, gate=gate)
         _SET_UP.add(ident)
         text = json.dumps(jsonable(record.to_json()))     # the record crosses to the driver once, as JSON
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
@@ -394,6 +380,7 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver'
     tmp = cell_dir / "record.json.tmp"     # the parent polls for record.json: never half a file
     tmp.write_text(text)
     os.replace(tmp, cell_dir / "record.json")
+    gate.park()
 
 
 def main(argv: list[str]) -> int:

@@ -21,7 +21,7 @@ from typing import Any, Callable, ClassVar, Generic, NamedTuple, Protocol, TypeV
 
 import numpy as np
 
-from compare.running import cells as cells_, engine, overlap, repeats, scaleout
+from compare.running import cells as cells_, engine, lifeline, overlap, repeats, scaleout
 from compare import options
 from compare.planning import outdir, preflight
 from compare.planning.calibrate import Refusal
@@ -265,9 +265,12 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
     workers): a round's workers set up side by side, in the round's order, each timed alone
     (``compare.running.overlap``), as the first round's were."""
     first = {i: got[0].time for i in ran if (got := done[i])[0].status == "ok" and got[0].time is not None}
+    caches = lifeline.temp_dir("kept-caches-")      # repeats.COLD: where a cell's processes keep caches
 
-    def again(i: int) -> Cell:      # a repeat process: no check, no files, only the figures
-        return dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False)
+    def again(i: int, rnd: int) -> Cell:      # a repeat process: no check, no files, only the figures
+        keep = rnd >= repeats.COLD and runner is None and plan[i].cache == "cold"   # a Dask worker: another host
+        return dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False,
+                                   cache_dir=str(Path(caches.name) / f"cell-{i}") if keep else "")
 
     def figures_of(rec: dict[str, Any]) -> Timing | None:       # the worker's record JSON
         t = Timing.from_json(rec["time"]) if rec.get("time") else None
@@ -275,18 +278,24 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
             on_repeat(t)
         return t if rec.get("status") == "ok" else None
 
-    def time_round(order: list[int]) -> list[Timing | None]:
+    def time_round(order: list[int], rnd: int) -> list[Timing | None]:
         if runner is not None or ahead <= 0 or len(order) < 2:
-            return [figures_of((runner(again(i)) if runner is not None else cells_.run(again(i), timeout))[0])
+            return [figures_of((runner(again(i, rnd)) if runner is not None else cells_.run(again(i, rnd), timeout))[0])
                     for i in order]
         got: dict[int, Timing | None] = {}
-        overlap.run_overlapped([again(i) for i in order], timeout,
+        overlap.run_overlapped([again(i, rnd) for i in order], timeout,
                                lambda k, result: got.__setitem__(k, figures_of(result[0])), ahead,
                                need=footprint, budget=overlap.memory_budget(), lane=engine.gpu_lane,
                                ordered=True)
         return [got.get(k) for k in range(len(order))]
 
+    started = [time.monotonic()]
+
     def on_round(blocks: dict[int, Processes]) -> None:
+        count = max((b.count for b in blocks.values()), default=0)
+        print(f"  process {count}: {len(blocks)} cells in {time.monotonic() - started[0]:.0f} s",
+              file=sys.stderr, flush=True)
+        started[0] = time.monotonic()
         for i, block in blocks.items():
             rec, out = done[i]
             assert rec.time is not None           # a cell of ``first``: its first process timed it
@@ -295,4 +304,5 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
                 store.put(done[i][0])
         if store is not None:
             store.save()
-    repeats.run_rounds(first, processes, seed, time_round, on_round)
+    with caches:
+        repeats.run_rounds(first, processes, seed, time_round, on_round)

@@ -83,7 +83,7 @@ def test_a_cold_cache_creates_only_cache_directories(tmp_path, monkeypatch):
     import os
 
     import backends
-    from compare.running.worker import apply_cache_policy
+    from compare.running.caches import apply as apply_cache_policy
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(os, "environ", dict(os.environ))
     cell = tmp_path / "cell"

@@ -31,9 +31,30 @@ def test_gated_it_says_ready_waits_for_a_byte_and_says_timed(tmp_path, monkeypat
     assert (tmp_path / gate.READY).exists() and not (tmp_path / gate.TIMED).exists()
     g.release()
     assert (tmp_path / gate.TIMED).exists()
-    with pytest.raises(OSError):                  # the gate's end was closed after the word
+    os.fstat(r)                                   # held open: the worker parks on it
+    os.close(w)                                   # the driver lets it exit
+    g.park()
+    with pytest.raises(OSError):                  # closed once the driver's end was
         os.fstat(r)
+
+
+def test_a_parked_worker_idles_until_the_driver_closes_its_pipe(tmp_path, monkeypatch):
+    import threading
+    r, w = os.pipe()
+    monkeypatch.setenv(gate.GATE_ENV, str(r))
+    g = gate.Gate(tmp_path)
+    os.write(w, b"x")
+    g.wait()
+    g.release()
+    done = threading.Event()
+    t = threading.Thread(target=lambda: (g.park(), done.set()))
+    t.start()
+    assert not done.wait(0.3)                     # record written, exit held back
     os.close(w)
+    assert done.wait(5) and g.fd is None
+    t.join()
+    monkeypatch.delenv(gate.GATE_ENV, raising=False)
+    gate.Gate(tmp_path).park()                    # ungated: returns at once
 
 
 def test_a_driver_that_is_gone_starts_no_clock(tmp_path, monkeypatch):

@@ -99,6 +99,38 @@ def test_launches_keep_to_the_gpu_lanes_and_the_memory_budget():
     active[0].close()
 
 
+class _Exits:
+    """A worker process that exits when told (its pipe closed)."""
+    def __init__(self) -> None:
+        self.code: int | None = None
+
+    def poll(self):
+        return self.code
+
+
+def test_a_parked_worker_exits_only_while_no_window_is_open_or_due(tmp_path):
+    """Its record is in: it holds no gate, but its exit waits for the set-up phase, and no gate
+    opens until it is gone; its lane stays taken until then."""
+    from compare.running.engine import gpu_lane
+    parked, ready = _job(0, "cuda", "parked", "warp"), _job(1, "cuda", "ready", "jax")
+    parked.proc, parked.dir = _Exits(), tmp_path / "cell-0"     # removed once its worker is gone
+    parked.dir.mkdir()
+    idle = overlap._release([parked], [ready], time.monotonic())
+    assert idle == [parked] and parked.state == "parked" and parked.gate >= 0     # a window is due
+    overlap._grant([ready])
+    assert ready.state == "timed"                  # the parked worker does not hold the gate
+    idle = overlap._release(idle, [ready], time.monotonic())
+    assert parked.state == "parked"                # nor exits during the window
+    ready.state = "after"
+    idle = overlap._release(idle, [ready], time.monotonic())
+    assert parked.state == "exiting" and parked.gate == -1 and idle == [parked]
+    plan = _cells(("cuda", "warp"), ("cuda", "numba"))
+    assert overlap._launchable([0, 1], [], plan, 3, None, None, gpu_lane, idle) == 1   # warp's lane still held
+    parked.proc.code = 0
+    assert overlap._release(idle, [], time.monotonic()) == [] and not parked.dir.exists()
+    ready.close()
+
+
 def test_the_schedule_alternates_devices_and_frameworks():
     plan = _cells(("cuda", "warp"), ("cuda", "warp"), ("cpu", "numpy"), ("cuda", "jax"), ("cpu", "numba"))
     order = overlap.schedule(plan)

@@ -46,7 +46,7 @@ def test_auto_stops_a_settled_cell_and_runs_a_scattered_one_to_the_maximum():
         calls[i] += 1
         return _t(next(values[i]))
     rounds: list[list[int]] = []
-    out = repeats.run_rounds({0: _t(1e-5), 1: _t(2e-5)}, "auto", 0, lambda order: [time_one(i) for i in order],
+    out = repeats.run_rounds({0: _t(1e-5), 1: _t(2e-5)}, "auto", 0, lambda order, rnd: [time_one(i) for i in order],
                              lambda b: rounds.append(sorted(b)))
     assert calls == {0: repeats.AUTO_MIN - 1, 1: repeats.AUTO_MAX - 1}
     assert out[0]["count"] == repeats.AUTO_MIN and out[1]["count"] == repeats.AUTO_MAX
@@ -54,8 +54,26 @@ def test_auto_stops_a_settled_cell_and_runs_a_scattered_one_to_the_maximum():
     assert rounds[0] == [0, 1] and rounds[-1] == [1]
 
 
+def test_time_to_first_result_is_the_cold_processes_and_keeps_no_round_open():
+    """From round ``COLD`` on a cell runs with the caches its earlier process kept: those
+    processes add no first-result value, and a first result that scatters (a cold compile)
+    stops no cell at ``AUTO_MIN`` whose other figures settled."""
+    def proc(rnd: int) -> Timing:
+        t = _t(1e-5, first=float(rnd))           # cold first calls scatter widely
+        return Timing.of(**t, cache="kept: X as an earlier process of this cell left it") if rnd > repeats.COLD else t
+    seen: list[int] = []
+    out = repeats.run_rounds({0: _t(1e-5, first=1.0)}, "auto", 0,
+                             lambda order, rnd: seen.append(rnd) or [proc(rnd) for _ in order], lambda b: None)
+    block = out[0]
+    assert block.count == repeats.AUTO_MIN and seen == list(range(2, repeats.AUTO_MIN + 1))
+    assert block.first_result is not None and block.first_result.each == (1.5, 2.5, 3.5)
+    assert block.latency is not None and len(block.latency.each) == repeats.AUTO_MIN
+    assert not repeats.settled(block) and repeats.settled(block, closed=("first_result",))
+    assert "first_result" not in repeats.figures(proc(repeats.COLD + 1))
+
+
 def test_a_failed_repeat_is_counted_not_hidden():
-    out = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda order: [None] * len(order), lambda b: None)
+    out = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda order, rnd: [None] * len(order), lambda b: None)
     assert out[0]["count"] == 1 and out[0]["failed"] == 2
 
 
@@ -64,17 +82,17 @@ def test_a_round_is_timed_in_its_seeded_order_and_must_answer_for_every_cell():
     side by side), the same order for the same seed; an answer that skips a cell is refused."""
     orders: list[list[int]] = []
 
-    def time_round(order: list[int]) -> list[Timing]:
+    def time_round(order: list[int], rnd: int) -> list[Timing]:
         orders.append(list(order))
         return [_t(1e-5) for _ in order]
     first = {i: _t(1e-5) for i in range(8)}
     repeats.run_rounds(first, 3, 5, time_round, lambda b: None)
     again: list[list[int]] = []
-    repeats.run_rounds(first, 3, 5, lambda o: again.append(list(o)) or [_t(1e-5) for _ in o], lambda b: None)
+    repeats.run_rounds(first, 3, 5, lambda o, r: again.append(list(o)) or [_t(1e-5) for _ in o], lambda b: None)
     assert len(orders) == 2 and orders == again and sorted(orders[0]) == list(range(8))
     assert orders[0] != orders[1]          # each round its own shuffle
     with pytest.raises(RuntimeError, match="time blocks for a round"):
-        repeats.run_rounds(first, 2, 5, lambda o: [_t(1e-5)], lambda b: None)
+        repeats.run_rounds(first, 2, 5, lambda o, r: [_t(1e-5)], lambda b: None)
 
 
 def test_the_site_reads_the_median_of_processes_and_its_interval():

@@ -73,24 +73,6 @@ def test_contract_violations_are_named():
                                                                     {"out": np.zeros(7, np.float32)})
 
 
-class Caching:
-    name = "fake"
-
-    def cache_environment(self, cache):
-        return {"FAKE_CACHE_DIR": str(cache / "kernels"), "FAKE_CACHE_OFF": ""}
-
-
-def test_cold_caches_are_empty_folders_in_the_cell_and_warm_ones_untouched(tmp_path, monkeypatch):
-    for var in ("FAKE_CACHE_DIR", "FAKE_CACHE_OFF"):
-        monkeypatch.delenv(var, raising=False)
-    assert worker.apply_cache_policy("warm", Caching(), tmp_path).startswith("warm: framework default caches")
-    assert "FAKE_CACHE_DIR" not in os.environ
-    note = worker.apply_cache_policy("cold", Caching(), tmp_path)
-    assert note == "cold: FAKE_CACHE_DIR empty, FAKE_CACHE_OFF off"
-    assert os.environ["FAKE_CACHE_DIR"] == str(tmp_path / "cache" / "kernels") and (tmp_path / "cache" / "kernels").is_dir()
-    assert os.environ["FAKE_CACHE_OFF"] == ""
-
-
 def test_memory_figures_of_this_process():
     assert worker.peak_rss_bytes() >= worker.current_rss_bytes() > 0
 

@@ -1,0 +1,36 @@
+"""A worker's kernel caches (``Cell.cache``): cold, kept from an earlier process of the cell, or warm.
+
+The first call measures compilation, so it depends on what a framework compiled before. Each
+backend names its on-disk caches (``Backend.cache_environment``); the worker points them at a
+directory before the framework is imported (docs/measurement.md, "Caches").
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from backends.base import Backend
+
+
+def apply(policy: str, backend: Backend, out_dir: Path, kept: str = "") -> str:
+    """Point the backend's on-disk kernel caches at empty directories inside the cell's own
+    temporary directory (deleted with it), so first_call_s always includes compilation; set before
+    the framework is imported. ``kept`` (``Cell.cache_dir``): the directories live there instead;
+    an earlier process of the cell that found it empty filled it, and this one starts from what
+    it left ('kept'). Returns the note recorded with the time."""
+    if policy == "warm":
+        return "warm: framework default caches, which may hold kernels compiled by earlier runs"
+    cache = Path(kept) if kept else out_dir / "cache"
+    filled = cache.is_dir() and any(cache.iterdir())
+    cache.mkdir(parents=True, exist_ok=True)
+    (cache / "used").touch()        # the next process of the cell finds it filled, whatever the framework keeps
+    env = backend.cache_environment(cache)
+    for var, value in env.items():
+        if value and cache in Path(value).parents:     # a cache directory (not a flag's value)
+            Path(value).mkdir(parents=True, exist_ok=True)
+        os.environ[var] = value
+    if filled:
+        return "kept: " + (", ".join(f"{k} as an earlier process of this cell left it" if v else f"{k} off"
+                                     for k, v in env.items()) or "the framework keeps no kernel cache on disk")
+    return "cold: " + (", ".join(f"{k} empty" if v else f"{k} off" for k, v in env.items())
+                       or "the framework keeps no kernel cache on disk")
