@@ -162,7 +162,9 @@ def add_processes(p: argparse.ArgumentParser) -> None:
                    help="time every cell in N independent worker processes (auto: until each "
                         "figure's 95 %% interval is within 5 %% of its median, 6 to 10), in seeded "
                         "interleaved rounds; the record keeps every process's figure, the median "
-                        "and its interval (time.processes; docs/measurement.md). Default 1: one "
+                        "and its interval (time.processes; docs/measurement.md); processes 4 on "
+                        "start from the kernel caches the 3rd kept, so time to first result is the "
+                        "3 cold ones'. Default 1: one "
                         "process per cell, a figure no ranking relies on")
 
 

@@ -46,7 +46,7 @@ def stability(c: qp.Ctx) -> list[Any]:
                 charts.write_csv(png.with_suffix(".csv"), ("backend", "device", "precision", "setting", "figure", "value"),
                                  [(r["backend"], r["device"], r["precision"], r["setting"], r["figure"], r["value"])
                                   for r in rows])
-                blocks.append(Figure(rel, exp.title, c.cmd(f"stress --only {name}", resume=False), rel[:-4] + ".csv"))
+                blocks.append(Figure(rel, exp.title, c.cmd(f"stress --only {name}", timed=False), rel[:-4] + ".csv"))
         shown = exp.table_rows(rows) if exp.table_rows is not None else rows
         blocks.append(folded(Table(("framework", "device", "precision", "setting", "figure", "value", "verdict",
                                     "detail"),

@@ -48,11 +48,15 @@ class Ctx:
         """The PNG's path, and the PNG's and CSV's paths relative to the pages."""
         return self.into / "figures" / f"{name}.png", f"figures/{name}.png", f"figures/{name}.csv"
 
-    def cmd(self, *words: str, resume: bool = True) -> str:
-        """The commands that remeasure a figure's cells into the store and rebuild the site."""
+    def cmd(self, *words: str, timed: bool = True) -> str:
+        """The commands that measure a figure's cells again, as the published ones were (timed
+        suites: in several interleaved processes, set-ups side by side), into a new folder, and
+        build its site; ``compare agree`` then holds it against this store ordering by ordering.
+        (Into the store with --resume they would remeasure nothing: it holds every cell.)"""
         store = self.store_arg if " " not in self.store_arg else "STORE"
-        return (f"python -m compare {' '.join(words)}{' --resume' if resume else ''} --out {store}\n"
-                f"python -m compare site {self.store_arg} --out {store}/report")
+        protocol = " --processes auto --overlap auto" if timed else ""
+        return (f"python -m compare {' '.join(words)}{protocol} --out NEW\n"
+                "python -m compare site NEW --out NEW/report" + (f"\npython -m compare agree {store} NEW" if timed else ""))
 
 
 def verdicts(rows: list[Row]) -> list[Block]:

@@ -31,3 +31,17 @@ def test_the_long_loop_verdict_names_the_fastest_and_the_smallest_at_the_longest
 
 def test_no_long_loop_section_without_two_frameworks_at_one_horizon():
     assert qp._longest_loop([]) == []
+
+
+def test_a_figures_command_measures_again_as_published_into_a_new_folder(tmp_path):
+    """Not ``--resume`` into the store, which holds every cell and so would remeasure nothing:
+    the published protocol (several processes, set-ups side by side) into NEW, its site, and
+    ``compare agree`` against the store; a stress figure has no processes and no agreement."""
+    c = qp.Ctx(data.load([]), [], tmp_path / "site", "docs/results/h100")
+    timed = c.cmd("run saxpy --devices cuda").splitlines()
+    assert timed == ["python -m compare run saxpy --devices cuda --processes auto --overlap auto --out NEW",
+                     "python -m compare site NEW --out NEW/report",
+                     "python -m compare agree docs/results/h100 NEW"]
+    assert "--resume" not in c.cmd("sweep error")
+    assert c.cmd("stress --only ulps", timed=False).splitlines() == [
+        "python -m compare stress --only ulps --out NEW", "python -m compare site NEW --out NEW/report"]
