@@ -29,8 +29,6 @@ def apply(policy: str, backend: Backend, out_dir: Path, kept: str = "") -> str:
         if value and cache in Path(value).parents:     # a cache directory (not a flag's value)
             Path(value).mkdir(parents=True, exist_ok=True)
         os.environ[var] = value
-    if filled:
-        return "kept: " + (", ".join(f"{k} as an earlier process of this cell left it" if v else f"{k} off"
-                                     for k, v in env.items()) or "the framework keeps no kernel cache on disk")
-    return "cold: " + (", ".join(f"{k} empty" if v else f"{k} off" for k, v in env.items())
-                       or "the framework keeps no kernel cache on disk")
+    state, word = ("kept", "as an earlier process of this cell left it") if filled else ("cold", "empty")
+    return f"{state}: " + (", ".join(f"{k} {word}" if v else f"{k} off" for k, v in env.items())
+                           or "the framework keeps no kernel cache on disk")
