@@ -84,6 +84,7 @@ class RunEnvironment(TypedDict, total=False):
     command: str | None
     backends: Mapping[str, Probe] | None      # what probing each backend found
     overlap: int                        # cells run ahead (--overlap)
+    overlap_beside: bool                # their host work ran beside GPU cells' windows
     processes: int                      # worker processes per cell (--processes)
     kinds: list[str] | None             # a sweep's kinds
     hardware: dict[str, Yardstick] | None     # device -> its same-run yardstick

@@ -6,20 +6,25 @@ window is over (kernel build, first call, warm-up and latency, throughput, downl
 says so and goes on to the oracle, the check, its record and its exit. Here up to 1 + ``ahead``
 workers set up at the same time, then their gates open one after another:
 
-- a gate opens only when every other worker waits at its gate (blocked on a pipe: idle) or has
-  exited, so nothing else runs on the host while a cell is timed, on the CPU or on a GPU: no two
-  windows overlap (each record keeps its own, ``time.window``), and no set-up, check or exit
-  overlaps a window either (a launch-bound cell's host thread shares cores, caches and memory
-  with whatever else runs), so the set-up of the next workers begins only when no worker is
-  ready or timed (docs/results/h100/evidence/session15-overlap: the evidence for this design);
+- a gate opens only when no other window is open, and a CPU cell's gate only when every other
+  worker waits at its gate (blocked on a pipe: idle) or has exited, so nothing else runs on the
+  host while a CPU cell is timed: no two windows overlap (each record keeps its own,
+  ``time.window``), and no set-up, check or exit overlaps a CPU cell's window (a launch-bound
+  cell's host thread shares cores, caches and memory with whatever else runs);
+- beside a GPU cell's window (``beside``: ``--overlap`` on a host of at least ``BESIDE_CORES``
+  usable cores) other workers set up, check and exit on the other cores: host work, and each
+  one's device context, but no kernel of theirs (session15-overlap saw medians 0.99x of exclusive
+  windows; session 23's run of the matrix part measures it against session 22's). Without
+  ``beside`` the set-up of the next workers begins only when no worker is ready or timed;
 - one worker per framework and GPU at a time (``engine.gpu_lane``), and the workers' memory
   estimates together within the budget;
 - each cell still has its own process and empty kernel caches, so its first call is as cold
   as one at a time; waiting at the gate is its own part (``time.phases.wait``) and does not
   count against ``timeout``;
 - a worker whose record is in *parks* (``Gate.park``): idle, it neither holds a gate nor exits
-  until no window is open or due; then its pipe is closed and it exits while the next workers
-  set up, and no gate opens before it is gone. Its lane and memory stay taken until then.
+  while a window that must be alone is open or due; then its pipe is closed and it exits while
+  the next workers set up, and no such gate opens before it is gone. Its lane and memory stay
+  taken until then.
 """
 from __future__ import annotations
 
@@ -49,6 +54,20 @@ def ahead(args: Any = None) -> int:
     if given == "auto":
         return max(1, environment.usable_cores() // 2 - 1)
     return int(given)
+
+
+BESIDE_CORES = 8    # fewer: the set-ups would share the timed worker's cores, so every window is alone
+
+
+def beside(ahead: int) -> bool:
+    """Whether other workers' host work (set-up, check, exit) runs beside a GPU cell's window:
+    an overlapped run (``ahead`` > 0) on a host of at least ``BESIDE_CORES`` usable cores."""
+    return ahead > 0 and environment.usable_cores() >= BESIDE_CORES
+
+
+def _alone(job: "_Job", beside: bool) -> bool:
+    """The job's window (due or open) needs the host to itself: a CPU cell's, or any without ``beside``."""
+    return not beside or str(job.cell.device) in ("cpu", "host")
 
 
 def schedule(plan: list[Cell]) -> list[int]:
@@ -100,11 +119,13 @@ def memory_budget() -> float:
 def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[[int, Result], None],
                    ahead: int, need: Callable[[Cell], float] | None = None,
                    budget: float | None = None, lane: Callable[[Cell], Any] | None = None,
-                   ordered: bool = False) -> None:
+                   ordered: bool = False, beside_gpu: bool | None = None) -> None:
     """Run every cell of ``plan`` (one process each), calling ``on_result(i, result)`` as each
     finishes. ``need``/``budget``: a worker's host-memory estimate and what the workers may hold
     together; ``lane``: cells of one lane never run at the same time (None: no constraint).
-    ``ordered``: keep the plan's order (a repeat round's seeded shuffle) rather than ``schedule``'s."""
+    ``ordered``: keep the plan's order (a repeat round's seeded shuffle) rather than ``schedule``'s.
+    ``beside_gpu``: other workers' host work beside GPU cells' windows (None: ``beside(ahead)``)."""
+    side = beside(ahead) if beside_gpu is None else beside_gpu
     todo = list(range(len(plan))) if ordered else schedule(plan)
     active: list[_Job] = []
     idle: list[_Job] = []          # parked or exiting: results in, processes not yet gone
@@ -126,10 +147,9 @@ def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[
                         _remove(job.dir)
                     else:
                         idle.append(job)
-                idle = _release(idle, active, now)
-                if not any(j.state == "exiting" for j in idle):
-                    _grant(active)
-                started = _launchable(todo, active, plan, ahead, need, budget, lane, idle)
+                idle = _release(idle, active, now, side)
+                _grant(active, idle, side)
+                started = _launchable(todo, active, plan, ahead, need, budget, lane, idle, side)
                 if started is not None:
                     todo.remove(started)
                     active.append(_launch(started, plan[started], root, timeout))
@@ -197,10 +217,11 @@ def _advance(job: _Job, now: float, timeout: float | None) -> bool:
 EXIT_S = 60.0       # a released worker that has not exited by then is killed (its record is in)
 
 
-def _release(idle: list[_Job], active: list[_Job], now: float) -> list[_Job]:
-    """Close the pipes of the parked workers once no window is open or due (no active worker is
-    ready or timed), so they exit while the next workers set up; the idle jobs still alive."""
-    if not any(j.state in ("ready", "timed") for j in active):
+def _release(idle: list[_Job], active: list[_Job], now: float, beside: bool = False) -> list[_Job]:
+    """Close the pipes of the parked workers once no window that must be alone is open or due (no
+    such active worker is ready or timed), so they exit while the next workers set up (or beside a
+    GPU cell's window); the idle jobs still alive."""
+    if not any(j.state in ("ready", "timed") and _alone(j, beside) for j in active):
         for job in idle:
             if job.state == "parked":
                 job.close()
@@ -218,13 +239,16 @@ def _release(idle: list[_Job], active: list[_Job], now: float) -> list[_Job]:
     return left
 
 
-def _grant(active: list[_Job]) -> None:
-    """Open the next gate: the first ready worker in launch order, when every other worker waits
-    at its gate (none is timed, setting up, checking or exiting)."""
+def _grant(active: list[_Job], idle: Sequence[_Job] = (), beside: bool = False) -> None:
+    """Open the next gate: the first ready worker in launch order, when no window is open and,
+    for a window that must be alone, every other worker waits at its gate (none is setting up,
+    checking or exiting)."""
     ready = [j for j in active if j.state == "ready"]
-    if not ready or len(ready) < len(active):
+    if not ready or any(j.state == "timed" for j in active):
         return
     job = ready[0]
+    if _alone(job, beside) and (len(ready) < len(active) or any(j.state == "exiting" for j in idle)):
+        return
     try:
         os.write(job.gate, b"g")
     except OSError:                   # the worker died at its gate: _advance records why
@@ -235,20 +259,22 @@ def _grant(active: list[_Job]) -> None:
 
 def _launchable(todo: list[int], active: list[_Job], plan: list[Cell], ahead: int,
                 need: Callable[[Cell], float] | None, budget: float | None,
-                lane: Callable[[Cell], Any] | None, idle: Sequence[_Job] = ()) -> int | None:
-    """The next cell to start now, or None: at most 1 + ``ahead`` workers, and only while none is
-    ready or timed (set-ups start together, then the gates open one by one); within the memory
-    budget and the lanes, which ``idle`` workers (parked or exiting) still hold."""
+                lane: Callable[[Cell], Any] | None, idle: Sequence[_Job] = (),
+                beside: bool = False) -> int | None:
+    """The next cell to start now, or None: at most 1 + ``ahead`` workers, and only while none
+    whose window must be alone is ready or timed (set-ups start together, then the gates open one
+    by one; beside GPU windows they go on); the first of ``todo`` within the memory budget and the
+    lanes, which ``idle`` workers (parked or exiting) still hold."""
     if not todo or len(active) > ahead:
         return None
     if not active and not idle:
         return todo[0]
-    if any(j.state in ("ready", "timed") for j in active):
+    if any(j.state in ("ready", "timed") and _alone(j, beside) for j in active):
         return None
     present = [*active, *idle]
     held = sum(need(j.cell) for j in present) if need else 0.0
     lanes = {lane(j.cell) for j in present} if lane else set()
-    for i in todo[:1 + ahead]:
+    for i in todo:          # past a cell whose lane is taken: a batch fills up with other frameworks
         cell = plan[i]
         if need and budget is not None and held + need(cell) > budget:
             continue

@@ -24,7 +24,7 @@ import scenarios
 from backends.base import Device
 from compare.planning import calibrate, outdir
 from compare.render import console, report, run_plots
-from compare.running import engine, hardware, scaleout
+from compare.running import engine, hardware, overlap, scaleout
 from compare.measuring import environment, phases
 from compare import options
 from compare.site import versus
@@ -253,6 +253,7 @@ class RunSuite(Suite):
         env = self.env = store.env = environment.collect(run.argv)
         env["backends"] = probes
         env["overlap"] = run.ahead
+        env["overlap_beside"] = overlap.beside(run.ahead)
         env["processes"] = args.processes
         t0 = time.perf_counter()
         env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)

@@ -108,6 +108,61 @@ class _Exits:
         return self.code
 
 
+def test_beside_a_gpu_window_others_set_up_check_and_exit(tmp_path):
+    """``beside``: a GPU cell's gate opens while others set up, check or exit, and workers start
+    and exit while it is timed; a CPU cell's window is still alone, and still one window at a time."""
+    gpu, setting_up, checking = _job(0, "cuda", "ready", "warp"), _job(1, "cuda", "start", "jax"), _job(2, "cpu", "after")
+    overlap._grant([gpu, setting_up, checking], beside=False)
+    assert gpu.state == "ready"                               # without beside: it waits for them
+    exiting = _job(3, "cuda", "exiting", "numba")
+    overlap._grant([gpu, setting_up, checking], [exiting], beside=True)
+    assert gpu.state == "timed"
+    other = _job(4, "cuda", "ready", "cupy")
+    overlap._grant([gpu, other], beside=True)
+    assert other.state == "ready"                             # one window at a time
+    plan = _cells(("cuda", "torch"), ("cpu", "numba"))
+    assert overlap._launchable([0, 1], [gpu, other], plan, 3, None, None, None, beside=True) == 0
+    assert overlap._launchable([0, 1], [gpu, other], plan, 3, None, None, None, beside=False) is None
+    parked = _job(5, "cuda", "parked", "taichi")
+    parked.proc, parked.dir = _Exits(), tmp_path / "cell-5"
+    parked.dir.mkdir()
+    overlap._release([parked], [gpu], time.monotonic(), beside=True)
+    assert parked.state == "exiting"                          # its exit runs beside the GPU window
+    cpu = _job(6, "cpu", "ready")
+    gpu.state = "after"
+    overlap._grant([cpu, gpu], beside=True)
+    assert cpu.state == "ready"                               # a CPU window waits for the others
+    assert overlap._launchable([0], [cpu], plan, 3, None, None, None, beside=True) is None
+    held = _job(7, "cuda", "parked", "warp")
+    held.proc, held.dir = _Exits(), tmp_path / "cell-7"
+    held.dir.mkdir()
+    overlap._release([held], [cpu], time.monotonic(), beside=True)
+    assert held.state == "parked"                             # nor does an exit run beside it
+    gpu.state = "ready"
+    overlap._grant([cpu, gpu], [exiting], beside=True)
+    assert cpu.state == "ready"                               # an exit still running
+    overlap._grant([cpu, gpu], beside=True)
+    assert cpu.state == "timed"
+    for j in (gpu, setting_up, checking, exiting, other, parked, cpu, held):
+        j.close()
+
+
+def test_beside_needs_an_overlapped_run_on_enough_cores(monkeypatch):
+    from compare.measuring import environment
+    monkeypatch.setattr(environment, "usable_cores", lambda: 16)
+    assert overlap.beside(7) and not overlap.beside(0)
+    monkeypatch.setattr(environment, "usable_cores", lambda: overlap.BESIDE_CORES - 1)
+    assert not overlap.beside(1)
+
+
+def test_a_batch_fills_up_past_cells_whose_lane_is_taken():
+    from compare.running.engine import gpu_lane
+    plan = _cells(*[("cuda", "warp")] * 9, ("cuda", "jax"))
+    active = [_job(0, "cuda", "start", "warp")]
+    assert overlap._launchable(list(range(1, 10)), active, plan, 3, None, None, gpu_lane) == 9
+    active[0].close()
+
+
 def test_a_parked_worker_exits_only_while_no_window_is_open_or_due(tmp_path):
     """Its record is in: it holds no gate, but its exit waits for the set-up phase, and no gate
     opens until it is gone; its lane stays taken until then."""
