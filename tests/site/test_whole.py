@@ -151,7 +151,13 @@ def test_a_ctrl_c_between_the_two_renames_waits_until_both_are_done(site: Path,
         if Path(a) == site:      # to this thread, handled before raise_signal returns: os.kill may
             signal.raise_signal(signal.SIGINT)      # land on another thread and be seen after the renames
     monkeypatch.setattr(os, "rename", rename)
-    rc, lines = run_main(["site", str(site.parent / "store"), "--out", str(site), "--title", "new"])
+    # Ctrl-C as a terminal's foreground process gets it: a test run started in the background of
+    # a non-interactive shell (`cmd &`) inherits SIGINT ignored, and Python then keeps it ignored
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        rc, lines = run_main(["site", str(site.parent / "store"), "--out", str(site), "--title", "new"])
+    finally:
+        signal.signal(signal.SIGINT, before)
     assert rc == 130 and lines == ["interrupted"], (rc, lines)
     assert "<title>new</title>" in (site / "index.html").read_text()
     assert siblings(site) == []
