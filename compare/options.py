@@ -167,6 +167,10 @@ def add_processes(p: argparse.ArgumentParser) -> None:
                         "start from the kernel caches the 3rd kept, so time to first result is the "
                         "3 cold ones'. Default 1: one "
                         "process per cell, a figure no ranking relies on")
+    p.add_argument("--sitting", type=seconds, default=None, metavar="S",
+                   help="with --processes auto: a round past the fewest processes (6) starts only "
+                        "if, at the last round's pace, it ends within S seconds of the run's start "
+                        "(one sitting on a lent machine); the fewest always run")
 
 
 def add_output(p: argparse.ArgumentParser, out: str) -> None:

@@ -86,6 +86,7 @@ class RunEnvironment(TypedDict, total=False):
     overlap: int                        # cells run ahead (--overlap)
     overlap_beside: bool                # their host work ran beside GPU cells' windows
     processes: int                      # worker processes per cell (--processes)
+    sitting_s: float                    # --sitting: rounds past the fewest only within it
     kinds: list[str] | None             # a sweep's kinds
     hardware: dict[str, Yardstick] | None     # device -> its same-run yardstick
     scheduler: Scheduler | None

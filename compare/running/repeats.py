@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import random
 import statistics
+import time
 from typing import Callable, Mapping, Sequence
 
 from compare.results.record_parts import Figure, Processes, Timing
@@ -116,25 +117,31 @@ def plan(processes: int | str) -> tuple[int, int]:
 
 def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
                time_round: Callable[[list[int], int], Sequence[Timing | None]],
-               on_round: Callable[[dict[int, Processes]], None]) -> dict[int, Processes]:
+               on_round: Callable[[dict[int, Processes]], None],
+               fits: Callable[[float], bool] | None = None) -> dict[int, Processes]:
     """More processes for the cells in ``first`` (index -> the first process's ``time`` block):
     rounds 2, 3, ..., each over the cells still open in a shuffle seeded by ``seed`` and the round.
     ``time_round(order, round)`` runs each cell of ``order`` once more, in that order (one after
     another, or with set-ups side by side: ``compare.running.overlap``; from round ``COLD`` on
     with the cell's kept caches, ``Cell.cache_dir``), and returns their time blocks in that order
     (None: it failed, counted). ``on_round`` gets ``{i: time.processes}`` of the cells the round
-    changed. Returns the same for all."""
+    changed. ``fits(seconds)``: whether a round of that length still fits the run's sitting
+    (``--sitting``), asked before each round past the fewest with the last round's length.
+    Returns the same for all."""
     fewest, most = plan(processes)
+    last_s = 0.0
     times: dict[int, list[Timing]] = {i: [t] for i, t in first.items()}
     failed: dict[int, int] = {i: 0 for i in first}
     blocks: dict[int, Processes] = {}
     for rnd in range(2, most + 1):
         closed = ("first_result",) if rnd > COLD else ()     # a later process is not cold
         open_ = [i for i in times if rnd <= fewest or not settled(summary(times[i]), closed=closed)]
-        if not open_:
+        if not open_ or (rnd > fewest and fits is not None and not fits(last_s)):
             break
         random.Random(seed * 1000 + rnd).shuffle(open_)
+        began = time.monotonic()
         got = list(time_round(open_, rnd))
+        last_s = time.monotonic() - began
         if len(got) != len(open_):
             raise RuntimeError(f"repeats: {len(got)} time blocks for a round of {len(open_)} cells")
         for i, t in zip(open_, got):

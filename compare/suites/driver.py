@@ -59,6 +59,7 @@ class Run:
     client: Any = None                         # the Dask client of --scheduler
     out: Path = Path(".")
     ahead: int = 0                             # --overlap, resolved (compare.running.overlap)
+    began: float = 0.0                         # time.perf_counter() at its start (--sitting)
 
     @property
     def cells(self) -> list[Cell]:
@@ -213,7 +214,7 @@ def drive(suite: Suite, args: argparse.Namespace, argv: list[str]) -> int:
     the claim of --out and, under its lock, the run and the render."""
     run = Run(args, argv, suite.plan(args))
     suite.check_output(args)
-    began = time.perf_counter()
+    began = run.began = time.perf_counter()
     run.probes = engine.availability(suite.backends(run))
     run.spent["probes"] = time.perf_counter() - began
     refuse = suite.refusal(run)
@@ -249,15 +250,31 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
                                footprint=lambda c: preflight.cell_bytes(c)[0])
     if repeats.plan(processes)[1] > 1:
         ran = [i for i in range(len(cells)) if i not in kept]
+        sitting = getattr(args, "sitting", None)
         more_processes(cells, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat,
-                       ahead=run.ahead, footprint=lambda c: preflight.cell_bytes(c)[0])
+                       ahead=run.ahead, footprint=lambda c: preflight.cell_bytes(c)[0],
+                       fits=None if sitting is None else within(run.began + sitting, sitting))
     return results
+
+
+def within(ends: float, sitting: float) -> Callable[[float], bool]:
+    """``--sitting``: whether a round of so many seconds, started now, ends by ``ends``
+    (time.perf_counter); says so on stderr when it would not."""
+    def fits(round_s: float) -> bool:
+        left = ends - time.perf_counter()
+        if round_s <= left:
+            return True
+        print(f"  no more processes: a round takes about {round_s:.0f} s, {max(left, 0.0):.0f} s of "
+              f"the {sitting:g} s sitting are left", file=sys.stderr, flush=True)
+        return False
+    return fits
 
 
 def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], processes: int | str,
                    seed: int, timeout: float, runner: Callable[[Cell], cells_.Result] | None = None,
                    store: Store | None = None, on_repeat: Callable[[Timing], None] | None = None,
-                   ahead: int = 0, footprint: Callable[[Cell], float] | None = None) -> None:
+                   ahead: int = 0, footprint: Callable[[Cell], float] | None = None,
+                   fits: Callable[[float], bool] | None = None) -> None:
     """The repeat processes of every cell of ``ran`` whose first process finished ok, in seeded
     rounds (``compare.running.repeats.run_rounds``): each round's ``time.processes`` replaces the
     record's in ``done`` and in the store, saved once a round. ``on_repeat`` sees each repeat
@@ -305,4 +322,4 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
         if store is not None:
             store.save()
     with caches:
-        repeats.run_rounds(first, processes, seed, time_round, on_round)
+        repeats.run_rounds(first, processes, seed, time_round, on_round, fits=fits)

@@ -257,6 +257,8 @@ class SweepSuite(Suite):
         env["overlap"] = run.ahead
         env["overlap_beside"] = overlap.beside(run.ahead)
         env["processes"] = args.processes
+        if getattr(args, "sitting", None) is not None:
+            env["sitting_s"] = args.sitting
         env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
         env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
                            if any(p["available"].get(d) is None for p in run.probes.values())}

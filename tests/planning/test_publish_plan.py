@@ -29,6 +29,10 @@ def test_cuda_plan_measures_what_the_h100_store_holds():
     # the matrix part is float32 in repeated processes; float64 (no row ranks it) once, apart
     assert by["all"][by["all"].index("--precision") + 1] == "float32" and "--processes" in by["all"]
     assert by["float64"][by["float64"].index("--precision") + 1] == "float64" and "--processes" not in by["float64"]
+    for n in ("all", *order[2:5]):      # what the rows read: repeated, and one sitting each
+        argv = by[n]
+        assert argv[argv.index("--processes") + 1] == "auto" and argv[argv.index("--overlap") + 1] == "auto"
+        assert float(argv[argv.index("--sitting") + 1]) == publish_plan.SITTING_S == 1500
     store = json.loads((ROOT / "docs/results/h100/results.json").read_text())
     held = {(r["scenario"], r["params"].get("n"), r["variant"]) for r in store["records"]}
     for n in order[2:5]:

@@ -54,6 +54,26 @@ def test_auto_stops_a_settled_cell_and_runs_a_scattered_one_to_the_maximum():
     assert rounds[0] == [0, 1] and rounds[-1] == [1]
 
 
+def test_a_sitting_stops_the_rounds_past_the_fewest_that_would_not_fit():
+    """--sitting: asked before each round past the fewest with the last round's length; the
+    fewest always run, and a scattered cell stops where the next round would not fit."""
+    asked: list[float] = []
+    left = [3]                                   # rounds past the fewest that still fit
+
+    def fits(round_s: float) -> bool:
+        asked.append(round_s)
+        left[0] -= 1
+        return left[0] >= 0
+    values = iter([1e-5, 2e-5] * 10)
+    out = repeats.run_rounds({0: _t(2e-5)}, "auto", 0, lambda order, rnd: [_t(next(values)) for _ in order],
+                             lambda b: None, fits)
+    assert out[0]["count"] == repeats.AUTO_MIN + 3 and len(asked) == 4
+    assert all(s >= 0.0 for s in asked)
+    never = repeats.run_rounds({0: _t(2e-5)}, "auto", 0, lambda order, rnd: [_t(next(iter([3e-5])))
+                               for _ in order], lambda b: None, lambda s: False)
+    assert never[0]["count"] == repeats.AUTO_MIN
+
+
 def test_time_to_first_result_is_the_cold_processes_and_keeps_no_round_open():
     """From round ``COLD`` on a cell runs with the caches its earlier process kept: those
     processes add no first-result value, and a first result that scatters (a cold compile)

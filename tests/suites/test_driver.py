@@ -126,9 +126,9 @@ def test_the_driver_runs_the_repeat_processes_in_rounds(tmp_path: Path, monkeypa
     rounds: list[tuple[int, str | int, int]] = []
     real = repeats.run_rounds
 
-    def spy(first: Any, processes: Any, seed: int, time_one: Any, on_round: Any) -> Any:
+    def spy(first: Any, processes: Any, seed: int, time_one: Any, on_round: Any, fits: Any = None) -> Any:
         rounds.append((len(first), processes, seed))
-        return real(first, processes, seed, time_one, on_round)
+        return real(first, processes, seed, time_one, on_round, fits=fits)
     monkeypatch.setattr(repeats, "run_rounds", spy)
     once: list[Any] = []
     real_cells = engine.run_cells
@@ -202,3 +202,11 @@ def test_overlapped_repeat_rounds_keep_the_rounds_order(tmp_path: Path, monkeypa
     for rec, _ in done:
         block = rec.time["processes"]
         assert block["count"] == 3 and len(block["latency"]["values"]) == 3
+
+
+def test_the_sitting_says_why_it_stops(capsys):
+    import time
+    from compare.suites import driver
+    fits = driver.within(time.perf_counter() + 100.0, 1500.0)
+    assert fits(10.0) and not fits(1000.0)
+    assert "no more processes: a round takes about 1000 s" in capsys.readouterr().err
