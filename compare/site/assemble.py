@@ -101,13 +101,26 @@ def machine(c: qp.Ctx) -> list[Any]:
         blocks.append(P("No publish log (publish.json) beside these records: they were assembled from "
                         "the runs below, not by one `python -m compare publish`."))
     blocks += [H("Runs that produced these records"),
-               Table(("created", "commit", "tree", "command"), tuple(
-                   (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e), str(e.get("command", "?")))
+               Table(("created", "commit", "tree", "timed", "command"), tuple(
+                   (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e), _timed(e),
+                    str(e.get("command", "?")))
                    for e in envs))]
     blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
                              + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "
                              + pages.doc_link(c.out, "findings.md") + ".")]
     return blocks
+
+
+def _timed(env: RunEnvironment) -> str:
+    """How the run timed its cells: processes a cell, and what ran beside a window."""
+    procs = env.get("processes")
+    words = [f"{procs} processes" if procs not in (None, 1) else "1 process"]
+    if env.get("sitting_s") is not None:
+        words.append(f"sitting {env['sitting_s']:g} s")
+    ahead = env.get("overlap") or 0
+    if ahead:
+        words.append(f"{ahead} set up ahead" + (", beside GPU windows" if env.get("overlap_beside") else ""))
+    return "; ".join(words)
 
 
 def _tree(env: RunEnvironment) -> str:

@@ -98,6 +98,13 @@ def test_tree_and_argv_value():
     assert assemble._argv_value(["x", "--backends"], "--backends") == "all" and assemble._argv_value(None, "-b") == "all"
 
 
+def test_a_run_says_how_it_timed_its_cells():
+    assert assemble._timed({}) == "1 process"
+    assert assemble._timed({"processes": "auto", "sitting_s": 1500.0, "overlap": 7, "overlap_beside": True}) == \
+        "auto processes; sitting 1500 s; 7 set up ahead, beside GPU windows"
+    assert assemble._timed({"processes": 6, "overlap": 1, "overlap_beside": False}) == "6 processes; 1 set up ahead"
+
+
 def test_store_label_names_a_store_in_the_repository_by_its_path(tmp_path):
     assert assemble.store_label([STORE]) == "tests/data/site"
     assert assemble.store_label([tmp_path]) == "STORE"
