@@ -13,9 +13,9 @@ workers set up at the same time, then their gates open one after another:
   cell's host thread shares cores, caches and memory with whatever else runs);
 - beside a GPU cell's window (``beside``: ``--overlap`` on a host of at least ``BESIDE_CORES``
   usable cores) other workers set up, check and exit on the other cores: host work, and each
-  one's device context, but no kernel of theirs (session15-overlap saw medians 0.99x of exclusive
-  windows; session 23's run of the matrix part measures it against session 22's). Without
-  ``beside`` the set-up of the next workers begins only when no worker is ready or timed;
+  one's device context, but no kernel of theirs (what it does to the figures, against exclusive
+  windows: docs/results/h100/evidence/session23). Without ``beside`` the set-up of the next
+  workers begins only when no worker is ready or timed;
 - one worker per framework and GPU at a time (``engine.gpu_lane``), and the workers' memory
   estimates together within the budget;
 - each cell still has its own process and empty kernel caches, so its first call is as cold
@@ -119,13 +119,13 @@ def memory_budget() -> float:
 def run_overlapped(plan: list[Cell], timeout: float | None, on_result: Callable[[int, Result], None],
                    ahead: int, need: Callable[[Cell], float] | None = None,
                    budget: float | None = None, lane: Callable[[Cell], Any] | None = None,
-                   ordered: bool = False, beside_gpu: bool | None = None) -> None:
+                   ordered: bool = False) -> None:
     """Run every cell of ``plan`` (one process each), calling ``on_result(i, result)`` as each
     finishes. ``need``/``budget``: a worker's host-memory estimate and what the workers may hold
     together; ``lane``: cells of one lane never run at the same time (None: no constraint).
     ``ordered``: keep the plan's order (a repeat round's seeded shuffle) rather than ``schedule``'s.
-    ``beside_gpu``: other workers' host work beside GPU cells' windows (None: ``beside(ahead)``)."""
-    side = beside(ahead) if beside_gpu is None else beside_gpu
+    Host work beside GPU cells' windows where ``beside(ahead)``."""
+    side = beside(ahead)
     todo = list(range(len(plan))) if ordered else schedule(plan)
     active: list[_Job] = []
     idle: list[_Job] = []          # parked or exiting: results in, processes not yet gone
