@@ -108,7 +108,9 @@ class Row:
         """The matrix's last column: the best, ``tie: a, b, c`` (``tie: a, b +4``) or ``—``."""
         if self.top is None:
             return "—"
-        if not self.tied:       # figures from several runs (or unstamped ones): never ranked
+        if not self.tied:       # figures from several runs, unstamped ones or an uncommitted tree: never ranked
+            if len(self.runs) == 1 and self.runs[0]:
+                return "— (not a commit)"
             return "— (not one run)" if "" in self.runs else f"— ({len(self.runs)} runs)"
         return self.tied[0] if len(self.tied) == 1 else f"tie: {ranking.shorten(self.tied)}"
 

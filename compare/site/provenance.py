@@ -1,8 +1,10 @@
 """Which runs a matrix row's figures come from (``Record.run``), in words for its page.
 
 A row is ranked only when every figure it reads comes from one run: one machine, one commit, one
-sitting, with that run's own yardstick. Records made before runs were stamped carry no run; a row
-that reads any of them, or records of several runs, shows its figures and names no best.
+sitting, with that run's own yardstick, made from a committed tree (a figure must name a commit
+someone can check out). Records made before runs were stamped carry no run; a row that reads any
+of them, records of several runs, or one run of an uncommitted tree (or one whose tree state is
+not known), shows its figures and names no best.
 """
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from typing import Iterable
 from compare.results.record import Record
 
 UNSTAMPED = "records without a run stamp (made before runs were recorded)"
+DIRTY, UNKNOWN = " (dirty tree)", " (tree state unknown)"
 
 
 def short(sha: object) -> str:
@@ -29,7 +32,7 @@ def label(rec: Record) -> str:
         return ""
     commit = short(run.get("commit")) if run.get("commit") else "unknown commit"
     dirty = run.get("dirty")
-    state = " (dirty tree)" if dirty else "" if dirty is False else " (tree state unknown)"
+    state = DIRTY if dirty else "" if dirty is False else UNKNOWN
     return f"run {created[:16].replace('T', ' ')} UTC, commit {commit}{state}"
 
 
@@ -39,7 +42,8 @@ def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:
 
 
 def one_run(runs: tuple[str, ...]) -> bool:
-    return len(runs) == 1 and runs[0] != ""
+    """One stamped run, of a committed tree: the only figures a row ranks."""
+    return len(runs) == 1 and runs[0] != "" and not runs[0].endswith((DIRTY, UNKNOWN))
 
 
 def words(runs: tuple[str, ...]) -> str:
@@ -48,6 +52,10 @@ def words(runs: tuple[str, ...]) -> str:
         return "No records."
     if one_run(runs):
         return f"Every figure of this row comes from one {runs[0]}."
+    if len(runs) == 1 and runs[0]:
+        return (f"Not ranked: this row's figures come from one {runs[0]}, not a commit someone can "
+                "check out. Ratios are to the leading figure; no best is named until it is measured "
+                "again from a commit.")
     named = [r for r in runs if r]
     parts = named + ([UNSTAMPED] if "" in runs else [])
     return (f"Not ranked: this row's figures come from {len(named) or 'an unknown number of'} run(s)"

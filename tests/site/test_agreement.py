@@ -33,6 +33,13 @@ def test_unstamped_records_are_not_one_run():
     assert provenance.UNSTAMPED in r.verdict
 
 
+def test_one_run_of_an_uncommitted_tree_names_no_best():
+    dirty = stamp("2026-11-28T09:00:00+00:00", "def5678", True)
+    r = row("latency", [rec("warp", time=latency(10e-6), run=dirty), rec("cupy", time=latency(40e-6), run=dirty)])
+    assert r.best is None and r.tied == () and r.top == "warp" and r.best_text() == "— (not a commit)"
+    assert "not a commit someone can check out" in r.verdict
+
+
 def _two(warp: float, cupy: float, torch: float, ci: float = 0.01) -> list[Record]:
     return [rec(fw, time=latency(v, (v * (1 - ci), v * (1 + ci)), n=6))
             for fw, v in (("warp", warp), ("cupy", cupy), ("torch", torch))]
