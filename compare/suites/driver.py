@@ -30,6 +30,7 @@ from compare.options import UsageError
 from compare.results.record import Record
 from compare.results.record_parts import Processes, Timing
 from compare.results.store import Store
+from compare.results.environment import RunEnvironment
 from compare.spec import Cell, key
 
 X = TypeVar("X")
@@ -64,6 +65,14 @@ class Run:
     @property
     def cells(self) -> list[Cell]:
         return [p.cell for p in self.planned if p.cell is not None]
+
+    def protocol(self) -> RunEnvironment:
+        """How this run times its cells, for its entry in the store's ``runs`` (every timed suite)."""
+        env = RunEnvironment(overlap=self.ahead, overlap_beside=overlap.beside(self.ahead),
+                             processes=getattr(self.args, "processes", 1))
+        if getattr(self.args, "sitting", None) is not None:
+            env["sitting_s"] = self.args.sitting
+        return env
 
 
 class Command:

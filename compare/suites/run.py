@@ -24,7 +24,7 @@ import scenarios
 from backends.base import Device
 from compare.planning import calibrate, outdir
 from compare.render import console, report, run_plots
-from compare.running import engine, hardware, overlap, scaleout
+from compare.running import engine, hardware, scaleout
 from compare.measuring import environment, phases
 from compare import options
 from compare.site import versus
@@ -252,11 +252,7 @@ class RunSuite(Suite):
         self.store_ = store = RunStore.open(out, "run", keep=args.resume)
         env = self.env = store.env = environment.collect(run.argv)
         env["backends"] = probes
-        env["overlap"] = run.ahead
-        env["overlap_beside"] = overlap.beside(run.ahead)
-        env["processes"] = args.processes
-        if getattr(args, "sitting", None) is not None:
-            env["sitting_s"] = args.sitting
+        env.update(run.protocol())
         t0 = time.perf_counter()
         env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
                            if any(p["available"].get(d) is None for p in probes.values())}

@@ -31,7 +31,7 @@ from typing import Any, Mapping, NamedTuple
 import backends
 import scenarios
 from backends.base import Device
-from compare.running import engine, hardware, overlap, scaleout
+from compare.running import engine, hardware, scaleout
 from compare.measuring import environment
 from compare import options
 from compare.planning import outdir, preflight
@@ -254,11 +254,7 @@ class SweepSuite(Suite):
         self.store_ = store = Store.open(run.out, "sweep", keep=not args.fresh)
         env = self.env = environment.collect(list(map(shlex.quote, run.argv)))    # a command one can paste
         env["backends"] = run.probes
-        env["overlap"] = run.ahead
-        env["overlap_beside"] = overlap.beside(run.ahead)
-        env["processes"] = args.processes
-        if getattr(args, "sitting", None) is not None:
-            env["sitting_s"] = args.sitting
+        env.update(run.protocol())
         env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
         env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
                            if any(p["available"].get(d) is None for p in run.probes.values())}
