@@ -41,6 +41,19 @@ def test_a_published_store_saves_to_the_same_bytes(path: Path) -> None:
     assert Store.read(path).to_json() == path.read_text()
 
 
+# Runs stored from here on name a commit whose files they ran (session 21 made that checkable on a
+# lent machine); older entries stay, named "dirty" or "unknown" on their pages, until remeasured.
+CLEAN_FROM = "2026-11-27T12:00:00+00:00"
+
+
+@pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))
+def test_a_published_run_from_an_uncommitted_tree_is_refused(path: Path) -> None:
+    """No run entry stored since CLEAN_FROM comes from a dirty tree or one whose state is unknown."""
+    late = [e for entry in Store.read(path).runs for e in run_environments(entry)
+            if str(e.get("created", "")) >= CLEAN_FROM]
+    assert [e["created"] for e in late if e.get("git_dirty") is not False or not e.get("git_commit")] == []
+
+
 def test_a_saved_store_reads_back_and_saves_to_the_same_bytes(tmp_path: Path) -> None:
     path = tmp_path / "results.json"
     mine = small_store(path)
