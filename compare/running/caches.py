@@ -25,10 +25,12 @@ def apply(policy: str, backend: Backend, out_dir: Path, kept: str = "") -> str:
     cache.mkdir(parents=True, exist_ok=True)
     (cache / "used").touch()        # the next process of the cell finds it filled, whatever the framework keeps
     env = backend.cache_environment(cache)
+    folders = {var for var, value in env.items() if value and cache in Path(value).parents}
     for var, value in env.items():
-        if value and cache in Path(value).parents:     # a cache directory (not a flag's value)
+        if var in folders:          # a cache directory (not a flag's value)
             Path(value).mkdir(parents=True, exist_ok=True)
         os.environ[var] = value
     state, word = ("kept", "as an earlier process of this cell left it") if filled else ("cold", "empty")
-    return f"{state}: " + (", ".join(f"{k} {word}" if v else f"{k} off" for k, v in env.items())
+    return f"{state}: " + (", ".join(f"{k} {word}" if k in folders else f"{k}={v}" if v else f"{k} off"
+                                     for k, v in env.items())
                            or "the framework keeps no kernel cache on disk")
