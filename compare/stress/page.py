@@ -250,8 +250,11 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
         got = stored(part)
         seen += got.get("rows", [])
         found = {row_key(r) for r in rows if r["verdict"] != "skipped"}
-        # a part that skipped a backend (not installed where it ran) erases no earlier finding
-        part_rows = [r for r in got.get("rows", []) if r["verdict"] != "skipped" or row_key(r) not in found]
+        ran = {row_key(r) for r in got.get("rows", []) if r["verdict"] != "skipped"}
+        # a part that skipped a backend (not installed where it ran) erases no earlier finding; one
+        # that ran it keeps its own skips (a variant the device lacks)
+        part_rows = [r for r in got.get("rows", []) if r["verdict"] != "skipped" or row_key(r) in ran
+                     or row_key(r) not in found]
         replaced = {row_key(r) for r in part_rows}
         rows = [r for r in rows if row_key(r) not in replaced]
         for e, entry in old_provenance(part).items():

@@ -91,7 +91,8 @@ def stress_row(exp, backend, device, figure, value):
 @pytest.mark.cli
 def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_path):
     """New backends run later join an earlier run's experiment: the later part wins only for the
-    backends and devices it ran; rows, plot series and provenance of the others are kept."""
+    backends and devices it ran; rows, plot series and provenance of the others are kept. A
+    backend the later part skipped wholly erases nothing; one it ran keeps that part's skips."""
     old = stress_part(tmp_path / "old", "old run", [
         stress_row("particles-inf", "physics", "host", "predicted step", 6),
         stress_row("particles-inf", "warp", "cuda", "overflow step", 1),
@@ -106,6 +107,7 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
         stress_row("particles-inf", "torch", "cuda", "flips vs warp", 7),
         stress_row("particles-inf", "warp", "cpu", "overflow step", 11),
         {**stress_row("particles-inf", "taichi", "cuda", "-", None), "verdict": "skipped"},   # not installed there
+        {**stress_row("particles-inf", "warp", "cuda", "-", None), "verdict": "skipped"},     # a variant it lacks
         stress_row("particles-inf", "physics", "host", "predicted step", 60),
     ], {"particles-inf": {"lines": {"warp/cuda": [10], "torch/cuda": [30]}, "shared": [9]}})
     p = run_stress("--merge", old, new, "--out", str(tmp_path / "merged"), "--no-plots")
@@ -121,6 +123,7 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
         ("particles-inf", "torch", "cuda", "overflow step", 30),     # new backend
         ("particles-inf", "taichi", "cuda", "flips vs warp", 5),     # kept, though warp's was replaced
         ("particles-inf", "torch", "cuda", "flips vs warp", 7),
+        ("particles-inf", "warp", "cuda", "-", None),                # kept: the part ran warp, skipped a variant
         ("races", "taichi", "cuda", "differing values", 0),          # an experiment the later part skipped
     ]
     assert a["series"]["particles-inf"] == {"lines": {"warp/cuda": [10], "taichi/cuda": [2], "torch/cuda": [30]},
