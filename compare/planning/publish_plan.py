@@ -18,6 +18,7 @@ GROUPS = ("large", "stress")
 MATRIX_PROCESSES = "auto"      # the matrix part: every figure from interleaved processes (compare.running.repeats)
 MATRIX_OVERLAP = "auto"        # ... whose set-ups run side by side, each cell timed alone (compare.running.overlap)
 SITTING_S = 1500               # ... and rounds past the fewest only while they fit 25 minutes (--sitting)
+PROTOCOL = ("--processes", MATRIX_PROCESSES, "--overlap", MATRIX_OVERLAP, "--sitting", str(SITTING_S))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,8 +76,7 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     sel = ["--backends", backends_arg]
     tmo = ["--timeout", f"{timeout:g}"] if timeout is not None else []
     tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
-    procs = () if quick else ("--processes", MATRIX_PROCESSES, "--overlap", MATRIX_OVERLAP,
-                              "--sitting", str(SITTING_S))
+    procs = () if quick else PROTOCOL
     alone = ("--against", "none")      # a store is a reference itself: no block against another
     # The matrix part and the large parts are what the matrix reads (float32), in repeated
     # processes; float64 cells (parity with the oracle, no row ranks them) run once, in their own

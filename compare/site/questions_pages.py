@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable, cast
 
+from compare.planning import publish_plan
 from compare.render import charts
 from compare.results.record import Record
 from compare.site import data, fmt, pages_why, provenance
@@ -50,11 +51,12 @@ class Ctx:
 
     def cmd(self, *words: str, timed: bool = True) -> str:
         """The commands that measure a figure's cells again, as the published ones were (timed
-        suites: in several interleaved processes, set-ups side by side), into a new folder, and
-        build its site; ``compare agree`` then holds it against this store ordering by ordering.
+        suites: in several interleaved processes, set-ups side by side, within one sitting), into
+        a new folder, and build its site; ``compare agree`` then holds it against this store
+        ordering by ordering.
         (Into the store with --resume they would remeasure nothing: it holds every cell.)"""
         store = self.store_arg if " " not in self.store_arg else "STORE"
-        protocol = " --processes auto --overlap auto" if timed else ""
+        protocol = " " + " ".join(publish_plan.PROTOCOL) if timed else ""
         return (f"python -m compare {' '.join(words)}{protocol} --out NEW\n"
                 "python -m compare site NEW --out NEW/report" + (f"\npython -m compare agree {store} NEW" if timed else ""))
 

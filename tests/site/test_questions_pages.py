@@ -35,11 +35,11 @@ def test_no_long_loop_section_without_two_frameworks_at_one_horizon():
 
 def test_a_figures_command_measures_again_as_published_into_a_new_folder(tmp_path):
     """Not ``--resume`` into the store, which holds every cell and so would remeasure nothing:
-    the published protocol (several processes, set-ups side by side) into NEW, its site, and
+    the published protocol (several processes, set-ups side by side, one sitting) into NEW, its site, and
     ``compare agree`` against the store; a stress figure has no processes and no agreement."""
     c = qp.Ctx(data.load([]), [], tmp_path / "site", "docs/results/h100")
     timed = c.cmd("run saxpy --devices cuda").splitlines()
-    assert timed == ["python -m compare run saxpy --devices cuda --processes auto --overlap auto --out NEW",
+    assert timed == ["python -m compare run saxpy --devices cuda --processes auto --overlap auto --sitting 1500 --out NEW",
                      "python -m compare site NEW --out NEW/report",
                      "python -m compare agree docs/results/h100 NEW"]
     assert "--resume" not in c.cmd("sweep error")
