@@ -109,7 +109,7 @@ class Row:
         if self.top is None:
             return "—"
         if not self.tied:       # figures from several runs, unstamped ones or an uncommitted tree: never ranked
-            if len(self.runs) == 1 and self.runs[0]:
+            if provenance.uncommitted(self.runs):
                 return "— (not a commit)"
             return "— (not one run)" if "" in self.runs else f"— ({len(self.runs)} runs)"
         return self.tied[0] if len(self.tied) == 1 else f"tie: {ranking.shorten(self.tied)}"

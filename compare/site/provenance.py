@@ -46,13 +46,18 @@ def one_run(runs: tuple[str, ...]) -> bool:
     return len(runs) == 1 and runs[0] != "" and not runs[0].endswith((DIRTY, UNKNOWN))
 
 
+def uncommitted(runs: tuple[str, ...]) -> bool:
+    """One stamped run, of an uncommitted tree or one whose state is not known."""
+    return len(runs) == 1 and runs[0] != "" and not one_run(runs)
+
+
 def words(runs: tuple[str, ...]) -> str:
     """The provenance sentence a row's page prints."""
     if not runs:
         return "No records."
     if one_run(runs):
         return f"Every figure of this row comes from one {runs[0]}."
-    if len(runs) == 1 and runs[0]:
+    if uncommitted(runs):
         return (f"Not ranked: this row's figures come from one {runs[0]}, not a commit someone can "
                 "check out. Ratios are to the leading figure; no best is named until it is measured "
                 "again from a commit.")

@@ -42,8 +42,9 @@ def test_one_run_ranks_several_or_unstamped_do_not():
 def test_one_run_of_an_uncommitted_tree_or_an_unknown_one_is_not_ranked():
     for run in (B, {"created": "2026-11-27T10:20", "commit": "abc1234"}):
         runs = provenance.runs_of([rec(run), rec(run)])
-        assert len(runs) == 1 and not provenance.one_run(runs)
+        assert len(runs) == 1 and not provenance.one_run(runs) and provenance.uncommitted(runs)
         assert "not a commit someone can check out" in provenance.words(runs)
+    assert not any(provenance.uncommitted(provenance.runs_of(x)) for x in ([rec(A)], [rec(A), rec(B)], [rec()]))
 
 
 def test_a_full_commit_hash_is_shortened_on_pages_and_anything_else_kept():
