@@ -112,23 +112,36 @@ def test_batch_rows_are_independent():
 
 
 def test_set_input_reruns_from_the_kernel_cache():
+    """New values through ``set_input`` rerun cached kernels, not a new trace per call.
+
+    Dr.Jit's kernel hash follows its variable indices, which it reuses from a free list, so now and
+    then a rerun compiles (or loads from disk) one more ordering of the same program: CI saw one
+    such miss. A retrace per call would miss on every rerun, so the test asks that most hit."""
     import drjit as dr
+
+    def misses() -> int:        # kernels compiled plus kernels loaded from the on-disk cache
+        stats = dr.detail.launch_stats()
+        return stats[1] + stats[2]
+
     p = SC.params({"contact": "soft", "iters": 2, "batch": 5}, quick=True)
     inputs = SC.inputs(p, "float64")
     k = build("projectile", p, inputs=inputs)
     before = k.outputs()
-    new = {"v0": np.ascontiguousarray(inputs["v0"][::-1]), "target": inputs["target"] + 0.25}
-    for name, value in inputs.items():      # the upload path once (its own small kernels may be
-        if name in new:                     # new to this process, depending on what ran before)
+    for name in ("v0", "target"):   # the upload path once (its own small kernels may be new to
+        k.set_input(name, inputs[name])     # this process, depending on what ran before)
+    k.run()
+    BACKEND.synchronize("cpu", None)
+    reruns, missed = 8, 0
+    for i in range(1, reruns + 1):
+        new = {"v0": np.ascontiguousarray(inputs["v0"][::-1]) * (1 + 0.01 * i),
+               "target": inputs["target"] + 0.25 * i}
+        start = misses()
+        for name, value in new.items():
             k.set_input(name, value)
-    k.run()
-    BACKEND.synchronize("cpu", None)
-    misses = dr.detail.launch_stats()[2]
-    for name, value in new.items():
-        k.set_input(name, value)
-    k.run()
-    BACKEND.synchronize("cpu", None)
-    assert dr.detail.launch_stats()[2] == misses           # nothing compiled again
+        k.run()
+        BACKEND.synchronize("cpu", None)
+        missed += misses() > start         # one new ordering is up to one kernel a launch
+    assert missed <= reruns // 4, f"{missed} of {reruns} reruns compiled again"
     got = k.outputs()
     want = build("projectile", p, inputs={**inputs, **new}).outputs()
     assert all(got[n].tobytes() == want[n].tobytes() for n in want)
