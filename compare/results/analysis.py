@@ -32,10 +32,13 @@ class Finding(TypedDict):
 
 class RunInfo(TypedDict, total=False):
     """The run that produced an experiment's rows (its provenance); ``backends``: the ones it
-    gave, where a merge took the experiment's other backends from another run."""
+    gave, where a merge took the experiment's other backends from another run. ``git_dirty``:
+    the run's tree had uncommitted changes (None, or absent in a run kept before it was recorded:
+    not known)."""
     command: str | None
     created: str | None
     git_commit: str | None
+    git_dirty: bool | None
     backends: list[str]
 
 

@@ -11,13 +11,13 @@ import math
 import re
 import sys
 from pathlib import Path
-from typing import Any, TypedDict, cast
+from typing import Any, Mapping, TypedDict, cast
 
 import backends
 from compare.render.report import fmt_num
 from compare.results.analysis import Provenance, RunInfo
 from compare.results.environment import RunEnvironment
-from compare.results.store import Store, atomic_write, jsonable
+from compare.results.store import Store, atomic_write, jsonable, run_environments
 from compare.stress import plots
 from compare.stress.numerics import COLUMNS, Experiment, Finding, Row, Series
 
@@ -48,9 +48,11 @@ def provenance(data: PageData) -> Provenance:
     if "provenance" in data:
         return data["provenance"]
     env = data.get("environment", {})
-    run = RunInfo(command=env.get("command"), created=env.get("created"), git_commit=env.get("git_commit"))
-    if "merged_from" in env:      # an old merged file: its parts' commands were not kept
+    run = RunInfo(command=env.get("command"), created=env.get("created"), git_commit=env.get("git_commit"),
+                  git_dirty=env.get("git_dirty"))
+    if "merged_from" in env:      # an old merged file: its parts' commands and trees were not kept
         run["command"] = f"merge of {len(env['merged_from'])} parts (commands not recorded)"
+        run["git_dirty"] = None
     return {r["experiment"]: run for r in data.get("rows", [])}
 
 
@@ -66,12 +68,52 @@ def produced_by(data: PageData) -> list[str]:
     for e, entry in provenance(data).items():
         for r in runs_of(entry):
             label = e if "backends" not in r or len(runs_of(entry)) == 1 else f"{e} ({', '.join(r['backends'])})"
-            runs.setdefault((r.get("command") or "?", r.get("created") or "?", r.get("git_commit") or "?"),
+            state = TREE.get(r.get("git_dirty"), TREE[None])
+            runs.setdefault((r.get("command") or "?", r.get("created") or "?", f"{r.get('git_commit') or '?'}{state}"),
                             []).append(label)
     lines = ["- produced by:" if len(runs) > 1 else "- produced by"]
     for (cmd, when, commit), exps in runs.items():
-        lines.append(f"  - `{cmd}` ({when}, commit {commit or '?'}): {', '.join(exps)}")
+        lines.append(f"  - `{cmd}` ({when}, commit {commit}): {', '.join(exps)}")
     return lines
+
+
+# a run's tree in words (as the site's provenance says it)
+TREE = {False: "", True: ", dirty tree", None: ", tree state unknown"}
+
+
+def run_key(run: Mapping[str, Any]) -> tuple[object, object]:
+    """What names one run in a provenance and in the environments: its start and command."""
+    return run.get("created"), run.get("command")
+
+
+def part_environments(envs: list[RunEnvironment]) -> dict[tuple[object, object], RunEnvironment]:
+    """The parts' runs by ``run_key`` (a part itself merged gives those it names; one merged before
+    they were kept gives its last part's, which its entry is, with the packages of all)."""
+    known: dict[tuple[object, object], RunEnvironment] = {}
+    for env in envs:
+        for e in run_environments(env):
+            known.setdefault(run_key(e), cast(RunEnvironment, {k: v for k, v in e.items() if k != "merged_from"}))
+    return known
+
+
+def environments(known: dict[tuple[object, object], RunEnvironment],
+                 prov: dict[str, list[RunInfo]]) -> list[RunEnvironment]:
+    """The runs a merged file's rows come from, once each in provenance order, each run's tree
+    state carried into the provenance where it lacked one; a run that a file merged before
+    environments were kept names only in its provenance: what that names (tree unknown)."""
+    out: dict[tuple[object, object], RunEnvironment] = {}
+    for entry in prov.values():
+        for r in entry:
+            e = known.get(run_key(r))
+            if e is not None and "git_dirty" not in r:
+                r["git_dirty"] = e.get("git_dirty")
+            out.setdefault(run_key(r), e if e is not None else RunEnvironment(
+                created=r.get("created"), command=r.get("command"), git_commit=r.get("git_commit"),
+                git_dirty=r.get("git_dirty"), git_note=OLD_MERGE))
+    return list(out.values())
+
+
+OLD_MERGE = "kept by a stress merge that stored only its parts' commands, times and commits"
 
 
 # A verdict flags a problem or a limit found in CAPITALS (docs/stress.md); these capitals are
@@ -276,7 +318,8 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
         for k, v in run_env.get("packages", {}).items():
             if v not in versions.setdefault(k, []):
                 versions[k].append(v)
-    env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files}
+    env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files,
+                           "environments": environments(part_environments(envs), prov)}
     write_outputs(target, env, in_table_order(rows, seen), series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})
     print(f"merged {len(files)} files into {target.path} ({len(rows)} rows)", file=sys.stderr)

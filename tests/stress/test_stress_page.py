@@ -74,6 +74,7 @@ def stress_part(path, command, rows, series):
     from compare.results.store import Store
     numpy = "2.4" if command == "old run" else "2.5"
     store = Store(path / "stress.json", "stress", runs=[{"command": command, "created": "t", "git_commit": "c",
+                                                        "git_dirty": command == "old run",
                                                         "packages": {command: "1", "numpy": numpy}}])
     store.analysis = {"provenance": {e: {"command": command, "created": "t", "git_commit": "c"}
                                      for e in {r["experiment"] for r in rows}},
@@ -132,11 +133,16 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     assert [(r["command"], r["backends"]) for r in runs] == [("old run", ["taichi"]),
                                                              ("new run", ["physics", "torch", "warp"])]
     assert a["provenance"]["races"]["command"] == "old run"
+    # each run's tree state is carried into the provenance, and the merged entry keeps every run
+    assert [r["git_dirty"] for r in runs] == [True, False] and a["provenance"]["races"]["git_dirty"] is True
     assert got["runs"][-1]["packages"] == {"old run": "1", "new run": "1", "numpy": "2.4 / 2.5"}
+    assert [(e["command"], e["git_dirty"]) for e in got["runs"][-1]["environments"]] == [("old run", True),
+                                                                                         ("new run", False)]
     md = (tmp_path / "merged" / "stress.md").read_text()
     lines = {ln.split("`")[1]: ln.split(": ", 1)[1] for ln in md.splitlines() if ln.startswith("  - `")}
     assert sorted(lines["old run"].split(", ")) == ["particles-inf (taichi)", "races"]
     assert lines["new run"] == "particles-inf (physics, torch, warp)"
+    assert "(t, commit c, dirty tree): particles-inf (taichi)" in md and "(t, commit c): particles-inf (physics" in md
     # merging the merged file again with the later part changes nothing
     p = run_stress("--merge", str(tmp_path / "merged" / "stress.json"), new, "--out", str(tmp_path / "again"),
                    "--no-plots")
@@ -166,9 +172,26 @@ def test_deep_merge_joins_series_and_takes_the_later_leaf():
 def test_provenance_of_a_file_without_one_is_its_environments_run():
     data = {"environment": {"command": "stress", "created": "t", "git_commit": "c"},
             "rows": [row("a", "ok", 1), row("b", "ok", 2)]}
-    assert page.provenance(data) == {e: {"command": "stress", "created": "t", "git_commit": "c"} for e in "ab"}
-    old = {"environment": {"merged_from": ["x", "y"]}, "rows": [row("a", "ok", 1)]}
+    assert page.provenance(data) == {e: {"command": "stress", "created": "t", "git_commit": "c", "git_dirty": None}
+                                     for e in "ab"}
+    old = {"environment": {"merged_from": ["x", "y"], "git_dirty": False}, "rows": [row("a", "ok", 1)]}
     assert page.provenance(old)["a"]["command"] == "merge of 2 parts (commands not recorded)"
-    assert page.produced_by(data) == ["- produced by", "  - `stress` (t, commit c): a, b"]
+    assert page.provenance(old)["a"]["git_dirty"] is None           # its parts' trees were not kept
+    assert page.produced_by(data) == ["- produced by", "  - `stress` (t, commit c, tree state unknown): a, b"]
+    clean = {**data, "environment": {**data["environment"], "git_dirty": False}}
+    assert page.produced_by(clean) == ["- produced by", "  - `stress` (t, commit c): a, b"]
     assert page.with_backends({"command": "x"}, ["warp"]) == {"command": "x", "backends": ["warp"]}
     assert page.row_key(row("a", "ok", 1)) == ("a", "warp", "cuda")
+
+
+def test_a_merge_names_every_run_its_rows_come_from_even_those_an_old_merge_kept_no_environment_of():
+    """A file merged before environments were kept has only its last part's environment; the runs
+    its provenance names besides are kept as what it names, tree state unknown, so no run that
+    gave rows is hidden behind the last part's clean tree."""
+    last = {"command": "last", "created": "t2", "git_commit": "c2", "git_dirty": False, "merged_from": ["p", "q"]}
+    prov = {"a": [{"command": "first", "created": "t1", "git_commit": "c1", "backends": ["warp"]}],
+            "b": [{"command": "last", "created": "t2", "git_commit": "c2", "backends": ["jax"]}]}
+    envs = page.environments(page.part_environments([last]), prov)
+    assert [(e["command"], e["git_dirty"]) for e in envs] == [("first", None), ("last", False)]
+    assert envs[0]["git_note"] == page.OLD_MERGE and "merged_from" not in envs[1]
+    assert prov["b"][0]["git_dirty"] is False and prov["a"][0].get("git_dirty") is None
