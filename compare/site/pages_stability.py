@@ -8,7 +8,10 @@ import re
 from typing import Any
 
 from compare.render import charts, figure_check
+from compare.stress import page
 from compare.site import questions_pages as qp
+from compare.results.analysis import RunInfo
+from compare.site.provenance import short
 from compare.site.questions_pages import doc_link
 from compare.site.render import Figure, H, P, Raw, Table, block_html, block_md
 
@@ -16,9 +19,10 @@ from compare.site.render import Figure, H, P, Raw, Table, block_html, block_md
 def stability(c: qp.Ctx) -> list[Any]:
     if c.m.stress is None:
         return [P("No stability records (stress.json) in this store: `python -m compare stress`.")]
-    from compare.stress import page, plots
+    from compare.stress import plots
     from compare.stress.registry import experiments
     a = c.m.stress.analysis
+    prov = page.provenance(page.stored(c.m.stress))
     reg = experiments()
     blocks: list[Any] = [P("The stability stress suite: long rollouts, dt sweeps, overflow, learning-rate "
                            "divergence, gradient quality through contact, float32 error distributions and "
@@ -37,7 +41,8 @@ def stability(c: qp.Ctx) -> list[Any]:
             v = re.sub(r"(?<![\w.])\d[\d.e+-]*%?", "#", str(r.get("verdict", "")).split(" (")[0])
             counts[v] = counts.get(v, 0) + 1
         blocks += [H(f"{name}: {exp.title}", name),
-                   P("Verdicts: " + "; ".join(f"{v} ×{k}" for v, k in counts.items()))]
+                   P("Verdicts: " + "; ".join(f"{v} ×{k}" for v, k in counts.items())),
+                   P(made_by(page.runs_of(prov.get(name, []))))]
         series = (a.get("series") or {}).get(name)
         png, rel, _ = c.fig(f"stability-{name}")
         if series and exp.plot is not None:
@@ -54,6 +59,20 @@ def stability(c: qp.Ctx) -> list[Any]:
                                           str(r["figure"]), _value(r.get("value")), str(r["verdict"]),
                                           str(r.get("detail", ""))[:200]) for r in shown))))
     return blocks
+
+
+def made_by(runs: list[RunInfo]) -> str:
+    """Which runs gave an experiment's rows: start, commit, tree state (and, of several, the
+    frameworks each gave)."""
+    if not runs:
+        return "Its run is not recorded."
+    def one(r: RunInfo) -> str:
+        gave = f": {', '.join(r['backends'])}" if len(runs) > 1 and r.get("backends") else ""
+        tree = page.TREE.get(r.get("git_dirty"), page.TREE[None])
+        when = str(r.get("created") or "?")
+        when = m.group() if (m := re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d", when)) else when    # ISO: to the minute
+        return f"{when} (commit {short(r.get('git_commit') or '?')}{tree}{gave})"
+    return ("From the run of " if len(runs) == 1 else f"From {len(runs)} runs: ") + "; ".join(map(one, runs)) + "."
 
 
 def folded(t: Table) -> Raw:

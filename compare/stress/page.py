@@ -113,7 +113,7 @@ def environments(known: dict[tuple[object, object], RunEnvironment],
     return list(out.values())
 
 
-OLD_MERGE = "kept by a stress merge that stored only its parts' commands, times and commits"
+OLD_MERGE = "named only, by an older stress merge"
 
 
 # A verdict flags a problem or a limit found in CAPITALS (docs/stress.md); these capitals are

@@ -29,6 +29,19 @@ def test_stability_page_leads_with_one_line_per_experiment_and_folds_the_rows(tm
     for e in ran:
         head = html.index(f'<h2 id="{e}">')
         assert summary < head < html.index("<details><summary>", head)
+        assert "<p>From " in html[head:html.index("<details><summary>", head)], e     # the runs it came from
     md = (site / "stability.md").read_text()
     assert md.index("## Summary") < min(md.index(f"## {e}: ") for e in ran)
     assert "<details>" not in md
+
+
+def test_an_experiment_names_each_run_its_rows_come_from_with_commit_and_tree_state():
+    from compare.site.pages_stability import made_by
+    assert made_by([]) == "Its run is not recorded."
+    new = {"created": "2026-11-28T01:01:03+00:00", "git_commit": "a" * 40, "git_dirty": False, "backends": ["warp"]}
+    assert made_by([new]) == "From the run of 2026-11-28T01:01 (commit aaaaaaa)."
+    old = {"created": "2026-11-21T21:42:30", "git_commit": "4bdffc9", "backends": ["jax", "numba"]}
+    dirty = {**new, "git_dirty": True}
+    assert made_by([{**old, "created": "2026-11-21 (session 1, H100)"}]).startswith("From the run of 2026-11-21 (session 1, H100) (")
+    assert made_by([old, dirty]) == ("From 2 runs: 2026-11-21T21:42 (commit 4bdffc9, tree state unknown: jax, numba); "
+                                     "2026-11-28T01:01 (commit aaaaaaa, dirty tree: warp).")
