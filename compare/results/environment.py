@@ -9,7 +9,8 @@ does not name kept). ``environment_of`` types an object as soon as the store has
 """
 from __future__ import annotations
 
-from typing import Mapping, TypedDict, cast
+from collections import Counter
+from typing import Any, Mapping, TypedDict, cast
 
 
 class Gpu(TypedDict):
@@ -131,4 +132,11 @@ def environment_of(obj: Mapping[str, object]) -> RunEnvironment:    # a stored r
 
 
 __all__ = ["Gpu", "Host", "Phases", "Probe", "PublishEntry", "PublishLog", "RunEnvironment", "Scheduler", "Yardstick",
-           "environment_of"]
+           "environment_of", "machine"]
+
+
+def machine(h: Mapping[str, Any]) -> str:
+    """A host as the machine kind a store holds: its GPUs' models (with their count) where it
+    has GPUs, else its CPU model."""
+    gpus = Counter(str(g.get("name")) for g in h.get("gpus") or [])
+    return " + ".join(f"{n} x{k}" if k > 1 else n for n, k in sorted(gpus.items())) or str(h.get("cpu") or "?")

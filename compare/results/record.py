@@ -13,7 +13,9 @@ version below and saves the newest; users load these files with pandas, so keys 
       ``hardware``, ``host_cores``, ``run`` (the run that measured the record: its ``created``
       time, ``commit`` and whether the tree was ``dirty``), ``time.events`` (device events, a
       separate pass; before it an event-timed record's own figures were the events),
-      ``time.null``, ``time.own_timer``, ``time.processes`` (compare.running.repeats).
+      ``time.null``, ``time.own_timer``, ``time.processes`` (compare.running.repeats); in a
+      stress file, each provenance run's ``git_dirty`` and a merged run entry's ``environments``
+      (every run its rows come from).
   1 - no ``format_version``: ``results.json`` is ``{"environment", "records"}``, ``sweep.json``
       ``{"runs", "records"}``, ``stress.json`` ``{"environment", "provenance", "rows", "series"}``.
       Each suite's format upgrades its records (``compare.results.formats``).

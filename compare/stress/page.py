@@ -276,6 +276,15 @@ def with_backends(run: RunInfo, gave: list[str]) -> RunInfo:
     return out
 
 
+def named(file: str, out: Path) -> str:
+    """A merged file as the store names it: relative to ``out`` where it lies inside it (a
+    publish's parts), else as given (not the merging machine's temporary folders)."""
+    try:
+        return Path(file).resolve().relative_to(out.resolve()).as_posix()
+    except ValueError:
+        return file
+
+
 def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = True) -> int:
     """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each,
     or new backends run later); later files win per experiment, backend and device (and per cell
@@ -318,7 +327,7 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
         for k, v in run_env.get("packages", {}).items():
             if v not in versions.setdefault(k, []):
                 versions[k].append(v)
-    env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": files,
+    env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": [named(f, out) for f in files],
                            "environments": environments(part_environments(envs), prov)}
     write_outputs(target, env, in_table_order(rows, seen), series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})

@@ -49,7 +49,8 @@ A checkout with uncommitted changes is refused (exit 2) unless --allow-dirty: a 
 names the commit that measured it (each run keeps ``git_dirty_paths``). A copied tree whose .git
 may be stale names its commit in COMPARE_GIT_COMMIT and that commit's tree in COMPARE_GIT_TREE,
 which its files must match (its runs then say clean); with the commit alone it is taken on its
-word (tree state unknown).
+word (tree state unknown). A folder whose log names another machine (GPU models, else the CPU
+model) is refused too: one store, one machine.
 
 Exit: 0 every selected part done with 0; 1 some part ended with 1 or failed (rerun); 2 bad usage
 (one line, nothing written); 3 stopped by --budget with parts left; 130 Ctrl-C.
@@ -74,7 +75,8 @@ from compare import options
 from compare.planning import outdir
 from compare.suites.driver import Command, claim
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
-from compare.suites.publish_log import Entry, Log, host, load_log, save_log, started, state
+from compare.results.environment import machine
+from compare.suites.publish_log import Entry, Log, host, load_log, other_machine, save_log, started, state
 from compare.planning.publish_plan import GROUPS, Part, plan
 
 LOCK = ".publish.lock"         # publish's own lock: each part locks DIR itself while it writes
@@ -222,6 +224,15 @@ def print_list(parts: list[Part], chosen: list[Part], log: Log, out_s: str,
         print(f"  {n}")
 
 
+def refuse_other_machine(out: str, log: Log) -> None:
+    """A store is one machine's (its report compares like with like): a publish into a folder
+    whose log names another machine is refused."""
+    other = other_machine(log, host())
+    if other is not None:
+        raise UsageError(f"{out} holds runs of {other}, not of this machine ({machine(host())}): a store "
+                         "holds one machine; publish into another --out")
+
+
 def refuse_dirty(allowed: bool) -> None:
     """A published store names the commit that measured it: a checkout with uncommitted changes
     is refused unless allowed. A copied tree (its .git may be stale) names its commit
@@ -258,6 +269,7 @@ class Publish(Command):
         if args.list:
             print_list(parts, chosen, log, args.out, devices, notes)
             return EXIT_OK
+        refuse_other_machine(args.out, log)
         refuse_dirty(args.allow_dirty)
         out, lock = claim(args, 0.0, lock_name=LOCK)
         catch_signals()

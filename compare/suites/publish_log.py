@@ -21,12 +21,12 @@ import dataclasses
 import datetime
 import json
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Mapping, cast
 
 from compare.measuring import environment
 from compare.options import EXIT_INTERRUPTED
 from compare.planning.publish_plan import Part
-from compare.results.environment import Host, PublishEntry as Entry, PublishLog as Log
+from compare.results.environment import Host, PublishEntry as Entry, PublishLog as Log, machine
 from compare.results.store import StoreError, atomic_write
 
 FORMAT_VERSION, LOG = 1, "publish.json"
@@ -93,6 +93,13 @@ def host() -> Host:
     import platform
     cores = environment.usable_cores()
     return Host(hostname=platform.node(), cpu=environment.cpu_model(), cores=cores, gpus=environment.gpus())
+
+
+def other_machine(log: Log, here: Mapping[str, Any]) -> str | None:
+    """The machine of an earlier attempt in ``log`` that is not ``here``'s (None: all are), so
+    that one store never holds two machines' rows."""
+    mine = machine(here)
+    return next((machine(h) for e in log["parts"] if (h := e.get("host")) and machine(h) != mine), None)
 
 
 def save_log(out: Path, log: Log) -> None:

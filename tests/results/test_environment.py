@@ -7,7 +7,7 @@ from pathlib import Path
 
 from compare.measuring import environment
 from compare.results import records
-from compare.results.environment import RunEnvironment
+from compare.results.environment import RunEnvironment, machine
 from compare.results.store import Store, run_environments
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,3 +52,11 @@ def test_every_stored_run_reads_as_an_environment() -> None:
         for env in (e for run in Store.read(path).runs for e in run_environments(run)):
             assert isinstance(env.get("packages", {}), dict) and all(isinstance(g["name"], str)
                                                                     for g in env.get("gpus") or [])
+
+
+def test_a_machine_is_its_gpu_models_else_its_cpu_model() -> None:
+    h200x2 = {"cpu": "Xeon", "gpus": [{"name": "NVIDIA H200"}, {"name": "NVIDIA H200"}]}
+    assert machine(h200x2) == "NVIDIA H200 x2"
+    assert machine({"cpu": "AMD EPYC", "gpus": []}) == "AMD EPYC"
+    assert machine({"cpu": "Other", "gpus": [{"name": "NVIDIA H100 80GB HBM3"}]}) == "NVIDIA H100 80GB HBM3"
+    assert machine({}) == "?"

@@ -14,7 +14,7 @@ import pytest
 
 from compare.files import TEMP_MARK, TEMP_SUFFIX
 from compare.results import store as store_mod
-from compare.results.environment import RunEnvironment
+from compare.results.environment import RunEnvironment, machine
 from compare.results.record import FORMAT_VERSION, Record
 from compare.results.store import (SUITES, Store, StoreError, jsonable, read_bounded, remove_stale_temps,
                                    run_environments)
@@ -26,6 +26,10 @@ PUBLISHED = sorted({*ROOT.glob("docs/results/*/results.json"), *ROOT.glob("docs/
 SITE_RECORDS = json.loads((SITE / "results.json").read_text())["records"]
 
 
+SUITE_FILES = ("results.json", "sweep.json", "stress.json")
+MACHINES = sorted({p.parent for p in PUBLISHED})
+
+
 def ids(paths: list[Path]) -> list[str]:
     return [str(p.relative_to(ROOT)) for p in paths]
 
@@ -33,6 +37,15 @@ def ids(paths: list[Path]) -> list[str]:
 def small_store(path: Path, n: int = 4, host: str = "a") -> Store:
     return Store(path, "run", [{"hostname": host}], [Record.from_json(json.loads(json.dumps(r)))
                                                      for r in SITE_RECORDS[:n]])
+
+
+@pytest.mark.parametrize("folder", MACHINES, ids=ids(MACHINES))
+def test_a_machine_folder_holds_the_runs_of_one_machine(folder: Path) -> None:
+    """A report compares like with like: every run in a machine's stores names one machine (GPU
+    models, else the CPU model; a run whose environment was not kept names none)."""
+    seen = {machine(e) for f in folder.glob("*.json") if f.name in SUITE_FILES
+            for entry in Store.read(f).runs for e in run_environments(entry) if e.get("cpu") or e.get("gpus")}
+    assert len(seen) <= 1, f"{folder.relative_to(ROOT)} mixes machines: {sorted(seen)}"
 
 
 @pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))

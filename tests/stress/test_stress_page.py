@@ -195,3 +195,9 @@ def test_a_merge_names_every_run_its_rows_come_from_even_those_an_old_merge_kept
     assert [(e["command"], e["git_dirty"]) for e in envs] == [("first", None), ("last", False)]
     assert envs[0]["git_note"] == page.OLD_MERGE and "merged_from" not in envs[1]
     assert prov["b"][0]["git_dirty"] is False and prov["a"][0].get("git_dirty") is None
+
+
+def test_a_merged_part_inside_the_output_folder_is_named_relative_to_it(tmp_path):
+    out = tmp_path / "pub"
+    assert page.named(str(out / "stress-parts" / "ulps" / "stress.json"), out) == "stress-parts/ulps/stress.json"
+    assert page.named("docs/results/cpu/stress.json", out) == "docs/results/cpu/stress.json"

@@ -71,6 +71,20 @@ def test_empty_out_and_a_bad_log_are_refused(tmp_path, capsys):
     assert sorted(os.listdir(tmp_path)) == ["publish.json"]
 
 
+def test_a_folder_of_another_machine_is_refused(tmp_path, capsys):
+    """One store, one machine: a publish log naming another machine's host refuses the run."""
+    from compare.suites import publish_log
+    log = {"format_version": 1, "parts": [{"name": "all", "argv": ["all"], "started": "t", "seconds": 1.0,
+                                           "exit_code": 0, "host": {"cpu": "Some Other CPU", "gpus": []}}]}
+    (tmp_path / "publish.json").write_text(json.dumps(log))
+    assert cli.main(["publish", "--out", str(tmp_path), *NUMPY]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "holds runs of Some Other CPU, not of this machine" in err[0], err
+    assert sorted(os.listdir(tmp_path)) == ["publish.json"]
+    log["parts"][0]["host"] = publish_log.host()                   # this machine's own log: allowed
+    assert publish_log.other_machine(log, publish_log.host()) is None
+
+
 def test_a_dirty_checkout_is_refused_unless_allowed(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(environment, "dirty_paths", lambda: ["compare/x.py", "b.py", "c.py", "d.py"])
     monkeypatch.delenv("COMPARE_GIT_COMMIT", raising=False)

@@ -72,3 +72,11 @@ def test_identity_ignores_the_timeout_and_spells_paths_under_dir_alike(tmp_path)
                                        ({"exit_code": 0, "interrupted": True}, True), ({"exit_code": 130}, True)])
 def test_cut_off(entry, cut):
     assert publish_log.cut_off(entry) is cut
+
+
+
+def test_another_machine_in_the_log_is_found():
+    log = {"format_version": 1, "parts": [{"name": "a", "argv": [], "host": {"cpu": "AMD EPYC", "gpus": []}},
+                                          {"name": "b", "argv": []}]}        # an entry without a host: no machine
+    assert publish_log.other_machine(log, {"cpu": "AMD EPYC", "gpus": []}) is None
+    assert publish_log.other_machine(log, {"cpu": "Intel Xeon", "gpus": []}) == "AMD EPYC"
