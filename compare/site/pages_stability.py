@@ -8,10 +8,10 @@ import re
 from typing import Any
 
 from compare.render import charts, figure_check
-from compare.stress import page
-from compare.site import questions_pages as qp
 from compare.results.analysis import RunInfo
+from compare.site import questions_pages as qp
 from compare.site.provenance import short
+from compare.stress import page
 from compare.site.questions_pages import doc_link
 from compare.site.render import Figure, H, P, Raw, Table, block_html, block_md
 

@@ -327,7 +327,8 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
         for k, v in run_env.get("packages", {}).items():
             if v not in versions.setdefault(k, []):
                 versions[k].append(v)
-    env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()}, "merged_from": [named(f, out) for f in files],
+    env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()},
+                           "merged_from": [named(f, out) for f in files],
                            "environments": environments(part_environments(envs), prov)}
     write_outputs(target, env, in_table_order(rows, seen), series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})
