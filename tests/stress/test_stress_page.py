@@ -142,7 +142,8 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     lines = {ln.split("`")[1]: ln.split(": ", 1)[1] for ln in md.splitlines() if ln.startswith("  - `")}
     assert sorted(lines["old run"].split(", ")) == ["particles-inf (taichi)", "races"]
     assert lines["new run"] == "particles-inf (physics, torch, warp)"
-    assert "(t, commit c, dirty tree): particles-inf (taichi)" in md and "(t, commit c): particles-inf (physics" in md
+    whole = {ln.split("`")[1]: ln for ln in md.splitlines() if ln.startswith("  - `")}   # each run's tree state
+    assert "(t, commit c, dirty tree): " in whole["old run"] and "(t, commit c): " in whole["new run"]
     # merging the merged file again with the later part changes nothing
     p = run_stress("--merge", str(tmp_path / "merged" / "stress.json"), new, "--out", str(tmp_path / "again"),
                    "--no-plots")
