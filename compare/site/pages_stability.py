@@ -10,10 +10,10 @@ from typing import Any
 from compare.render import charts, figure_check
 from compare.results.analysis import RunInfo
 from compare.site import questions_pages as qp
-from compare.site.provenance import short
-from compare.stress import page
+from compare.site.provenance import run_words
 from compare.site.questions_pages import doc_link
 from compare.site.render import Figure, H, P, Raw, Table, block_html, block_md
+from compare.stress import page
 
 
 def stability(c: qp.Ctx) -> list[Any]:
@@ -62,17 +62,14 @@ def stability(c: qp.Ctx) -> list[Any]:
 
 
 def made_by(runs: list[RunInfo]) -> str:
-    """Which runs gave an experiment's rows: start, commit, tree state (and, of several, the
-    frameworks each gave)."""
+    """Which runs gave an experiment's rows (``provenance.run_words``; of several, the frameworks
+    each gave)."""
     if not runs:
         return "Its run is not recorded."
     def one(r: RunInfo) -> str:
         gave = f": {', '.join(r['backends'])}" if len(runs) > 1 and r.get("backends") else ""
-        tree = page.TREE.get(r.get("git_dirty"), page.TREE[None])
-        when = str(r.get("created") or "?")
-        when = m.group() if (m := re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d", when)) else when    # ISO: to the minute
-        return f"{when} (commit {short(r.get('git_commit') or '?')}{tree}{gave})"
-    return ("From the run of " if len(runs) == 1 else f"From {len(runs)} runs: ") + "; ".join(map(one, runs)) + "."
+        return run_words(r.get("created"), r.get("git_commit"), r.get("git_dirty")) + gave
+    return ("From " if len(runs) == 1 else f"From {len(runs)} runs: ") + "; ".join(map(one, runs)) + "."
 
 
 def folded(t: Table) -> Raw:

@@ -27,13 +27,16 @@ def short(sha: object) -> str:
 def label(rec: Record) -> str:
     """A run in words: its start (to the minute), commit and a dirty tree; '' when unstamped."""
     run = rec.run or {}
-    created = str(run.get("created") or "")
-    if not created:
-        return ""
-    commit = short(run.get("commit")) if run.get("commit") else "unknown commit"
-    dirty = run.get("dirty")
+    return run_words(run.get("created"), run.get("commit"), run.get("dirty")) if run.get("created") else ""
+
+
+def run_words(created: object, commit: object, dirty: object) -> str:
+    """'run START UTC, commit C' (START to the minute where it is ISO), with the tree's state."""
+    when = str(created or "?")
+    if re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d", when):
+        when = f"{when[:16].replace('T', ' ')} UTC"
     state = DIRTY if dirty else "" if dirty is False else UNKNOWN
-    return f"run {created[:16].replace('T', ' ')} UTC, commit {commit}{state}"
+    return f"run {when}, commit {short(commit) if commit else 'unknown commit'}{state}"
 
 
 def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:

@@ -39,9 +39,9 @@ def test_an_experiment_names_each_run_its_rows_come_from_with_commit_and_tree_st
     from compare.site.pages_stability import made_by
     assert made_by([]) == "Its run is not recorded."
     new = {"created": "2026-11-28T01:01:03+00:00", "git_commit": "a" * 40, "git_dirty": False, "backends": ["warp"]}
-    assert made_by([new]) == "From the run of 2026-11-28T01:01 (commit aaaaaaa)."
+    assert made_by([new]) == "From run 2026-11-28 01:01 UTC, commit aaaaaaa."
     old = {"created": "2026-11-21T21:42:30", "git_commit": "4bdffc9", "backends": ["jax", "numba"]}
     dirty = {**new, "git_dirty": True}
-    assert made_by([{**old, "created": "2026-11-21 (session 1, H100)"}]).startswith("From the run of 2026-11-21 (session 1, H100) (")
-    assert made_by([old, dirty]) == ("From 2 runs: 2026-11-21T21:42 (commit 4bdffc9, tree state unknown: jax, numba); "
-                                     "2026-11-28T01:01 (commit aaaaaaa, dirty tree: warp).")
+    assert made_by([{**old, "created": "2026-11-21 (session 1, H100)"}]).startswith("From run 2026-11-21 (session 1, H100), ")
+    assert made_by([old, dirty]) == ("From 2 runs: run 2026-11-21 21:42 UTC, commit 4bdffc9 (tree state unknown): jax, "
+                                     "numba; run 2026-11-28 01:01 UTC, commit aaaaaaa (dirty tree): warp.")
