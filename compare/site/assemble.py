@@ -34,9 +34,17 @@ def _plan_parts(device: str) -> list[str]:
 RERUN = "rerun"       # beside a store: an independent second run of (part of) its matrix part
 
 
+def _others_cores(recs: Any) -> str:
+    """The median of the cores other processes used while the records' cells were timed."""
+    got = sorted(v for r in recs if r.time and r.time.noise
+                 for v in [data.num(r.time.noise.others_cores)] if v is not None)
+    return f"{got[len(got) // 2]:.2f}" if got else "?"
+
+
 def reproducibility(c: qp.Ctx) -> list[Any]:
-    """How many of the matrix's significant orderings a second, independent run agrees with
-    (``compare agree``), where the store keeps one in its ``rerun/`` folder."""
+    """How many of the matrix's significant orderings a second run agrees with (``compare agree``),
+    where the store keeps one in its ``rerun/`` folder: that run named (start, commit, tree state,
+    how busy its host was beside the windows, the part's time) from its own files, not a claim."""
     dirs = [s.parent / RERUN for s in c.m.sources if (s.parent / RERUN).is_dir()]
     if not dirs:
         return [H("Reproducibility"), P("No second run of the matrix part is stored beside these records "
@@ -44,12 +52,20 @@ def reproducibility(c: qp.Ctx) -> list[Any]:
     from compare.site import agreement
     other = data.load([dirs[0]])
     got = [r for r in agreement.compare_rows(c.rows, pages.evaluate(other)[0]) if r.significant]
-    runs = "; ".join(str(e.get("created", "?"))[:16] for e in other.runs)
+    runs = "; ".join(provenance.run_words(e.get("created"), e.get("git_commit"), e.get("git_dirty"))
+                     for e in other.runs)
+    took = [p for p in (other.publish["parts"] if other.publish else []) if p.get("name") == "all"]
+    asked = {r.question for r in got}
+    mine = {x for r in c.rows if r.rule.question + (f" ({r.device})" if r.device else "") in asked for x in r.runs}
+    part = (f" The part took {sum(float(p.get('seconds') or 0) for p in took) / 60:.1f} minutes "
+            f"in {len(took)} attempt{'s' if len(took) != 1 else ''} ({RERUN}/publish.json)." if took else "")
     return [H("Reproducibility"),
-            P(f"A second, independent run of the matrix part ({RERUN}/, started {runs}) is held against "
-              "these records ordering by ordering (`python -m compare agree`): for every pair of "
-              "frameworks that either run separates on a row, the other run's order. "
-              f"**{agreement.summary(got)}** Rows the second run did not measure are not counted."),
+            P(f"A second run of the matrix part ({RERUN}/: {runs}) is held against these records ordering by "
+              "ordering (`python -m compare agree`): for every pair of frameworks that either run separates "
+              f"on a row, the other run's order. **{agreement.summary(got)}** Rows the second run did not "
+              "measure are not counted. While its cells were timed, other processes used a median of "
+              f"{_others_cores(other.run)} cores (in the runs of these rows: "
+              f"{_others_cores(r for r in c.m.run if provenance.label(r) in mine)}).{part}"),
             Table(("row", "significant pairs", "agree", "tie in one run", "reversed", "which"),
                   tuple((r.question, str(r.significant - r.missing), str(r.agree), str(r.tie), str(r.disagree),
                          ", ".join(r.reversed_pairs) or "-") for r in got))]

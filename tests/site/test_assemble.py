@@ -78,6 +78,8 @@ def test_the_machine_page_reads_the_publish_log_and_a_rerun(tmp_path, loaded):
     shutil.copytree(STORE, store)
     (store / assemble.RERUN).mkdir()
     shutil.copy(STORE / "results.json", store / assemble.RERUN)
+    (store / assemble.RERUN / data.PUBLISH_LOG).write_text(json.dumps({"parts": [
+        {"name": "all", "argv": ["all"], "started": "t", "seconds": 90, "exit_code": 0}]}))
     (store / data.PUBLISH_LOG).write_text(json.dumps({"parts": [
         {"name": "cuda-matrix", "argv": ["all", "--backends", "warp,jax"], "started": "t", "seconds": 60,
          "exit_code": 0},
@@ -86,6 +88,11 @@ def test_the_machine_page_reads_the_publish_log_and_a_rerun(tmp_path, loaded):
     text = " ".join(getattr(b, "text", "") for b in blocks)
     assert "ran 1 parts on this machine in 90 s of wall time" in text
     assert "significant orderings agree between the two runs; 0 became a tie in one of them (allowed), 0 reversed." in text
+    # the second run named from its own files: when, which commit, how busy its host was, its time
+    run = data.load([store / assemble.RERUN]).runs[0]
+    assert f"(rerun/: run {run['created'][:16].replace('T', ' ')} UTC, commit {run['git_commit'][:7]}" in text
+    assert "other processes used a median of" in text and "independent" not in text
+    assert "The part took 1.5 minutes in 1 attempt (rerun/publish.json)." in text
     pub = next(b for b in blocks if isinstance(b, Table) and b.headers[0] == "part")
     assert pub.rows == (("cuda-matrix", "warp,jax", "t", "60", "0"), ("cuda-matrix", "all", "t2", "30", "cut off"))
 
