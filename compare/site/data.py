@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any, Iterable, Mapping, cast
 
@@ -72,8 +73,11 @@ class Machine:
         return None
 
     def cpu_name(self) -> str:
+        """'Intel Xeon (2 cores)': the model as the OS names it, less its trademark signs and a
+        trailing 'Processor' (the report's default title, so no store needs one given by hand)."""
         env: RunEnvironment = next((e for e in self.runs if e.get("cpu")), RunEnvironment())
-        return f"{env.get('cpu', 'CPU')} ({env.get('cores', '?')} cores)"
+        model = re.sub(r"\((R|TM)\)|\s+(CPU\s+)?Processor$", "", str(env.get("cpu", "CPU")), flags=re.I)
+        return f"{' '.join(model.split()) or 'CPU'} ({env.get('cores', '?')} cores)"
 
     def name(self) -> str:
         """The machine in words: its GPU where CUDA cells ran, else its CPU."""

@@ -4,6 +4,7 @@ under each figure the command that reproduces its data. The pages of one scenari
 are in compare/site/topics/, the pages over every scenario in compare/site/pages.py."""
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 from typing import Any, Callable, cast
@@ -11,7 +12,7 @@ from typing import Any, Callable, cast
 from compare.planning import publish_plan
 from compare.render import charts
 from compare.results.record import Record
-from compare.site import data, fmt, pages_why, provenance
+from compare.site import data, fmt, pages_why, provenance, ranking
 from compare.site.data import Machine
 from compare.site.matrix import Row
 from compare.site.render import Block, Figure, H, Items, P, Table
@@ -210,6 +211,13 @@ def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = Fal
     return blocks
 
 
+@dataclasses.dataclass(frozen=True)
+class _Fig:                 # a figure as compare.site.ranking reads it
+    framework: str
+    value: float | None
+    ci: tuple[float, float] | None
+
+
 def _longest_loop(hz: list[Record]) -> Page:
     """Which framework differentiates a long loop fastest, and at what memory: the horizon
     sweep's hard-contact float32 cells at the most steps that two or more frameworks ran."""
@@ -224,16 +232,22 @@ def _longest_loop(hz: list[Record]) -> Page:
         return []
     n = max(shared)
     rows = []
+    ci: dict[int, tuple[float, float] | None] = {}
     for r in (r for r in ok if steps_of(r) == n):
         t = data.per_call(r, "throughput") or data.timing(r, "latency")
         rows.append((t.median if t else None, data.device_bytes(r), r))
+        ci[id(r)] = t.ci if t else None
     # (cast: each sorts only the rows whose figure it filtered to be not None)
     timed = sorted((x for x in rows if x[0] is not None), key=lambda x: cast(float, x[0]))
     small = sorted((x for x in rows if x[1] is not None), key=lambda x: cast(float, x[1]))
     name = lambda r: _label(r.backend, r.variant)  # noqa: E731
     batch = (rows[0][2].params or {}).get("batch")
     text = f"A long loop: {n} steps, hard contact, float32, batch {batch}."
-    parts = ([f"fastest: {name(timed[0][2])} ({fmt.seconds(timed[0][0])} per loss + gradient)"] if timed else []) \
+    figs = [_Fig(name(r), cast(float, t), ci[id(r)]) for t, _, r in timed]
+    top = ranking.tie(figs)            # one-process figures: a best only where separated (the matrix's rule)
+    fastest = (f"fastest: {name(timed[0][2])} ({fmt.seconds(timed[0][0])} per loss + gradient)" if len(top) <= 1
+               else f"fastest: a tie of {', '.join(top)} ({ranking.why_tied(figs[0], figs[1:len(top)])})")
+    parts = ([fastest] if timed else []) \
         + ([f"least device memory: {name(small[0][2])} ({fmt.nbytes(small[0][1])})"] if small else [])
     if parts:
         joined = "; ".join(parts)

@@ -116,3 +116,14 @@ def test_fraction_label(fraction, work, device, label):
             hardware={"l2_bytes": 50e6} if device == "cuda" else None)
     assert data.fraction_label(r) == label
     assert data.fraction_label(rec()) == ""
+
+
+@pytest.mark.parametrize("cpu,cores,name", [
+    ("Intel(R) Xeon(R) Processor", 2, "Intel Xeon (2 cores)"),
+    ("AMD EPYC", 2, "AMD EPYC (2 cores)"),
+    ("Intel(R) Core(TM) i7-8700 CPU @ 3.20GHz", 12, "Intel Core i7-8700 CPU @ 3.20GHz (12 cores)"),
+    ("AMD Ryzen 9 7950X 16-Core Processor", 32, "AMD Ryzen 9 7950X 16-Core (32 cores)"),
+])
+def test_the_cpu_is_named_without_trademark_signs(cpu, cores, name):
+    m = data.Machine((), (), (), None, ({"cpu": cpu, "cores": cores},), None)
+    assert m.cpu_name() == name and m.name() == name       # the default title of a CPU store
