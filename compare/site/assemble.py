@@ -31,7 +31,7 @@ def _plan_parts(device: str) -> list[str]:
     return [p.name for p in parts]
 
 
-RERUN = "rerun"       # beside a store: an independent second run of (part of) its matrix part
+RERUN = "rerun"       # beside a store: a second run of (part of) its matrix part, named on the page
 
 
 def _others_cores(recs: Any) -> str:

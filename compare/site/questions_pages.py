@@ -246,7 +246,7 @@ def _longest_loop(hz: list[Record]) -> Page:
     figs = [_Fig(name(r), cast(float, t), ci[id(r)]) for t, _, r in timed]
     top = ranking.tie(figs)            # one-process figures: a best only where separated (the matrix's rule)
     fastest = (f"fastest: {name(timed[0][2])} ({fmt.seconds(timed[0][0])} per loss + gradient)" if len(top) <= 1
-               else f"fastest: a tie of {', '.join(top)} ({ranking.why_tied(figs[0], figs[1:len(top)])})")
+               else f"fastest: a tie of {', '.join(top)} ({ranking.why_tied(figs[0], [f for f in figs[1:] if f.framework in top])})")
     parts = ([fastest] if timed else []) \
         + ([f"least device memory: {name(small[0][2])} ({fmt.nbytes(small[0][1])})"] if small else [])
     if parts:
