@@ -108,7 +108,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                      f"{fmt.seconds(total)} of wall time, every attempt counted (publish.json; an "
                      "attempt cut off, by a time limit or a signal, is resumed by the next, keeping "
                      "its finished cells)." + (f" Parts it has not run here: {', '.join(missing)}; "
-                                               "their records come from the earlier runs below." if missing else "")),
+                                               "any record of theirs comes from another run this page names." if missing else "")),
                    Table(("part", "backends", "started", "seconds", "exit code"), tuple(
                        (str(p.get("name")), _argv_value(p.get("argv"), "--backends"), str(p.get("started")),
                         f"{data.num(p.get('seconds')) or 0:.0f}",

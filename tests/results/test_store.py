@@ -67,6 +67,20 @@ def test_a_published_run_from_an_uncommitted_tree_is_refused(path: Path) -> None
     assert [e["created"] for e in late if e.get("git_dirty") is not False or not e.get("git_commit")] == []
 
 
+RESULTS = sorted(ROOT.glob("docs/results/*/results.json"))
+
+
+@pytest.mark.parametrize("path", RESULTS, ids=ids(RESULTS))
+def test_every_published_run_figure_names_a_clean_commit(path: Path) -> None:
+    """A results store's figures name a commit someone can check out: every record names its run,
+    and every run entry is of a checked clean commit (older records live in evidence/, not here)."""
+    s = Store.read(path)
+    assert [r.key for r in s.records if not r.run] == []
+    assert [e.get("created") for e in s.runs if e.get("git_dirty") is not False or not e.get("git_commit")] == []
+    named = {str(r.run["created"]) for r in s.records if r.run}
+    assert {str(e.get("created")) for e in s.runs} == named        # no entry that no record names
+
+
 def test_a_saved_store_reads_back_and_saves_to_the_same_bytes(tmp_path: Path) -> None:
     path = tmp_path / "results.json"
     mine = small_store(path)
