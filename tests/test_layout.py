@@ -175,3 +175,12 @@ def test_every_compare_module_has_its_own_test_file_and_basenames_are_unique():
     missing = [str(m.relative_to(ROOT)) for m in sorted((ROOT / "compare").rglob("*.py"))
                if m.name not in ("__init__.py", "__main__.py") and not own_test(m, set(names))]
     assert not missing, f"modules without a test file of their own name: {missing}"
+
+
+def test_modules_stay_small_and_the_readme_a_landing_page():
+    """The guide's sizes: a module of at most 400 lines (source and tests), a README of at most 150."""
+    sources = [p for d in (*PACKAGES, "tests") for p in sorted((ROOT / d).rglob("*.py"))]
+    long = [f"{p.relative_to(ROOT)}: {n}" for p in sources
+            if (n := len(p.read_text().splitlines())) > 400]
+    assert not long, f"modules over 400 lines: {long}"
+    assert len((ROOT / "README.md").read_text().splitlines()) <= 150

@@ -329,3 +329,22 @@ def fraction_label(rec: Record, runs: Iterable[RunEnvironment] = ()) -> str:
     # above the copy: cache, unless the working set is known not to fit (or there is no GPU L2)
     beyond = l2 is not None and work is not None and work >= l2[0]
     return "above copy" if beyond or rec.device != "cuda" else "cache"
+
+
+def scope(recs: list[Record]) -> str:
+    """The sizes a row read, in words (``n = 268435456``)."""
+    seen = []
+    for r in recs:
+        sc = r.scenario
+        s = size(r)
+        words = f"{sc} at defaults" if at_defaults(r) else f"{sc} {_size_words(r, s)}"
+        if words not in seen:
+            seen.append(words)
+    return "; ".join(seen)
+
+
+def _size_words(r: Record, s: float) -> str:
+    p = r.params or {}
+    k = "n" if "n" in p else "batch" if "batch" in p else "size"
+    e = math.log2(s) if s > 0 else 0
+    return f"{k} = 2^{e:.0f}" if s > 0 and e == int(e) else f"{k} = {s:g}"

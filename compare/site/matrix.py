@@ -380,23 +380,5 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
         tied = ()
         cells = {f: dataclasses.replace(c, tied=False) for f, c in cells.items()}
         verdict = f"{provenance.words(runs)} Leading figure: {top} ({fmt(values[top], rule.unit)})."
-    return Row(rule, device, cells, top, tied, verdict, scope(recs), runs)
+    return Row(rule, device, cells, top, tied, verdict, data.scope(recs), runs)
 
-
-def scope(recs: list[Record]) -> str:
-    """The sizes a row read, in words (``n = 268435456``)."""
-    seen = []
-    for r in recs:
-        sc = r.scenario
-        s = data.size(r)
-        words = f"{sc} at defaults" if data.at_defaults(r) else f"{sc} {_size_words(r, s)}"
-        if words not in seen:
-            seen.append(words)
-    return "; ".join(seen)
-
-
-def _size_words(r: Record, s: float) -> str:
-    p = r.params or {}
-    k = "n" if "n" in p else "batch" if "batch" in p else "size"
-    e = math.log2(s) if s > 0 else 0
-    return f"{k} = 2^{e:.0f}" if s > 0 and e == int(e) else f"{k} = {s:g}"

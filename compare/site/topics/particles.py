@@ -39,7 +39,7 @@ def page(c: Ctx) -> Page:
     big = _variants(matrix.largest_of(SCENARIO, (None, "scaling"))(c.m, c.device))
     if big:
         png, rel, csv = c.fig("particles-large")
-        charts.bars(png, f"Particles at the largest n ({matrix.scope(big)}, {c.device}, float32): particle-steps "
+        charts.bars(png, f"Particles at the largest n ({data.scope(big)}, {c.device}, float32): particle-steps "
                     "per second, throughput regime", "particle-steps per second",
                     [_bar(r, data.item_rate) for r in big], better="higher", fmt=lambda v: fmt.rate(v))
         n = int(data.size(big[0]))

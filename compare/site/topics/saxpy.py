@@ -56,7 +56,7 @@ def bandwidth(c: Ctx) -> Page:
         gpu = next((g for r in allvar if (g := datasheet.gpu_of(r, c.m.runs))), None)
         copy = next((v for r in allvar if r.hardware and (v := data.num(r.hardware.copy_bytes_per_s))), None)
         png, rel, csv = c.fig("bandwidth-largest")
-        charts.bars(png, f"SAXPY at the largest n ({matrix.scope(allvar)}), {c.device}, float32: per call, "
+        charts.bars(png, f"SAXPY at the largest n ({data.scope(allvar)}), {c.device}, float32: per call, "
                     "throughput regime", "seconds per call (whiskers: quartiles)",
                     [_bar(r, matrix.regime("throughput")) for r in allvar], fmt=fmt.seconds)
         n = int(data.size(allvar[0]))
