@@ -2,6 +2,7 @@
 on hand-made horizon records and on the site's test store."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -61,3 +62,12 @@ def test_the_stored_horizon_sweep_tables_and_plots(tmp_path):
     assert plots.plot_horizon(recs, "cuda", tmp_path / "h.png", "projectile")
     assert (tmp_path / "h.png").read_bytes().startswith(b"\x89PNG")
     assert not plots.plot_horizon(recs, "cpu", tmp_path / "none.png", "projectile")
+
+
+def test_gradient_quality_counts_the_cells_past_their_bound_too():
+    """A mismatch (error past its bound) still returned a gradient: the agreement band keeps it,
+    so a horizon's mean is not left to the frameworks that happened to pass."""
+    past = dataclasses.replace(rec(600, None, backend="torch", fd=0.25), status="mismatch")
+    cells = horizon.gradient_cells([rec(600, None, fd=0.5), past, rec(600, None, device="cpu")],
+                                   "cuda", "projectile")
+    assert [(r.backend, r.status) for r in cells] == [("warp", "ok"), ("torch", "mismatch")]

@@ -78,21 +78,59 @@ def page(c: Ctx) -> Page:
     blocks += _scaling(c, SCENARIO, "trajectory-gradients per second", "batch (trajectories)", memory=True)
     hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r.device == c.device]
     if hz:
-        from compare.sweep import plots as sweep_plots
+        from compare.sweep import horizon as sweep_horizon, plots as sweep_plots
         png, rel, _ = c.fig("gradients-horizon")
         if figure_check.checked(lambda: sweep_plots.plot_horizon(list(hz), c.device, png, SCENARIO), png):
-            charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "steps", "device bytes",
-                                                       "gradient fd agreement"),
-                             [(r.backend, r.variant, r.precision,
+            charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "contact", "steps",
+                                                       "device bytes", "gradient fd agreement", "status"),
+                             [(r.backend, r.variant, r.precision, (r.params or {}).get("contact"),
                                (r.params or {}).get("steps"), data.device_bytes(r),
-                               r.error.details.get("gradient_fd_agreement") if r.error else None)
-                              for r in hz if r.status == "ok"])
+                               r.error.details.get("gradient_fd_agreement") if r.error else None, r.status)
+                              for r in sweep_horizon.gradient_cells(hz, c.device, SCENARIO)])
             blocks += [H("Memory and gradient quality against the horizon"),
                        Figure(rel, "Device memory and gradient agreement with float64 finite differences "
                               "against the number of steps, with each framework's memory-saving variants.",
                               c.cmd(f"sweep horizon --devices {c.device}"), rel[:-4] + ".csv")]
+            blocks += [P(t) for t in outside_bound(hz)]
         blocks += _longest_loop(hz)
     return blocks
+
+
+def outside_bound(hz: list[Record]) -> list[str]:
+    """Per horizon point (contact, precision, steps) where some framework's error exceeds the derived
+    bound: who, by how much, and whether the ratio is the same in all of them (then it is the
+    precision's arithmetic on that trajectory, not a port: ports that differ would not agree)."""
+    groups: dict[tuple[str, str, int], list[Record]] = {}
+    for r in hz:
+        if r.status in ("ok", "mismatch") and r.error is not None:
+            p = r.params or {}
+            groups.setdefault((str(p.get("contact")), str(r.precision), int(p.get("steps") or 0)), []).append(r)
+    out = []
+    for (contact, prec, steps), recs in sorted(groups.items(), key=lambda kv: kv[0]):
+        bad = [r for r in recs if r.status == "mismatch"]
+        ratios = [v for r in bad if isinstance(v := data.num(r.error.vs_oracle if r.error else None), float)]
+        if not bad or not ratios:
+            continue
+        names = sorted({r.backend for r in bad})
+        within = sorted({f"{r.backend}{'' if r.variant == 'default' else '/' + r.variant} "
+                         f"({data.num(r.error.vs_oracle) or 0:.2g})" for r in recs
+                         if r.status == "ok" and r.error and r.backend not in names})
+        same = max(ratios) <= min(ratios) * (1 + 1e-5)
+        where = next((r.error.details.get("worst_trajectory") for r in bad if r.error), None)
+        text = (f"Outside the derived bound: {contact} contact, {prec}, {steps} steps. "
+                f"{len(names)} framework{'s' if len(names) > 1 else ''} ({', '.join(names)}) exceed"
+                f"{'' if len(names) > 1 else 's'} the first-order rounding bound, error/bound "
+                + (f"{min(ratios):.5g} in every one, the same to 5 digits"
+                   + (f" (checked trajectory {where})" if where is not None else "")
+                   + f": not a port's defect, since one {prec} arithmetic gives it everywhere, but "
+                   f"{prec} outrunning the bound's first-order analysis on that trajectory"
+                   if same else f"{min(ratios):.3g} to {max(ratios):.3g}")
+                + (f". Within it: {', '.join(within)}." if within else ".")
+                + " Their gradients count in the figure's agreement band; its data lists them with "
+                "status 'mismatch' (docs/measurement.md, 'AD memory and gradient quality against the "
+                "horizon').")
+        out.append(text)
+    return out
 
 
 PAGES = {"gradients": ("Gradients at scale", page)}

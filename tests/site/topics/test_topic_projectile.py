@@ -60,3 +60,25 @@ def test_its_page_answers_both_rows(ctx):
     assert "figures/gradients-horizon.png" in {f.png for f in figs}
     for f in figs:
         assert (ctx.into / f.png).is_file() and (ctx.into / f.csv).is_file()
+
+
+def horizon_rec(backend: str, status: str, ratio: float, variant: str = "default", steps: int = 600) -> Record:
+    return Record(scenario="projectile", backend=backend, device="cpu", precision="float32", status=status,
+                  variant=variant, params={"steps": steps, "contact": "soft", "batch": 256},
+                  tags={"sweep": "horizon", "knob": {"name": "steps", "value": steps}},
+                  error={"vs_oracle": ratio, "tolerance": 1.0, "worst_trajectory": 14},
+                  gradient={"fd_agreement": 0.4})
+
+
+def test_a_horizon_point_past_its_bound_is_said_with_who_and_whether_it_is_one_arithmetic():
+    same = [horizon_rec("warp", "mismatch", 1.9259014), horizon_rec("torch", "mismatch", 1.9259021),
+            horizon_rec("jax", "ok", 0.35), horizon_rec("jax", "ok", 0.33, "checkpoint"),
+            horizon_rec("warp", "ok", 0.2, steps=180)]
+    [text] = projectile.outside_bound(same)
+    assert "soft contact, float32, 600 steps" in text and "2 frameworks (torch, warp)" in text
+    assert "1.9259 in every one, the same to 5 digits (checked trajectory 14): not a port's defect" in text
+    assert "Within it: jax (0.35), jax/checkpoint (0.33)." in text
+    apart = [horizon_rec("warp", "mismatch", 1.9), horizon_rec("torch", "mismatch", 3.0)]
+    [text] = projectile.outside_bound(apart)
+    assert "1.9 to 3" in text and "not a port's defect" not in text
+    assert projectile.outside_bound([horizon_rec("warp", "ok", 0.5)]) == []
