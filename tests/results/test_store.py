@@ -81,6 +81,25 @@ def test_every_published_run_figure_names_a_clean_commit(path: Path) -> None:
     assert {str(e.get("created")) for e in s.runs} == named        # no entry that no record names
 
 
+CLEAN = [p for m in ("cpu", "xeon") for p in sorted(ROOT.glob(f"docs/results/{m}/*.json"))
+         if p.name in ("sweep.json", "stress.json")]
+
+
+@pytest.mark.parametrize("path", CLEAN, ids=ids(CLEAN))
+def test_the_cpu_stores_sweeps_and_stress_name_clean_commits(path: Path) -> None:
+    """The two CPU stores' sweep and stress files were measured again from clean commits: every
+    sweep record names its run (a stress row names its experiment, whose run the merge keeps), and
+    every run (a stress file: every part its merge names) is of a checked clean commit. The
+    H100's keep older runs until measured again (docs/measurement.md)."""
+    s = Store.read(path)
+    assert s.suite == "stress" or [r.key for r in s.records if not r.run] == []
+    prov = s.analysis.get("provenance") or {}
+    parts = [e for v in prov.values() for e in (v if isinstance(v, list) else [v])]
+    entries = [*s.runs, *parts]
+    assert entries and [e.get("created") for e in entries
+                        if e.get("git_dirty") is not False or not e.get("git_commit")] == []
+
+
 def test_a_saved_store_reads_back_and_saves_to_the_same_bytes(tmp_path: Path) -> None:
     path = tmp_path / "results.json"
     mine = small_store(path)
