@@ -114,7 +114,7 @@ def outside_bound(hz: list[Record]) -> list[str]:
         names = sorted({r.backend for r in bad})
         within = sorted({f"{r.backend}{'' if r.variant == 'default' else '/' + r.variant} "
                          f"({data.num(r.error.vs_oracle) or 0:.2g})" for r in recs
-                         if r.status == "ok" and r.error and r.backend not in names})
+                         if r.status == "ok" and r.error})
         same = max(ratios) <= min(ratios) * (1 + 1e-5)
         where = next((r.error.details.get("worst_trajectory") for r in bad if r.error), None)
         text = (f"Outside the derived bound: {contact} contact, {prec}, {steps} steps. "
