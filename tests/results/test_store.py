@@ -70,13 +70,18 @@ def test_a_published_run_from_an_uncommitted_tree_is_refused(path: Path) -> None
 RESULTS = sorted(ROOT.glob("docs/results/*/results.json"))
 
 
+def not_clean(entries: list) -> list:
+    """The run entries that do not name a checked clean commit (their start times)."""
+    return [e.get("created") for e in entries if e.get("git_dirty") is not False or not e.get("git_commit")]
+
+
 @pytest.mark.parametrize("path", RESULTS, ids=ids(RESULTS))
 def test_every_published_run_figure_names_a_clean_commit(path: Path) -> None:
     """A results store's figures name a commit someone can check out: every record names its run,
     and every run entry is of a checked clean commit (older records live in evidence/, not here)."""
     s = Store.read(path)
     assert [r.key for r in s.records if not r.run] == []
-    assert [e.get("created") for e in s.runs if e.get("git_dirty") is not False or not e.get("git_commit")] == []
+    assert not_clean(s.runs) == []
     named = {str(r.run["created"]) for r in s.records if r.run}
     assert {str(e.get("created")) for e in s.runs} == named        # no entry that no record names
 
@@ -96,8 +101,7 @@ def test_the_cpu_stores_sweeps_and_stress_name_clean_commits(path: Path) -> None
     prov = s.analysis.get("provenance") or {}
     parts = [e for v in prov.values() for e in (v if isinstance(v, list) else [v])]
     entries = [*s.runs, *parts]
-    assert entries and [e.get("created") for e in entries
-                        if e.get("git_dirty") is not False or not e.get("git_commit")] == []
+    assert entries and not_clean(entries) == []
 
 
 def test_a_saved_store_reads_back_and_saves_to_the_same_bytes(tmp_path: Path) -> None:

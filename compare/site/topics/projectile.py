@@ -108,7 +108,7 @@ def outside_bound(hz: list[Record]) -> list[str]:
     out = []
     for (contact, prec, steps), recs in sorted(groups.items(), key=lambda kv: kv[0]):
         bad = [r for r in recs if r.status == "mismatch"]
-        ratios = [v for r in bad if isinstance(v := data.num(r.error.vs_oracle if r.error else None), float)]
+        ratios = [v for r in bad if r.error and isinstance(v := data.num(r.error.vs_oracle), float)]
         if not bad or not ratios:
             continue
         names = sorted({r.backend for r in bad})
