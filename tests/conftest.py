@@ -43,10 +43,14 @@ def availability(backend: str) -> dict[str, str | None]:
     return probe(backend)["available"]
 
 
-def require_device(backend: str, device: str) -> None:
+def require_device(backend: str, device: str, precision: str | None = None) -> None:
+    """Skip, saying why, where the backend cannot run on ``device`` (or in ``precision`` there)."""
     why = availability(backend).get(device, f"unknown device {device}")
     if why:
         pytest.skip(f"{backend}/{device}: {why}")
+    import backends
+    if precision and (why := backends.get(backend).precision_unavailable(precision, device)):
+        pytest.skip(f"{backend}/{device}/{precision}: {why}")
 
 
 def pytest_runtest_setup(item):

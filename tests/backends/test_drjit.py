@@ -12,6 +12,7 @@
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -215,7 +216,9 @@ def test_libllvm_defect_behind_the_gate_is_still_there(major):
     if not lib.exists():
         pytest.skip(f"{lib} is not installed")
     proc = subprocess.run([sys.executable, "-c", MAXIMUM], cwd=ROOT, capture_output=True, text=True,
-                          timeout=120, env={"DRJIT_LIBLLVM_PATH": str(lib), "PATH": "/usr/bin:/bin"})
+                          timeout=120, env={"DRJIT_LIBLLVM_PATH": str(lib), "PATH": "/usr/bin:/bin",
+                                            **({"PYTHONPATH": os.environ["PYTHONPATH"]}        # a --target install
+                                               if "PYTHONPATH" in os.environ else {})})
     assert f"LLVM ({major}," in proc.stdout, proc.stdout + proc.stderr[-500:]
     assert proc.returncode != 0 and "Cannot select" in proc.stderr, proc.stdout + proc.stderr[-500:]
 

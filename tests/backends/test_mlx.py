@@ -67,6 +67,7 @@ def test_float64_exp_and_sin_are_float64_accurate():
     res = run_script("mlx", """
         import numpy as np, mlx.core as mx
         from backends.mlx import exp, sin
+        mx.set_default_device(mx.cpu)          # float64 is CPU-only (a CUDA build refuses it)
         x = np.linspace(-30.0, 5.0, 20001)
         s = np.linspace(-8.0, 8.0, 20001)
         e = np.array(exp(mx.array(x, dtype=mx.float64)))
@@ -213,7 +214,7 @@ def test_cold_cache_compiles_into_the_cells_directory(tmp_path):
         pytest.skip("no g++: MLX cannot fuse on the CPU (install: apt-get install -y g++)")
     env = {**cells.worker_env(), **backends.get("mlx").cache_environment(tmp_path)}
     Path(env["TMPDIR"]).mkdir(parents=True)
-    code = ("import mlx.core as mx\nf = mx.compile(lambda x: x * 3.0 + 1.0)\n"
+    code = ("import mlx.core as mx\nmx.set_default_device(mx.cpu)\nf = mx.compile(lambda x: x * 3.0 + 1.0)\n"
             "print(f(mx.arange(5, dtype=mx.float32)).tolist())")
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True,
                           text=True, timeout=300)
