@@ -143,6 +143,12 @@ class Record:
         return dataclasses.replace(self, **changes, layout=layout)
 
     @property
+    def fd_agreement(self) -> float | None:
+        """The share of the checked gradients that agree with float64 finite differences, where measured."""
+        share = self.gradient.fd_agreement if self.gradient else None
+        return float(share) if isinstance(share, (int, float)) else None
+
+    @property
     def key(self) -> str:
         """The cell's identity as a string (``compare.spec.key``)."""
         return cell_key(self.identity)

@@ -255,5 +255,5 @@ def _longest_loop(hz: list[Record]) -> Page:
     return [H(f"A long loop ({n} steps): time and memory"), P(f"**{text}**"),
             Table(("framework", "variant", "time per call", "device memory", "gradients agreeing with FD"),
                   tuple((r.backend, r.variant, fmt.seconds(t), fmt.nbytes(m),
-                         fmt.pct(r.error.details.get("gradient_fd_agreement") if r.error else None))
+                         fmt.pct(r.fd_agreement))
                         for t, m, r in sorted(rows, key=lambda x: (x[0] is None, x[0] or 0.0))))]

@@ -86,12 +86,12 @@ def table(records: list[Record], device: str, scenario: str) -> str:
     for rows in groups.values():
         for r, slope in zip(rows, slopes(rows)):
             mem, what = memory(r)
-            share = r.gradient.fd_agreement if r.gradient else None
+            share = r.fd_agreement
             out.append([r.backend, r.variant, r.precision, *(need(r, "params").get(k) for k in extra),
                         knob_value(r), fmt_time(wall_s(r)), fmt_time(throughput_s(r)),
                         f"{fmt_bytes(mem)} ({what})" if mem is not None else "-",
                         f"{slope:.3g}" if slope is not None else "-",
-                        f"{100 * share:.0f} %" if isinstance(share, (int, float)) else "-",
+                        f"{100 * share:.0f} %" if share is not None else "-",
                         checked_items(r)])
     unit = label(scenario, "horizon_items", "item")
     return tabulate(out, headers=["backend", "variant", "precision", *extra, kname, "latency median",
@@ -134,8 +134,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     # a cell whose error exceeds its bound still returned a gradient: its FD agreement counts too
     # (dropping it would leave a horizon's mean to the frameworks that happened to pass)
     for r in gradient_cells(records, device, scenario):
-        s = r.gradient.fd_agreement if r.gradient else None
-        if isinstance(s, (int, float)):
+        if (s := r.fd_agreement) is not None:
             key = (", ".join(f"{k}={need(r, 'params').get(k)}" for k in extra), r.precision)
             shares.setdefault(key, {}).setdefault(knob_value(r), []).append(s)
     for (what, prec), pts in sorted(shares.items()):

@@ -120,3 +120,13 @@ def test_a_malformed_field_is_one_line_naming_it(change: Any, needle: str) -> No
 def test_not_an_object_is_refused() -> None:
     with pytest.raises(RecordError, match="a record must be an object, got list"):
         Record.from_json([1, 2])
+
+
+def test_fd_agreement_is_the_gradient_blocks_share_or_none() -> None:
+    """One reading of a cell's agreement with float64 finite differences, for every page and CSV:
+    a number where the gradient block holds one; none without a gradient or for a stored non-finite."""
+    base = Record.from_json(OK_RUN)
+    assert base.replace(gradient=None).fd_agreement is None
+    for stored, read in ((0.75, 0.75), (1, 1.0), ("nan", None), (None, None)):
+        rec = Record.from_json({**OK_RUN, "gradient": {"method": "ad", "fd_agreement": stored}})
+        assert rec.fd_agreement == read and (read is None or isinstance(rec.fd_agreement, float))

@@ -85,7 +85,7 @@ def page(c: Ctx) -> Page:
                                                        "device bytes", "gradient fd agreement", "status"),
                              [(r.backend, r.variant, r.precision, (r.params or {}).get("contact"),
                                (r.params or {}).get("steps"), data.device_bytes(r),
-                               r.error.details.get("gradient_fd_agreement") if r.error else None, r.status)
+                               r.fd_agreement, r.status)
                               for r in sweep_horizon.gradient_cells(hz, c.device, SCENARIO)])
             blocks += [H("Memory and gradient quality against the horizon"),
                        Figure(rel, "Device memory and gradient agreement with float64 finite differences "
