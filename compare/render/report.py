@@ -10,7 +10,7 @@ from typing import Any, Iterable, Mapping
 from tabulate import tabulate
 
 from compare.measuring import noise, timing
-from compare.results.environment import RunEnvironment
+from compare.results.environment import RunEnvironment, tree_state
 from compare.results.record import Record, Regime, Timing
 from compare.render.results_csv import csv_text, params_text
 from compare.results.store import atomic_write, run_environments
@@ -289,7 +289,7 @@ def header_lines(env: RunEnvironment) -> list[str]:
 def environment_lines(env: RunEnvironment) -> list[str]:
     gpus = ", ".join(f"{g.get('name')} ({g.get('memory')}, driver {g.get('driver')})" for g in env.get("gpus") or [])
     pkgs = ", ".join(f"{k} {v}" for k, v in env.get("packages", {}).items())
-    dirty = {True: " (with uncommitted changes)", None: " (copied tree: dirtiness not known)"}.get(env.get("git_dirty"), "")
+    dirty = f" ({words})" if (words := tree_state(env.get("git_dirty"))) else ""
     return [f"- command: `{env.get('command')}`",
             f"- run {env.get('created')} on {env.get('hostname')}, git commit {env.get('git_commit') or 'not recorded'}{dirty}",
             f"- CPU: {env.get('cpu')}, {env.get('cores')} cores, {env.get('memory_gib')} GiB; GPU: {gpus or 'none'}"

@@ -135,6 +135,15 @@ __all__ = ["Gpu", "Host", "Phases", "Probe", "PublishEntry", "PublishLog", "RunE
            "environment_of", "machine"]
 
 
+def tree_state(dirty: object) -> str:
+    """A run's checkout in words, as every page says it (``git_dirty``): '' for a commit's clean
+    tree, else 'dirty tree' (uncommitted changes) or 'tree state unknown' (not recorded, or a
+    copied tree whose files were not checked)."""
+    if dirty is False:
+        return ""
+    return "dirty tree" if dirty else "tree state unknown"
+
+
 def machine(h: Mapping[str, Any]) -> str:
     """A host as the machine kind a store holds: its GPUs' models (with their count) where it
     has GPUs, else its CPU model."""

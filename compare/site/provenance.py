@@ -11,10 +11,10 @@ from __future__ import annotations
 import re
 from typing import Iterable
 
+from compare.results.environment import tree_state
 from compare.results.record import Record
 
 UNSTAMPED = "records without a run stamp (made before runs were recorded)"
-DIRTY, UNKNOWN = " (dirty tree)", " (tree state unknown)"
 
 
 def short(sha: object) -> str:
@@ -35,7 +35,7 @@ def run_words(created: object, commit: object, dirty: object) -> str:
     when = str(created or "?")
     if re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d", when):
         when = f"{when[:16].replace('T', ' ')} UTC"
-    state = DIRTY if dirty else "" if dirty is False else UNKNOWN
+    state = f" ({words})" if (words := tree_state(dirty)) else ""
     return f"run {when}, commit {short(commit) if commit else 'unknown commit'}{state}"
 
 
@@ -46,7 +46,7 @@ def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:
 
 def one_run(runs: tuple[str, ...]) -> bool:
     """One stamped run, of a committed tree: the only figures a row ranks."""
-    return len(runs) == 1 and runs[0] != "" and not runs[0].endswith((DIRTY, UNKNOWN))
+    return len(runs) == 1 and runs[0] != "" and not runs[0].endswith(tuple(f" ({tree_state(d)})" for d in (True, None)))
 
 
 def uncommitted(runs: tuple[str, ...]) -> bool:

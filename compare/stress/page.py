@@ -16,7 +16,7 @@ from typing import Any, Mapping, TypedDict, cast
 import backends
 from compare.render.report import fmt_num
 from compare.results.analysis import Provenance, RunInfo
-from compare.results.environment import RunEnvironment
+from compare.results.environment import RunEnvironment, tree_state
 from compare.results.store import Store, atomic_write, jsonable, run_environments
 from compare.stress import plots
 from compare.stress.numerics import COLUMNS, Experiment, Finding, Row, Series
@@ -68,17 +68,13 @@ def produced_by(data: PageData) -> list[str]:
     for e, entry in provenance(data).items():
         for r in runs_of(entry):
             label = e if "backends" not in r or len(runs_of(entry)) == 1 else f"{e} ({', '.join(r['backends'])})"
-            state = TREE.get(r.get("git_dirty"), TREE[None])
+            state = f", {words}" if (words := tree_state(r.get("git_dirty"))) else ""
             runs.setdefault((r.get("command") or "?", r.get("created") or "?", f"{r.get('git_commit') or '?'}{state}"),
                             []).append(label)
     lines = ["- produced by:" if len(runs) > 1 else "- produced by"]
     for (cmd, when, commit), exps in runs.items():
         lines.append(f"  - `{cmd}` ({when}, commit {commit}): {', '.join(exps)}")
     return lines
-
-
-# a run's tree in words (as the site's provenance says it)
-TREE = {False: "", True: ", dirty tree", None: ", tree state unknown"}
 
 
 def run_key(run: Mapping[str, Any]) -> tuple[object, object]:

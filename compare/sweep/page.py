@@ -19,7 +19,7 @@ from tabulate import tabulate
 
 import backends
 import scenarios
-from compare.results.environment import RunEnvironment
+from compare.results.environment import RunEnvironment, tree_state
 from compare.results.record import Record
 from compare.render.report import fmt_bytes, fmt_num, fmt_time
 from compare.sweep import horizon
@@ -211,7 +211,7 @@ def environment(runs: list[RunEnvironment], records: list[Record]) -> str:
              f"- OS: {env.get('os')}; Python {env.get('python')}; host {env.get('hostname')}",
              f"- packages: {pk}",
              f"- git commit of the last run {env.get('git_commit') or 'not recorded'}"
-             f"{' (with uncommitted changes)' if env.get('git_dirty') else ''}",
+             f"{f' ({words})' if (words := tree_state(env.get('git_dirty'))) else ''}",
              f"- runs from {runs[0].get('created')} to {env.get('created')}"]
     if loads:
         lines.append(f"- host 1-minute load average at the end of each cell: min {min(loads):.2f}, "

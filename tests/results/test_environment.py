@@ -60,3 +60,10 @@ def test_a_machine_is_its_gpu_models_else_its_cpu_model() -> None:
     assert machine({"cpu": "AMD EPYC", "gpus": []}) == "AMD EPYC"
     assert machine({"cpu": "Other", "gpus": [{"name": "NVIDIA H100 80GB HBM3"}]}) == "NVIDIA H100 80GB HBM3"
     assert machine({}) == "?"
+
+
+def test_a_runs_tree_state_reads_alike_on_every_page() -> None:
+    """``tree_state``: clean only for a checked commit (False); a run that did not record it, or a
+    copy not checked, is not called clean."""
+    from compare.results.environment import tree_state
+    assert [tree_state(d) for d in (False, True, None)] == ["", "dirty tree", "tree state unknown"]

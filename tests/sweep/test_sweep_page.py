@@ -59,3 +59,11 @@ def test_plot_keys_and_images_are_relative_to_the_page(tmp_path):
 
 def test_summary_counts_statuses():
     assert sweep_page.summary([rec(), rec(), rec("error")]) == "1 error, 2 ok"
+
+
+@pytest.mark.parametrize("dirty,words", [(False, "abc1234\n"), (True, "abc1234 (dirty tree)"),
+                                         (None, "abc1234 (tree state unknown)")])
+def test_the_environment_says_the_last_runs_tree_state(dirty, words) -> None:
+    """A run whose tree state is unknown (a copied tree not checked) is not shown as a clean commit."""
+    env = {"git_commit": "abc1234", "created": "t", "packages": {}, **({} if dirty is None else {"git_dirty": dirty})}
+    assert f"git commit of the last run {words}" in sweep_page.environment([env], []) + "\n"
