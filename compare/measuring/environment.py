@@ -57,6 +57,19 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+def cpu_id() -> str:
+    """The processor's family, model and stepping (Linux: /proc/cpuinfo), '' where not known. A
+    virtual machine's model name ("AMD EPYC") can stand for several generations of processor."""
+    try:
+        info = dict(line.split(":", 1) for line in Path("/proc/cpuinfo").read_text().split("\n\n")[0].splitlines()
+                    if ":" in line)
+    except OSError:
+        return ""
+    info = {k.strip(): v.strip() for k, v in info.items()}
+    keys = ("cpu family", "model", "stepping")
+    return ", ".join(f"{k.split()[-1]} {info[k]}" for k in keys) if all(info.get(k) for k in keys) else ""
+
+
 def gpus() -> list[Gpu]:
     if not shutil.which("nvidia-smi"):
         return []
@@ -133,7 +146,7 @@ def collect(argv: list[str] | None = None) -> RunEnvironment:
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "hostname": platform.node(),
         "os": platform.platform(),
-        "cpu": cpu_model(), "cores": cores,
+        "cpu": cpu_model(), "cpu_id": cpu_id(), "cores": cores,
         "memory_gib": round(psutil.virtual_memory().total / 2**30, 1),
         "gpus": gpus(), "cuda_toolkit": cuda[0] if cuda else "",
         "python": sys.version.split()[0],

@@ -10,7 +10,7 @@ does not name kept). ``environment_of`` types an object as soon as the store has
 from __future__ import annotations
 
 from collections import Counter
-from typing import Any, Mapping, TypedDict, cast
+from typing import Any, Mapping, NotRequired, TypedDict, cast
 
 
 class Gpu(TypedDict):
@@ -72,6 +72,7 @@ class RunEnvironment(TypedDict, total=False):
     hostname: str | None
     os: str | None
     cpu: str | None
+    cpu_id: str                         # family, model, stepping ('' where not known)
     cores: int | None                   # usable by this process
     memory_gib: float | None
     gpus: list[Gpu]
@@ -103,6 +104,7 @@ class Host(TypedDict):
     """The machine a publish part ran on (``compare.suites.publish_log``)."""
     hostname: str
     cpu: str
+    cpu_id: NotRequired[str]            # family, model, stepping (publish logs since 2026-12-02)
     cores: int
     gpus: list[Gpu]
 
@@ -146,6 +148,17 @@ def tree_state(dirty: object) -> str:
 
 def machine(h: Mapping[str, Any]) -> str:
     """A host as the machine kind a store holds: its GPUs' models (with their count) where it
-    has GPUs, else its CPU model."""
+    has GPUs, else its CPU model, with the family, model and stepping where the run recorded them."""
     gpus = Counter(str(g.get("name")) for g in h.get("gpus") or [])
-    return " + ".join(f"{n} x{k}" if k > 1 else n for n, k in sorted(gpus.items())) or str(h.get("cpu") or "?")
+    if gpus:
+        return " + ".join(f"{n} x{k}" if k > 1 else n for n, k in sorted(gpus.items()))
+    return str(h.get("cpu") or "?") + (f" ({h['cpu_id']})" if h.get("cpu_id") else "")
+
+
+def same_machine(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
+    """Whether two hosts are one machine kind: the same ``machine``, or, where one of them did not
+    record its processor's family and model (runs before 2026-12-02), the same CPU model name."""
+    if machine(a) == machine(b):
+        return True
+    bare = [{**h, "cpu_id": ""} for h in (a, b)]
+    return (not a.get("cpu_id") or not b.get("cpu_id")) and machine(bare[0]) == machine(bare[1])

@@ -285,7 +285,7 @@ def record_problem(rec: dict[str, Any]) -> str | None:     # a stored record's J
 
 # ---- runs (environments) and a suite's analysis -----------------------------------------------
 RUN = Obj({
-    "created": OPT_TEXT, "hostname": OPT_TEXT, "os": OPT_TEXT, "cpu": OPT_TEXT, "python": OPT_TEXT,
+    "created": OPT_TEXT, "hostname": OPT_TEXT, "os": OPT_TEXT, "cpu": OPT_TEXT, "cpu_id": OPT_TEXT, "python": OPT_TEXT,
     "cuda_toolkit": OPT_TEXT, "command": OPT_TEXT, "git_commit": OPT_TEXT, "git_note": OPT_TEXT,
     "git_dirty": FLAG, "git_dirty_paths": Seq(TEXT, null=False), "cores": OPT_COUNT, "memory_gib": OPT_AMOUNT,
     # readers write env.get("gpus", []) and index a GPU's three names: present means a list

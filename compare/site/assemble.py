@@ -116,10 +116,13 @@ def machine(c: qp.Ctx) -> list[Any]:
     else:
         blocks.append(P("No publish log (publish.json) beside these records: they were assembled from "
                         "the runs below, not by one `python -m compare publish`."))
+    # the processor's family and model where runs recorded them: one CPU model name ("AMD EPYC")
+    # can stand for several generations of processor
+    ids = any(e.get("cpu_id") for e in envs)
     blocks += [H("Runs that produced these records"),
-               Table(("created", "commit", "tree", "timed", "command"), tuple(
+               Table(("created", "commit", "tree", "timed", *(("processor",) if ids else ()), "command"), tuple(
                    (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e), _timed(e),
-                    str(e.get("command", "?")))
+                    *((e.get("cpu_id") or "not recorded",) if ids else ()), str(e.get("command", "?")))
                    for e in envs))]
     blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
                              + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "

@@ -10,10 +10,10 @@ DIR/publish.json, the progress log (the site's machine page reads it; written at
                 "seconds": 123.4,                  wall time (so far, updated each minute)
                 "exit_code": 0,                    null then; negative: ended by that signal
                 "interrupted": false,              true: publish stopped it (--budget, Ctrl-C)
-                "host": {"hostname", "cpu", "cores", "gpus": [{name, driver, memory}]}}]}
+                "host": {"hostname", "cpu", "cpu_id", "cores", "gpus": [{name, driver, memory}]}}]}
 
-Run time: the sum of ``seconds`` over ``parts``. History: 1, the first.
-Run time: the sum of ``seconds`` over ``parts``. History: 1, the first.
+Run time: the sum of ``seconds`` over ``parts``. History: 1, the first; a host's ``cpu_id``
+(family, model, stepping) since 2026-12-02, absent before.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from typing import Any, Mapping, cast
 from compare.measuring import environment
 from compare.options import EXIT_INTERRUPTED
 from compare.planning.publish_plan import Part
-from compare.results.environment import Host, PublishEntry as Entry, PublishLog as Log, machine
+from compare.results.environment import Host, PublishEntry as Entry, PublishLog as Log, machine, same_machine
 from compare.results.store import StoreError, atomic_write
 
 FORMAT_VERSION, LOG = 1, "publish.json"
@@ -92,14 +92,14 @@ def state(part: Part, log: Log, out: str) -> str:
 def host() -> Host:
     import platform
     cores = environment.usable_cores()
-    return Host(hostname=platform.node(), cpu=environment.cpu_model(), cores=cores, gpus=environment.gpus())
+    return Host(hostname=platform.node(), cpu=environment.cpu_model(), cpu_id=environment.cpu_id(), cores=cores,
+                gpus=environment.gpus())
 
 
 def other_machine(log: Log, here: Mapping[str, Any]) -> str | None:
     """The machine of an earlier attempt in ``log`` that is not ``here``'s (None: all are), so
     that one store never holds two machines' rows."""
-    mine = machine(here)
-    return next((machine(h) for e in log["parts"] if (h := e.get("host")) and machine(h) != mine), None)
+    return next((machine(h) for e in log["parts"] if (h := e.get("host")) and not same_machine(h, here)), None)
 
 
 def save_log(out: Path, log: Log) -> None:

@@ -3,16 +3,17 @@ stored ``runs`` and back, the JSON unchanged (keys, their order, keys this versi
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 from compare.measuring import environment
 from compare.results import records
-from compare.results.environment import RunEnvironment, machine
+from compare.results.environment import RunEnvironment, machine, same_machine
 from compare.results.store import Store, run_environments
 
 ROOT = Path(__file__).resolve().parents[2]
-# the order every stored run has kept its first keys in (collect's)
-COLLECTED = ("created", "hostname", "os", "cpu", "cores", "memory_gib", "gpus", "cuda_toolkit", "python", "packages",
+# the order collect gives its first keys in (a run stored before 2026-12-02 lacks cpu_id)
+COLLECTED = ("created", "hostname", "os", "cpu", "cpu_id", "cores", "memory_gib", "gpus", "cuda_toolkit", "python", "packages",
              "git_commit", "git_dirty", "command")
 
 
@@ -60,6 +61,23 @@ def test_a_machine_is_its_gpu_models_else_its_cpu_model() -> None:
     assert machine({"cpu": "AMD EPYC", "gpus": []}) == "AMD EPYC"
     assert machine({"cpu": "Other", "gpus": [{"name": "NVIDIA H100 80GB HBM3"}]}) == "NVIDIA H100 80GB HBM3"
     assert machine({}) == "?"
+    # the processor's family and model where recorded; a GPU machine is its GPUs whatever its CPU
+    assert machine({"cpu": "AMD EPYC", "cpu_id": "family 26, model 2, stepping 1"}) == \
+        "AMD EPYC (family 26, model 2, stepping 1)"
+    assert machine({**h200x2, "cpu_id": "family 6, model 143, stepping 8"}) == "NVIDIA H200 x2"
+
+
+def test_same_machine_needs_the_processor_where_both_recorded_it() -> None:
+    new, other, old = ({"cpu": "AMD EPYC", "cpu_id": c} for c in ("family 26, model 2, stepping 1",
+                                                                  "family 25, model 17, stepping 1", ""))
+    assert same_machine(new, new) and same_machine(new, old) and same_machine(old, other)
+    assert not same_machine(new, other) and not same_machine(old, {"cpu": "Intel Xeon"})
+
+
+def test_collect_names_the_processor() -> None:
+    got = environment.cpu_id()
+    assert got == "" or re.fullmatch(r"family \S+, model \S+, stepping \S+", got), got
+    assert environment.collect()["cpu_id"] == got
 
 
 def test_a_runs_tree_state_reads_alike_on_every_page() -> None:

@@ -14,7 +14,7 @@ import pytest
 
 from compare.files import TEMP_MARK, TEMP_SUFFIX
 from compare.results import store as store_mod
-from compare.results.environment import RunEnvironment, machine
+from compare.results.environment import RunEnvironment, machine, same_machine
 from compare.results.record import FORMAT_VERSION, Record
 from compare.results.store import (SUITES, Store, StoreError, jsonable, read_bounded, remove_stale_temps,
                                    run_environments)
@@ -42,10 +42,12 @@ def small_store(path: Path, n: int = 4, host: str = "a") -> Store:
 @pytest.mark.parametrize("folder", MACHINES, ids=ids(MACHINES))
 def test_a_machine_folder_holds_the_runs_of_one_machine(folder: Path) -> None:
     """A report compares like with like: every run in a machine's stores names one machine (GPU
-    models, else the CPU model; a run whose environment was not kept names none)."""
-    seen = {machine(e) for f in folder.glob("*.json") if f.name in SUITE_FILES
-            for entry in Store.read(f).runs for e in run_environments(entry) if e.get("cpu") or e.get("gpus")}
-    assert len(seen) <= 1, f"{folder.relative_to(ROOT)} mixes machines: {sorted(seen)}"
+    models, else the CPU model and, where recorded, its family and model; a run whose environment
+    was not kept names none)."""
+    envs = [e for f in folder.glob("*.json") if f.name in SUITE_FILES
+            for entry in Store.read(f).runs for e in run_environments(entry) if e.get("cpu") or e.get("gpus")]
+    apart = sorted({machine(a) for a in envs for b in envs if not same_machine(a, b)})
+    assert not apart, f"{folder.relative_to(ROOT)} mixes machines: {apart}"
 
 
 @pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))

@@ -80,3 +80,16 @@ def test_another_machine_in_the_log_is_found():
                                           {"name": "b", "argv": []}]}        # an entry without a host: no machine
     assert publish_log.other_machine(log, {"cpu": "AMD EPYC", "gpus": []}) is None
     assert publish_log.other_machine(log, {"cpu": "Intel Xeon", "gpus": []}) == "AMD EPYC"
+
+
+def test_a_processor_of_another_family_or_model_is_another_machine():
+    """One model name ("AMD EPYC") can stand for several processors: where both hosts recorded
+    their family and model, they must match; an entry made before they were recorded matches any."""
+    zen5 = {"cpu": "AMD EPYC", "cpu_id": "family 26, model 2, stepping 1", "gpus": []}
+    zen4 = {"cpu": "AMD EPYC", "cpu_id": "family 25, model 17, stepping 1", "gpus": []}
+    log = {"format_version": 1, "parts": [{"name": "a", "argv": [], "host": zen4},
+                                          {"name": "b", "argv": [], "host": {"cpu": "AMD EPYC", "gpus": []}}]}
+    assert publish_log.other_machine(log, zen5) == "AMD EPYC (family 25, model 17, stepping 1)"
+    assert publish_log.other_machine(log, zen4) is None
+    assert publish_log.other_machine({"format_version": 1, "parts": log["parts"][1:]}, zen5) is None
+    assert publish_log.host().get("cpu_id") is not None
