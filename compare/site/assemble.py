@@ -41,6 +41,17 @@ def _others_cores(recs: Any) -> str:
     return f"{got[len(got) // 2]:.2f}" if got else "?"
 
 
+def _hosts(envs: Any, device: str) -> str:
+    """The runs' hosts as their yardsticks saw them: the device copy's bandwidth, and the processor
+    where recorded (one model name can stand for hosts far apart: measurement.md)."""
+    words = []
+    for e in envs:
+        hw = (e.get("hardware") or {}).get(device) or {}
+        copy = fmt.rate(data.num(hw.get("copy_bytes_per_s")), "B/s") if isinstance(hw, dict) else "-"
+        words.append(f"copy {copy}" + (f", {e['cpu_id']}" if e.get("cpu_id") else ""))
+    return "; ".join(dict.fromkeys(words)) or "?"
+
+
 def reproducibility(c: qp.Ctx) -> list[Any]:
     """How many of the matrix's significant orderings a second run agrees with (``compare agree``),
     where the store keeps one in its ``rerun/`` folder: that run named (start, commit, tree state,
@@ -57,6 +68,9 @@ def reproducibility(c: qp.Ctx) -> list[Any]:
     took = [p for p in (other.publish["parts"] if other.publish else []) if p.get("name") == "all"]
     asked = {r.question for r in got}
     mine = {x for r in c.rows if r.rule.question + (f" ({r.device})" if r.device else "") in asked for x in r.runs}
+    stamps = {(r.run or {}).get("created") for r in c.m.run if provenance.label(r) in mine}
+    hosts = (f" Its host's yardstick: {_hosts(other.runs, c.device)} (the runs of these rows: "
+             f"{_hosts((e for e in c.m.runs if e.get('created') in stamps), c.device)}).")
     part = (f" The part took {sum(float(p.get('seconds') or 0) for p in took) / 60:.1f} minutes "
             f"in {len(took)} attempt{'s' if len(took) != 1 else ''} ({RERUN}/publish.json)." if took else "")
     return [H("Reproducibility"),
@@ -65,7 +79,7 @@ def reproducibility(c: qp.Ctx) -> list[Any]:
               f"on a row, the other run's order. **{agreement.summary(got)}** Rows the second run did not "
               "measure are not counted. While its cells were timed, other processes used a median of "
               f"{_others_cores(other.run)} cores (in the runs of these rows: "
-              f"{_others_cores(r for r in c.m.run if provenance.label(r) in mine)}).{part}"),
+              f"{_others_cores(r for r in c.m.run if provenance.label(r) in mine)}).{hosts}{part}"),
             Table(("row", "significant pairs", "agree", "tie in one run", "reversed", "which"),
                   tuple((r.question, str(r.significant - r.missing), str(r.agree), str(r.tie), str(r.disagree),
                          ", ".join(r.reversed_pairs) or "-") for r in got))]

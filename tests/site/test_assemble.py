@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from compare.render import charts, figure_check
-from compare.site import assemble, data, pages, questions
+from compare.site import assemble, data, fmt, pages, questions
 from compare.site import questions_pages as qp
 from compare.site.render import P, Table
 
@@ -92,6 +92,9 @@ def test_the_machine_page_reads_the_publish_log_and_a_rerun(tmp_path, loaded):
     run = data.load([store / assemble.RERUN]).runs[0]
     assert f"(rerun/: run {run['created'][:16].replace('T', ' ')} UTC, commit {run['git_commit'][:7]}" in text
     assert "other processes used a median of" in text and "independent" not in text
+    # both runs' hosts as their yardsticks saw them: one model name can stand for hosts far apart
+    hw = next(iter(run["hardware"].values()))
+    assert f"Its host's yardstick: copy {fmt.rate(hw['copy_bytes_per_s'], 'B/s')}" in text, text
     assert "The part took 1.5 minutes in 1 attempt (rerun/publish.json)." in text
     pub = next(b for b in blocks if isinstance(b, Table) and b.headers[0] == "part")
     assert pub.rows == (("cuda-matrix", "warp,jax", "t", "60", "0"), ("cuda-matrix", "all", "t2", "30", "cut off"))
