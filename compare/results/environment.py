@@ -134,7 +134,7 @@ def environment_of(obj: Mapping[str, object]) -> RunEnvironment:    # a stored r
 
 
 __all__ = ["Gpu", "Host", "Phases", "Probe", "PublishEntry", "PublishLog", "RunEnvironment", "Scheduler", "Yardstick",
-           "environment_of", "machine"]
+           "environment_of", "machine", "same_machine", "tree_state"]
 
 
 def tree_state(dirty: object) -> str:

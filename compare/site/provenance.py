@@ -46,7 +46,8 @@ def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:
 
 def one_run(runs: tuple[str, ...]) -> bool:
     """One stamped run, of a committed tree: the only figures a row ranks."""
-    return len(runs) == 1 and runs[0] != "" and not runs[0].endswith(tuple(f" ({tree_state(d)})" for d in (True, None)))
+    not_clean = tuple(f" ({tree_state(d)})" for d in (True, None))
+    return len(runs) == 1 and runs[0] != "" and not runs[0].endswith(not_clean)
 
 
 def uncommitted(runs: tuple[str, ...]) -> bool:
