@@ -47,26 +47,23 @@ def _run(cmd: list[str]) -> str:
         return ""
 
 
-def cpu_model() -> str:
+def cpuinfo() -> dict[str, str]:
+    """The first processor's fields in /proc/cpuinfo (Linux; empty elsewhere)."""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
+        first = Path("/proc/cpuinfo").read_text().split("\n\n")[0]
     except OSError:
-        pass
-    return platform.processor() or platform.machine()
+        return {}
+    return {k.strip(): v.strip() for k, _, v in (line.partition(":") for line in first.splitlines()) if _}
+
+
+def cpu_model() -> str:
+    return cpuinfo().get("model name") or platform.processor() or platform.machine()
 
 
 def cpu_id() -> str:
-    """The processor's family, model and stepping (Linux: /proc/cpuinfo), '' where not known. A
-    virtual machine's model name ("AMD EPYC") can stand for several generations of processor."""
-    try:
-        info = dict(line.split(":", 1) for line in Path("/proc/cpuinfo").read_text().split("\n\n")[0].splitlines()
-                    if ":" in line)
-    except OSError:
-        return ""
-    info = {k.strip(): v.strip() for k, v in info.items()}
-    keys = ("cpu family", "model", "stepping")
+    """The processor's family, model and stepping, '' where not known. A virtual machine's model
+    name ("AMD EPYC") can stand for several generations of processor."""
+    info, keys = cpuinfo(), ("cpu family", "model", "stepping")
     return ", ".join(f"{k.split()[-1]} {info[k]}" for k in keys) if all(info.get(k) for k in keys) else ""
 
 

@@ -160,5 +160,4 @@ def same_machine(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
     record its processor's family and model (runs before 2026-12-02), the same CPU model name."""
     if machine(a) == machine(b):
         return True
-    bare = [{**h, "cpu_id": ""} for h in (a, b)]
-    return (not a.get("cpu_id") or not b.get("cpu_id")) and machine(bare[0]) == machine(bare[1])
+    return not (a.get("cpu_id") and b.get("cpu_id")) and machine({**a, "cpu_id": ""}) == machine({**b, "cpu_id": ""})
