@@ -7,8 +7,8 @@ gradient of iteration 0 and updates v only while k < iters, so v_final = v_iters
 
 Batch (B > 1 trajectories, each with its own v0 and target): jax.vmap of the one-trajectory
 value_and_grad, so every trajectory runs the batch = 1 arithmetic unchanged (row 0 equals batch = 1
-bit for bit on CPU, but for XLA:CPU's choice of FMA per compiled shape in the loss: 1 ulp in
-the recorded losses with JAX 0.11) and each descends on its own loss. The alternative, broadcasting the state over
+bit for bit on CPU; the loss keeps its two products apart, which XLA:CPU would otherwise contract
+into an FMA in some shapes only) and each descends on its own loss. The alternative, broadcasting the state over
 B and taking value_and_grad of the summed loss, gave the same results bit for bit, the same
 temporary memory and the same run time on CPU (B = 4096, soft and hard, unroll 1 and 16; not yet
 measured on a GPU): both lower to one scan of elementwise-over-B steps, and the optimised CPU HLO
@@ -99,7 +99,10 @@ def _optimise(steps: int, iters: int, contact: str, remat_segment: int, unroll: 
         x, y, _, _ = simulate((zero, zero, v[0], v[1]))
         dx = x - tgt[0]
         dy = y - tgt[1]
-        return dx * dx + dy * dy
+        # the scenario's arithmetic, two roundings then a sum: without the barrier XLA:CPU may
+        # contract dx*dx + dy*dy into an FMA in one compiled shape and not another
+        dx2, dy2 = lax.optimization_barrier((dx * dx, dy * dy))
+        return dx2 + dy2
 
     value_and_grad = jax.value_and_grad(loss_fn)
     if v0.ndim == 2:                     # a batch: the one-trajectory program, vectorised
