@@ -134,6 +134,7 @@ class Compared:
     mine: Timing
     ref: Timing
     regime: str
+    there: Record | None = None         # the reference's record of the cell (its run's yardstick)
 
     @property
     def ratio(self) -> float:
@@ -184,7 +185,7 @@ def match(m: Machine, ref: Machine) -> Matching:
             continue
         per_regime = [(g, data.per_call(a, g), data.per_call(b, g)) for g in data.REGIMES]
         pairs = [(g, ta, tb) for g, ta, tb in per_regime if ta is not None and tb is not None]
-        res.compared += [Compared(k[0], a, ta, tb, g) for g, ta, tb in pairs]
+        res.compared += [Compared(k[0], a, ta, tb, g, b) for g, ta, tb in pairs]
         res.untimed += not pairs
     res.compared.sort(key=lambda x: (_order(x.rec), data.REGIMES.index(x.regime)))
     res.changed.sort(key=lambda x: _order(x[1]))

@@ -71,7 +71,8 @@ def _figure(env: RunEnvironment, device: str, name: str) -> object:
 
 def _hardware(env: RunEnvironment, ref_runs: tuple[RunEnvironment, ...], devices: list[str]) -> str:
     """The two machines before any framework: copy bandwidth and launch latency per device (this
-    run's yardstick against the median of the reference runs'), and cores."""
+    run's yardstick against the median of the reference runs' that timed the matched cells),
+    and cores."""
     parts = []
     for dev in devices:
         for name, unit in (("copy", "GB/s"), ("launch", "µs")):
@@ -140,7 +141,10 @@ def block(records: list[Record], env: RunEnvironment, out: Path, against: str | 
         within = sum(c.verdict == vs.WITHIN for c in cs)
         lines.append(f"    {scenario:<11} {dev:<5} {_ratio(q2):>7}  (quartiles {_ratio(q1)} – {_ratio(q3)}; "
                      f"{len(cs)} cells, {within} within both runs' spread)")
-    hw = [_hardware(env, ref.runs, devices)] if _hardware(env, ref.runs, devices) else []
+    # the yardstick of the reference runs that timed the matched cells (a store's runs may span hosts)
+    stamps = {(c.there.run or {}).get("created") for c in per.values() if c.there is not None}
+    ref_runs = tuple(e for e in ref.runs if e.get("created") in stamps) or ref.runs
+    hw = [got] if (got := _hardware(env, ref_runs, devices)) else []
     loads = [vs.host_load(x) for x in (mine, ref)]        # a busy host slows every cell alike
     if all(v is not None for v in loads):
         hw.append(f"host load {loads[0]:.1f} here, {loads[1]:.1f} there")

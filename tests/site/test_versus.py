@@ -93,3 +93,24 @@ def test_bad_against_is_refused_in_one_line(tmp_path: Path) -> None:
                        cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "--against" in p.stderr, p.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_there_is_the_yardstick_of_the_runs_that_timed_the_matched_cells(mine, tmp_path, monkeypatch):
+    """A store's runs may span hosts: the closing block's 'there' is the yardstick of the runs whose
+    records it matched, not the median over every run of the store."""
+    records, env = mine
+    doc = json.loads(STORE.read_text())
+    timed = doc["runs"][0]
+    for r in doc["records"]:
+        r["run"] = {"created": timed["created"], "commit": "abc1234", "dirty": False}
+    other = {**timed, "created": "2026-12-01T00:00:00+00:00",
+             "hardware": {"cuda": {**timed["hardware"]["cuda"], "copy_bytes_per_s": 1e15}}}
+    doc["runs"] = [timed] + [{**other, "created": f"2026-12-0{i}T00:00:00+00:00"} for i in (1, 2, 3)]
+    ref = tmp_path / "ref"
+    ref.mkdir()
+    (ref / "results.json").write_text(json.dumps(doc))
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "out").mkdir()
+    text = " ".join(versus.block(records, env, tmp_path / "out", against=str(ref)))
+    want = timed["hardware"]["cuda"]["copy_bytes_per_s"] * 1e-9
+    assert f"GB/s here, {want:.3g} GB/s there" in text, text
