@@ -10,10 +10,12 @@ is process-global here but one flag: each kernel picks its types from the cell's
 Scalars (SAXPY's ``a``, the physical constants) go in as ``dr.opaque`` arrays of one element:
 Dr.Jit folds Python scalars into the kernel as literals, which would compile one kernel per value
 and let the simplifier fold them with each other. Dr.Jit's defaults are kept, but for one:
-FastMath (on by default) is off in float64 cells. On CUDA it makes the reciprocal an approximate
-PTX instruction in float64 too (about 20 bits), and with it the reverse-mode derivatives of log,
-division and sqrt: float64 gradients come out float32-accurate (docs/findings.md, entry 9).
-float32 cells keep it, as Dr.Jit's users do.
+FastMath (on by default) is off, as every ranked figure of this comparison is IEEE arithmetic
+(docs/ports.md, "Rules applied to every port"): Taichi's and quadrants' fast-math defaults are
+turned off alike. Dr.Jit's shipped default is measured as the ``fastmath`` variant, shown on the
+pages and never ranked. In float64 it would also be wrong, not only approximate: on CUDA it makes
+the reciprocal an approximate PTX instruction in float64 too (about 20 bits), and with it the
+reverse-mode derivatives of log, division and sqrt (docs/findings.md, entry 9).
 
 The CPU needs a libLLVM at run time (found on the default path or through DRJIT_LIBLLVM_PATH), of
 version 17 or newer: Dr.Jit 1.5 compiles ``dr.maximum``/``dr.minimum`` of floats to LLVM's
@@ -82,6 +84,8 @@ class DrJitBackend(Backend):
     package = "drjit"
     gradient_method = "ad"
     display_order, color = 8, "C9"
+    # fastmath: Dr.Jit's shipped default (JitFlag.FastMath on); default cells run exact (setup)
+    variants = ("default", "fastmath")
     # checkpoint: nested symbolic loops, sqrt(steps) segments; evaluated: one kernel per step
     # (backends/drjit/projectile.py says what each trades)
     scenario_variants = {"projectile": ("checkpoint", "evaluated")}
@@ -124,7 +128,8 @@ class DrJitBackend(Backend):
 
     def setup(self, device: str, precision: str, variant: str) -> None:
         import drjit as dr
-        dr.set_flag(dr.JitFlag.FastMath, precision == "float32")
+        # the shipped default (FastMath on) only as its own variant; never in float64 (findings #9)
+        dr.set_flag(dr.JitFlag.FastMath, variant == "fastmath" and precision == "float32")
 
     def ensure_context(self, device: str) -> None:
         import drjit as dr

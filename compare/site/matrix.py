@@ -22,7 +22,16 @@ from compare.site.data import Machine, Timing
 from scenarios.base import Precision
 
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
+# Every ranked figure is IEEE arithmetic: a framework whose shipped default is fast math (Taichi,
+# quadrants, Dr.Jit) runs exact by default and its default is measured as ``fastmath``.
 NOT_SAME_WORK = ("fastmath",)
+# The variant rule in words, printed in every ranked row's rule (docs/ports.md says it in full):
+# a variant that is a launch path the user writes counts on every row its record has; the
+# harness's replay of a captured call (the 'graph' regime) counts on the graph-replay row only.
+VARIANT_RULE = ("each framework's fastest variant: IEEE arithmetic only (fast-math variants shown, "
+                "never ranked); every launch path the user writes counts (Warp record_cmd, "
+                "torch.compile modes, XLA command buffers, a CUDA graph the port captures), the "
+                "harness's replay of a captured call only on the graph-replay row")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -126,10 +126,6 @@ def _label(backend: str, variant: str | None) -> str:
     return backend if variant in (None, "default") else f"{backend} {variant}"
 
 
-def _variants(recs: list[Record]) -> list[Record]:
-    return [r for r in recs if r.variant != "graph"]
-
-
 # ---- helpers of the topic pages (compare/site/topics/) --------------------------------
 def _group(recs: list[Record]) -> dict[tuple[str, str], list[Record]]:
     out: dict[tuple[str, str], list[Record]] = {}

@@ -79,11 +79,13 @@ def test_across_processes_gives_an_interval_and_flags_a_wide_one():
     assert data.process_count(rec(time=processes(0.9e-3, 1.1e-3))) == 6 and data.process_count(rec()) == 1
 
 
-def test_per_call_counts_a_graph_variant_as_the_graph_regime():
+def test_per_call_counts_a_graph_variant_in_every_regime():
+    """A framework's own graph variant is a launch path its user writes: it counts on every row
+    (docs/ports.md), its pipelined calls standing for the replay the harness cannot capture."""
     t = {"median_s": 1e-3, "iqr_s": 0, "latency": {"median_s": 1e-3, "iqr_s": 0},
          "throughput": {"median_s": 4e-4, "iqr_s": 0}}
     assert data.per_call(rec(variant="graph", time=t), "graph").median == 4e-4
-    assert data.per_call(rec(variant="graph", time=t), "latency") is None
+    assert data.per_call(rec(variant="graph", time=t), "latency").median == 1e-3
     assert data.per_call(rec(time=t), "throughput").median == 4e-4
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 from compare.render import charts
 from compare.site import data, fmt, matrix
 from compare.site.matrix import Rule, defaults_of, largest_of, rate, regime
-from compare.site.questions_pages import Ctx, Page, _bar, _scaling, _variants, verdicts
+from compare.site.questions_pages import Ctx, Page, _bar, _scaling, verdicts
 from compare.site.render import Figure, P
 from compare.site.topics import scenario_of
 
@@ -14,12 +14,11 @@ SMALL = True
 RULES = (
     Rule("particles-small", "Particle loop, small n", SCENARIO, "s", "lower",
          "Particles at the defaults (256 particles × 300 steps), float32: time per whole rollout "
-         "in the throughput regime, each framework's fastest variant (fast-math variants and graph "
-         "replay excluded).",
+         f"in the throughput regime, {matrix.VARIANT_RULE}.",
          defaults_of(SCENARIO), regime("throughput")),
     Rule("particles-large", "Particle loop, large n", SCENARIO, "1/s", "higher",
          "Particles at the largest n in the records that two or more frameworks ran (run or "
-         "scaling sweep), float32: particle-steps per second in the throughput regime.",
+         f"scaling sweep), float32: particle-steps per second in the throughput regime, {matrix.VARIANT_RULE}.",
          largest_of(SCENARIO, (None, "scaling")), rate),
 )
 
@@ -28,7 +27,7 @@ def page(c: Ctx) -> Page:
     blocks: Page = [P("A particle simulation loop: 300 steps of gravity, damping and wall contact. "
                       "At small n the loop's per-step launches dominate; at large n the kernels do.")]
     blocks += verdicts(c.rows_of(SCENARIO))
-    small = _variants(matrix.defaults_of(SCENARIO)(c.m, c.device))
+    small = (matrix.defaults_of(SCENARIO)(c.m, c.device))
     if small:
         png, rel, csv = c.fig("particles-small")
         charts.bars(png, f"Particles at the defaults (256 × 300 steps, {c.device}, float32): per rollout, "
@@ -36,7 +35,7 @@ def page(c: Ctx) -> Page:
                     [_bar(r, matrix.regime("throughput")) for r in small], log=True, fmt=fmt.seconds)
         blocks += [Figure(rel, "Every framework and variant at the default size.",
                           c.cmd(f"run {SCENARIO} --devices {c.device} --precision float32 --variants all"), csv)]
-    big = _variants(matrix.largest_of(SCENARIO, (None, "scaling"))(c.m, c.device))
+    big = (matrix.largest_of(SCENARIO, (None, "scaling"))(c.m, c.device))
     if big:
         png, rel, csv = c.fig("particles-large")
         charts.bars(png, f"Particles at the largest n ({data.scope(big)}, {c.device}, float32): particle-steps "

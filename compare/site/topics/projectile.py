@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from compare.render import charts, figure_check
 from compare.results.record import Record
-from compare.site import data
+from compare.site import data, matrix
 from compare.site.matrix import Reference, Rule, largest_of, rate
 from compare.sweep.points.projectile import BATCH_SWEEP_PARAMS
 from compare.site.questions_pages import Ctx, Page, _longest_loop, _scaling, verdicts
@@ -49,8 +49,8 @@ RULES = (
          "gradient evaluations) at the largest batch in the scaling sweep, float32: trajectory-"
          "gradients per second in the throughput regime; where that point was run again in several "
          "worker processes, those figures. Automatic differentiation (tapes and "
-         "traced AD) is ranked among itself; hand-written adjoints are shown beside it as the "
-         "reference ceiling, as their ratio to the best AD figure, and never ranked.",
+         "traced AD) is ranked among itself; hand-written adjoints are shown beside it, as their "
+         f"ratio to the best AD figure, and never ranked; {matrix.VARIANT_RULE}.",
          at_scale, rate, reference=HAND_ADJOINTS),
     Rule("gradients-memory", "Gradients through a simulation at scale: device memory", "gradients",
          "B", "lower",

@@ -6,7 +6,7 @@ from compare.site import data, datasheet, fmt, matrix
 from compare.site.harness import harness_table
 from compare.site.matrix import Rule, defaults_of, largest_of, regime
 from compare.site.questions_pages import Ctx, Page, _bar, _group, _label, _launch_yardstick, _host_share, \
-    _variants, timing_table, verdicts
+    timing_table, verdicts
 from compare.site.render import Figure, H, P
 from compare.site.topics import scenario_of
 
@@ -16,17 +16,16 @@ SMALL = True
 RULES = (
     Rule("bandwidth", "Large bandwidth-bound arrays", "bandwidth", "s", "lower",
          "SAXPY (out = a·x + y, float32) at the largest n in the records that two or more frameworks "
-         "ran; time per call in the throughput regime (k calls, one synchronise); each framework's "
-         "fastest variant (fast-math variants and graph replay excluded).",
+         "ran; time per call in the throughput regime (k calls, one synchronise); "
+         f"{matrix.VARIANT_RULE}.",
          largest_of(SCENARIO, (None, "bandwidth")), regime("throughput")),
     Rule("latency", "Small kernel: one synchronised call", "per-call", "s", "lower",
          "SAXPY at its default n = 10^6, float32: median time of one call followed by a "
-         "synchronise (the latency regime), each framework's fastest variant (fast-math excluded).",
+         f"synchronise (the latency regime), {matrix.VARIANT_RULE}.",
          defaults_of(SCENARIO), regime("latency")),
     Rule("pipelined", "Small kernel: pipelined calls", "per-call", "s", "lower",
          "SAXPY at n = 10^6, float32: per-call time of k back-to-back calls and one synchronise "
-         "(the throughput regime), each framework's fastest variant (fast-math variants and graph "
-         "replay excluded).",
+         f"(the throughput regime), {matrix.VARIANT_RULE}.",
          defaults_of(SCENARIO), regime("throughput")),
     Rule("graph", "Small kernel: graph replay", "per-call", "s", "lower",
          "SAXPY at n = 10^6, float32: per-call time of a captured call replayed (CUDA graphs, or "
@@ -51,7 +50,7 @@ def bandwidth(c: Ctx) -> Page:
     allvar = [r for r in c.m.records if r.device == c.device and r.scenario == SCENARIO
               and r.precision == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
               and data.tag(r, "sweep") in (None, "bandwidth")]
-    allvar = matrix.latest(_variants(allvar))
+    allvar = matrix.latest(allvar)
     if allvar:
         gpu = next((g for r in allvar if (g := datasheet.gpu_of(r, c.m.runs))), None)
         copy = next((v for r in allvar if r.hardware and (v := data.num(r.hardware.copy_bytes_per_s))), None)
