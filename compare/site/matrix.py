@@ -22,12 +22,9 @@ from compare.site.data import Machine, Timing
 from scenarios.base import Precision
 
 # Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
-# Every ranked figure is IEEE arithmetic: a framework whose shipped default is fast math (Taichi,
-# quadrants, Dr.Jit) runs exact by default and its default is measured as ``fastmath``.
+# A framework whose shipped default is fast math (Taichi, quadrants, Dr.Jit) runs exact by default.
 NOT_SAME_WORK = ("fastmath",)
-# The variant rule in words, printed in every ranked row's rule (docs/ports.md says it in full):
-# a variant that is a launch path the user writes counts on every row its record has; the
-# harness's replay of a captured call (the 'graph' regime) counts on the graph-replay row only.
+# The variant rule, printed in every ranked row's rule (docs/ports.md says it in full).
 VARIANT_RULE = ("each framework's fastest variant: IEEE arithmetic only (fast-math variants shown, "
                 "never ranked); every launch path the user writes counts (Warp record_cmd, "
                 "torch.compile modes, XLA command buffers, a CUDA graph the port captures), the "
@@ -137,12 +134,20 @@ def latest(recs: list[Record]) -> list[Record]:
     return list(seen.values())
 
 
+def exact(r: Record) -> bool:
+    """The record's arithmetic is IEEE: not a fast-math variant, and not a default that ran with
+    fast math (Dr.Jit's float32 cells recorded before its default became exact say so in their
+    info): such a figure is shown on the pages, never ranked."""
+    info = r.info.get("fast_math") if r.info is not None else None
+    return r.variant not in NOT_SAME_WORK and info is not True
+
+
 def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precision.FLOAT32,
           sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling"),
           keep: Callable[[Record], bool] = lambda r: True) -> list[Record]:
     return latest([r for r in m.records if r.device == device and r.scenario == scenario
                    and r.precision == precision and data.tag(r, "sweep") in sweep
-                   and r.variant not in NOT_SAME_WORK and keep(r)])
+                   and exact(r) and keep(r)])
 
 
 def _largest(recs: list[Record]) -> list[Record]:
@@ -173,7 +178,7 @@ def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth"
 
 def all_defaults(m: Machine, device: str) -> list[Record]:
     return latest([r for r in m.run if r.device == device and r.precision == "float32"
-                   and r.variant == "default" and data.at_defaults(r)
+                   and r.variant == "default" and data.at_defaults(r) and exact(r)
                    and data.tag(r, "sweep") is None])
 
 

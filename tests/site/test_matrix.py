@@ -307,3 +307,16 @@ def test_latest_prefers_the_repeated_record():
     one = rec("warp", time=latency(5e-6))
     six = rec("warp", time=latency(10e-6, (9e-6, 11e-6)))
     assert matrix.latest([six, one]) == [six] and matrix.latest([one, six]) == [six]
+
+
+# ---- one arithmetic rule ------------------------------------------------------------------------
+def test_a_figure_that_ran_with_fast_math_is_never_ranked_whatever_its_variant():
+    """Every ranked figure is IEEE arithmetic (docs/ports.md): a fast-math variant, and a default
+    cell whose info says it ran with fast math (Dr.Jit's records before its default became
+    exact), are left out of the row; an exact record of the same framework is ranked."""
+    fast = rec("drjit", time=latency(1e-6), info={"fast_math": True})
+    named = rec("taichi", variant="fastmath", time=latency(1e-6))
+    r = row("latency", [fast, named, rec("warp", time=latency(10e-6)), rec("cupy", time=latency(20e-6))])
+    assert "drjit" not in r.cells and "taichi" not in r.cells and r.top == "warp"
+    exact = rec("drjit", time=latency(5e-6), info={"fast_math": False})
+    assert row("latency", [fast, exact, rec("warp", time=latency(10e-6))]).top == "drjit"
