@@ -29,6 +29,17 @@ Variants (what each trades, memory against speed):
   about 2 x steps launches per iteration and the tape's device traffic. Same arithmetic as the
   default: the same outputs bit for bit on the CPU.
 
+Memory (what ``info()["design_bytes"]`` predicts): the inputs (v0 and target, 2 x B each), the
+loss history the scenario returns ((iters + 1) x B), the first gradient (2 x B) and the descent's
+live state at its peak (v, its gradient and the next v: 6 x B), each of the cell's precision. One
+call's history grows with the descent: on the CPU (LLVM, B = 2^18, float32) Dr.Jit's watermark
+after a call is (iters + 8) x B x 4 bytes: 13, 28 and 68 MiB at iters = 5, 20 and 60. ``run()``
+used to keep the previous call's result until it returned, so every call after the first held
+two histories: 23, 53 and 133 MiB at the second call, the same slope as the H100's NVML figure
+(362 MiB at 20 iterations, 682 at 60: 8 MiB per iteration at B = 2^20 where one history row is
+4 MiB). ``run()`` now drops the last result first and returns nothing (a caller's ``r = run()``
+would hold it too): the second call peaks at the first call's bytes, outputs unchanged.
+
 The default's per-thread tape is also a limit on the CPU: Dr.Jit keeps it on the stack of its
 worker threads (the process's stack size, ``ulimit -s``) with no check, so a horizon whose tape
 outgrows the stack ends the process with a segmentation fault (docs/findings.md); the checkpoint
@@ -195,4 +206,19 @@ class Kernel(ScenarioKernel):
                          "evaluated" if self.variant == "evaluated" else "symbolic"),
                 "segment_steps": k if ckpt else steps, "states_kept_per_trajectory": kept,
                 "tape": where, "launches_per_iteration": self.launches, "batch": self.params.batch,
-                "jit_peak_bytes": int(dr.detail.malloc_watermark(self.backend)), **fast_math()}
+                "jit_peak_bytes": int(dr.detail.malloc_watermark(self.backend)), **self.design(), **fast_math()}
+
+    def design(self) -> dict[str, Any]:
+        """The device arrays the design keeps at its peak (module docstring, "Memory"), in bytes,
+        and the per-thread local storage of the symbolic loops (not in the sum: the driver sizes
+        it by resident threads, not by the batch). The evaluated variant's tape is Dr.Jit's AD
+        graph, not predicted here."""
+        p, item = self.params, self.dtype.itemsize
+        col = p.batch * item                                  # one value per trajectory
+        steps, k = p.steps, checkpoint_segment(p.steps)
+        kept = math.ceil(steps / k) + k if self.variant == "checkpoint" and k < steps else steps
+        if self.variant == "evaluated":
+            return {}
+        return {"local_bytes_per_thread": kept * (4 + 4 * item),      # step counter + x, y, vx, vy
+                "design_bytes": {"inputs": 4 * col, "loss_history": (p.iters + 1) * col,
+                                 "first_gradient": 2 * col, "descent_state": 6 * col}}
