@@ -25,6 +25,7 @@ CELL_PARTS = {
     "first_call": "compile and first call",
     "steady": "warm-up and latency",
     "throughput": "throughput",
+    "memory_pass": "memory pass (NVML sampled, untimed)",
     "download": "download",
     "graph": "graph",
     "host_profile": "host profile",

@@ -32,6 +32,7 @@ from compare.measuring import noise, phases, timing
 from compare.running import scaleout
 from compare.running import caches
 from compare.running.gate import Gate
+from compare.measuring.memory_sampler import Sampler, memory_pass
 from compare.measuring.nvml import open_nvml
 from compare.results.record import Record
 from compare.results.record_parts import Check, Gradient, Memory, OwnTimer, Regime, Timing
@@ -191,12 +192,12 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     sync(None)
     setup_s = time.perf_counter() - t0
     laps.lap("build")
-    if nvml:
-        nvml.sample()
-    first_call_s = timing.call(kernel.run, sync)
+    sampler = Sampler(nvml)      # NVML's milestones, and a thread on in the first call and an untimed pass
+    sampler.milestone()
+    with sampler:
+        first_call_s = timing.call(kernel.run, sync)
     laps.lap("first_call")
-    if nvml:
-        nvml.sample()
+    sampler.milestone()
     timer, clock = timing.event_timer(be, device, cell.timer)
     meter = noise.HostMeter()
     t = timing.steady_state(kernel.run, sync, warmup=cell.warmup, repeat=cell.repeat, min_time=cell.min_time,
@@ -204,16 +205,17 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     # why no events: kept beside the latency
     events_error = {"events_error": clock} if timer is None and clock != timing.CLOCK else {}
     laps.lap("steady")
-    if nvml:
-        nvml.sample()
+    sampler.milestone()
     latency = Regime.of(**{k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")}, repeats=t.repeats)
     throughput: Regime | None = None
     if cell.throughput:
         throughput = timing.pipelined(kernel.run, sync, max_time=cell.max_time, latency=latency)
         laps.lap("throughput")
-        if nvml:
-            nvml.sample()
+        sampler.milestone()
     host = meter.stop()
+    nvml_pass = memory_pass(kernel.run, sync, sampler) if cell.check else {}     # {} without NVML
+    if nvml_pass:
+        laps.lap("memory_pass")
     run_peak = peak_rss_bytes()               # before the download and the oracle add theirs
     # a repeat process (compare.running.repeats) times the figures alone: the first process
     # downloaded, checked, profiled and cross-checked the cell; no figure reads those again
@@ -293,7 +295,8 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         "peak_host_rss_bytes": peak_rss_bytes(),
         "host_bytes": max(0, run_peak - rss_before) if rss_before and run_peak else None,
         **device_memory(be, device),
-        **(nvml.figures() if nvml else {}), **({"nvml_note": nvml_note} if nvml_note else {})})
+        **(nvml.figures() if nvml else {}), **sampler.figures(), **nvml_pass,
+        **({"nvml_note": nvml_note} if nvml_note else {})})
     info, versions = kernel.info(), be.versions()
     host_name, load, cores = platform.node(), os.getloadavg()[0], len(os.sched_getaffinity(0))
     laps.lap("record")
