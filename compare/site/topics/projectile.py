@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from compare.render import charts, figure_check
 from compare.results.record import Record
-from compare.site import data, matrix
+from compare.site import data, matrix, memory_design
 from compare.site.matrix import Reference, Rule, largest_of, rate
 from compare.sweep.points.projectile import BATCH_SWEEP_PARAMS
 from compare.site.questions_pages import Ctx, Page, _longest_loop, _scaling, verdicts
@@ -54,9 +54,9 @@ RULES = (
          at_scale, rate, reference=HAND_ADJOINTS),
     Rule("gradients-memory", "Gradients through a simulation at scale: device memory", "gradients",
          "B", "lower",
-         "The same cells: device memory above the framework's CUDA context (NVML peak of the "
-         "process), the one memory figure every framework shares; AD ranked among itself, hand-"
-         "written adjoints beside it, never ranked.",
+         "The same cells: " + memory_design.WHAT_IS_MEASURED[0].lower() + memory_design.WHAT_IS_MEASURED[1:]
+         + " The one memory figure every framework shares; AD ranked among itself, hand-written "
+         "adjoints beside it, never ranked; beside each cell, the bytes its port's design predicts.",
          at_scale, data.device_bytes, exact=True, reference=HAND_ADJOINTS),
 )
 
@@ -75,6 +75,7 @@ def page(c: Ctx) -> Page:
                     "marked ✎, as their ratio to the best AD figure, and never named best."
                     + (f" Hand-written adjoints here: {', '.join(hand)}." if hand else "")))
     blocks += verdicts(c.rows_of("gradients"))
+    blocks += memory_design.table(at_scale(c.m, c.device), hand_adjoint)
     blocks += _scaling(c, SCENARIO, "trajectory-gradients per second", "batch (trajectories)", memory=True)
     hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r.device == c.device]
     if hz:
