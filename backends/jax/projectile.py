@@ -163,4 +163,17 @@ class Kernel(ScenarioKernel):
         b = self.params.batch
         how = "" if b == 1 else ", jax.vmap over trajectories"
         return {**self.program.info(), "gradient": "jax.value_and_grad through lax.scan" + how,
-                "remat_segment": self.remat_segment, "unroll": self.unroll, "batch": b}
+                "remat_segment": self.remat_segment, "unroll": self.unroll, "batch": b,
+                "design_bytes": self.design()}
+
+    def design(self) -> dict[str, int]:
+        """The bytes the design keeps (issue 56): inputs, the donated outputs (loss, first gradient,
+        loss history, v), the descent scan's carry (v, first gradient) and the step scan's residuals,
+        four state values (x, y, vx, vy) per kept step and trajectory: every step, or with
+        ``remat_segment`` K the segment boundaries, one segment and the tail. XLA's own figure for
+        its temporaries is ``temp_bytes``."""
+        p, k = self.params, self.remat_segment
+        col = p.batch * self.v0.dtype.itemsize
+        kept = p.steps if not 0 < k < p.steps else p.steps // k + k + p.steps % k
+        return {"inputs": 4 * col, "outputs": (p.iters + 1 + 1 + 2 + 2) * col, "scan_carry": 4 * col,
+                "residuals": kept * 4 * col}

@@ -241,3 +241,17 @@ def test_checkpoint_variant_through_the_worker():
     assert record["info"]["remat_segment"] == 13
     assert record["error"]["vs_oracle"] <= record["error"]["tolerance"]
     assert outputs["loss_history"].shape == (21, 37) and outputs["grad"].dtype == np.float32
+
+
+def test_the_design_bytes_name_what_the_program_keeps_and_the_checkpoint_keeps_less():
+    """info()["design_bytes"] (the gradients page's prediction): checkpointing keeps segment
+    boundaries, one segment and the tail instead of every step's four state values."""
+    import scenarios
+    from backends.jax.projectile import Kernel
+    sc = scenarios.get("projectile")
+    p = sc.params({"batch": 8, "iters": 3, "steps": 50}, quick=True)
+    got = {v: Kernel(p, sc.inputs(p, "float32"), "cpu", "float32", v).info()["design_bytes"]
+           for v in ("default", "checkpoint")}
+    col = 8 * 4
+    assert got["default"] == {"inputs": 4 * col, "outputs": 9 * col, "scan_carry": 4 * col, "residuals": 50 * 4 * col}
+    assert got["checkpoint"]["residuals"] == (50 // 7 + 7 + 50 % 7) * 4 * col
