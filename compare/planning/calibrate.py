@@ -27,6 +27,11 @@ from compare.spec import Cell
 from scenarios.base import Precision
 
 FACTOR = 64
+# A miniature's own timeout: a small share of --timeout, not under MINIATURE_MIN_S (an interpreter,
+# a framework's import and its first compilation: up to 30 s a CPU first call in the CPU store)
+# nor over --timeout. One that runs out predicts nothing; its cell then decides for itself.
+MINIATURE_SHARE = 1 / 8
+MINIATURE_MIN_S = 120.0
 Refusal = Callable[[Cell], "tuple[str, str] | None"]
 
 
@@ -103,13 +108,43 @@ class Miniature(NamedTuple):
 Miniatures = dict[tuple[Any, ...], Miniature]
 
 
+def miniature_timeout(timeout: float | None) -> float | None:
+    """A miniature's timeout under the cells' ``timeout`` (None: none)."""
+    return None if timeout is None else min(timeout, max(MINIATURE_MIN_S, MINIATURE_SHARE * timeout))
+
+
+def _bar(total: int, factor: int, limit: float | None) -> Any:
+    """A progress bar on stderr while miniatures run, on a terminal only and erased when done
+    (a refusal stays one line; CI logs and pipes get nothing: the cells' records say it)."""
+    import os
+    import sys
+    if not total or os.environ.get("CI") or not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+    cap = f", at most {limit:g} s each" if limit is not None else ""
+    return tqdm(total=total, unit="run", leave=False, file=sys.stderr,
+                desc=f"big cells at 1/{factor} of their size{cap}")
+
+
 def run_miniatures(plan: list[Cell], timeout: float | None, factor: int = FACTOR,
                    run: Callable[[Cell], cells.Result] | None = None) -> Miniatures:
     """(miniature, its record) of every big cell of ``plan`` at 1/``factor`` of its size, by
-    the big cell's key (``key``), one at a time."""
+    the big cell's key (``key``), one at a time, each within ``miniature_timeout(timeout)``."""
     pairs = [(c, m) for c in plan if (m := miniature(c, factor)) is not None]
-    run = run or (lambda c: cells.run(c, timeout))
-    return {key(cell): Miniature.of(small, run(small)) for cell, small in pairs}
+    limit = miniature_timeout(timeout)
+    run = run or (lambda c: cells.run(c, limit))
+    bar, got = _bar(len(pairs), factor, limit), {}
+    try:
+        for cell, small in pairs:
+            if bar is not None:
+                bar.set_postfix_str(f"{cell.backend} {cell.device} {cell.precision} {cell.scenario}")
+            got[key(cell)] = Miniature.of(small, run(small))
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return got
 
 
 def time_refusal(plan: list[Cell], timeout: float | None,

@@ -5,7 +5,9 @@ A plan none of whose cells fits is refused; a cell that does not fit now is skip
 A worker's memory is first bounded by its scenario's model (``cell_bytes``: the same for every
 framework, the largest tape any port keeps). A big cell (one with a miniature, compare.planning.calibrate)
 over that bound is then judged by its own framework and variant: its miniatures at 1/64 and 1/256
-of its size are run, and their measured peaks extrapolated (``measured_need``)."""
+of its size are run, and their measured peaks extrapolated (``measured_need``). A cell whose
+framework-independent part alone (``floor_bytes``, which every estimate includes) exceeds what is
+available is refused from the model at once: no miniature could change that verdict."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -55,12 +57,40 @@ def measured_later(cell: Cell, have: float) -> bool:
     return cell_bytes(cell)[0] > have and calibrate.miniature(cell) is not None
 
 
+def floor_bytes(cell: Cell) -> float:
+    """The least host memory the cell's worker needs whatever its framework: the scenario's model
+    without the framework's working copies (Scenario.footprint as on a GPU: the check's arrays,
+    inputs and outputs), which ``measured_need`` adds in full to every miniature estimate."""
+    sc = scenarios.get(cell.scenario)
+    return min(cell_bytes(cell)[0], sc.footprint(cell.params, str(cell.precision), "cuda"))
+
+
+def least_need(cell: Cell, have: float) -> float:
+    """What the cell's worker needs at least: the model bound, or for a cell its miniatures judge
+    later, the floor no framework goes under (``floor_bytes``)."""
+    return floor_bytes(cell) if measured_later(cell, have) else cell_bytes(cell)[0]
+
+
+def _floor_text(cell: Cell, have: float) -> str:
+    return (f"needs about {outdir.gib(floor_bytes(cell))} of host memory for its worker whatever its "
+            f"framework (the check's arrays, inputs and outputs, before any framework's own copies: about "
+            f"{outdir.gib(cell_bytes(cell)[0])} with the largest port's); {outdir.gib(have)} is available "
+            f"on this machine")
+
+
 def check_smallest(specs: list[Cell]) -> None:
-    """Refuse a plan whose smallest worker cannot fit, before anything runs; unless some cell is
-    judged by its miniatures later (a plan none of whose cells fits then is refused there)."""
+    """Refuse a plan whose smallest worker cannot fit, before anything runs: a cell its miniatures
+    judge later by its floor (``floor_bytes``), so a hopeless plan is refused without running
+    any (a plan none of whose cells fits by the miniatures' estimates is refused there)."""
+    if not specs:
+        return
     have = available()
-    if specs and not any(measured_later(s, have) for s in specs):
-        check_memory([min(specs, key=lambda s: cell_bytes(s)[0])], driver=False)
+    s = min(specs, key=lambda s: least_need(s, have))
+    if not measured_later(s, have):
+        check_memory([s], driver=False)
+    elif floor_bytes(s) > have:
+        sc = scenarios.get(s.scenario)
+        raise ParamError(f"{sc.name} with {sc.size_text(s.params)} ({s.precision}) {_floor_text(s, have)}")
 
 
 def check_memory(specs: Sequence[Cell], driver: bool = True, worker: bool = True) -> None:
@@ -99,6 +129,8 @@ def memory_refusal(measured: Callable[[Cell], float | None] | None = None
         if need <= have:
             return None
         if measured_later(cell, have):
+            if floor_bytes(cell) > have:      # no miniature can bring it under: not run
+                return "skipped", _floor_text(cell, have)
             got = measured(cell) if measured is not None else 0.0
             if got is not None:           # None: its miniatures failed; the model bound decides
                 if got <= have:
@@ -115,26 +147,29 @@ def measured_need(plan: list[Cell], timeout: float | None, minis: calibrate.Mini
     miniatures (``minis``: those at 1/64 already run): the larger one's measured peak, plus the
     slope between the two (times SLOPE_MARGIN) up to the cell's size, plus the check's arrays at
     full size (Scenario.footprint on a GPU, where the port's working copies are not host
-    memory: the miniatures are not checked). None where a miniature failed."""
+    memory: the miniatures are not checked). None where a miniature failed (the one at 1/256 is
+    then not run). A cell over its floor (``floor_bytes``) runs none: it is refused whatever they find."""
     have = available()
-    todo = [c for c in plan if measured_later(c, have)]
+    todo = [c for c in plan if measured_later(c, have) and floor_bytes(c) <= have]
     big = {**calibrate.run_miniatures([c for c in todo if calibrate.key(c) not in (minis or {})],
                                       timeout, MEMORY_FACTORS[0], run), **(minis or {})}
-    small = calibrate.run_miniatures(todo, timeout, MEMORY_FACTORS[1], run)
+    small = calibrate.run_miniatures([c for c in todo if _ran(big.get(calibrate.key(c)))],
+                                     timeout, MEMORY_FACTORS[1], run)
     needs = {calibrate.key(c): _extrapolate(c, big.get(calibrate.key(c)), small.get(calibrate.key(c)))
              for c in todo}
     return lambda cell: needs.get(calibrate.key(cell))
 
 
+def _ran(got: calibrate.Miniature | None) -> bool:
+    return got is not None and bool(got.peak_host_rss_bytes) and got.status in ("ok", "mismatch")
+
+
 def _extrapolate(cell: Cell, a: calibrate.Miniature | None, b: calibrate.Miniature | None) -> float | None:
     points = []
     for got in (a, b):
-        if got is None:                   # a miniature that did not run
+        if got is None or not _ran(got):       # a miniature that did not run, or failed
             return None
-        peak = got.peak_host_rss_bytes
-        if not peak or got.status not in ("ok", "mismatch"):
-            return None
-        points.append((calibrate.items(got.cell), peak))
+        points.append((calibrate.items(got.cell), float(got.peak_host_rss_bytes or 0.0)))
     (n1, m1), (n0, m0) = points
     if n1 <= n0:
         return None

@@ -72,3 +72,15 @@ def test_a_miniatures_record_is_read_back():
     assert none.time is None and none.peak_host_rss_bytes is None
     minis = calibrate.run_miniatures([big(), big("jax")], 10.0, run=ran(0.25))
     assert set(minis) == {calibrate.key(big()), calibrate.key(big("jax"))}
+
+
+def test_a_miniature_runs_within_a_small_share_of_the_timeout(monkeypatch):
+    """Issue 58 item 8: a miniature waited --timeout (900 s) before saying nothing; now a share of
+    it, never under MINIATURE_MIN_S (import and first compile) nor over --timeout."""
+    assert calibrate.miniature_timeout(900.0) == pytest.approx(calibrate.MINIATURE_MIN_S)
+    assert calibrate.miniature_timeout(7200.0) == pytest.approx(7200.0 * calibrate.MINIATURE_SHARE)
+    assert calibrate.miniature_timeout(20.0) == 20.0 and calibrate.miniature_timeout(None) is None
+    limits = []
+    monkeypatch.setattr(calibrate.cells, "run", lambda c, timeout: (limits.append(timeout), ran(0.25)(c))[1])
+    calibrate.run_miniatures([big()], 900.0)
+    assert limits == [calibrate.miniature_timeout(900.0)] and limits[0] < 900.0

@@ -4,6 +4,10 @@ records the others as skipped; the estimate bounds the worker's measured peak (t
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+import time
 
 import pytest
 from pathlib import Path
@@ -13,6 +17,7 @@ from compare.planning import outdir, preflight
 from compare.suites import run as run_suite
 from compare.spec import Cell
 from scenarios.base import ParamError
+from conftest import ROOT
 from reliability_checks import FIGURES, assert_refused, working_directory
 
 pytestmark = pytest.mark.cli
@@ -127,8 +132,10 @@ def test_a_miniature_that_failed_leaves_the_model_bound_to_decide(monkeypatch):
     from compare.spec import Cell
     available_memory(monkeypatch, 8 * GIB)
     cell = Cell.make("projectile", "numba", "cpu", "float32", params={"batch": 1 << 20})
-    need = preflight.measured_need([cell], 600.0, run=lambda small: ({"status": "error", "reason": "x"}, None))
-    assert need(cell) is None
+    seen: list = []
+    need = preflight.measured_need([cell], 600.0, run=lambda small: (seen.append(small.params.batch),
+                                                                     ({"status": "error", "reason": "x"}, None))[1])
+    assert need(cell) is None and seen == [(1 << 20) // 64]      # the one at 1/256 is not run after it
     status, why = preflight.memory_refusal(need)(cell)
     assert status == "skipped" and preflight.outdir.gib(preflight.cell_bytes(cell)[0]) in why
 
@@ -170,6 +177,66 @@ def test_a_plan_none_of_whose_cells_fits_is_refused_with_its_estimate(work, monk
     line = assert_refused([*CHEAP_BIG, "--backends", "numpy,numba", "--out", str(work / "out")], work,
                           "nothing fits this machine's memory")
     assert "needs about" in line and "1/64 and 1/256" in line, line
+
+
+# ---- a hopeless cell: refused from the model before any miniature runs ----------------------------
+HOPELESS = ["projectile", "--quick", "--backends", "numpy", "--devices", "cpu", "--set", "steps=1e7",
+            "--set", "batch=16777216"]
+
+
+def hopeless_or_skip() -> Cell:
+    import psutil
+    cell = Cell.make("projectile", "numpy", "cpu", "float32", params={"steps": 10**7, "batch": 1 << 24})
+    if preflight.floor_bytes(cell) <= psutil.virtual_memory().available:
+        pytest.skip("this machine has the memory the hopeless cell's check needs")
+    return cell
+
+
+def test_a_cell_over_its_floor_runs_no_miniature_and_is_skipped_with_it(monkeypatch):
+    """Every estimate includes the framework-independent part (``floor_bytes``: the check's arrays,
+    inputs, outputs): a cell over it is refused at once; one under it is still judged by its own."""
+    from compare.spec import Cell
+    have = 8 * GIB
+    available_memory(monkeypatch, have)
+    hopeless = Cell.make("projectile", "numpy", "cpu", "float32", params={"steps": 10**7, "batch": 1 << 24})
+    big = Cell.make("projectile", "numpy", "cpu", "float32", params={"batch": 1 << 20})
+    assert preflight.floor_bytes(hopeless) > have > preflight.floor_bytes(big)
+    assert preflight.cell_bytes(big)[0] > have and preflight.measured_later(hopeless, have)
+    status, why = preflight.memory_refusal()(hopeless)            # before any miniature: skipped
+    assert status == "skipped" and "whatever its framework" in why and preflight.outdir.gib(have) in why, why
+    assert preflight.memory_refusal()(big) is None                # its miniatures decide
+    seen: list = []
+    need = preflight.measured_need([hopeless, big], 600.0, run=fake_miniatures({"numpy": 0.0}, seen))
+    assert sorted(seen) == [("numpy", (1 << 20) // 256), ("numpy", (1 << 20) // 64)]
+    assert preflight.memory_refusal(need)(big) is None and preflight.memory_refusal(need)(hopeless)[0] == "skipped"
+
+
+def test_a_hopeless_plan_is_refused_in_one_line_before_any_miniature(work, monkeypatch):
+    from compare.planning import calibrate
+    hopeless_or_skip()
+
+    def never(*a, **k):
+        raise AssertionError("a miniature ran")
+    monkeypatch.setattr(calibrate, "run_miniatures", never)
+    line = assert_refused([*HOPELESS, "--out", str(work / "out")], work, "whatever its framework")
+    assert "GiB is available" in line, line
+
+
+def test_the_hopeless_cell_of_issue_58_is_refused_within_seconds(work):
+    """``compare projectile --set steps=1e7 --set batch=16777216`` on the CPU printed nothing for
+    30 minutes (two miniatures bounded by --timeout alone): now exit 2 and one line, in a real
+    process. Target under 10 s (about 1 s on the 2-core box); 30 s here for a loaded machine."""
+    hopeless_or_skip()
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "compare", *HOPELESS, "--out", str(work / "out")],
+                          capture_output=True, text=True, timeout=300, cwd=work,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    took = time.perf_counter() - t0
+    lines = [ln for ln in done.stderr.splitlines() if ln.strip()]
+    assert done.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: "), done.stderr
+    assert "whatever its framework" in lines[0] and "Traceback" not in done.stderr, lines
+    assert took < 30.0, took
+    assert not (work / "out").exists()
 
 
 # ---- the memory estimate against measured peaks ---------------------------------------------------
