@@ -15,9 +15,13 @@ cell's reason.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
-from typing import Any, Callable, NamedTuple
+import os
+import sys
+import threading
+from typing import Any, Callable, Iterator, NamedTuple
 
 import scenarios
 from compare.running import cells
@@ -113,17 +117,30 @@ def miniature_timeout(timeout: float | None) -> float | None:
     return None if timeout is None else min(timeout, max(MINIATURE_MIN_S, MINIATURE_SHARE * timeout))
 
 
-def _bar(total: int, factor: int, limit: float | None) -> Any:
-    """A progress bar on stderr while miniatures run, on a terminal only and erased when done
-    (a refusal stays one line; CI logs and pipes get nothing: the cells' records say it)."""
-    import os
-    import sys
+@contextlib.contextmanager
+def _progress(total: int, factor: int, limit: float | None) -> Iterator[Callable[[str | None], None]]:
+    """A progress bar on stderr while miniatures run, its clock ticking each second: on a terminal
+    only, erased when done (a refusal stays one line; CI logs and pipes get nothing: the cells'
+    records say it). Yields ``step``: a cell's name as its miniature starts, None as it ends."""
     if not total or os.environ.get("CI") or not sys.stderr.isatty():
-        return None
+        yield lambda name: None
+        return
     from tqdm import tqdm
     cap = f", at most {limit:g} s each" if limit is not None else ""
-    return tqdm(total=total, unit="run", leave=False, file=sys.stderr,
-                desc=f"big cells at 1/{factor} of their size{cap}")
+    bar = tqdm(total=total, unit="run", leave=False, file=sys.stderr, desc=f"big cells at 1/{factor} of their size{cap}")
+    stop = threading.Event()
+
+    def tick() -> None:
+        while not stop.wait(1.0):
+            bar.refresh()
+    ticker = threading.Thread(target=tick, daemon=True)
+    ticker.start()
+    try:
+        yield lambda name: bar.set_postfix_str(name) if name is not None else bar.update(1)
+    finally:
+        stop.set()
+        ticker.join()
+        bar.close()
 
 
 def run_miniatures(plan: list[Cell], timeout: float | None, factor: int = FACTOR,
@@ -133,17 +150,12 @@ def run_miniatures(plan: list[Cell], timeout: float | None, factor: int = FACTOR
     pairs = [(c, m) for c in plan if (m := miniature(c, factor)) is not None]
     limit = miniature_timeout(timeout)
     run = run or (lambda c: cells.run(c, limit))
-    bar, got = _bar(len(pairs), factor, limit), {}
-    try:
+    got = {}
+    with _progress(len(pairs), factor, limit) as step:
         for cell, small in pairs:
-            if bar is not None:
-                bar.set_postfix_str(f"{cell.backend} {cell.device} {cell.precision} {cell.scenario}")
+            step(f"{cell.backend} {cell.device} {cell.precision} {cell.scenario}")
             got[key(cell)] = Miniature.of(small, run(small))
-            if bar is not None:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
+            step(None)
     return got
 
 

@@ -84,3 +84,24 @@ def test_a_miniature_runs_within_a_small_share_of_the_timeout(monkeypatch):
     monkeypatch.setattr(calibrate.cells, "run", lambda c, timeout: (limits.append(timeout), ran(0.25)(c))[1])
     calibrate.run_miniatures([big()], 900.0)
     assert limits == [calibrate.miniature_timeout(900.0)] and limits[0] < 900.0
+
+
+def test_miniatures_show_a_ticking_bar_on_a_terminal_and_nothing_elsewhere(monkeypatch):
+    import io
+    import sys
+    import time
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    def slow(small):
+        time.sleep(1.3)                # past one tick of the bar's clock
+        return ran(0.25)(small)
+    monkeypatch.delenv("CI", raising=False)
+    for err, shown in ((Tty(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", err)
+        calibrate.run_miniatures([big()], 20.0, run=slow)
+        text = err.getvalue()
+        assert ("big cells at 1/64 of their size, at most 20 s each" in text) is shown, text
+        assert ("00:01" in text and "numpy cpu float32 projectile" in text) is shown, text
