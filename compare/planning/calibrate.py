@@ -127,7 +127,8 @@ def _progress(total: int, factor: int, limit: float | None) -> Iterator[Callable
         return
     from tqdm import tqdm
     cap = f", at most {limit:g} s each" if limit is not None else ""
-    bar = tqdm(total=total, unit="run", leave=False, file=sys.stderr, desc=f"big cells at 1/{factor} of their size{cap}")
+    bar = tqdm(total=total, unit="run", leave=False, file=sys.stderr,
+               desc=f"big cells at 1/{factor} of their size{cap}")
     stop = threading.Event()
 
     def tick() -> None:
