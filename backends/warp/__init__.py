@@ -42,9 +42,11 @@ class WarpBackend(Backend):
     gradient_method = "tape"
     is_reference = True
     display_order, color = 0, "C0"
-    # a taped segment loop: segment boundaries kept, each segment re-taped in the backward pass
+    # projectile (projectile.py): "checkpoint" keeps segment boundaries and re-runs each segment
+    # in the backward pass; "tape_zero" clears every gradient with tape.zero() (the default: v's);
+    # "unrolled" keeps the state in per-thread locals (the step loop unrolled at compile time)
     # "tile": SAXPY's block-cooperative tile loads (saxpy.py); "record_cmd": see ``launcher``
-    scenario_variants = {"projectile": ("checkpoint",),
+    scenario_variants = {"projectile": ("checkpoint", "tape_zero", "unrolled"),
                          **{sc: ("record_cmd",) for sc in RECORDABLE},
                          "saxpy": ("tile", "record_cmd")}
     control_variants = {"particles": {

@@ -1,30 +1,65 @@
 """Differentiable projectile in Warp, gradients through wp.Tape, one thread per trajectory.
 
-Warp's adjoint needs every intermediate state kept and never overwritten, and loop-carried local
-variables in a dynamic loop are not differentiated correctly. So the state lives in arrays indexed
-by time step, and each thread runs its trajectory's time loop reading step s and writing step s+1
-(no loop-carried locals): one launch over the batch whose adjoint Warp replays in reverse (one
-launch per step measured ~100x slower on CPU: ~2*steps Python-side launches per iteration). The
-per-step arrays are (steps+1, B) so that neighbouring threads touch neighbouring addresses on CUDA.
-The B losses are independent, so seeding every loss with 1 (``tape.backward(grads={loss: ones})``,
-Warp's way for a non-scalar output) gives each trajectory its own gradient in one backward pass.
-One code path for every B, so batch row 0 is the unbatched run bit for bit.
-
 Each gradient-descent iteration is: the forward, tape.backward, an update kernel (outside the
-tape: it overwrites v), tape.zero(); the tape is recorded once and replayed. The loop stays on the
-device; on CUDA it is captured once into a CUDA graph after the first (eager, compiling) call.
+tape: it overwrites v), then v's gradient is cleared; the tape is recorded once and replayed.
+The loop stays on the device; on CUDA it is captured once into a CUDA graph after the first (eager,
+compiling) call. The B losses are independent, so seeding every loss with 1
+(``tape.backward(grads={loss: ones})``, Warp's way for a non-scalar output) gives each trajectory
+its own gradient in one backward pass. One code path for every B, so batch row 0 is the unbatched
+run bit for bit. The variants (``VARIANTS``) differ in where the states live and what is cleared:
 
-Variant "checkpoint": the plain tape keeps all steps+1 states per trajectory. Here the rollout runs
-in segments of K = ceil(sqrt(steps)) steps through one (K+1, B) work buffer, and only each
-segment's end state is kept, so memory per trajectory is O(steps/K + K). The backward pass needs
-each segment's states again: ``Tape.record_func`` (Warp's hook for a custom step in the backward
-pass) puts a re-run of segment j's forward just before segment j's adjoint in the replay. The same
-kernel computes the same states, and the adjoint chains through the kept end states exactly, so the
-gradient equals the plain tape's bit for bit (tests/backends/test_warp.py). The cost: every segment but the
-last runs its forward twice (3 launches: forward, re-run, adjoint), all inside the same CUDA graph. K = sqrt(steps) minimises the states kept, steps/K + K + 1 per trajectory.
+"default": the arrays of Warp's differentiable examples. Warp's adjoint needs every intermediate
+state kept and never overwritten, and loop-carried local variables in a dynamic loop are not
+differentiated correctly, so the state lives in four (steps+1, B) arrays with gradients, step-major
+so that neighbouring threads touch neighbouring addresses on CUDA; each thread runs its time loop
+reading step s and writing step s+1 in one launch whose adjoint Warp replays in reverse (one launch
+per step would be ~2*steps Python-side launches per iteration). Clearing: Warp's adjoint adds into
+gradients, but the adjoint of a store zeroes the gradient entry it reads (the differentiability
+guide: output gradients are consumed, so only an element's final write propagates;
+``CONSUMES_GRADIENTS``). So after a backward pass every array written on the tape (the states, the
+loss) holds a zero gradient, and only v's (read, never written) must be cleared for the next one.
+Clearing just that is exact ("tape_zero" gives the same bits) and writes 2B scalars per iteration
+instead of every gradient the tape holds, (4 steps + 11) B. Every path but "tape_zero" clears so.
+
+"tape_zero": the default with ``tape.zero()`` after each backward pass, as Warp's differentiable
+examples write it: it clears every gradient the tape holds, already zero but for v's.
+
+"checkpoint": the rollout runs in segments of K = ceil(sqrt(steps)) steps through one (K+1, B)
+work buffer, and only each segment's end state is kept, O(steps/K + K) states per trajectory. The
+backward pass needs each segment's states again: ``Tape.record_func`` (Warp's hook for a custom
+step in the backward pass) puts a re-run of segment j's forward just before segment j's adjoint.
+The same kernel computes the same states and the adjoint chains through the kept end states
+exactly, so the gradient is the default's bit for bit; every segment but the last runs its forward
+twice (3 launches: forward, re-run, adjoint), all inside the same CUDA graph.
+
+"unrolled": the state in per-thread local variables, as Dr.Jit keeps it. The step loop's bound is
+a compile-time constant and the module option ``max_unroll`` is raised to it, so Warp unrolls the
+loop at code generation: the differentiability guide ("Dynamic Loops") says a dynamic loop's
+intermediates are not replayed in the backward pass, while a static loop within ``max_unroll`` is
+unrolled and stores each iteration's values. The adjoint is Warp's generated reverse of the
+unrolled code, which replays the segment's forward from its start state in registers or local
+memory. The contact model is a closure constant, so only its branch is generated, with the default
+path's arithmetic (the same bits). Only v, target and loss are arrays (v and loss with gradients);
+the loss is computed in the same kernel.
+Code size and compile time grow with the unrolled length, so a horizon longer than UNROLL_MAX is
+cut into ceil(steps / UNROLL_MAX) equal segments, launched in turn, whose start states are kept in
+(segments - 1, B) arrays with gradients; the segments' adjoints chain through their gradients.
+
+``info()["design_bytes"]``: the bytes of the arrays the design keeps on the device, gradients
+included, S = scalar size, K and n the steps and number of segments:
+  every path:   (iters + 14) B S   (v0, target, v + grad, loss + grad, seed, grad0, the history)
+  default, tape_zero, checkpoint: + 8 (K + 1 + n) B S   (work states and end states, + grads;
+                default: K = steps, n = 1, so 8 (steps + 2) B S)
+  unrolled:     + 8 (n - 1) B S   (segment start states + grads; none for steps <= UNROLL_MAX)
+The unrolled rollout's own states are registers or local memory, which the port does not allocate:
+on CUDA, info() reports the registers and local bytes per thread of the compiled forward and
+backward functions (cuFuncGetAttribute) and the local memory the driver reserves for them, local
+bytes per thread x resident threads (SMs x threads per SM).
 """
 # (no "from __future__ import annotations": Warp evaluates kernel annotations from the closure)
+import ctypes
 import functools
+import inspect
 import math
 
 import numpy as np
@@ -34,7 +69,12 @@ from . import wp_device, wp_scalar
 from ..base import ScenarioKernel
 
 CONTACT = {"none": 0, "hard": 1, "soft": 2}
-VARIANTS = ("default", "checkpoint")
+VARIANTS = ("default", "checkpoint", "tape_zero", "unrolled")
+UNROLL_MAX = 256        # most steps one unrolled kernel holds (its code grows with them)
+# Warp from the version that added ``retain_grad`` zeroes an array's gradient entry when the adjoint
+# of the store to it reads it, so after a backward pass only arrays that are read but never written
+# on the tape (here v) hold gradients; before it, every accumulated gradient must be cleared.
+CONSUMES_GRADIENTS = "retain_grad" in inspect.signature(wp.zeros).parameters
 
 
 @functools.cache
@@ -116,16 +156,110 @@ def _kernels(scalar):
     return segment, loss_k, update, reset
 
 
+@functools.cache
+def _unrolled(scalar, n: int, contact: str, max_unroll: int | None = None):
+    """n steps unrolled in one thread: from v (seg 0) or the start state segment seg-1 kept, to
+    the loss (seg == last) or the next start state. ``max_unroll`` below n: a control for the
+    tests (Warp then emits a dynamic loop, whose loop-carried locals it differentiates wrongly)."""
+    hard, soft = contact == "hard", contact == "soft"     # constants: one branch is generated
+
+    @wp.kernel(module="unique", module_options={"max_unroll": n if max_unroll is None else max_unroll})
+    def rollout(seg: int, last: int, dt: scalar, gravity: scalar, bounce: scalar, damping: scalar,
+                stiffness: scalar, softness: scalar, v: wp.array2d(dtype=scalar),
+                target: wp.array2d(dtype=scalar), ex: wp.array2d(dtype=scalar),
+                ey: wp.array2d(dtype=scalar), evx: wp.array2d(dtype=scalar),
+                evy: wp.array2d(dtype=scalar), loss: wp.array(dtype=scalar)):
+        b = wp.tid()
+        x = scalar(0.0)
+        y = scalar(0.0)
+        vx = scalar(0.0)
+        vy = scalar(0.0)
+        if seg == 0:
+            vx = v[b, 0]
+            vy = v[b, 1]
+        else:
+            x = ex[seg - 1, b]
+            y = ey[seg - 1, b]
+            vx = evx[seg - 1, b]
+            vy = evy[seg - 1, b]
+        for s in range(n):      # n is a closure constant within max_unroll: unrolled
+            acc = gravity
+            if soft:
+                z = -y / softness
+                sp = wp.max(z, scalar(0.0)) + wp.log(scalar(1.0) + wp.exp(-wp.abs(z)))
+                acc = gravity + stiffness * (softness * sp)
+            vy = vy + acc * dt
+            x = x + vx * dt
+            y = y + vy * dt
+            if hard:
+                if y < scalar(0.0):
+                    y = scalar(0.0)
+                    vy = -bounce * vy
+                    vx = damping * vx
+        if seg == last:
+            dx = x - target[b, 0]
+            dy = y - target[b, 1]
+            loss[b] = dx * dx + dy * dy
+        else:
+            ex[seg, b] = x
+            ey[seg, b] = y
+            evx[seg, b] = vx
+            evy[seg, b] = vy
+
+    return rollout
+
+
 def segments(steps: int, variant: str) -> list[int]:
-    """Steps per segment: the whole horizon, or K = ceil(sqrt(steps)) each (the last the rest)."""
-    k = steps if variant == "default" else math.isqrt(steps - 1) + 1
+    """Steps per segment: the whole horizon; K = ceil(sqrt(steps)) each ("checkpoint"); or for
+    "unrolled" ceil(steps / UNROLL_MAX) segments of nearly equal length (the last the rest)."""
+    if variant == "checkpoint":
+        k = math.isqrt(steps - 1) + 1
+    elif variant == "unrolled":
+        nseg = -(-steps // UNROLL_MAX)
+        k = -(-steps // nseg)
+    else:
+        k = steps
     return [min(k, steps - i) for i in range(0, steps, k)]
+
+
+def cuda_function_attributes(kernel, device: str) -> dict[str, int]:
+    """Registers and local bytes per thread of ``kernel``'s compiled forward and backward CUDA
+    functions (cuFuncGetAttribute), and the local memory the driver reserves for the larger:
+    local bytes per thread x SMs x threads per SM. Empty on the CPU; the error, if the driver
+    cannot say (the module not loaded yet, no libcuda)."""
+    if not device.startswith("cuda"):
+        return {}
+    try:
+        return _cuda_attributes(kernel, wp.get_device(device))
+    except (OSError, RuntimeError, AttributeError) as exc:
+        return {"cuda_attributes_error": f"{type(exc).__name__}: {exc}"}
+
+
+def _cuda_attributes(kernel, dev) -> dict[str, int]:
+    hooks = kernel.module.get_kernel_hooks(kernel, dev)
+    cuda = ctypes.CDLL("libcuda.so.1")
+
+    def attr(code: int, get, *handle) -> int:
+        value = ctypes.c_int()
+        rc = get(ctypes.byref(value), code, *handle)
+        if rc != 0:
+            raise RuntimeError(f"CUDA driver error {rc} reading attribute {code}")
+        return value.value
+    out = {}     # CUfunction_attribute 4: NUM_REGS, 3: LOCAL_SIZE_BYTES (CUDA driver API enums)
+    for name, fn in (("forward", hooks.forward), ("backward", hooks.backward)):
+        out[f"{name}_registers_per_thread"] = attr(4, cuda.cuFuncGetAttribute, ctypes.c_void_p(fn))
+        out[f"{name}_local_bytes_per_thread"] = attr(3, cuda.cuFuncGetAttribute, ctypes.c_void_p(fn))
+    per_sm = attr(39, cuda.cuDeviceGetAttribute, ctypes.c_int(dev.ordinal))   # max threads / SM
+    local = max(out["forward_local_bytes_per_thread"], out["backward_local_bytes_per_thread"])
+    out["local_reserved_bytes"] = local * per_sm * dev.sm_count
+    return out
 
 
 class Kernel(ScenarioKernel):
     def __init__(self, params, inputs, device, precision, variant):
         if variant not in VARIANTS:
             raise ValueError(f"warp projectile has no variant {variant!r} (has {', '.join(VARIANTS)})")
+        self.variant, self.unrolled = variant, variant == "unrolled"
         self.dev = wp_device(device)
         scalar = wp_scalar(precision)
         self.k_segment, self.k_loss, self.k_update, self.k_reset = _kernels(scalar)
@@ -141,8 +275,13 @@ class Kernel(ScenarioKernel):
         as2 = lambda a: wp.array(np.asarray(a).reshape(b, 2), dtype=scalar, device=self.dev)  # noqa: E731
         self.v0, self.target = as2(inputs["v0"]), as2(inputs["target"])
         self.v = z(b, 2)
-        self.work = [z(work, b) for _ in range(4)]      # x, y, vx, vy of one segment, step-major
-        self.ends = [z(nseg, b) for _ in range(4)]      # each segment's end state
+        if self.unrolled:
+            self.k_rollout = {n: _unrolled(scalar, n, params.contact) for n in set(self.seg_steps)}
+            self.work = []                                      # the states stay in the threads
+            self.ends = [z(nseg - 1, b) for _ in range(4)] if nseg > 1 else []  # start states
+        else:
+            self.work = [z(work, b) for _ in range(4)]      # x, y, vx, vy of one segment, step-major
+            self.ends = [z(nseg, b) for _ in range(4)]      # each segment's end state
         self.loss = z(b)
         self.seed = wp.ones(b, dtype=scalar, device=self.dev)   # d(sum of losses)/d loss_b
         self.history = z(params.iters + 1, b, grad=False)
@@ -155,9 +294,15 @@ class Kernel(ScenarioKernel):
 
     def _segment(self, j: int) -> None:
         p, c = self.p, self.c
+        consts = [c["dt"], c["gravity"], c["bounce"], c["damping"], c["stiffness"], c["softness"]]
+        if self.unrolled:
+            n, ends = self.seg_steps[j], self.ends or [None] * 4
+            wp.launch(self.k_rollout[n], dim=self.batch,
+                      inputs=[j, len(self.seg_steps) - 1, *consts, self.v, self.target],
+                      outputs=[*ends, self.loss], device=self.dev)
+            return
         wp.launch(self.k_segment, dim=self.batch,
-                  inputs=[j, self.seg_steps[j], CONTACT[p.contact], c["dt"], c["gravity"], c["bounce"],
-                          c["damping"], c["stiffness"], c["softness"], self.v],
+                  inputs=[j, self.seg_steps[j], CONTACT[p.contact], *consts, self.v],
                   outputs=[*self.ends, *self.work], device=self.dev)
 
     def _recompute(self, j: int):
@@ -173,10 +318,25 @@ class Kernel(ScenarioKernel):
         last = len(self.seg_steps) - 1
         for j in range(last + 1):
             self._segment(j)
-            if checkpoint and j < last:     # (the last segment's states are still in the buffers)
+            # (the last segment's states are still in the buffers; unrolled adjoints replay their own)
+            if checkpoint and self.variant == "checkpoint" and j < last:
                 self.tape.record_func(self._recompute(j), arrays=self.work)
-        wp.launch(self.k_loss, dim=self.batch, inputs=[last, self.target, self.ends[0], self.ends[1]],
-                  outputs=[self.loss], device=self.dev)
+        if not self.unrolled:               # (the unrolled kernel computes the loss itself)
+            wp.launch(self.k_loss, dim=self.batch, inputs=[last, self.target, self.ends[0], self.ends[1]],
+                      outputs=[self.loss], device=self.dev)
+
+    def accumulated(self) -> list:
+        """The gradients a backward pass leaves nonzero, which the next one would add to: v's
+        (read, never written, on the tape), and on a Warp that does not consume gradients
+        (``CONSUMES_GRADIENTS``) the states' too. The loss's is overwritten by the seed."""
+        return [self.v.grad] + ([] if CONSUMES_GRADIENTS else [a.grad for a in self.ends + self.work])
+
+    def _clear(self) -> None:
+        if self.variant == "tape_zero":
+            self.tape.zero()
+        else:
+            for g in self.accumulated():
+                g.zero_()
 
     def _optimise(self):
         wp.launch(self.k_reset, dim=self.batch, inputs=[self.v0], outputs=[self.v], device=self.dev)
@@ -186,7 +346,7 @@ class Kernel(ScenarioKernel):
             wp.launch(self.k_update, dim=self.batch,
                       inputs=[k, self.p.iters, self.c["lr"], self.loss, self.v, self.v.grad],
                       outputs=[self.history, self.grad0], device=self.dev)
-            self.tape.zero()
+            self._clear()
 
     def run(self):
         if self.graph is not None:
@@ -210,10 +370,25 @@ class Kernel(ScenarioKernel):
             hist, grad, v = hist[:, 0], grad[0], v[0]
         return {"loss": hist[0], "grad": grad, "loss_history": hist, "v_final": v}
 
+    def design_bytes(self) -> int:
+        """The device bytes the design keeps in arrays (module docstring's formula)."""
+        p, b, nseg = self.p, self.batch, len(self.seg_steps)
+        per_trajectory = p.iters + 14 + (8 * (nseg - 1) if self.unrolled
+                                         else 8 * (self.seg_steps[0] + 1 + nseg))
+        return per_trajectory * b * wp.types.type_size_in_bytes(self.v.dtype)
+
     def info(self) -> dict:
         nseg = len(self.seg_steps)
-        return {"cuda_graph": self.graph is not None, "threads": self.batch,
+        info = {"path": self.variant, "cuda_graph": self.graph is not None, "threads": self.batch,
                 "segments": nseg, "segment_steps": self.seg_steps[0],
-                "states_kept_per_trajectory": nseg + self.seg_steps[0] + 1,
-                # kernel launches besides the tape's adjoint replays (nseg + 1 of them)
-                "launches_per_iteration": 2 * nseg + 1}
+                "states_kept_per_trajectory": nseg - 1 if self.unrolled else nseg + self.seg_steps[0] + 1,
+                # kernel launches besides the tape's adjoint replays (one per segment, + the loss's)
+                "launches_per_iteration": nseg + 1 if self.unrolled else 2 * nseg + 1,
+                "gradients_cleared": "tape.zero()" if self.variant == "tape_zero"
+                                     else f"{len(self.accumulated())} accumulated",
+                "design_bytes": self.design_bytes()}
+        if self.unrolled:
+            info["arrays_kept"] = 7 + len(self.ends)        # v0, target, v, loss, seed, history, grad0
+            info["arrays_with_grad"] = 2 + len(self.ends)
+            info.update(cuda_function_attributes(self.k_rollout[self.seg_steps[0]], self.dev))
+        return info

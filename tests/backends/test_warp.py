@@ -3,8 +3,14 @@
 1. The checkpointed projectile (variant "checkpoint") gives the plain tape's outputs bit for bit,
    with a ragged last segment, while keeping O(steps/K + K) states per trajectory; a control
    without the backward-pass recompute differs, so the comparison can fail.
-2. Batched trajectories are independent: permuting the batch permutes every output bit for bit.
-3. ``set_input("v0", ...)`` reruns at the new v0 exactly as a kernel built with it.
+2. The projectile's "tape_zero" and "unrolled" variants give the default's outputs bit for bit
+   (unrolled: one segment and several, a ragged last one); controls: an unrolled kernel Warp emits
+   as a dynamic loop, and a descent that never clears v's gradient, differ. After a backward pass
+   every gradient but v's is zero (what the default's clearing relies on), and ``design_bytes`` is
+   the bytes of the arrays each path allocates. Through the worker, every variant passes the oracle
+   check of the parity suite's projectile cases in float64 with the default's outputs.
+3. Batched trajectories are independent: permuting the batch permutes every output bit for bit.
+4. ``set_input("v0", ...)`` reruns at the new v0 exactly as a kernel built with it.
 """
 from __future__ import annotations
 
@@ -15,7 +21,10 @@ import pytest
 
 import backends
 import scenarios
-from conftest import require_device
+from compare.running import engine
+from compare.spec import Cell
+from conftest import CORRECTNESS, probe, require_device
+from test_parity import CASES
 
 pytestmark = pytest.mark.warp
 pytest.importorskip("warp")
@@ -72,6 +81,133 @@ def test_checkpoint_without_recompute_is_wrong():
     p = SC.params({**SMALL, "contact": "soft"})
     good, bad = build(p, "float64", "checkpoint"), build(p, "float64", "checkpoint", cls=NoRecompute)
     assert "grad" in same_bits(good.outputs(), bad.outputs())
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+@pytest.mark.parametrize("contact", ["none", "hard", "soft"])
+@pytest.mark.parametrize("variant,unroll_max", [("tape_zero", None), ("unrolled", None), ("unrolled", 16)])
+def test_variant_is_the_default_bit_for_bit(variant, unroll_max, contact, precision, monkeypatch):
+    from backends.warp import projectile
+    if unroll_max:      # 50 steps in segments of at most 16: 13, 13, 13, 11 (two kernels)
+        monkeypatch.setattr(projectile, "UNROLL_MAX", unroll_max)
+    p = SC.params({**SMALL, "contact": contact})
+    plain, other = build(p, precision), build(p, precision, variant)
+    assert same_bits(plain.outputs(), other.outputs()) == []
+    info = other.info()
+    assert info["path"] == variant
+    if variant == "unrolled":
+        nseg = 4 if unroll_max else 1
+        assert other.seg_steps == ([13, 13, 13, 11] if unroll_max else [50])
+        assert other.work == [] and [a.shape for a in other.ends] == ([(3, 5)] * 4 if unroll_max else [])
+        assert (info["arrays_kept"], info["arrays_with_grad"]) == (7 + 4 * (nseg > 1), 2 + 4 * (nseg > 1))
+        assert info["states_kept_per_trajectory"] == nseg - 1
+    else:
+        assert info["gradients_cleared"] == "tape.zero()"
+
+
+def test_unrolled_as_a_dynamic_loop_is_wrong():
+    """Control: the same kernel with max_unroll below its steps is emitted as a dynamic loop, whose
+    loop-carried locals Warp does not differentiate: same loss, another gradient."""
+    from backends.warp import projectile
+
+    class Dynamic(projectile.Kernel):
+        def __init__(self, params, inputs, device, precision, variant):
+            real = projectile._unrolled
+            projectile._unrolled = lambda s, n, c: real(s, n, c, max_unroll=n - 1)
+            try:
+                super().__init__(params, inputs, device, precision, variant)
+            finally:
+                projectile._unrolled = real
+
+    p = SC.params({**SMALL, "contact": "hard"})
+    good, bad = build(p, "float64", "unrolled"), build(p, "float64", "unrolled", cls=Dynamic)
+    assert same_bits(good.outputs(), bad.outputs())[:2] == ["grad", "loss_history"]
+    assert good.outputs()["loss"].tobytes() == bad.outputs()["loss"].tobytes()
+
+
+@pytest.mark.parametrize("variant", ["default", "checkpoint", "unrolled"])
+def test_after_a_backward_pass_only_v_has_a_gradient(variant, monkeypatch):
+    """What clearing only v's gradient relies on: Warp's adjoint of a store zeroes the gradient it
+    reads, so every array written on the tape ends the backward pass with a zero gradient. A
+    descent that never clears v's (the control) differs from the default."""
+    from backends.warp import projectile
+    monkeypatch.setattr(projectile, "UNROLL_MAX", 16)
+    assert projectile.CONSUMES_GRADIENTS
+    k = build(SC.params({**SMALL, "contact": "soft"}), "float64", variant)
+    k._forward()
+    k.tape.backward(grads={k.loss: k.seed})
+    assert np.any(k.v.grad.numpy() != 0)
+    held = [a for a in (k.loss, *k.ends, *k.work) if np.any(a.grad.numpy() != 0)]
+    assert held == [] and k.accumulated() == [k.v.grad]
+
+    class NoClear(projectile.Kernel):
+        def _clear(self):
+            pass
+    p = SC.params({**SMALL, "contact": "soft"})
+    assert "loss_history" in same_bits(build(p, "float64").outputs(), build(p, "float64", cls=NoClear).outputs())
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+@pytest.mark.parametrize("variant,unroll_max", [("default", None), ("checkpoint", None), ("tape_zero", None),
+                                                ("unrolled", None), ("unrolled", 16)])
+def test_design_bytes_are_the_arrays_allocated(variant, unroll_max, precision, monkeypatch):
+    from backends.warp import projectile
+    import warp as wp
+    if unroll_max:
+        monkeypatch.setattr(projectile, "UNROLL_MAX", unroll_max)
+    k = build(SC.params({**SMALL, "contact": "hard", "batch": 7}), precision, variant)
+    held = [a for v in vars(k).values() for a in (v if isinstance(v, list) else [v]) if isinstance(a, wp.array)]
+    allocated = sum(a.capacity + (a.grad.capacity if a.grad is not None else 0) for a in held)
+    assert k.info()["design_bytes"] == allocated
+    if variant == "default":     # the states' arrays dominate: 8 (steps + 2) B S
+        assert allocated - 8 * (50 + 2) * 7 * (8 if precision == "float64" else 4) == (3 + 14) * 7 * (
+            8 if precision == "float64" else 4)
+
+
+def test_unrolled_on_cuda_agrees_and_reports_its_registers():
+    """On a GPU FMA contraction may differ between the two kernels, so float64 agreement to the
+    parity suite's tight level, not bits; info() reads the compiled functions' attributes."""
+    require_device("warp", "cuda")
+    p = SC.params({**SMALL, "contact": "hard", "batch": 64})
+    ins = SC.inputs(p, "float64")
+    out = {}
+    for variant in ("default", "unrolled"):
+        k = BACKEND.kernel("projectile")(p, ins, "cuda", "float64", variant)
+        k.run()
+        k.run()                         # the second call replays the captured graph
+        BACKEND.synchronize("cuda", None)
+        out[variant] = k.outputs()
+    assert SC.distance(p, ins, out["unrolled"], out["default"]) <= 1e-12
+    info = k.info()
+    assert "cuda_attributes_error" not in info, info
+    assert info["backward_registers_per_thread"] > 0 and info["local_reserved_bytes"] >= 0
+
+
+PROJECTILE_CASES = [o for s, o in CASES if s == "projectile"]
+_worker_runs: dict = {}
+
+
+def worker_run(variant):
+    """The parity suite's projectile cases, float64, through one worker process per variant."""
+    if variant not in _worker_runs:
+        specs = [Cell.from_dict({"scenario": "projectile", "backend": "warp", "device": "cpu",
+                                 "precision": "float64", "variant": variant, "params": o, "quick": True,
+                                 "repeat": 1, "min_time": 0.0, **CORRECTNESS}) for o in PROJECTILE_CASES]
+        _worker_runs[variant] = engine.run_cells(specs, timeout=900, share_process=True,
+                                                 probes={"warp": probe("warp")})
+    return _worker_runs[variant]
+
+
+@pytest.mark.xdist_group("warp-variant-parity")
+@pytest.mark.parametrize("variant", ["checkpoint", "tape_zero", "unrolled"])
+def test_variant_passes_the_parity_cases(variant):
+    assert len(PROJECTILE_CASES) == 7
+    for overrides, (rec, out), (ref_rec, ref_out) in zip(PROJECTILE_CASES, worker_run(variant),
+                                                          worker_run("default")):
+        assert rec.status == "ok" and ref_rec.status == "ok", (overrides, rec.reason, ref_rec.reason)
+        assert rec.variant == variant
+        assert rec.error["vs_oracle"] <= rec.error["tolerance"], overrides
+        assert same_bits(out, ref_out) == [], overrides
 
 
 def test_batch_rows_are_independent():
