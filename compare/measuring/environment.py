@@ -42,7 +42,8 @@ def packages() -> tuple[str, ...]:
 
 def _run(cmd: list[str]) -> str:
     try:
-        return subprocess.run(cmd, capture_output=True, text=True, timeout=20, cwd=ROOT).stdout.strip()
+        # rstrip only: `git status --porcelain` starts its first line with a space (" M path")
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=20, cwd=ROOT).stdout.rstrip()
     except (OSError, subprocess.SubprocessError):
         return ""
 
@@ -61,10 +62,14 @@ def cpu_model() -> str:
 
 
 def cpu_id() -> str:
-    """The processor's family, model and stepping, '' where not known. A virtual machine's model
-    name ("AMD EPYC") can stand for several generations of processor."""
-    info, keys = cpuinfo(), ("cpu family", "model", "stepping")
-    return ", ".join(f"{k.split()[-1]} {info[k]}" for k in keys) if all(info.get(k) for k in keys) else ""
+    """The processor's family, model and stepping (on Arm: implementer, part, variant and
+    revision), '' where not known. A virtual machine's model name ("AMD EPYC") can stand for
+    several generations of processor."""
+    info = cpuinfo()
+    for keys in (("cpu family", "model", "stepping"), ("CPU implementer", "CPU part", "CPU variant", "CPU revision")):
+        if all(info.get(k) for k in keys):
+            return ", ".join(f"{k.split()[-1]} {info[k]}" for k in keys)
+    return ""
 
 
 def gpus() -> list[Gpu]:
@@ -79,11 +84,22 @@ def gpus() -> list[Gpu]:
     return rows
 
 
+def own_repository() -> bool:
+    """Whether ROOT is the top level of the git repository git finds from it: this project's
+    checkout, not a copy without its .git (``git archive``) inside some other checkout, whose
+    HEAD and changes are not this project's."""
+    top = _run(["git", "rev-parse", "--show-toplevel"])
+    return bool(top) and Path(top).resolve() == ROOT.resolve()
+
+
 DIRTY_PATHS_KEPT = 20     # a run names at most this many uncommitted paths (and how many more)
 
 
 def dirty_paths() -> list[str]:
-    """The tracked paths with uncommitted changes in this checkout (empty: clean, or no git)."""
+    """The tracked paths with uncommitted changes in this checkout (empty: clean, no git, or not
+    this project's own checkout: another's changes are not ours)."""
+    if not own_repository():
+        return []
     out = _run(["git", "status", "--porcelain", "--untracked-files=no"])
     return [line[3:].split(" -> ")[-1] for line in out.splitlines() if len(line) > 3]
 
@@ -93,7 +109,9 @@ def files_digest(commit: str | None = None) -> str:
     bit): of ``commit``'s tree, or (None) of this checkout's files as they are, tracked and
     untracked by .gitignore's rules, through a throwaway index, which needs no current .git
     history, so a copied tree whose .git is stale can be checked against the commit it claims
-    (``python -m compare.measuring.environment COMMIT`` prints the commit's). Empty: git cannot tell."""
+    (``python -m compare.measuring.environment COMMIT`` prints the commit's). A copy without its
+    own .git (``own_repository``) is hashed through a throwaway repository: another checkout
+    around it lends no paths, rules or object store. Empty: git cannot tell."""
     import hashlib
     import tempfile
     with tempfile.TemporaryDirectory() as tmp:
@@ -101,6 +119,9 @@ def files_digest(commit: str | None = None) -> str:
         git = ["git", "-c", "safe.directory=*"]      # a copy may belong to another user (root on a lent machine)
         steps = ([[*git, "ls-tree", "-r", "-z", commit]] if commit else
                  [[*git, "add", "-A", "."], [*git, "ls-files", "-s", "-z"]])
+        if not commit and not own_repository():
+            git += [f"--git-dir={tmp}/repo/.git", f"--work-tree={ROOT}"]
+            steps = [["git", "init", "-q", f"{tmp}/repo"], [*git, "add", "-A", "."], [*git, "ls-files", "-s", "-z"]]
         try:
             for cmd in steps:
                 done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, env=env)
@@ -138,7 +159,8 @@ def collect(argv: list[str] | None = None) -> RunEnvironment:
     import psutil
     cuda = _run(["nvcc", "--version"]).splitlines()[-1:] if shutil.which("nvcc") else []
     commit = os.environ.get("COMPARE_GIT_COMMIT", "").strip()
-    dirty = [] if commit else dirty_paths()
+    own = not commit and own_repository()      # else another checkout's HEAD, or none: unknown
+    dirty = dirty_paths() if own else []
     env: RunEnvironment = {
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "hostname": platform.node(),
@@ -151,8 +173,9 @@ def collect(argv: list[str] | None = None) -> RunEnvironment:
         # A copied tree (e.g. on a lent GPU machine) may carry a stale or no .git: the caller then
         # names the commit it copied in COMPARE_GIT_COMMIT, and its tree in COMPARE_GIT_TREE,
         # against which the copy's files are checked (without it, dirtiness is unknown: None).
-        "git_commit": commit or _run(["git", "rev-parse", "--short", "HEAD"]),
-        "git_dirty": copy_dirty() if commit else bool(dirty),
+        # Neither named nor this project's own checkout: commit unknown (''), tree state None.
+        "git_commit": commit or (_run(["git", "rev-parse", "--short", "HEAD"]) if own else ""),
+        "git_dirty": copy_dirty() if commit else (bool(dirty) if own else None),
     }
     if dirty:
         env["git_dirty_paths"] = dirty[:DIRTY_PATHS_KEPT] + ([f"... and {len(dirty) - DIRTY_PATHS_KEPT} more"]

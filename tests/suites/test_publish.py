@@ -110,6 +110,7 @@ def test_a_dirty_checkout_is_refused_unless_allowed(tmp_path, capsys, monkeypatc
 
 def test_a_run_names_its_uncommitted_paths(monkeypatch):
     monkeypatch.delenv("COMPARE_GIT_COMMIT", raising=False)
+    monkeypatch.setattr(environment, "own_repository", lambda: True)     # also from a copy without .git
     many = [f"f{i}.py" for i in range(environment.DIRTY_PATHS_KEPT + 5)]
     monkeypatch.setattr(environment, "dirty_paths", lambda: many)
     env = environment.collect([])
