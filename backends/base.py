@@ -86,6 +86,9 @@ class Backend:
     variants: ClassVar[tuple[str, ...]] = ("default",)   # e.g. 'fastmath'
     # Variants that exist for one scenario only (e.g. a checkpointed projectile): scenario -> names.
     scenario_variants: ClassVar[dict[str, tuple[str, ...]]] = {}
+    # Variants kept only as the measured alternative of an A/B (a port's former default, e.g.
+    # Warp's tape.zero()): timed by ``--variants all``, never swept (compare/suites/sweep.py).
+    comparison_variants: ClassVar[tuple[str, ...]] = ()
     is_reference: ClassVar[bool] = False
     # The plain-CPU yardstick every CPU figure is also shown against ("speed-up against NumPy").
     is_cpu_baseline: ClassVar[bool] = False

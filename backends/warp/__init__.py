@@ -46,6 +46,7 @@ class WarpBackend(Backend):
     # in the backward pass; "tape_zero" clears every gradient with tape.zero() (the default: v's);
     # "unrolled" keeps the state in per-thread locals (the step loop unrolled at compile time)
     # "tile": SAXPY's block-cooperative tile loads (saxpy.py); "record_cmd": see ``launcher``
+    comparison_variants = ("tape_zero",)
     scenario_variants = {"projectile": ("checkpoint", "tape_zero", "unrolled"),
                          **{sc: ("record_cmd",) for sc in RECORDABLE},
                          "saxpy": ("tile", "record_cmd")}

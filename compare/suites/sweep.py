@@ -169,7 +169,8 @@ def sweep_variants(kind: str, backend: str, scenario: str) -> tuple[str, ...]:
     if kind == "error":
         return be.variants
     if kind in ("horizon", "bandwidth"):
-        return ("default",) + be.scenario_variants.get(scenario, ())
+        own = be.scenario_variants.get(scenario, ())
+        return ("default",) + tuple(v for v in own if v not in be.comparison_variants)
     return ("default",)
 
 

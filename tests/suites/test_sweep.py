@@ -50,7 +50,8 @@ def test_sweep_quick_runs_everything_ok(quick_sweep):
             ("error", "particles", "particles"), ("error", "projectile", "projectile"),
             ("scaling", "particles", "particles"), ("scaling", "projectile", "projectile"),
             ("horizon", "projectile", "projectile")} <= roles
-    assert {r["variant"] for r in recs if r["tags"]["sweep"] == "horizon"} == {"default", "checkpoint"}
+    assert {r["variant"] for r in recs if r["tags"]["sweep"] == "horizon"} == \
+        {"default", "checkpoint", "unrolled"}                  # tape_zero: an A/B only, not swept
     for r in recs:
         if r["tags"]["sweep"] == "error":
             c = r["converged"]
@@ -143,7 +144,7 @@ def test_plan_comes_from_the_scenarios_sweeps():
     assert [s.params.batch for s, _ in scal if s.scenario == "projectile"] == [1, 16, 256]
     hz = plan_of("horizon", "--quick", "--backends", "warp,numba", "--devices", "cpu")
     assert {(s.backend, s.variant) for s, _ in hz} == {("warp", "default"), ("warp", "checkpoint"),
-                                                             ("numba", "default")}
+                                                       ("warp", "unrolled"), ("numba", "default")}
     assert {s.params.iters for s, _ in hz} == {0} and {s.precision for s, _ in hz} == {"float32", "float64"}
 
 
