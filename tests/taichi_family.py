@@ -102,6 +102,37 @@ for contact in ("none", "hard", "soft"):
 print("RESULT" + json.dumps(out))
 """
 
+# The projectile's named variants against the default rollout, built as the driver builds them
+# (Kernel(..., variant)); VARIANTS: the framework's, without Taichi's 'checkpoint' (its own test).
+VARIANTS = """
+import importlib
+import numpy as np
+Kernel = importlib.import_module(f"backends.{FRAMEWORK}.projectile").Kernel
+b = backends.get(FRAMEWORK); b.setup(DEVICE, PRECISION, "default")
+sc = scenarios.get("projectile")
+out = {}
+for contact in ("none", "hard", "soft"):
+    # 24 steps over 2 s: every trajectory reaches the ground
+    p = sc.params({"contact": contact, "steps": 24, "dt": 2.0 / 24, "iters": 3, "batch": 37})
+    i = sc.inputs(p, PRECISION)
+    res = {}
+    for variant in ("default",) + tuple(VARIANTS):
+        k = Kernel(p, i, DEVICE, PRECISION, variant)
+        b.synchronize(DEVICE, k.run())
+        o = k.outputs()
+        info = k.info()
+        res[variant] = o
+        ref = res["default"]
+        out[f"{contact}-{variant}"] = {
+            "ok": bool(sc.check(p, i, o, sc.oracle(p, i, PRECISION), PRECISION).ok),
+            "rollout": info["rollout"], "launches": info["launches_per_iteration"],
+            "design_state": info["design_bytes"]["state"],
+            "identical": all(np.array_equal(ref[n], o[n]) for n in o),
+            "rel": max(float(np.max(np.abs(ref[n] - o[n]) / np.maximum(np.abs(ref[n]), 1e-300)))
+                       for n in ("loss", "grad"))}
+print("RESULT" + json.dumps(out))
+"""
+
 # Each batch row against its own single-trajectory run, and set_input; ``own_checks`` (ROWS_OWN)
 # adds a framework's own entries, on the batch kernel before set_input changes it.
 ROWS = """

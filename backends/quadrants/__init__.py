@@ -70,6 +70,8 @@ class QuadrantsBackend(Backend):
     package = "quadrants"
     gradient_method = "ad"
     variants = ("default", "fastmath")
+    # projectile.py: one launch per step (no adstack)
+    scenario_variants = {"projectile": ("per_step",)}
     display_order, color = 6, "C6"     # after warp, taichi, jax, numba, cupy, torch; numpy is 9/C7
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
@@ -90,8 +92,9 @@ class QuadrantsBackend(Backend):
         return {"quadrants": ".".join(map(str, qd.__version__))}
 
     def setup(self, device: str, precision: str, variant: str) -> None:
-        if variant not in self.variants:
-            raise ValueError(f"quadrants variant must be one of {', '.join(self.variants)}, "
+        known = self.variants + tuple(v for vs in self.scenario_variants.values() for v in vs)
+        if variant not in known:
+            raise ValueError(f"quadrants variant must be one of {', '.join(known)}, "
                              f"got {variant!r}")
         _quiet()
         import quadrants as qd

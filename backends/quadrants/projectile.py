@@ -27,16 +27,25 @@ the backend). What differs from the Taichi port, and why (docs/findings.md has t
     last iteration's value (softplus gradients 16% off), so the Taichi port stores exp(w) per step
     in the primal launch and linearises around it in the backward one (two extra fields).
     Quadrants gets the adjoint of exp right through a loop: plain qd.exp, no extra fields.
-One launch per step over the B trajectories (Warp's per-step scheme, where none of this arises)
-is kept as ``Kernel.fused = False`` for the tests, which check both paths give the same outputs
-(tests/backends/test_taichi_family.py); the driver always runs the fused one.
+Variant 'per_step': one launch per step over the B trajectories (Warp's per-step scheme), forward
+and reversed: no adstack at all, the state read once per step from global memory (coalesced on
+CUDA), 2 steps + 5 launches per iteration against the fused path's 3. It exists because the
+fused path's reverse launch walks adstacks that Quadrants lays out thread after thread, so a
+warp's accesses do not coalesce; the two paths give the same outputs (bitwise on the CPU,
+tests/backends/test_taichi_family.py), the driver times them side by side. A 'static' variant
+(qd.static(range(steps)): the loop unrolled, which Quadrants' autodiff guide says never needs the
+adstack) also gives the same outputs but is not offered: its compile time grows faster than
+linearly with steps, minutes at the default 180 steps, and with the hard contact
+the unrolled code still keeps small compile-time-sized adstacks for the branch flags.
 
-Per gradient-descent iteration the host makes 3 launches (fused) or 2*steps + 5 (per step),
-whatever B; the update kernel also zeroes the gradients and re-seeds loss.grad for the next
-evaluation. Storage: fields, allocated once in the constructor: 4 state fields of (steps + 1) x B
-with gradients, about 64 (steps + 1) B bytes in float64. The adstacks come on top, on the device
-for CUDA: per thread, (steps + 1) slots of 8 (f32) or 16 (f64) bytes per loop-carried value,
-allocated by Quadrants at launch (not measured on a GPU here).
+The update kernel also zeroes the gradients and re-seeds loss.grad for the next evaluation.
+Storage: fields, allocated once in the constructor; info()["design_bytes"] gives what the design
+predicts, e = 4 or 8 bytes a float:
+  state              4 fields x (steps + 1) x B x 2 (value + grad) x e
+  adstack_per_stack  B x (8 + (steps + 1) x 2 x e)   (fused only: one buffer per adstack, one
+                     adstack per loop-carried value or branch flag; Quadrants sizes it per launch
+                     for the threads of the launch, on CUDA the full range of B; the slot count
+                     steps + 1 is the design's, the sizer may add a few)
 What does not differ from the Taichi port (init, loss, reset and update kernels, the Kernel's
 bookkeeping) is one definition shared with it, backends/taichi/projectile_common.py, built here
 with ``quadrants``; this file keeps the step, the fused rollout and the per-step kernel.
@@ -109,27 +118,39 @@ def _step_k(s: qd.i32, contact: qd.template(), dt: float, gravity: float, bounce
 
 
 class Kernel(FieldKernel):
-    fused: bool = True                 # False: one launch per step (tests compare the two)
+    fused: bool | None = None          # None: as the variant says (tests force either path)
 
     def _allocate(self, params: ProjectileParams, device: str, variant: str) -> list:
         n, nb = params.steps + 1, self.batch
         self.state = [qd.field(float, (n, nb), needs_grad=True) for _ in range(4)]  # xs ys vxs vys
         self.nsteps = qd.field(qd.i32, ())   # the step loop's bound, read by the adstack sizer
         self.nsteps[None] = params.steps
+        fused = variant != "per_step" if self.fused is None else self.fused
+        self.path = "fused" if fused else "per_step"
         return self.state
 
     def _evaluate(self) -> None:
         """Losses at the current v into loss, their gradients into v.grad (grads zeroed before)."""
-        if self.fused:
-            args = (self.nsteps, self.contact, *self.consts, self.target, self.v, *self.state,
-                    self.loss)
-            _rollout(*args)
-            _rollout.grad(*args)
-            return
-        self._evaluate_per_step(_step_k, *self.state)
+        rest = (self.contact, *self.consts, self.target, self.v, *self.state, self.loss)
+        if self.path == "fused":
+            _rollout(self.nsteps, *rest)
+            _rollout.grad(self.nsteps, *rest)
+        else:
+            self._evaluate_per_step(_step_k, *self.state)
+
+    def design_bytes(self) -> dict[str, int]:
+        """The bytes the design predicts (module doc): the state fields, and for the fused path
+        one adstack's buffer over the B threads of the launch (a buffer per stack)."""
+        nb, e, n = self.batch, self.elem, self.p.steps + 1
+        out = {"state": 4 * n * nb * 2 * e}
+        if self.path == "fused":
+            out["adstack_per_stack"] = nb * (8 + 2 * e * n)
+        return out
 
     def info(self) -> dict[str, Any]:
         cfg = impl.current_cfg()
+        stack = "launch-time sized" if cfg.ad_stack_size == 0 else cfg.ad_stack_size
         return {**super().info(), "state_layout": "(steps+1, batch)",
-                "ad_stack": "launch-time sized" if cfg.ad_stack_size == 0 else cfg.ad_stack_size,
-                "ad_stack_experimental_enabled": bool(cfg.ad_stack_experimental_enabled)}
+                "ad_stack": stack if self.path == "fused" else None,
+                "ad_stack_experimental_enabled": bool(cfg.ad_stack_experimental_enabled),
+                "design_bytes": self.design_bytes()}

@@ -21,11 +21,14 @@ from typing import Any
 from ..base import Backend, Precision, not_installed
 
 
-# Depth of Taichi's autodiff stacks, process-global and fixed at ti.init. The projectile's fused
-# backward kernel needs steps + 1 entries per stack; Taichi cannot size stacks for a runtime trip
-# count and would fall back to 32, overflowing silently. Stacks are allocas: the CPU thread's own
-# stack, per-thread local memory on CUDA, where 4096 fails to launch (CUDA_ERROR_INVALID_VALUE,
-# H200) and 1024 runs. Longer rollouts take the one-launch-per-step path (see projectile.py).
+# The deepest autodiff stacks (adstacks) Taichi may use, by device. The projectile's fused backward
+# kernel needs steps + 1 entries per stack; Taichi cannot size stacks for a run-time trip count and
+# would fall back to 32, overflowing silently. Stacks are allocas: the CPU thread's own stack,
+# per-thread local memory on CUDA, where 4096 fails to launch (CUDA_ERROR_INVALID_VALUE, H200) and
+# 1024 runs. setup() passes this ceiling to ti.init; the projectile kernel then compiles its
+# backward kernel for the depth its rollout needs (steps + margin, projectile.py), since the
+# driver reserves local memory for that depth in every resident thread. Longer rollouts take the
+# one-launch-per-step path.
 AD_STACK_SIZE = {"cpu": 4096, "cuda": 1024}
 
 
@@ -99,7 +102,9 @@ class TaichiBackend(Backend):
     package = "taichi"
     gradient_method = "ad"
     variants = ("default", "fastmath")
-    scenario_variants = {"projectile": ("checkpoint",)}   # segments recomputed (projectile.py)
+    # projectile.py: segments recomputed; one launch per step (no adstack)
+    scenario_variants = {"projectile": ("checkpoint", "per_step")}
+    ad_stack_limit: int | None = None  # the ceiling setup() passed to ti.init (AD_STACK_SIZE)
     display_order, color = 1, "C1"
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
@@ -125,6 +130,7 @@ class TaichiBackend(Backend):
             raise ValueError(f"taichi variant must be one of {', '.join(known)}, got {variant!r}")
         _quiet()
         import taichi as ti
+        self.ad_stack_limit = AD_STACK_SIZE[device]
         ti.init(arch=ti_arch(device), enable_fallback=False,
                 default_fp=real_type(ti, precision), default_ip=ti.i32,
                 # Taichi defaults to fast_math=True; the comparison uses IEEE arithmetic and reports
@@ -133,7 +139,7 @@ class TaichiBackend(Backend):
                 # No on-disk kernel cache: first_call_s then always includes compilation, and
                 # concurrent workers never share (or race on) a cache directory.
                 offline_cache=False,
-                ad_stack_size=AD_STACK_SIZE[device], random_seed=0, log_level="warn")
+                ad_stack_size=self.ad_stack_limit, random_seed=0, log_level="warn")
 
     def synchronize(self, device: str, result: Any) -> None:
         import taichi as ti

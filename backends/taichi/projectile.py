@@ -10,7 +10,7 @@ step and trajectory (xs[s, b] -> xs[s+1, b]) and every .grad is zeroed before ea
 Memory order (same index [s, b], same values): on CUDA step-major, b fastest, so the threads of a
 warp (consecutive b, all at the same step s of the serial loop) touch one contiguous segment:
 coalesced; b-major order would put them steps + 1 elements apart. On the CPU, where one thread
-walks whole trajectories, trajectory-major (s fastest): measured ~3x faster at B = 256-4096.
+walks whole trajectories, trajectory-major (s fastest).
 
 Fused rollout: one primal and one backward launch per evaluation. The parallel loop runs over the
 trajectories and the step loop is a serial range-for nested in it, because Taichi's AD reverses
@@ -22,7 +22,8 @@ the guards hold per thread (adstacks are the thread's locals, es/ws are per traj
   * its backward kernel keeps per-step intermediates on autodiff stacks (adstacks) of depth
     steps + 1, which Taichi cannot size for a runtime trip count: it falls back to 32 entries and
     overflows without an error (zero gradients at 33 steps, then segfaults or hangs). The backend
-    sets ``ad_stack_size`` at ti.init and the fused path is taken only when the rollout fits;
+    passes a ceiling to ti.init (AD_STACK_SIZE in __init__.py) and the fused path is taken only
+    when the rollout fits under it;
   * every reassignment of a local pushes again, so the contact is written with ti.select rather
     than a mutating if (whose depth would grow with the number of bounces);
   * the adjoint of exp (and tanh) reuses the op's own result, which Taichi keeps in a plain
@@ -31,28 +32,46 @@ the guards hold per thread (adstacks are the thread's locals, es/ws are per traj
     trajectory by the primal launch and writes it as es[s, b] + (w - ws[s, b]) * es[s, b]:
     exactly es[s, b] in value, d/dw = es[s, b] = exp(w) through an ordinary product, i.e. the
     same adjoint arithmetic; loss and states come from the unmodified primal.
-Rollouts longer than the adstacks fall back to one launch per step over the B trajectories
-(Warp's scheme), where none of this arises.
+Adstack depth. ad_stack_size is read when a kernel is compiled, and an adstack is an alloca of
+4 + 2 x depth x (4 or 8) bytes: on CUDA per-thread local memory, which the driver reserves for
+every thread that can be resident (SMs x max threads per SM), whatever B, so a ceiling-deep stack
+costs gigabytes even at B = 1. The kernel therefore compiles its backward kernel for steps +
+ADSTACK_MARGIN entries: the config is set before each launch (compilation is lazy) and the depth
+is a template argument, so a kernel of another depth in the same process gets its own
+instantiation. Margin 3: with steps + 2 (the deepest stack's steps + 1 pushes and one spare),
+some trajectories of a batch got gradients unlike the per-step path's, so exact sizing is not
+trusted; the tests compare the sized fused path with the per-step one.
 
-Variant 'checkpoint' (projectile only): recomputation in segments of K = ceil(sqrt(steps)) steps
-(at most the adstack limit). The forward pass keeps only the states at segment starts; the
-backward pass, last segment first, recomputes a segment from its checkpoint into a scratch of
-K + 1 steps and runs that segment's fused backward pass. State memory (steps + 1) B -> about
-2 sqrt(steps) B per field, at 4 ceil(steps/K) + 4 launches per iteration and one more forward
-pass; rollouts longer than the adstacks stay fused (segment by segment). Taichi 1.7 has no
-built-in checkpointing: ti.ad.grad_replaced/grad_for only substitute a Python function's
-gradient under ti.ad.Tape, so the segments are driven from the host as the per-step path is.
-
+Variants (projectile only), all with the default's arithmetic and outputs:
+  * 'per_step': one launch per step over the B trajectories (Warp's scheme), forward and
+    reversed, for every steps: no adstack, no exp store needed in the backward kernel; the path
+    the default also takes for rollouts longer than the ceiling allows. 2 steps + 5 launches per
+    iteration against 3, for a state read once per step from global memory, coalesced on CUDA.
+  A 'static' variant (the step loop unrolled with ti.static(range(steps)): straight-line code,
+  no adstack) gives the same outputs but is not offered: its compile time grows faster than
+  linearly with steps (Taichi warns past 32 unrolled iterations) and takes minutes at the
+  default 180 steps.
+  * 'checkpoint': recomputation in segments of K = ceil(sqrt(steps)) steps (at most the
+    adstack limit). The forward pass keeps only the states at segment starts; the backward pass,
+    last segment first, recomputes a segment from its checkpoint into a scratch of K + 1 steps
+    and runs that segment's fused backward pass (adstacks of K + margin). State memory
+    (steps + 1) B -> about 2 sqrt(steps) B per field, at 4 ceil(steps/K) + 4 launches per
+    iteration and one more forward pass. Taichi 1.7 has no built-in checkpointing:
+    ti.ad.grad_replaced/grad_for only substitute a Python function's gradient under
+    ti.ad.Tape, so the segments are driven from the host as the per-step path is.
 All paths give the same outputs: bitwise on the CPU, to a few roundings on CUDA, whose compiler
-contracts FMAs kernel by kernel (tests/backends/test_taichi_family.py, tests/backends/test_taichi.py). Per iteration
-the host makes 3 launches (fused) or 2*steps + 5 (per step), whatever B; the update kernel also
-zeroes the gradients and re-seeds loss.grad. Measured per run() (B = 1, 180 steps, 21 evaluations),
-fused vs per step: 2-core CPU VM 3-12 ms vs 235-270 ms; H200 4-14 ms vs 350-540 ms (before
-batching).
+contracts FMAs kernel by kernel (tests/backends/test_taichi_family.py, tests/backends/test_taichi.py).
+The update kernel also zeroes the gradients and re-seeds loss.grad. On the CPU the [s, b] fields
+are trajectory-major (one thread walks whole trajectories: cache-friendly), on CUDA step-major.
+
 Storage: fields (Taichi 1.7's autodiff is built around fields), allocated once in the
-constructor: 4 state fields of (steps + 1) x B with gradients, plus es/ws of steps x B for soft
-contact only: 64 (steps + 1) B bytes in float64 (12 GiB at 180 steps, B = 2^20), + 16 steps B
-for soft; halve for float32. A field holds < 2^31 elements (Taichi's 32-bit index; refused).
+constructor; info()["design_bytes"] gives what the design predicts, e = 4 or 8 bytes a float:
+  state        4 fields x (steps + 1) x B x 2 (value + grad) x e  ('checkpoint': segment + 1 rows)
+  checkpoints  4 x (segments + 1) x B x 2 x e                     ('checkpoint' only)
+  exp_store    2 x steps x B x e                                 (soft contact only; es, ws)
+  adstack_per_stack_per_thread  4 + 2 x depth x e   (fused and checkpoint; times the backward
+               kernel's adstacks, one per local of the step body, times the resident threads)
+A field holds < 2^31 elements (Taichi's 32-bit index; refused).
 What does not differ from the Quadrants port (init, loss, reset and update kernels, the Kernel's
 bookkeeping) is one definition shared with it, projectile_common.py, built here with ``taichi``.
 """
@@ -64,10 +83,11 @@ from typing import Any
 import taichi as ti
 from taichi.lang import impl
 
+from . import BACKEND
 from .projectile_common import HARD, SOFT, build
 from scenarios.projectile import ProjectileParams
 
-ADSTACK_MARGIN = 2     # the deepest adstack holds steps + 1 entries (measured); one spare
+ADSTACK_MARGIN = 3     # adstack entries beyond the steps (module doc: why 3)
 
 _init, _loss, _init_k, _loss_k, _reset, _update, FieldKernel = build(ti)
 
@@ -120,11 +140,13 @@ def _step(s, b, contact: ti.template(), linearised: ti.template(), dt, gravity, 
 
 
 @ti.kernel
-def _rollout(steps: ti.i32, contact: ti.template(), linearised: ti.template(), dt: float,
-             gravity: float, bounce: float, damping: float, stiffness: float, softness: float,
-             target: ti.template(), v: ti.template(), xs: ti.template(), ys: ti.template(),
+def _rollout(stack: ti.template(), steps: ti.i32, contact: ti.template(),
+             linearised: ti.template(), dt: float, gravity: float, bounce: float, damping: float,
+             stiffness: float, softness: float, target: ti.template(), v: ti.template(), xs: ti.template(), ys: ti.template(),
              vxs: ti.template(), vys: ti.template(), es: ti.template(), ws: ti.template(),
              loss: ti.template()):
+    # stack: the adstack depth it is compiled for (a template argument, so that each depth gets
+    # its own instantiation; _use_stack sets the depth before the launch that may compile it)
     for b in range(loss.shape[0]):     # parallel over trajectories; the step loop nested, serial,
         _init(b, v, xs, ys, vxs, vys)  # and reversed by AD
         for s in range(steps):
@@ -144,9 +166,9 @@ def _step_k(s: ti.i32, contact: ti.template(), dt: float, gravity: float, bounce
 
 
 @ti.kernel
-def _segment(j: ti.i32, n: ti.i32, contact: ti.template(), linearised: ti.template(), dt: float,
-             gravity: float, bounce: float, damping: float, stiffness: float, softness: float,
-             cx: ti.template(), cy: ti.template(), cvx: ti.template(), cvy: ti.template(),
+def _segment(stack: ti.template(), j: ti.i32, n: ti.i32, contact: ti.template(),
+             linearised: ti.template(), dt: float, gravity: float, bounce: float, damping: float,
+             stiffness: float, softness: float, cx: ti.template(), cy: ti.template(), cvx: ti.template(), cvy: ti.template(),
              xs: ti.template(), ys: ti.template(), vxs: ti.template(), vys: ti.template(),
              es: ti.template(), ws: ti.template()):
     # Checkpointed rollout: n steps from checkpoint j into checkpoint j + 1 through the scratch
@@ -189,12 +211,19 @@ def _fields(count: int, n: int, nb: int, trajectory_major: bool, needs_grad: boo
 
 
 def fused_steps_limit() -> int:
-    """Longest rollout whose backward pass fits the adstacks configured at ti.init."""
-    return impl.current_cfg().ad_stack_size - ADSTACK_MARGIN
+    """Longest rollout whose backward pass fits the deepest adstacks the device allows
+    (AD_STACK_SIZE, the depth setup() passed to ti.init)."""
+    return (BACKEND.ad_stack_limit or impl.current_cfg().ad_stack_size) - ADSTACK_MARGIN
+
+
+def _use_stack(depth: int) -> None:
+    # ad_stack_size is read when a kernel is compiled (compilation is lazy, at its first launch):
+    # set it before every launch of an adstack kernel, whose template key carries the depth.
+    impl.current_cfg().ad_stack_size = depth
 
 
 class Kernel(FieldKernel):
-    fused: bool | None = None          # None: fused when the rollout fits (tests force either)
+    fused: bool | None = None          # None: as the variant says (tests force either path)
     segment: int | None = None         # checkpoint variant's segment length (None: ~sqrt(steps))
     layout: str | None = None          # memory order of the [s, b] fields (None: by device)
 
@@ -221,22 +250,28 @@ class Kernel(FieldKernel):
         ew = (n - 1, nb) if self.contact == SOFT else (1, 1)
         self.exp_w = _fields(2, *ew, tmajor, needs_grad=False)  # es, ws
         if self.fused is None:
-            self.fused = params.steps <= fused_steps_limit()
+            self.fused = variant != "per_step" and params.steps <= fused_steps_limit()
+        self.path = "checkpoint" if self.checkpoint else "fused" if self.fused else "per_step"
+        # the adstack depth of the backward kernel: the steps of one launch + the margin
+        self.ad_stack = {"fused": params.steps, "checkpoint": n - 1}.get(self.path)
+        if self.ad_stack is not None:
+            self.ad_stack += ADSTACK_MARGIN
         # the update kernel clears the checkpoints' gradients (the scratch is cleared per segment)
         return self.ck if self.checkpoint else self.state
 
     def _evaluate(self) -> None:
         """Losses at the current v into loss, their gradients into v.grad (grads zeroed before)."""
         p, c, st = self.p, self.consts, self.state
-        if self.checkpoint:
+        if self.path == "checkpoint":
             self._evaluate_checkpointed()
-            return
-        if self.fused:
-            args = (*c, self.target, self.v, *st, *self.exp_w, self.loss)
-            _rollout(p.steps, self.contact, False, *args)
-            _rollout.grad(p.steps, self.contact, True, *args)
-            return
-        self._evaluate_per_step(_step_k, *st, *self.exp_w)
+        elif self.path == "fused":
+            args = (self.ad_stack, p.steps, self.contact)
+            rest = (*c, self.target, self.v, *st, *self.exp_w, self.loss)
+            _use_stack(self.ad_stack)
+            _rollout(*args, False, *rest)
+            _rollout.grad(*args, True, *rest)
+        else:
+            self._evaluate_per_step(_step_k, *st, *self.exp_w)
 
     def _evaluate_checkpointed(self) -> None:
         """Forward: segment by segment, keeping only the states at segment starts. Backward, last
@@ -245,21 +280,33 @@ class Kernel(FieldKernel):
         p, c, st, ck, m, k = self.p, self.consts, self.state, self.ck, self.n_seg, self.seg_len
         args = (*c, *ck, *st, *self.exp_w)
         n = [min(k, p.steps - j * k) for j in range(m)]
+        _use_stack(self.ad_stack)
         _init_k(self.v, *ck)
         for j in range(m):
-            _segment(j, n[j], self.contact, False, *args)
+            _segment(self.ad_stack, j, n[j], self.contact, False, *args)
         _loss_k(m, self.target, ck[0], ck[1], self.loss)
         _loss_k.grad(m, self.target, ck[0], ck[1], self.loss)
         for j in reversed(range(m)):
             if j < m - 1:
-                _segment(j, n[j], self.contact, False, *args)
+                _segment(self.ad_stack, j, n[j], self.contact, False, *args)
             _zero_scratch(*st)
-            _segment.grad(j, n[j], self.contact, True, *args)
+            _segment.grad(self.ad_stack, j, n[j], self.contact, True, *args)
         _init_k.grad(self.v, *ck)
+
+    def design_bytes(self) -> dict[str, int]:
+        """The bytes the design predicts (module doc): fields, and the adstacks per thread."""
+        nb, e, rows = self.batch, self.elem, self.state[0].shape[0]
+        out = {"state": 4 * rows * nb * 2 * e,
+               "exp_store": 2 * (rows - 1) * nb * e if self.contact == SOFT else 0}
+        if self.checkpoint:
+            out["checkpoints"] = 4 * (self.n_seg + 1) * nb * 2 * e
+        if self.ad_stack is not None:
+            out["adstack_per_stack_per_thread"] = 4 + 2 * e * self.ad_stack
+        return out
 
     def info(self) -> dict[str, Any]:
         out = {**super().info(), "state_layout": f"(steps+1, batch), {self.layout}",
-               "ad_stack_size": impl.current_cfg().ad_stack_size}
+               "ad_stack_size": self.ad_stack, "design_bytes": self.design_bytes()}
         if self.checkpoint:
             out.update(checkpoint_segment=self.seg_len, checkpoint_segments=self.n_seg,
                        launches_per_iteration=4 * self.n_seg + 4,

@@ -99,7 +99,10 @@ def build(ti: ModuleType) -> tuple[Any, ...]:
 
     class FieldKernel(ScenarioKernel):
         """A port's ``Kernel`` implements ``_allocate`` (its state fields) and ``_evaluate``, and
-        says whether the rollout is ``fused``."""
+        says which ``path`` the rollout takes: "fused" (one launch each way, the step loop a
+        run-time loop reversed through adstacks), "per_step" (one launch per step) or
+        "checkpoint" (Taichi only)."""
+        path = "fused"
 
         def __init__(self, params: ProjectileParams, inputs: dict[str, np.ndarray], device: Device,
                      precision: Precision, variant: str) -> None:
@@ -109,6 +112,7 @@ def build(ti: ModuleType) -> tuple[Any, ...]:
             self.consts = [float(inputs[k]) for k in ("dt", "gravity", "bounce", "damping",
                                                       "stiffness", "softness")]
             self.lr = float(inputs["lr"])
+            self.elem = 8 if precision == Precision.FLOAT64 else 4    # bytes of a float
             # the fields whose gradients the update kernel clears
             self.cleared = self._allocate(params, device, variant)
             self.v = ti.field(float, (nb, 2), needs_grad=True)
@@ -166,9 +170,10 @@ def build(ti: ModuleType) -> tuple[Any, ...]:
             return {"loss": hist[0], "grad": grad, "loss_history": hist, "v_final": v}
 
         def info(self) -> dict[str, Any]:
-            return {"storage": "field", **framework_config_info(ti.__name__),
-                    "fused_rollout": self.fused,
-                    "launches_per_iteration": 3 if self.fused else 2 * self.p.steps + 5,
+            fused = self.path == "fused"               # one launch forward, one backward
+            return {"storage": "field", **framework_config_info(ti.__name__), "rollout": self.path,
+                    "fused_rollout": fused,
+                    "launches_per_iteration": 3 if fused else 2 * self.p.steps + 5,
                     "batch": self.batch}
 
     return _init, _loss, _init_k, _loss_k, _reset, _update, FieldKernel

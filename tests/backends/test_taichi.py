@@ -3,8 +3,8 @@ precision and the agreement with Warp, the fused rollout against one launch per 
 and set_input, with Taichi's own layouts and 32-bit refusal) are in tests/backends/test_taichi_family.py.
 
 1. autodiff: the projectile gradient against float64 central differences of the oracle; the
-   'checkpoint' variant against the uncheckpointed rollout, and the guard that picks the fused or
-   the per-step path from the configured adstack depth;
+   'checkpoint' variant against the uncheckpointed rollout, the guard that picks the fused or
+   the per-step path from the configured adstack depth, and adstacks sized to each rollout;
 2. no recompilation and repeatable outputs across run() calls; particle trajectory frames.
 Anything that initialises Taichi runs in a subprocess or a worker (ti.init is process-global).
 """
@@ -18,6 +18,8 @@ import pytest
 import backends
 from oracle_checks import FD, FRAMES, assert_frames_match_the_oracle, assert_gradient_matches_finite_differences
 from taichi_family import run, script
+
+ADSTACK_MARGIN = 3     # backends/taichi/projectile.py's (read without importing Taichi here)
 
 pytestmark = pytest.mark.taichi
 
@@ -97,7 +99,7 @@ def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device, precision)
     (different kernels, different FMA contraction); within the oracle's bounds."""
     r = _script(CHECKPOINT, device, PRECISION=precision)
     limit = r.pop("limit")
-    assert limit == 38 and len(r) == 8 and all(case.startswith(precision) for case in r)
+    assert limit == 40 - ADSTACK_MARGIN and len(r) == 8 and all(case.startswith(precision) for case in r)
     for case, v in r.items():
         _, _, steps, seg = case.split("-")
         steps = int(steps)
@@ -153,13 +155,66 @@ def test_fused_rollout_only_where_the_adstacks_hold_it():
     bitwise."""
     r = _script(GUARD)
     limit = r.pop("limit")
-    assert limit == 40 - 2
+    assert limit == 40 - ADSTACK_MARGIN
     for case, v in r.items():
         steps, contact, vy0 = case.split("-")
         assert v["fused"] == (int(steps) <= limit), case
         assert v["identical"], case
         if vy0 != "0.0":   # clamped on the last step: the check divides zero error by zero bound
             assert v["ok"], case
+
+
+SIZED = """
+import numpy as np
+from taichi.lang import impl
+from backends.taichi.projectile import ADSTACK_MARGIN, Kernel
+b = backends.get("taichi"); b.setup(DEVICE, "float64", "default")
+sc = scenarios.get("projectile")
+p = {n: sc.params({"contact": "hard", "steps": n, "dt": 2.0 / n, "iters": 2, "batch": 37})
+     for n in (30, 10, 61)}
+i = {n: sc.inputs(q, "float64") for n, q in p.items()}
+# the deeper kernel built first and launched last: its backward kernel must still be compiled for
+# its own depth, not for the one the shallower kernel (built later, launched first) asked for
+k = {n: Kernel(p[n], i[n], DEVICE, "float64", v) for n, v in ((30, "default"), (10, "default"),
+                                                            (61, "checkpoint"))}
+out = {}
+for n in (10, 30, 61):
+    b.synchronize(DEVICE, k[n].run())
+    compiled_for = impl.current_cfg().ad_stack_size      # what the launches just compiled with
+    Kernel.fused = False
+    k_step = Kernel(p[n], i[n], DEVICE, "float64", "default")
+    Kernel.fused = None
+    b.synchronize(DEVICE, k_step.run())
+    o, o_step = k[n].outputs(), k_step.outputs()
+    info = k[n].info()
+    out[n] = {"ad_stack_size": info["ad_stack_size"], "rollout": info["rollout"],
+              "segment": info.get("checkpoint_segment"),
+              "per_stack": info["design_bytes"]["adstack_per_stack_per_thread"],
+              "per_step_stack": k_step.info()["ad_stack_size"], "compiled_for": compiled_for,
+              "identical": all(np.array_equal(o[m], o_step[m]) for m in o)}
+out["margin"] = ADSTACK_MARGIN
+out["ceiling"] = b.ad_stack_limit
+print("RESULT" + json.dumps(out))
+"""
+
+
+@pytest.mark.parametrize("device", backends.DEVICES)
+def test_adstacks_are_sized_to_the_rollout(device):
+    """The backward kernel's adstacks hold steps + margin entries (the segment's steps for
+    'checkpoint'), not the device's ceiling, whose local memory the CUDA driver would reserve for
+    every resident thread; kernels of different depths in one process each get their own depth,
+    whatever the order they are built and launched in, and give the per-step path's outputs."""
+    r = _script(SIZED, device)
+    margin, ceiling = r.pop("margin"), r.pop("ceiling")
+    assert margin == ADSTACK_MARGIN and ceiling == {"cpu": 4096, "cuda": 1024}[device]
+    for n, v in r.items():
+        depth = (v["segment"] if n == "61" else int(n)) + margin
+        assert v["rollout"] == ("checkpoint" if n == "61" else "fused"), n
+        assert v["segment"] == (8 if n == "61" else None), n
+        assert v["ad_stack_size"] == v["compiled_for"] == depth, n
+        assert v["per_stack"] == 4 + 2 * 8 * depth, n
+        assert v["per_step_stack"] is None, n
+        assert v["identical"], n
 
 
 # ---- 2. compilation, repeatability, trajectories ------------------------------------------------

@@ -11,7 +11,8 @@ framework's marker, so `pytest -m taichi` / `-m quadrants` select exactly that f
    output to a couple of ulps (a float64 literal or a reordered expression would show);
 3. autodiff: the fused rollout (one launch, step loop reversed through adstacks) against one
    launch per step, single and batched; every batch row against its own single-trajectory run
-   (independent losses, per-thread adstacks), and set_input replaces a batch's v0 in place.
+   (independent losses, per-thread adstacks), and set_input replaces a batch's v0 in place; the
+   projectile's named variants against the default rollout.
 Anything that initialises the framework runs in a subprocess or a worker (its init is
 process-global).
 """
@@ -28,7 +29,7 @@ import backends
 from compare.running import cells
 from conftest import ROOT, require_device
 from taichi_family import (FASTMATH, PRECISIONS, ROWS, ROWS_OWN, ROWS_OWN_EXPECTED, SMALL, VS_WARP,
-                           PATHS, each, run, script)
+                           PATHS, VARIANTS, each, run, script)
 
 
 # ---- 1. variants --------------------------------------------------------------------------------
@@ -126,3 +127,30 @@ def test_each_batch_row_is_its_own_single_trajectory(framework):
         assert v["set_input"] and v["set_input_changed"], contact
         assert v["wrong_shape_refused"], contact
         assert v["own"] == ROWS_OWN_EXPECTED[framework], contact
+
+
+# the rollout each named variant must report, and its launches per descent iteration at 24 steps
+VARIANT_PATHS = {"default": ("fused", 3), "per_step": ("per_step", 2 * 24 + 5)}
+
+
+@pytest.mark.parametrize("precision", ["float64", pytest.param("float32", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("device", backends.DEVICES)
+@pytest.mark.parametrize("framework", each())
+def test_projectile_variants_equal_the_default_rollout(framework, device, precision):
+    """The variants the driver times beside the default ('per_step': one launch per step, no
+    adstack) take the path they name, built as the driver builds them, and give the default's
+    outputs: bitwise on the CPU (the same arithmetic), to a few roundings on CUDA (FMA
+    contraction differs kernel by kernel); every one within the oracle's bounds."""
+    variants = [v for v in backends.get(framework).scenario_variants["projectile"] if v != "checkpoint"]
+    assert variants == ["per_step"]
+    r = script(framework, VARIANTS, device, PRECISION=precision, VARIANTS=variants)
+    assert len(r) == 3 * (1 + len(variants))
+    for case, v in r.items():
+        variant = case.split("-", 1)[1]
+        assert v["ok"], case
+        assert (v["rollout"], v["launches"]) == VARIANT_PATHS[variant], case
+        assert v["design_state"] == 4 * 25 * 37 * 2 * (8 if precision == "float64" else 4), case
+        if device == "cpu":
+            assert v["identical"], case
+        else:
+            assert v["rel"] <= (1e-12 if precision == "float64" else 1e-4), case
