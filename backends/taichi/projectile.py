@@ -47,10 +47,6 @@ Variants (projectile only), all with the default's arithmetic and outputs:
     reversed, for every steps: no adstack, no exp store needed in the backward kernel; the path
     the default also takes for rollouts longer than the ceiling allows. 2 steps + 5 launches per
     iteration against 3, for a state read once per step from global memory, coalesced on CUDA.
-  A 'static' variant (the step loop unrolled with ti.static(range(steps)): straight-line code,
-  no adstack) gives the same outputs but is not offered: its compile time grows faster than
-  linearly with steps (Taichi warns past 32 unrolled iterations) and takes minutes at the
-  default 180 steps.
   * 'checkpoint': recomputation in segments of K = ceil(sqrt(steps)) steps (at most the
     adstack limit). The forward pass keeps only the states at segment starts; the backward pass,
     last segment first, recomputes a segment from its checkpoint into a scratch of K + 1 steps
@@ -59,6 +55,10 @@ Variants (projectile only), all with the default's arithmetic and outputs:
     iteration and one more forward pass. Taichi 1.7 has no built-in checkpointing:
     ti.ad.grad_replaced/grad_for only substitute a Python function's gradient under
     ti.ad.Tape, so the segments are driven from the host as the per-step path is.
+A 'static' variant (the step loop unrolled with ti.static(range(steps)): straight-line code,
+no adstack) gives the same outputs but is not offered: its compile time grows faster than
+linearly with steps (Taichi warns past 32 unrolled iterations) and takes minutes at the
+default 180 steps.
 All paths give the same outputs: bitwise on the CPU, to a few roundings on CUDA, whose compiler
 contracts FMAs kernel by kernel (tests/backends/test_taichi_family.py, tests/backends/test_taichi.py).
 The update kernel also zeroes the gradients and re-seeds loss.grad. On the CPU the [s, b] fields
