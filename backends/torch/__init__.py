@@ -1,17 +1,26 @@
 """PyTorch: eager ATen ops written in place into preallocated tensors; gradients by autograd.
 
-Variants: "default" is eager PyTorch; "compile" runs each scenario's step/iteration function
-through ``torch.compile(mode="default", fullgraph=True, dynamic=False)`` (Inductor: C++/OpenMP on
-the CPU, Triton on CUDA). Not "reduce-overhead": the torch.compile docs say its CUDA graphs apply
-only to graphs that do not mutate their inputs, and every kernel here writes into preallocated
-outputs; the CUDA-graph fast path is the ``capture`` hook instead (torch.cuda.graph around one
-``run()``), for both variants.
+Variants: "default" is eager PyTorch; "compile" runs each scenario's compiled unit through
+``torch.compile(mode="default", fullgraph=True, dynamic=False)`` (Inductor: C++/OpenMP on the CPU,
+Triton on CUDA). "compile_graphs" is the same with ``mode="reduce-overhead"``: Inductor's kernels
+replayed as CUDA graphs (CUDAGraph Trees), PyTorch's documented answer to launch-bound code; CUDA
+only (on the CPU the mode has nothing to graph). Its graphs skip any function that mutates an
+input that is not static, so every tensor a compiled unit reads or writes is a preallocated buffer
+marked static (``torch._dynamo.mark_static_address``: never copied into the graph's own input
+buffers, and a write into it, such as ``out.copy_``, stays inside the graph), and
+``cudagraph_or_error`` turns a skipped graph into an error: the cell never runs unlabelled eager
+kernels. A replay overwrites the outputs of the previous replay; every kernel reads the last
+run's outputs only. Particles also has "graph": the eager rollout captured once by the port with
+``torch.cuda.graph`` and replayed per run (CUDA only). The harness's graph regime (``capture``:
+torch.cuda.graph around one ``run()``) covers the default and "compile" variants; it refuses a
+kernel that replays graphs itself (a graph launch inside a capture).
 
 Precision: every tensor is made with an explicit dtype (never the global default dtype) and every
 constant is a 0-d tensor of the cell's dtype on the cell's device, so float32 stays float32 and a
 compiled graph sees the constants as inputs (not literals it may fold). TF32 is switched off in
-``setup`` and read back into every kernel's ``info()``. Under "compile" Inductor's Triton division
-is made IEEE (``eager_numerics.division_rounding``); its default there is an approximate division.
+``setup`` and read back into every kernel's ``info()``. Under the compile variants Inductor's
+Triton division is made IEEE (``eager_numerics.division_rounding``); its default there is an
+approximate division.
 
 No autograd context is entered per call: the tensors of the forward scenarios never require a
 gradient, so autograd records nothing, and a per-call ``torch.inference_mode()`` costs about 3 us
@@ -32,8 +41,12 @@ from ..base import OWN_TIMER_S, Backend, Precision, not_installed, visible_gpus
 
 CPU_WHEEL = "pip install torch --index-url https://download.pytorch.org/whl/cpu"
 
-VARIANTS = ("default", "compile")
-COMPILE_MODE = "default"
+VARIANTS = ("default", "compile", "compile_graphs")
+# torch.compile's mode of each compiled variant
+MODES = {"compile": "default", "compile_graphs": "reduce-overhead"}
+GRAPHED = ("compile_graphs", "graph")      # variants whose run() replays CUDA graphs itself
+CUDA_ONLY = {"compile_graphs": "torch.compile's reduce-overhead mode (CUDA graphs) exists on CUDA only",
+             "graph": "torch.cuda.graph exists on CUDA only"}
 
 
 def torch_device(device: str) -> Any:
@@ -63,15 +76,28 @@ def download(t: Any) -> np.ndarray:
     return t.detach().cpu().numpy().copy()
 
 
-def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """The "compile" variant's wrapper of a step/iteration function (one mode for all scenarios)."""
+def compiled(fn: Callable[..., Any], variant: str, static: tuple[Any, ...] = ()) -> Callable[..., Any] | None:
+    """A compiled variant's wrapper of a scenario's compiled unit (None for an uncompiled one).
+    ``static``: the preallocated tensors the unit reads or writes, marked static under
+    "compile_graphs" (see the module docstring)."""
+    if variant not in MODES:
+        return None
     import torch
-    return torch.compile(fn, mode=COMPILE_MODE, fullgraph=True, dynamic=False)
+    mark_static(variant, *static)
+    return torch.compile(fn, mode=MODES[variant], fullgraph=True, dynamic=False)
 
 
-def check_variant(variant: str) -> None:
-    if variant not in VARIANTS:
-        raise ValueError(f"PyTorch has no variant {variant!r} (offered: {VARIANTS})")
+def mark_static(variant: str, *tensors: Any) -> None:
+    """Under "compile_graphs", mark preallocated tensors static (before the first compiled call)."""
+    if variant == "compile_graphs":
+        import torch
+        for t in tensors:
+            torch._dynamo.mark_static_address(t)
+
+
+def check_variant(variant: str, extra: tuple[str, ...] = ()) -> None:
+    if variant not in VARIANTS + extra:
+        raise ValueError(f"PyTorch has no variant {variant!r} here (offered: {VARIANTS + extra})")
 
 
 def numerics(compiled: bool = True) -> dict[str, Any]:
@@ -84,6 +110,9 @@ def numerics(compiled: bool = True) -> dict[str, Any]:
                            "float32_matmul_precision": torch.get_float32_matmul_precision()}
     if not compiled:
         return out
+    from torch._dynamo.utils import counters
+    # graphs Inductor skipped (an error under cudagraph_or_error): 0 wherever graphs ran
+    out["cudagraph_skips"] = int(counters["inductor"]["cudagraph_skips"])
     try:
         from torch._inductor import config
         out["inductor_division_rounding"] = bool(config.eager_numerics.division_rounding)
@@ -98,9 +127,9 @@ def numerics(compiled: bool = True) -> dict[str, Any]:
 
 
 def kernel_info(variant: str, **facts: Any) -> dict[str, Any]:
-    how = (f"torch.compile(mode={COMPILE_MODE!r}, fullgraph=True, dynamic=False)"
-           if variant == "compile" else "eager")
-    return {"execution": how, **facts, **numerics(variant == "compile")}
+    how = {"default": "eager", "graph": "eager, captured by torch.cuda.graph and replayed"}.get(variant)
+    how = how or f"torch.compile(mode={MODES[variant]!r}, fullgraph=True, dynamic=False)"
+    return {"execution": how, **facts, **numerics(variant in MODES)}
 
 
 class TorchCuda(Backend):
@@ -124,6 +153,8 @@ class TorchCuda(Backend):
         replayed with ``CUDAGraph.replay``; CUDA only."""
         if device != "cuda":
             return None
+        if getattr(getattr(run, "__self__", None), "variant", None) in GRAPHED:
+            raise RuntimeError("this variant's run() replays CUDA graphs itself: none is captured around it")
         import torch
         side = torch.cuda.Stream()
         side.wait_stream(torch.cuda.current_stream())
@@ -158,8 +189,12 @@ class TorchBackend(TorchCuda):
     package = "torch"
     gradient_method = "ad"
     variants = VARIANTS
+    scenario_variants = {"particles": ("graph",)}     # the eager rollout as one captured CUDA graph
     display_order, color = 5, "C5"
     related_packages = ("triton",)
+
+    def variant_unavailable(self, variant: str, device: str) -> str | None:
+        return CUDA_ONLY.get(variant) if device != "cuda" else None
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
         # torch.compile's FX-graph/Inductor cache and Triton's kernel cache, and the CUDA driver's
@@ -191,13 +226,13 @@ class TorchBackend(TorchCuda):
 
     def setup(self, device: str, precision: str, variant: str) -> None:
         import torch
-        check_variant(variant)
+        check_variant(variant, ("graph",))
         # No TF32 anywhere (no scenario multiplies matrices today; a future one must not get
         # 10-bit mantissas silently): full float32 matmul and convolution precision.
         torch.backends.cuda.matmul.allow_tf32 = False
         torch.backends.cudnn.allow_tf32 = False
         torch.set_float32_matmul_precision("highest")
-        if variant == "compile":
+        if variant in MODES:
             import torch._dynamo.config as dynamo
             from torch._inductor import config
             # IEEE x/y in Triton, as eager (info() records None where this Inductor lacks it)
@@ -211,6 +246,10 @@ class TorchBackend(TorchCuda):
             setattr(dynamo, limit, 64)
             if hasattr(dynamo, "fail_on_recompile_limit_hit"):
                 dynamo.fail_on_recompile_limit_hit = True
+            # a graph reduce-overhead would skip is an error, not eager kernels labelled graphs
+            # (CUDA only: on the CPU, where the variant is unavailable, every graph is skipped)
+            if variant == "compile_graphs" and device == "cuda":
+                config.triton.cudagraph_or_error = True
         if device == "cuda":
             torch.cuda.set_device(torch_device(device))
 

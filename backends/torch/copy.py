@@ -2,7 +2,8 @@
 
 ATen's copy_ between two same-dtype contiguous tensors on one device is a device memcpy on CUDA
 (cudaMemcpyAsync, device to device) and a parallel memcpy on the CPU: the framework's own fastest
-copy. "compile" lets Inductor emit the copy as a generated kernel instead.
+copy. "compile" lets Inductor emit the copy as a generated kernel instead; "compile_graphs"
+replays that kernel as a CUDA graph.
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ class Kernel(ScenarioKernel):
         self.x = put(inputs["x"], precision, device)
         self.out = empty((params.n,), precision, device)
         self.args: tuple[Any, ...] = (self.x, self.out)
-        self.fn = compiled(self.body) if variant == "compile" else None
+        self.fn = compiled(self.body, variant, static=self.args)
 
     def eager(self, torch: Any) -> None:
         self.out.copy_(self.x)

@@ -1,19 +1,34 @@
-"""Bouncing particles in PyTorch: the state is four vectors over particles, stepped in place.
+"""Bouncing particles in PyTorch: the state is four vectors over particles.
 
-Particles are independent, so one step is a handful of elementwise ops over all particles; the
-step loop runs on the host (PyTorch has no device-side loop), so a run is 19 kernels per step in
-eager mode. Each contact rule is a mask (``torch.lt(..., out=)``) and in-place masked updates:
-``where(hit, bound, x, out=x)`` for the clamped position (not ``masked_fill_``, whose CUDA
-kernel reads a tensor fill value back to the host) and a multiply by ``where(hit, factor, 1)``
-for the velocity, which equals ``where(hit, factor*v, v)`` exactly (v*1 = v), all in
-preallocated buffers, so a run allocates nothing. "compile" compiles one step (functional, ending in copy_
-into the state) into one fused Inductor kernel and calls it ``steps`` times. With
-``record_every`` > 0 every k-th state is copied into the trajectory tensors, frame 0 the initial
-state; without it no trajectory is kept.
+Particles are independent, so one step is a handful of elementwise ops over all particles.
+
+"default": the step loop runs on the host, 19 eager kernels per step, all in place into
+preallocated buffers, so a run allocates nothing. Each contact rule is a mask
+(``torch.lt(..., out=)``) and in-place masked updates: ``where(hit, bound, x, out=x)`` for the
+clamped position (not ``masked_fill_``, whose CUDA kernel reads a tensor fill value back to the
+host) and a multiply by ``where(hit, factor, 1)`` for the velocity, which equals
+``where(hit, factor*v, v)`` exactly (v*1 = v).
+
+"graph" (CUDA only): that eager rollout captured once with ``torch.cuda.graph`` when the kernel
+is built (after a warm-up run on a side stream, as the CUDA-graph docs ask) and replayed by every
+``run()``: one launch a rollout. It writes the same buffers, so the arithmetic is the default's.
+
+"compile" and "compile_graphs": the whole rollout is one compiled pure function (initial state
+in, final state and trajectory frames out; no in-place write inside), one compiled call a run, so
+reduce-overhead can replay the rollout as CUDA graphs. Its step loop is a loop over blocks of
+``BLOCK`` steps, each block a ``torch.compiler.nested_compile_region``: Inductor compiles a block
+once (steps fused into a few kernels) and stamps it out for every block. Unrolling all the steps
+into one region instead makes the first call compile-bound and superlinear in the steps (the
+error sweep runs thousands), so hierarchical compilation bounds the compile by one block (plus
+the shorter blocks that end a frame interval or the rollout). Under "compile_graphs" the returned
+tensors live in the CUDA graphs' memory pool, valid until the next run.
+
+With ``record_every`` > 0 every k-th state's positions are kept (frame 0 the initial state);
+without it no trajectory is kept.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -25,48 +40,104 @@ from scenarios.particles import ParticlesParams
 from ..base import Device
 from scenarios.base import Precision
 
+BLOCK = 25       # steps per nested compile region (compiled once, stamped out per block)
 
-def _step(x, y, u, v, dt, gdt, radius, lo, hi, neg_bounce, damping):
-    """One step in the scenario's order, functional, written back into the state (compile)."""
+
+def advance(x, y, u, v, c, n: int):
+    """``n`` steps in the scenario's order, functional; ``c`` = (dt, gdt, radius, lo, hi,
+    neg_bounce, damping), 0-d tensors."""
     import torch
-    v1 = v + gdt
-    x1 = x + u * dt
-    y1 = y + v1 * dt
-    hit = y1 < radius
-    y1 = torch.where(hit, radius, y1)
-    v1 = torch.where(hit, neg_bounce * v1, v1)
-    u1 = torch.where(hit, damping * u, u)
-    hit = x1 < lo
-    x1 = torch.where(hit, lo, x1)
-    u1 = torch.where(hit, neg_bounce * u1, u1)
-    hit = x1 > hi
-    x1 = torch.where(hit, hi, x1)
-    u1 = torch.where(hit, neg_bounce * u1, u1)
-    x.copy_(x1)
-    y.copy_(y1)
-    u.copy_(u1)
-    v.copy_(v1)
+    dt, gdt, radius, lo, hi, neg_bounce, damping = c
+    for _ in range(n):
+        v1 = v + gdt
+        x1 = x + u * dt
+        y1 = y + v1 * dt
+        hit = y1 < radius
+        y = torch.where(hit, radius, y1)
+        v = torch.where(hit, neg_bounce * v1, v1)
+        u1 = torch.where(hit, damping * u, u)
+        hit = x1 < lo
+        x1 = torch.where(hit, lo, x1)
+        u1 = torch.where(hit, neg_bounce * u1, u1)
+        hit = x1 > hi
+        x = torch.where(hit, hi, x1)
+        u = torch.where(hit, neg_bounce * u1, u1)
+    return x, y, u, v
+
+
+def runs(steps: int, record_every: int, block: int) -> list[tuple[int, bool]]:
+    """The rollout as (steps of one block call, whether a frame is kept after it)."""
+    interval = record_every or steps
+    out: list[tuple[int, bool]] = []
+    done = 0
+    while done < steps:
+        length = min(interval, steps - done)
+        done += length
+        pieces = [block] * (length // block) + ([length % block] if length % block else [])
+        out += [(n, False) for n in pieces[:-1]] + [(pieces[-1], bool(record_every) and length == interval)]
+    return out
+
+
+def make_rollout(steps: int, record_every: int, block: int = 0) -> Callable[..., Any]:
+    """(x, y, u, v, c) -> (x, y, u, v[, traj_x, traj_y]) after ``steps`` steps: ``advance`` as one
+    nested compile region, called with each block's length (an int: one compiled entry per
+    distinct length; ``block`` 0 means ``BLOCK``)."""
+    import torch
+    plan = runs(steps, record_every, block or BLOCK)
+    region = torch.compiler.nested_compile_region(advance)
+
+    def rollout(x, y, u, v, c):
+        frames_x, frames_y = [x], [y]
+        for n, keep in plan:
+            x, y, u, v = region(x, y, u, v, c, n)
+            if keep:
+                frames_x.append(x)
+                frames_y.append(y)
+        if record_every:
+            return x, y, u, v, torch.stack(frames_x), torch.stack(frames_y)
+        return x, y, u, v
+
+    return rollout
 
 
 class Kernel(ScenarioKernel):
     def __init__(self, params: ParticlesParams, inputs: dict[str, np.ndarray], device: Device, precision: Precision,
                  variant: str) -> None:
         import torch
-        check_variant(variant)
+        check_variant(variant, ("graph",))
         self.variant, self.params = variant, params
         n = params.n
         self.state0 = [put(inputs[k], precision, device) for k in INITIAL]
-        self.state = [empty((n,), precision, device) for _ in range(4)]
         dt, gravity, damping, bounce, radius = (put(inputs[k], precision, device) for k in CONSTANTS)
         one = put(1.0, precision, device)
         # derived once, rounded in the cell's dtype, as the reference does per launch
         self.c = {"dt": dt, "gdt": gravity * dt, "radius": radius, "lo": -one + radius,
                   "hi": one - radius, "neg_bounce": -bounce, "damping": damping, "one": one}
+        self.consts = tuple(self.c[k] for k in ("dt", "gdt", "radius", "lo", "hi", "neg_bounce", "damping"))
+        self.fn = compiled(make_rollout(params.steps, params.record_every), variant,
+                           static=(*self.state0, *self.consts))
+        self.out: tuple[Any, ...] = ()
+        if self.fn is not None:
+            return
+        self.state = [empty((n,), precision, device) for _ in range(4)]
         self.traj = [empty((n_frames(params), n), precision, device) for _ in range(2)]
         self.tmp = empty((n,), precision, device)
         self.factor = empty((n,), precision, device)
         self.hit = torch.empty((n,), dtype=torch.bool, device=self.tmp.device)
-        self.fn = compiled(_step) if variant == "compile" else None
+        self.out = (*self.state, *self.traj) if params.record_every else tuple(self.state)
+        self.graph = self._capture() if variant == "graph" else None
+
+    def _capture(self) -> Any:
+        import torch
+        side = torch.cuda.Stream()
+        side.wait_stream(torch.cuda.current_stream())
+        with torch.cuda.stream(side):
+            self._eager_rollout()
+        torch.cuda.current_stream().wait_stream(side)
+        graph = torch.cuda.CUDAGraph()
+        with torch.cuda.graph(graph):
+            self._eager_rollout()
+        return graph
 
     def _eager_step(self) -> None:
         import torch
@@ -86,31 +157,38 @@ class Kernel(ScenarioKernel):
         torch.where(hit, c["hi"], x, out=x)
         u.mul_(torch.where(hit, c["neg_bounce"], c["one"], out=f))
 
-    def run(self) -> Any:
-        p, c = self.params, self.c
+    def _eager_rollout(self) -> None:
+        p = self.params
         for s, s0 in zip(self.state, self.state0):
             s.copy_(s0)
         if p.record_every:
             self.traj[0][0].copy_(self.state[0])
             self.traj[1][0].copy_(self.state[1])
         for s in range(p.steps):
-            if self.fn is not None:
-                self.fn(*self.state, c["dt"], c["gdt"], c["radius"], c["lo"], c["hi"],
-                        c["neg_bounce"], c["damping"])
-            else:
-                self._eager_step()
+            self._eager_step()
             if p.record_every and (s + 1) % p.record_every == 0:
                 f = (s + 1) // p.record_every
                 self.traj[0][f].copy_(self.state[0])
                 self.traj[1][f].copy_(self.state[1])
-        return self.state
+
+    def run(self) -> Any:
+        if self.fn is not None:
+            self.out = self.fn(*self.state0, self.consts)
+        elif self.graph is not None:
+            self.graph.replay()
+        else:
+            self._eager_rollout()
+        return self.out
 
     def outputs(self) -> dict[str, np.ndarray]:
-        out = dict(zip(STATE, (download(a) for a in self.state)))
-        if self.params.record_every:
-            out["traj_x"], out["traj_y"] = (download(a) for a in self.traj)
-        return out
+        names = (*STATE, "traj_x", "traj_y") if self.params.record_every else STATE
+        return dict(zip(names, (download(a) for a in self.out)))
 
     def info(self) -> dict[str, Any]:
+        if self.fn is not None:
+            blocks = runs(self.params.steps, self.params.record_every, BLOCK)
+            return kernel_info(self.variant, loop="the whole rollout in one compiled call",
+                               compiled_unit=f"{len(blocks)} calls of nested compile regions of "
+                                             f"{sorted({n for n, _ in blocks})} steps (BLOCK = {BLOCK})")
         return kernel_info(self.variant, loop="host loop over steps, vectorised over particles",
-                           kernels_per_step=1 if self.fn is not None else 19)
+                           kernels_per_step=19, captured=self.graph is not None)

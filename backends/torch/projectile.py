@@ -11,7 +11,18 @@ reads, so a whole run can be captured as one CUDA graph (the ``capture`` hook).
 
 "compile": the rollout runs as calls of a compiled function of SEGMENT steps (unrolled by Dynamo;
 AOTAutograd compiles its backward too), so an iteration is a few fused kernels per segment forward
-and backward instead of ~10 per step each way.
+and backward instead of ~10 per step each way. "compile_graphs" (CUDA only): the same segments
+under reduce-overhead, each segment's forward and backward replayed as CUDA graphs. CUDAGraph
+Trees record the segments' forwards as one path while a backward is pending and the backwards
+after them (the training-loop pattern they are built for), and ``torch.autograd.grad`` runs the
+compiled backward like ``backward()`` does. Each iteration's loss and gradient are copied out of
+the graphs' pool (into ``history``, ``grad0`` and ``v``) before the next iteration replays them.
+The constants are marked static; the first segment's inputs (fresh each iteration) are copied
+into the graph's input buffers by one batched copy per replay.
+
+Memory at large batches: reverse mode keeps what each step's backward needs (eager: every step's
+operands; compiled: what the partitioner saves per segment), O(steps x B) either way; the rest
+(v, history, grad0) is O(iters x B).
 """
 from __future__ import annotations
 
@@ -19,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from . import check_variant, compiled, download, empty, kernel_info, put, torch_device, torch_dtype
+from . import MODES, check_variant, compiled, download, empty, kernel_info, put, torch_device, torch_dtype
 from ..base import ScenarioKernel
 from scenarios.projectile import ProjectileParams
 from ..base import Device
@@ -54,11 +65,13 @@ def advance(x, y, vx, vy, c, n: int, contact: str):
     return x, y, vx, vy
 
 
-def make_losses(contact: str, steps: int, segment: int = 0):
+def make_losses(contact: str, steps: int, segment: int = 0, variant: str = "default",
+                static: tuple[Any, ...] = ()):
     """Loss per trajectory, v and target of shape (2,) -> () or (B, 2) -> (B,). ``segment`` > 0:
-    the rollout as calls of a compiled ``advance`` of ``segment`` steps (and one of the rest)."""
+    the rollout as calls of ``advance`` of ``segment`` steps (and one of the rest), compiled by
+    the compiled ``variant``, ``static`` its preallocated inputs."""
     import torch
-    run = advance if not segment else compiled(advance)
+    run = compiled(advance, variant, static) if segment else advance
     chunks = [steps]
     if segment:
         chunks = [segment] * (steps // segment) + ([steps % segment] if steps % segment else [])
@@ -94,8 +107,8 @@ class Kernel(ScenarioKernel):
         self.step = empty(tuple(self.v0.shape), precision, device)
         self.history = empty((params.iters + 1,) + b, precision, device)
         self.grad0 = empty(tuple(self.v0.shape), precision, device)
-        self.segment = SEGMENT if variant == "compile" else 0
-        self.losses = make_losses(params.contact, params.steps, self.segment)
+        self.segment = SEGMENT if variant in MODES else 0
+        self.losses = make_losses(params.contact, params.steps, self.segment, variant, tuple(c.values()))
 
     def run(self) -> Any:
         import torch

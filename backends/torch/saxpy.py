@@ -5,7 +5,8 @@ FMA per element, as Warp, Numba and CuPy do on CUDA. Two kernels (a multiply int
 an in-place add) read and write ``out`` twice: 5 array passes instead of 3, which held eager
 PyTorch far below the same-run memcpy on CUDA (docs/measurement.md). Eager on the CPU: those two kernels, because ATen's CPU
 kernel evaluates y + alpha*x with a fused multiply-add, a different rounding from the scenario's
-a*x + y that the other CPU ports compute. "compile": one fused kernel written straight into ``out``.
+a*x + y that the other CPU ports compute. "compile": one fused kernel written straight into ``out``; "compile_graphs": that kernel
+replayed as a CUDA graph.
 """
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ class Kernel(ScenarioKernel):
         self.variant = variant
         self.a, self.x, self.y = (put(inputs[k], precision, device) for k in ("a", "x", "y"))
         self.out = empty((params.n,), precision, device)
-        self.fn = compiled(_saxpy) if variant == "compile" else None
+        self.fn = compiled(_saxpy, variant, static=(self.a, self.x, self.y, self.out))
         self.fused = device == "cuda"
         self.alpha = float(inputs["a"])   # already rounded to the precision: exact in either
 

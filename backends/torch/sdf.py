@@ -5,7 +5,8 @@ fx depends on the column only and fy on the row only, so fx, fy and the terms of
 preallocated images (same values per pixel as the scenario's per-pixel formula, in its order).
 The literals are 0-d tensors of the cell's dtype: a division by a Python float or a CPU scalar is
 evaluated on CUDA as a multiply by its reciprocal (ATen's div_true_kernel), which rounds otherwise.
-"compile" runs the same expression as one fused Inductor kernel writing into the image.
+"compile" runs the same expression as one fused Inductor kernel writing into the image;
+"compile_graphs" replays it as a CUDA graph (the two aranges stay eager, in every variant).
 """
 from __future__ import annotations
 
@@ -52,7 +53,7 @@ class Kernel(ScenarioKernel):
         self.j, self.fy, self.fy2, self.by = vec(h), vec(h), vec(h), vec(h)
         self.r1, self.r2 = empty((h, w), precision, device), empty((h, w), precision, device)
         self.image = empty((h, w), precision, device)
-        self.fn = compiled(_sdf) if variant == "compile" else None
+        self.fn = compiled(_sdf, variant, static=(self.i, self.j, self.wm1, self.hm1, *self.lit, self.image))
 
     def run(self) -> Any:
         import torch

@@ -1,6 +1,7 @@
 """PyTorch-specific checks beyond the generic parity suite: the cell's dtype holds whatever torch's
 global default dtype is, TF32 is off and recorded, the compile variant computes what eager
 computes, v0/target are replaced in place, a missing torch is a skip naming the install command,
+the CUDA-only variants (compile_graphs, particles' graph) compute what their ungraphed twins do,
 and (on CUDA) graph replays and events."""
 from __future__ import annotations
 
@@ -193,3 +194,73 @@ def test_cuda_graph_replays_and_events_reproduce_eager():
     assert not np.array_equal(moved["grad"], eager["grad"])
     assert b.memory("cuda")["device_peak_bytes"] > 0
     assert torch.backends.cuda.matmul.allow_tf32 is False
+
+
+def test_graph_variants_are_cuda_only():
+    b = backends.get("torch")
+    for variant in ("compile_graphs", "graph"):
+        assert "CUDA only" in b.variant_unavailable(variant, "cpu")
+        assert b.variant_unavailable(variant, "cuda") is None
+    assert b.variant_unavailable("compile", "cpu") is None
+    assert "graph" in b.variants_for("particles") and "graph" not in b.variants_for("saxpy")
+    assert "compile_graphs" in b.variants_for("projectile")
+
+
+def test_rollout_blocks_split_at_frames():
+    from backends.torch.particles import runs
+    assert runs(57, 7, 25) == [(7, True)] * 8 + [(1, False)]
+    assert runs(57, 0, 25) == [(25, False), (25, False), (7, False)]
+    assert runs(60, 30, 25) == [(25, False), (5, True)] * 2
+    assert runs(5, 9, 25) == [(5, False)]
+    assert sum(n for n, _ in runs(300, 0, 25)) == 300
+
+
+@pytest.mark.parametrize("params", [{"n": 33, "steps": 57, "record_every": 7}, {"n": 33, "steps": 57}])
+def test_compile_graphs_arithmetic_equals_eager_on_the_cpu(params):
+    """The compile_graphs kernels built on the CPU (where reduce-overhead has nothing to graph, so
+    the cell itself is unavailable) run the compiled rollout's arithmetic: blocks of several
+    lengths (25, 7 and 1 steps), frames between them, the default's results bit for bit."""
+    _torch()
+    b = backends.get("torch")
+    sc = scenarios.get("particles")
+    p = sc.params(params, quick=True)
+    inputs = sc.inputs(p, "float64")
+    out = {}
+    for variant in ("default", "compile_graphs"):
+        b.setup("cpu", "float64", variant)
+        k = b.kernel("particles")(p, inputs, "cpu", "float64", variant)
+        k.run()
+        k.run()
+        out[variant] = k.outputs()
+    assert k.info()["execution"].startswith("torch.compile(mode='reduce-overhead'")
+    assert sorted(out["default"]) == sorted(out["compile_graphs"])
+    assert all(out["compile_graphs"][n].tobytes() == a.tobytes() for n, a in out["default"].items())
+
+
+def test_cuda_graph_variants_compute_what_their_twins_compute():
+    """CUDA: compile_graphs replays Inductor's kernels as CUDA graphs (none skipped: a skip is an
+    error there) and gives the compile variant's outputs bit for bit; particles' graph replays the
+    eager rollout and gives the default's; neither lets the harness capture a graph around it."""
+    require_device("torch", "cuda")
+    specs = [(s, v) for s in ("saxpy", "particles", "projectile") for v in ("compile", "compile_graphs")]
+    specs += [("particles", "default"), ("particles", "graph")]
+    results = engine.run_cells([Cell.from_dict(_spec(s, "float32", v, "cuda")) for s, v in specs],
+                               timeout=900, share_process=True)
+    got = {}
+    for (scenario, variant), (record, outputs) in zip(specs, results):
+        assert record.status == "ok", (scenario, variant, record.reason, record.traceback or "")
+        got[scenario, variant] = outputs
+        if variant == "compile_graphs":
+            assert record.info["execution"].startswith("torch.compile(mode='reduce-overhead'")
+            assert record.info["cudagraph_skips"] == 0
+    for scenario, graphed, twin in [("saxpy", "compile_graphs", "compile"), ("particles", "compile_graphs", "compile"),
+                                    ("projectile", "compile_graphs", "compile"), ("particles", "graph", "default")]:
+        a, b = got[scenario, graphed], got[scenario, twin]
+        assert sorted(a) == sorted(b) and all(a[n].tobytes() == b[n].tobytes() for n in b), (scenario, graphed)
+    b = backends.get("torch")
+    b.setup("cuda", "float32", "graph")
+    sc = scenarios.get("particles")
+    p = sc.params(SMALL["particles"], quick=True)
+    k = b.kernel("particles")(p, sc.inputs(p, "float32"), "cuda", "float32", "graph")
+    with pytest.raises(RuntimeError, match="replays CUDA graphs itself"):
+        b.capture("cuda", k.run)
