@@ -11,7 +11,11 @@ imports MLX absolutely (``import mlx.core``), which never finds this package.
 
 Timing and laziness. ``run()`` builds the graph and hands it to ``mx.async_eval``, the MLX
 counterpart of an asynchronous kernel launch: the computation starts on the stream at once and
-``synchronize`` waits for it (``mx.eval`` of the result, then ``mx.synchronize``). Without it a
+``synchronize`` waits for it with ``mx.eval`` of the result alone: on arrays already scheduled,
+MLX's eval waits on each array's completion event (``array::wait``, signalled in the stream after
+the work that computes it, which follows every earlier run's work there), so the values are final
+when it returns; ``mx.synchronize`` (a second blocking wait on the whole stream) only where there
+is no result to wait on. Without it a
 pipelined batch of k calls would compute only the one whose result is synchronised: the other
 k - 1 graphs are dropped unevaluated.
 
@@ -143,7 +147,9 @@ class MlxBackend(Backend):
     package = "mlx"
     gradient_method = "ad"
     display_order, color = 8, "#393b79"     # tab10 is taken by the others: a dark indigo
-    scenario_variants = {"projectile": ("step",)}    # mx.compile of one step, not the iteration
+    # projectile "step": mx.compile of one step, not the iteration; particles "rollout": of the
+    # whole rollout, not one step
+    scenario_variants = {"projectile": ("step",), "particles": ("rollout",)}
     related_packages = ("mlx-cpu", "mlx-cuda-12", "mlx-cuda-13", "mlx-metal")
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
@@ -202,7 +208,8 @@ class MlxBackend(Backend):
         import mlx.core as mx
         if result is not None:
             mx.eval(result)
-        mx.synchronize()
+        else:
+            mx.synchronize()
 
     def memory(self, device: str) -> dict[str, Any]:
         """MLX's allocator peak on a GPU; on the CPU host memory is measured by the worker."""

@@ -11,6 +11,10 @@ the sizes tried and compiles longer. Every ``CHUNK`` steps the graph built so fa
 ``mx.async_eval``, so the stream computes while Python builds the next steps. With
 ``record_every`` > 0 every k-th position is kept (frame 0 the initial state) and the frames
 stacked at the end.
+
+Variant ``rollout``: ``mx.compile`` of the whole rollout (the steps loop, frames and stack inside
+one traced function), one compiled call a run: no Python per step after the first trace, at the
+price of a first call that traces and compiles every step's kernels.
 """
 from __future__ import annotations
 
@@ -55,11 +59,29 @@ class Kernel(ScenarioKernel):
         # derived once per run (gdt, lo, hi), rounded in the cell's dtype as the oracle's are
         self.c = {k: put(v, precision) for k, v in step_constants(inputs, dtype_of(precision)).items()}
         self.state0 = tuple(put(inputs[k], precision) for k in INITIAL)
+        self.variant = variant
         self.step = Program(_step)
+        self.rollout = Program(self._rollout) if variant == "rollout" else None
         self.out: tuple[Any, ...] = ()
+
+    def _rollout(self, x: Any, y: Any, u: Any, v: Any, c: dict[str, Any]) -> tuple[Any, ...]:
+        """The whole rollout, traced once by ``mx.compile`` (variant ``rollout``)."""
+        import mlx.core as mx
+        p = self.params
+        frames_x, frames_y = [x], [y]
+        for s in range(1, p.steps + 1):
+            x, y, u, v = _step(x, y, u, v, c)
+            if p.record_every and s % p.record_every == 0:
+                frames_x.append(x)
+                frames_y.append(y)
+        out = (x, y, u, v)
+        return out + (mx.stack(frames_x), mx.stack(frames_y)) if p.record_every else out
 
     def run(self) -> Any:
         import mlx.core as mx
+        if self.rollout is not None:
+            self.out = launch(tuple(self.rollout(*self.state0, self.c)))
+            return self.out
         p = self.params
         x, y, u, v = self.state0
         frames_x, frames_y = [x], [y]
@@ -80,6 +102,9 @@ class Kernel(ScenarioKernel):
         return {k: download(a, self.precision) for k, a in zip((*STATE, "traj_x", "traj_y"), self.out)}
 
     def info(self) -> dict[str, Any]:
+        if self.rollout is not None:
+            return kernel_info(self.device, self.precision, self.rollout,
+                               loop="the whole rollout in one mx.compile'd function, vectorised over particles")
         return kernel_info(self.device, self.precision, self.step,
                            loop="Python loop over steps of one compiled step, vectorised over particles",
                            async_eval_every=CHUNK)

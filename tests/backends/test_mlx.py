@@ -291,3 +291,69 @@ def test_step_variant_computes_the_defaults_results(contact):
     """.replace("CONTACT", contact))
     assert res["same"]
     assert res["step_traces"] == 40 * (3 + 1) * 2      # steps x evaluations x runs
+
+
+def test_synchronize_waits_with_eval_alone():
+    """synchronize(result) is mx.eval(result) alone (no mx.synchronize), and it waits: the stream
+    has nothing left of a long run once it returns, so the values read after it are final; without
+    a result it drains the stream with mx.synchronize."""
+    res = run_script("mlx", """
+        import time
+        import numpy as np
+        import mlx.core as mx
+        be = backends.get("mlx"); be.setup(DEVICE, "float32", "default")
+        sc = scenarios.get("particles")
+        p = sc.params({"n": 1 << 18, "steps": 300})
+        k = be.kernel("particles")(p, sc.inputs(p, "float32"), DEVICE, "float32", "default")
+        be.synchronize(DEVICE, k.run()); first = k.outputs()
+        real, calls = mx.synchronize, []
+        mx.synchronize = lambda *a: (calls.append(1), real(*a))[1]
+        t = time.perf_counter(); r = k.run(); launched = time.perf_counter() - t
+        be.synchronize(DEVICE, r); waited = time.perf_counter() - t
+        after_eval = len(calls)
+        t = time.perf_counter(); real(); residual = time.perf_counter() - t
+        same = all(np.array_equal(first[n], np.array(a)) for n, a in zip(("x", "y", "vx", "vy"), r))
+        be.synchronize(DEVICE, None)
+        print("RESULT" + json.dumps({"calls": [after_eval, len(calls)], "waited": waited,
+                                     "launched": launched, "residual": residual, "same": same}))
+    """)
+    assert res["calls"] == [0, 1], res
+    assert res["same"], res
+    # eval returned after the work: the stream had (next to) nothing left to drain
+    assert res["residual"] < 0.1 * res["waited"], res
+
+
+@pytest.mark.parametrize("params", [{"n": 33, "steps": 57, "record_every": 7}, {"n": 1000, "steps": 40}])
+def test_rollout_variant_computes_the_defaults_results(params):
+    """Variant ``rollout`` (mx.compile of the whole rollout) runs the default's operations in its
+    order: the same outputs bit for bit on the CPU (trajectories too), traced once or twice in the
+    first run and never again (the default traces its step the same way)."""
+    res = run_script("mlx", """
+        from backends.mlx.particles import Kernel
+        be = backends.get("mlx"); be.setup(DEVICE, "float64", "rollout")
+        sc = scenarios.get("particles")
+        p = sc.params(PARAMS)
+        i = sc.inputs(p, "float64")
+        out, traces = {}, []
+        for variant in ("default", "rollout"):
+            k = Kernel(p, i, DEVICE, "float64", variant)
+            be.synchronize(DEVICE, k.run()); first = k.info()["traces"]
+            be.synchronize(DEVICE, k.run()); be.synchronize(DEVICE, k.run())
+            out[variant] = k.outputs()
+            traces.append([first, k.info()["traces"]])
+        print("RESULT" + json.dumps({
+            "names": [sorted(out["default"]), sorted(out["rollout"])], "loop": k.info()["loop"],
+            "same": all(out["rollout"][n].tobytes() == a.tobytes() for n, a in out["default"].items()),
+            "traces": traces}))
+    """.replace("PARAMS", repr(params)))
+    assert res["names"][0] == res["names"][1] and ("traj_x" in res["names"][0]) == bool(params.get("record_every"))
+    assert res["same"], res
+    first, last = res["traces"][1]
+    assert 1 <= first <= 2 and last == first, res
+    assert "whole rollout" in res["loop"]
+
+
+def test_rollout_is_a_particles_variant_only():
+    import backends
+    be = backends.get("mlx")
+    assert "rollout" in be.variants_for("particles") and "rollout" not in be.variants_for("saxpy")
