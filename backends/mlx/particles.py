@@ -6,8 +6,8 @@ times, adding the step's kernels to the lazy graph each time. MLX fuses per outp
 that several outputs need (a contact mask, a position after a clamp) is computed by a kernel of
 its own, so a step is about ten small elementwise kernels rather than one. Compiling the function
 that runs many times (MLX's compile guide: compile what you call more than once) and looping in
-Python is the MLX way; tracing the whole rollout into one compiled function instead was slower at
-the sizes tried and compiles longer. Every ``CHUNK`` steps the graph built so far is handed to
+Python is the MLX way; variant ``rollout`` traces the whole rollout into one compiled function
+instead (below), so the two are timed side by side. Every ``CHUNK`` steps the graph built so far is handed to
 ``mx.async_eval``, so the stream computes while Python builds the next steps. With
 ``record_every`` > 0 every k-th position is kept (frame 0 the initial state) and the frames
 stacked at the end.
