@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from compare.site import data, fmt, pages, provenance, questions, topics
+from compare.site import data, fmt, glossary, pages, pages_why, provenance, questions, topics
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.render import H, Items, P, Table, page_html, page_md
@@ -211,12 +211,14 @@ def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, aga
         from compare.site import against as vs
         nav.append(("Against reference", "against.html"))
         site["against"] = (f"This machine against the reference — {m.name()}", vs.page(c, reference))
+    nav.append((glossary.LABEL, glossary.href(out)))      # every page's words, defined
+    written += glossary.place(out, into)
     for stem, (t, blocks) in site.items():
         for suffix, render in ((".html", page_html), (".md", page_md)):
             path = into / f"{stem}{suffix}"
             atomic_write(path, render(t, nav, blocks))
             written.append(path)
-    atomic_write(into / "matrix.md", pages.matrix_md(rows, m.frameworks) + "\n")
+    atomic_write(into / "matrix.md", pages.matrix_md(rows, m.frameworks, key=pages_why.key_of(m)) + "\n")
     written.append(into / "matrix.md")
     pages.matrix_png(into / OVERVIEW, rows, m.frameworks, title)      # README's picture of the matrix
     written.append(into / OVERVIEW)

@@ -9,7 +9,7 @@ from typing import Any
 import backends
 from compare.render import charts, colors, figure_check
 from compare.measuring import noise
-from compare.site import data, fmt, matrix, pages_why, questions, ranking, shared_host
+from compare.site import data, fmt, glossary, matrix, pages_why, questions, ranking, shared_host
 from compare.site import questions_pages as qp
 from compare.site.questions_pages import REPO_DOCS, doc_link  # noqa: F401 (assemble reads them here)
 from compare.site.data import Machine
@@ -19,7 +19,11 @@ from compare.site.render import Figure, H, Items, P, Raw, Table
 from compare.sweep.rows import converged, wall_s
 
 # ---- the matrix -------------------------------------------------------------------------------
-def matrix_html(rows: list[Row], frameworks: list[str]) -> str:
+def matrix_html(rows: list[Row], frameworks: list[str], key: str = "") -> str:
+    """The matrix, each ratio above pages_why.WHY_ABOVE marked, its reason listed under it; ``key``
+    names the machine in the footnotes' ids."""
+    notes = pages_why.notes(rows, frameworks)
+    marks = {(n.row.rule.key, n.row.device, n.cell.framework): n for n in notes}
     head = "".join(f'<th data-framework="{html.escape(f)}">{html.escape(f)}</th>' for f in frameworks)
     body = []
     for r in rows:
@@ -29,16 +33,22 @@ def matrix_html(rows: list[Row], frameworks: list[str]) -> str:
             txt = html.escape(fmt.cell_text(c))
             if f in r.tied:
                 txt = f"<strong>{txt}</strong>"
+            if (r.rule.key, r.device, f) in marks:
+                txt += pages_why.mark_html(marks[(r.rule.key, r.device, f)], key)
             if fmt.variant_label(c):
                 txt += f'<span class="variant">{html.escape(fmt.variant_label(c))}</span>'
             tds.append(f'<td class="cell {c.band}" title="{html.escape(_title(r, c))}">{txt}</td>')
         q = f'<a href="{r.rule.page}.html">{html.escape(r.rule.question)}</a>'
         body.append(f"<tr><th>{q}</th>{''.join(tds)}<td>{html.escape(r.best_text())}</td></tr>")
     return (f'<table id="matrix"><thead><tr><th>question ({html.escape(rows[0].device if rows else "")})</th>'
-            f"{head}<th>best</th></tr></thead><tbody>{''.join(body)}</tbody></table>")
+            f"{head}<th>best</th></tr></thead><tbody>{''.join(body)}</tbody></table>"
+            + pages_why.notes_html(notes, key))
 
 
-def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "") -> str:
+def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "", key: str = "") -> str:
+    """The matrix in Markdown (matrix.md, which README embeds), its far ratios' footnotes under it."""
+    notes = pages_why.notes(rows, frameworks)
+    marks = {(n.row.rule.key, n.row.device, n.cell.framework): n for n in notes}
     lines = ["| question | " + " | ".join(frameworks) + " | best |", "|---|" + "---|" * (len(frameworks) + 1)]
     for r in rows:
         cells = []
@@ -46,10 +56,12 @@ def matrix_md(rows: list[Row], frameworks: list[str], link_prefix: str = "") -> 
             c = r.cells.get(f, matrix.Cell(f, None))
             t = f"{fmt.BAND_EMOJI[c.band]} {fmt.cell_text(c)}"
             t = f"**{t}**" if f in r.tied else t
+            t += pages_why.mark_md(marks[(r.rule.key, r.device, f)], key) if (r.rule.key, r.device, f) in marks else ""
             cells.append(t + (f" <sub>{fmt.variant_label(c)}</sub>" if fmt.variant_label(c) else ""))
         lines.append(f"| [{r.rule.question}]({link_prefix}{r.rule.page}.md) | " + " | ".join(cells)
                      + f" | {r.best_text()} |")
-    return "\n".join(lines)
+    foot = pages_why.notes_md(notes, key, link_prefix)
+    return "\n".join(lines) + (f"\n\n{foot}" if foot else "")
 
 
 def _band_colors(band: str) -> tuple[str, str]:
@@ -137,19 +149,23 @@ LEGEND = ("Each cell is the framework's figure divided by the leading framework'
           f". `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
           f"median, under {noise.MIN_REPEATS} repeats, other processes busy on the host while it was "
           "timed, or pipelined calls slower than one synchronised call); `✗` a cell that failed its check or crashed; `skipped` a framework or "
-          "device not available (the reason is in the tooltip and on the question's page); `—` "
-          "not measured. A framework's cell is its fastest variant; a variant other than the "
-          "default is named under the ratio, and the default variant's figure is in the tooltip "
-          "and on the row's page; the raw figure is in the tooltip.")
+          "device not available (the reason is on the row's page); `—` not measured. A framework's "
+          "cell is its fastest variant; a variant other than the default is named under the ratio. "
+          f"A ratio above {pages_why.WHY_ABOVE:g}× carries a numbered mark: its reason, read from its "
+          "records, is listed under the matrix. The figures behind the ratios (times, rates, bytes, "
+          "their spread and interval, and the default variant's figure) are on each row's page: "
+          "follow the row's link (in the HTML report, hovering over a cell also shows them).")
 
 
-def legend() -> Raw:
-    """The legend, with real colour swatches in HTML (no emoji font needed) and emoji in Markdown."""
+def legend(glossary: str = "") -> Raw:
+    """The legend, with real colour swatches in HTML (no emoji font needed) and emoji in Markdown;
+    ``glossary``: the glossary's link from the page, where it has one."""
     from compare.site.render import inline_html
-    text = inline_html(LEGEND)
+    words = LEGEND + (f" Every term, variant and framework in a sentence: [the glossary]({glossary})." if glossary else "")
+    text = inline_html(words)
     for band, emoji in fmt.BAND_EMOJI.items():
         text = text.replace(emoji, f'<span class="cell {band}" style="display:inline-block;width:1.2em">&nbsp;</span>')
-    return Raw(f'<p class="legend">{text}</p>', LEGEND)
+    return Raw(f'<p class="legend">{text}</p>', words)
 
 
 def evaluate(m: Machine) -> tuple[list[Row], list[Row]]:
@@ -160,13 +176,14 @@ def evaluate(m: Machine) -> tuple[list[Row], list[Row]]:
 
 # ---- pages ------------------------------------------------------------------------------------
 def index(c: qp.Ctx, title: str, empty: list[Row]) -> list[Any]:
-    m, fws = c.m, c.m.frameworks
+    m, fws, key = c.m, c.m.frameworks, pages_why.key_of(c.m)
     blocks: list[Any] = [P(f"Generated by `python -m compare site` from the stored records of one machine: "
                            f"**{m.name()}** ({len(m.run)} run cells, {len(m.sweep)} sweep cells"
                            + (f", {len(m.stress.analysis.get('rows', []))} stability findings" if m.stress else "")
                            + "). Nothing on these pages is written by hand."),
                          H("Which framework for my job?"),
-                         Raw(matrix_html(c.rows, fws), matrix_md(c.rows, fws)), legend(),
+                         Raw(matrix_html(c.rows, fws, key), matrix_md(c.rows, fws, key=key)),
+                         legend(glossary.href(c.out)),
                          H("Verdicts and the rule behind each row")]
     blocks.append(Items(tuple(f"[{r.rule.question}]({r.rule.page}.html): **{r.verdict}** Rule: {r.rule.text}"
                               for r in c.rows)))

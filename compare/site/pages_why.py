@@ -6,10 +6,14 @@ gradient keeps), each fact a field of the record's ``info`` or ``time`` block, n
 from __future__ import annotations
 
 import dataclasses
+import html
+import re
+
 from compare.results.record import Record
 from compare.site import data, fmt, matrix
 from compare.site.data import Machine
 from compare.site.matrix import Cell, Row
+from compare.site.render import inline_html
 
 WHY_ABOVE = 20.0       # a ratio above this carries its reason on the row's page
 HOST_BOUND = 0.9       # issuing a call takes at least this share of its time: host-bound
@@ -107,11 +111,14 @@ def reason(row: Row, m: Machine, c: Cell) -> str:
     return text
 
 
+def far(c: Cell) -> bool:
+    """A ranked cell beyond WHY_ABOVE: it carries its reason (or says it has none)."""
+    return c.ratio is not None and c.ratio > WHY_ABOVE and not c.reference
+
+
 def explain(row: Row, m: Machine) -> Row:
     """The row with each ranked cell beyond WHY_ABOVE given its reason."""
-    cells = {f: dataclasses.replace(c, why=reason(row, m, c))
-             if c.ratio is not None and c.ratio > WHY_ABOVE and not c.reference else c
-             for f, c in row.cells.items()}
+    cells = {f: dataclasses.replace(c, why=reason(row, m, c)) if far(c) else c for f, c in row.cells.items()}
     return dataclasses.replace(row, cells=cells)
 
 
@@ -120,3 +127,66 @@ def lines(row: Row) -> list[str]:
     far = sorted((c for c in row.cells.values() if c.why), key=lambda c: -(c.ratio or 0.0))
     return [f"**{c.framework} {fmt.ratio(c.ratio or 0.0)}**"
             + (f" ({c.variant} variant)" if c.winner_not_default else "") + f": {c.why}." for c in far]
+
+
+# ---- the matrix's footnotes: each far cell's mark, and its reason listed under the matrix --------
+@dataclasses.dataclass(frozen=True)
+class Note:
+    n: int                # the mark, counted over the matrix row by row, column by column
+    row: Row
+    cell: Cell
+
+
+def slug(text: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", text.lower()).replace(" ", "-")
+
+
+def key_of(m: Machine) -> str:
+    """The machine's short name in the footnotes' ids: its store's folder (``h100``), else its name."""
+    return slug(m.sources[0].parent.name if m.sources else m.name())
+
+
+def notes(rows: list[Row], frameworks: list[str]) -> list[Note]:
+    far_cells = [(r, c) for r in rows for f in frameworks if (c := r.cells.get(f)) is not None and far(c)]
+    return [Note(i, r, c) for i, (r, c) in enumerate(far_cells, start=1)]
+
+
+def anchor(n: Note, key: str) -> str:
+    """The footnote's id; ``key`` (the machine) keeps two matrices on one page (README) apart."""
+    return f"why-{key}-{n.n}" if key else f"why-{n.n}"
+
+
+def note_text(n: Note, md: bool, prefix: str = "") -> str:
+    """One footnote: the cell, its row linked to the row's section (``prefix``: the pages' folder
+    from the Markdown's), and the reason from its records."""
+    r, c = n.row, n.cell
+    where = f"{prefix}{r.rule.page}.md#{slug(r.rule.question)}" if md else f"{r.rule.page}.html#{r.rule.key}"
+    who = f"{c.framework} {fmt.ratio(c.ratio or 0.0)}" + (f" ({c.variant})" if c.winner_not_default else "")
+    because = c.why or ("no reason can be derived from its records (none of their `info` or `time` "
+                        "fields says how the port ran); its figures are on the row's page")
+    return f"{who}, [{r.rule.question}]({where}): {because}."
+
+
+HEAD = f"Ratios above {WHY_ABOVE:g}× and why, from the records:"
+
+
+def mark_md(n: Note, key: str) -> str:
+    return f"<sup>[{n.n}](#{anchor(n, key)})</sup>"
+
+
+def mark_html(n: Note, key: str) -> str:
+    return f'<sup><a href="#{anchor(n, key)}">{n.n}</a></sup>'
+
+
+def notes_md(ns: list[Note], key: str, prefix: str = "") -> str:
+    if not ns:
+        return ""
+    return "\n".join([HEAD, ""] + [f'{n.n}. <a id="{anchor(n, key)}"></a>{note_text(n, True, prefix)}' for n in ns])
+
+
+def notes_html(ns: list[Note], key: str) -> str:
+    if not ns:
+        return ""
+    items = "".join(f'<li id="{html.escape(anchor(n, key))}">{inline_html(note_text(n, False))}</li>' for n in ns)
+    return f'<p class="why">{html.escape(HEAD)}</p><ol class="why">{items}</ol>'

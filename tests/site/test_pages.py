@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from compare.render import charts
-from compare.site import data, pages, questions
+from compare.site import data, pages, pages_why, questions
 from compare.site import questions_pages as qp
 from compare.site.render import Figure, H, Items, Raw, Table
 
@@ -56,7 +56,10 @@ def test_evaluate_splits_rows_with_and_without_figures(evaluated):
 
 def test_the_matrix_has_one_column_per_framework_and_a_best(machine, evaluated):
     rows, fws = evaluated[0], machine.frameworks
-    md = pages.matrix_md(rows, fws, "pages/").splitlines()
+    table, _, notes = pages.matrix_md(rows, fws, "pages/").partition("\n\n")
+    md = table.splitlines()
+    far = pages_why.notes(rows, fws)          # the far ratios' footnotes, under the table
+    assert far and len(notes.splitlines()) == 2 + len(far) and "](pages/" in notes
     assert md[0] == "| question | " + " | ".join(fws) + " | best |"
     assert len(md) == 2 + len(rows) and all(line.count(" | ") == len(fws) + 1 for line in md[2:])
     assert md[2].startswith(f"| [{rows[0].rule.question}](pages/{rows[0].rule.page}.md) |")

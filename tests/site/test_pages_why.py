@@ -75,3 +75,54 @@ def test_the_overview_evaluation_gives_the_reasons():
     rows, _ = pages.evaluate(m)
     small = next(r for r in rows if r.rule.key == "particles-small")
     assert "2 kernel launches per step" in small.cells["torch"].why
+
+
+# ---- the matrix's footnotes: each far ratio marked where it stands, its reason under the matrix ----
+def test_a_far_cell_carries_a_footnote_mark_and_its_reason_under_the_matrix():
+    row = explained("particles-small", [
+        particles("triton", 10e-6, {"launches_per_run": 1}),
+        particles("torch", 3e-3, {"execution": "eager", "kernels_per_step": 19}),
+        particles("mlx", 1e-3, {}),                        # far, but its record says nothing
+        particles("jax", 50e-6, {"loop": "lax.fori_loop"})])
+    fws = ["triton", "jax", "torch", "mlx"]
+    md = pages.matrix_md([row], fws, key="h100")
+    table, notes = md.split("\n\n", 1)
+    assert "🟥 300×<sup>[1](#why-h100-1)</sup>" in table and "🟥 100×<sup>[2](#why-h100-2)</sup>" in table
+    assert table.count("<sup>") == 2                      # the 5x cell and the leader: no mark
+    lines = notes.splitlines()
+    assert lines[0] == pages_why.HEAD and len(lines) == 4
+    assert lines[2] == ('1. <a id="why-h100-1"></a>torch 300×, [Particle loop, small n]'
+                        f'(particles.md#particle-loop-small-n): {row.cells["torch"].why}.')
+    assert lines[3].startswith('2. <a id="why-h100-2"></a>mlx 100×, [Particle loop, small n](particles.md#')
+    assert "no reason can be derived from its records" in lines[3] and "the row's page" in lines[3]
+    html = pages.matrix_html([row], fws, "h100")
+    assert '300×<sup><a href="#why-h100-1">1</a></sup>' in html
+    assert '<li id="why-h100-1">torch 300×, <a href="particles.html#particles-small">' in html
+    assert "#why-1)" in pages.matrix_md([row], fws)       # no machine key: plain ids
+
+
+def test_reference_cells_and_rows_within_twenty_times_carry_no_footnote():
+    row = explained("particles-small", [particles("triton", 10e-6, {}), particles("torch", 150e-6, {})])
+    assert pages_why.notes([row], ["triton", "torch"]) == []
+    assert "<sup>" not in pages.matrix_md([row], ["triton", "torch"]) and "\n\n" not in pages.matrix_md([row], ["triton"])
+
+
+def test_no_page_promises_a_tooltip_and_the_footnotes_reach_their_rows(tmp_path_factory):
+    import re
+
+    from test_site import built_site
+    site = built_site(tmp_path_factory)
+    assert "tooltip" not in pages.legend().markdown and "row's page" in pages.legend().markdown
+    for page in [*site.rglob("*.md"), *site.rglob("*.html")]:
+        assert "tooltip" not in page.read_text(encoding="utf-8").lower(), page.name
+    index = (site / "index.md").read_text(encoding="utf-8")
+    marks = re.findall(r"<sup>\[(\d+)\]\(#(why-[\w-]+)\)</sup>", index)
+    assert marks, "the test store has ratios above 20x"
+    for n, anchor in marks:
+        assert f'{n}. <a id="{anchor}"></a>' in index
+    for page, heading in re.findall(r'<a id="why-[\w-]+"></a>[^\[]*\[[^\]]+\]\((\w[\w-]*\.md)#([\w-]+)\)', index):
+        titles = re.findall(r"^## (.+)$", (site / page).read_text(encoding="utf-8"), re.M)
+        assert heading in {pages_why.slug(t) for t in titles}, (page, heading)
+    html = (site / "index.html").read_text(encoding="utf-8")
+    for page, key in re.findall(r'<li id="why-[\w-]+">[^<]*<a href="(\w[\w-]*\.html)#([\w-]+)">', html):
+        assert f'id="{key}"' in (site / page).read_text(encoding="utf-8"), (page, key)
