@@ -157,18 +157,31 @@ def anchor(n: Note, key: str) -> str:
     return f"why-{key}-{n.n}" if key else f"why-{n.n}"
 
 
-def note_text(n: Note, md: bool, prefix: str = "") -> str:
-    """One footnote: the cell, its row linked to the row's section (``prefix``: the pages' folder
-    from the Markdown's), and the reason from its records."""
-    r, c = n.row, n.cell
-    where = f"{prefix}{r.rule.page}.md#{slug(r.rule.question)}" if md else f"{r.rule.page}.html#{r.rule.key}"
+NO_REASON = "its records say nothing of how the port ran (its figures: the row's page)"
+
+
+def note_text(n: Note) -> str:
+    """One footnote: the mark, the cell, and the reason from its records (or that there is none)."""
+    c = n.cell
     who = f"{c.framework} {fmt.ratio(c.ratio or 0.0)}" + (f" ({c.variant})" if c.winner_not_default else "")
-    because = c.why or ("no reason can be derived from its records (none of their `info` or `time` "
-                        "fields says how the port ran); its figures are on the row's page")
-    return f"{who}, [{r.rule.question}]({where}): {because}."
+    return f"**{n.n}** {who}: {c.why or NO_REASON}."
 
 
-HEAD = f"Ratios above {WHY_ABOVE:g}× and why, from the records:"
+def row_link(r: Row, md: bool, prefix: str = "") -> str:
+    """The row's question, linked to its section on its page (``prefix``: the pages' folder)."""
+    where = f"{prefix}{r.rule.page}.md#{slug(r.rule.question)}" if md else f"{r.rule.page}.html#{r.rule.key}"
+    return f"[{r.rule.question}]({where})"
+
+
+def by_row(ns: list[Note]) -> list[list[Note]]:
+    """The footnotes grouped by row, in the matrix's order: one line each (README stays short)."""
+    groups: dict[int, list[Note]] = {}
+    for n in ns:
+        groups.setdefault(id(n.row), []).append(n)
+    return list(groups.values())
+
+
+HEAD = f"Ratios above {WHY_ABOVE:g}× and why, from the records (numbered as marked in the matrix):"
 
 
 def mark_md(n: Note, key: str) -> str:
@@ -182,11 +195,15 @@ def mark_html(n: Note, key: str) -> str:
 def notes_md(ns: list[Note], key: str, prefix: str = "") -> str:
     if not ns:
         return ""
-    return "\n".join([HEAD, ""] + [f'{n.n}. <a id="{anchor(n, key)}"></a>{note_text(n, True, prefix)}' for n in ns])
+    return "\n".join([HEAD, ""] + [
+        f"- {row_link(g[0].row, True, prefix)}: " + " ".join(f'<a id="{anchor(n, key)}"></a>{note_text(n)}' for n in g)
+        for g in by_row(ns)])
 
 
 def notes_html(ns: list[Note], key: str) -> str:
     if not ns:
         return ""
-    items = "".join(f'<li id="{html.escape(anchor(n, key))}">{inline_html(note_text(n, False))}</li>' for n in ns)
-    return f'<p class="why">{html.escape(HEAD)}</p><ol class="why">{items}</ol>'
+    items = "".join(f"<li>{inline_html(row_link(g[0].row, False) + ':')} " + " ".join(
+        f'<span id="{html.escape(anchor(n, key))}">{inline_html(note_text(n))}</span>' for n in g) + "</li>"
+        for g in by_row(ns))
+    return f'<p class="why">{html.escape(HEAD)}</p><ul class="why">{items}</ul>'

@@ -90,14 +90,15 @@ def test_a_far_cell_carries_a_footnote_mark_and_its_reason_under_the_matrix():
     assert "🟥 300×<sup>[1](#why-h100-1)</sup>" in table and "🟥 100×<sup>[2](#why-h100-2)</sup>" in table
     assert table.count("<sup>") == 2                      # the 5x cell and the leader: no mark
     lines = notes.splitlines()
-    assert lines[0] == pages_why.HEAD and len(lines) == 4
-    assert lines[2] == ('1. <a id="why-h100-1"></a>torch 300×, [Particle loop, small n]'
-                        f'(particles.md#particle-loop-small-n): {row.cells["torch"].why}.')
-    assert lines[3].startswith('2. <a id="why-h100-2"></a>mlx 100×, [Particle loop, small n](particles.md#')
-    assert "no reason can be derived from its records" in lines[3] and "the row's page" in lines[3]
+    assert lines[0] == pages_why.HEAD and len(lines) == 3             # one line per row
+    assert lines[2] == ('- [Particle loop, small n](particles.md#particle-loop-small-n): '
+                        f'<a id="why-h100-1"></a>**1** torch 300×: {row.cells["torch"].why}. '
+                        f'<a id="why-h100-2"></a>**2** mlx 100×: {pages_why.NO_REASON}.')
+    assert "say nothing of how the port ran" in pages_why.NO_REASON and "the row's page" in pages_why.NO_REASON
     html = pages.matrix_html([row], fws, "h100")
     assert '300×<sup><a href="#why-h100-1">1</a></sup>' in html
-    assert '<li id="why-h100-1">torch 300×, <a href="particles.html#particles-small">' in html
+    assert '<li><a href="particles.html#particles-small">Particle loop, small n</a>: <span id="why-h100-1">' \
+           '<strong>1</strong> torch 300×: ' in html
     assert "#why-1)" in pages.matrix_md([row], fws)       # no machine key: plain ids
 
 
@@ -119,10 +120,14 @@ def test_no_page_promises_a_tooltip_and_the_footnotes_reach_their_rows(tmp_path_
     marks = re.findall(r"<sup>\[(\d+)\]\(#(why-[\w-]+)\)</sup>", index)
     assert marks, "the test store has ratios above 20x"
     for n, anchor in marks:
-        assert f'{n}. <a id="{anchor}"></a>' in index
-    for page, heading in re.findall(r'<a id="why-[\w-]+"></a>[^\[]*\[[^\]]+\]\((\w[\w-]*\.md)#([\w-]+)\)', index):
+        assert f'<a id="{anchor}"></a>**{n}** ' in index
+    links = re.findall(r'^- \[[^\]]+\]\((\w[\w-]*\.md)#([\w-]+)\): <a id="why-', index, re.M)
+    assert links
+    for page, heading in links:
         titles = re.findall(r"^## (.+)$", (site / page).read_text(encoding="utf-8"), re.M)
         assert heading in {pages_why.slug(t) for t in titles}, (page, heading)
     html = (site / "index.html").read_text(encoding="utf-8")
-    for page, key in re.findall(r'<li id="why-[\w-]+">[^<]*<a href="(\w[\w-]*\.html)#([\w-]+)">', html):
+    keys = re.findall(r'<li><a href="(\w[\w-]*\.html)#([\w-]+)">[^<]*</a>: <span id="why-', html)
+    assert len(keys) == len(links)
+    for page, key in keys:
         assert f'id="{key}"' in (site / page).read_text(encoding="utf-8"), (page, key)
