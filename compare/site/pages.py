@@ -10,6 +10,7 @@ import backends
 from compare.render import charts, colors, figure_check
 from compare.measuring import noise
 from compare.site import data, fmt, glossary, matrix, pages_why, questions, ranking, shared_host
+from compare.site import accuracy_why
 from compare.site import questions_pages as qp
 from compare.site.questions_pages import REPO_DOCS, doc_link  # noqa: F401 (assemble reads them here)
 from compare.site.data import Machine
@@ -199,10 +200,11 @@ def accuracy(c: qp.Ctx) -> list[Any]:
                            "tolerance is derived per scenario (" + doc_link(c.out, "measurement.md")
                            + "). The share is the error divided by that tolerance.")]
     blocks += qp.verdicts(c.rows_of("accuracy"))
+    recs = [r for r in matrix.all_defaults(c.m, c.device) if r.scenario in matrix.IN_ALL]
+    why = accuracy_why.paragraph(recs)      # what sets the shares apart, from the records
+    blocks += [P(why)] if why else []
     rows = []
-    for r in sorted(matrix.all_defaults(c.m, c.device), key=lambda r: (r.scenario, r.backend)):
-        if r.scenario not in matrix.IN_ALL:
-            continue
+    for r in sorted(recs, key=lambda r: (r.scenario, r.backend)):
         e = r.error
         share = matrix.error_share(r)
         err, tol = (data.num(e.vs_oracle), data.num(e.tolerance)) if e else (None, None)

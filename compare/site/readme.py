@@ -1,8 +1,10 @@
-"""README's generated blocks: the recommendation matrices, copied from the committed reports.
+"""README's generated blocks: the answers and the recommendation matrices, from the reports.
 
-README.md holds ``<!-- BEGIN generated: PATH -->`` ... ``<!-- END generated -->`` blocks; PATH is
-a generated file (a report's matrix.md) whose links are rewritten relative to README. The test
-suite fails when a block differs from its file; ``python -m compare.site.readme`` rewrites them.
+README.md holds ``<!-- BEGIN generated: SOURCE -->`` ... ``<!-- END generated -->`` blocks. A
+SOURCE that is a path names a generated file (a report's matrix.md) whose links are rewritten
+relative to README; ``answers REPORT...`` is the table of which framework for which job, derived
+from the stores each report's site.json names (compare/site/answers.py). The test suite fails
+when a block differs from its source; ``python -m compare.site.readme`` rewrites them.
 """
 from __future__ import annotations
 
@@ -12,20 +14,35 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-BLOCK = re.compile(r"(<!-- BEGIN generated: (\S+) -->\n)(.*?)(<!-- END generated -->)", re.S)
+BLOCK = re.compile(r"(<!-- BEGIN generated: (.+?) -->\n)(.*?)(<!-- END generated -->)", re.S)
 LINK = re.compile(r"\]\((?!https?://|#|/)([^)]+)\)")
+ANCHOR = re.compile(r"\]\(#([^)]+)\)")
+ANSWERS = "answers"        # a block's source: `answers REPORT...`
 
 
 def content(path: Path, readme: Path) -> str:
-    """The generated file's text with its relative links made relative to README's folder."""
+    """The generated file's first block (a matrix.md's table: README stays one screen per
+    machine) with its relative links made relative to README's folder; a link to an anchor of
+    the file (a far ratio's footnote, listed under the table) points into the file."""
     base = os.path.relpath(path.parent, readme.parent)
-    text = path.read_text(encoding="utf-8")
-    return LINK.sub(lambda m: f"]({Path(base, m.group(1)).as_posix()})", text).rstrip("\n") + "\n"
+    text = path.read_text(encoding="utf-8").strip("\n").split("\n\n")[0]
+    text = LINK.sub(lambda m: f"]({Path(base, m.group(1)).as_posix()})", text)
+    own = Path(os.path.relpath(path, readme.parent)).as_posix()
+    return ANCHOR.sub(lambda m: f"]({own}#{m.group(1)})", text) + "\n"
+
+
+def source(spec: str, readme: Path) -> str:
+    """A block's text from its source: a generated file, or the answers of the named reports."""
+    words = spec.split()
+    if words[0] == ANSWERS:
+        from compare.site import answers
+        return answers.table([readme.parent / w for w in words[1:]], readme)
+    return content(readme.parent / spec, readme)
 
 
 def expected(readme: Path = ROOT / "README.md") -> str:
     text = readme.read_text(encoding="utf-8")
-    return BLOCK.sub(lambda m: m.group(1) + content(readme.parent / m.group(2), readme) + m.group(4), text)
+    return BLOCK.sub(lambda m: m.group(1) + source(m.group(2), readme) + m.group(4), text)
 
 
 def blocks(readme: Path = ROOT / "README.md") -> list[str]:
@@ -33,6 +50,10 @@ def blocks(readme: Path = ROOT / "README.md") -> list[str]:
 
 
 def main(argv: list[str]) -> int:
+    from compare.results import formats          # a program's start-up, as compare.cli.main's:
+    from compare.stress.format import FORMAT as STRESS      # the answers read the stores' sweep
+    from compare.sweep.format import FORMAT as SWEEP        # and stress records
+    formats.register(SWEEP, STRESS)
     readme = ROOT / "README.md"
     new = expected(readme)
     if "--check" in argv:
