@@ -47,12 +47,32 @@ def _name(t: Any) -> str:
     return repr(s if len(s) <= 40 else s[:37] + "...")
 
 
-def _data_points(ax: Any) -> Any:
-    """Display coordinates of the axes' data: the vertices of its lines and the offsets of its
-    scatters drawn in data coordinates (a reference line across the axes is not data), those
-    inside the axes."""
+STEP_PX = 3.0         # a drawn line's segments are checked at points this far apart
+
+
+def _along(xy: Any, style: Any) -> Any:
+    """A line's vertices (display coordinates) and, where it draws its segments, points along each
+    at most ``STEP_PX`` apart: a legend over a segment between two vertices hides data too."""
     import numpy as np
-    pts = [line.get_transform().transform(np.asarray(line.get_xydata(), float)) for line in ax.get_lines()
+    if style in ("None", "none", " ", "") or len(xy) < 2:
+        return xy
+    out = [xy]
+    for a, b in zip(xy[:-1], xy[1:]):
+        if np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+            n = int(np.hypot(*(b - a)) // STEP_PX)
+            if n > 1:
+                t = np.linspace(0.0, 1.0, n + 1)[1:-1, None]
+                out.append(a + t * (b - a))
+    return np.concatenate(out)
+
+
+def _data_points(ax: Any) -> Any:
+    """Display coordinates of the axes' data: the vertices of its lines and points along their
+    drawn segments, and the offsets of its scatters, drawn in data coordinates (a reference line
+    across the axes is not data), those inside the axes."""
+    import numpy as np
+    pts = [_along(line.get_transform().transform(np.asarray(line.get_xydata(), float)), line.get_linestyle())
+           for line in ax.get_lines()
            if line.get_visible() and len(line.get_xydata()) and line.get_transform().contains_branch(ax.transData)]
     pts += [c.get_offset_transform().transform(np.asarray(c.get_offsets(), float)) for c in ax.collections
             if c.get_visible() and len(c.get_offsets()) and c.get_offset_transform().contains_branch(ax.transData)]

@@ -207,6 +207,7 @@ def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, aga
     site = {"index": (title, pages.index(c, title, empty))}
     for key, label in questions.PAGES.items():
         site[key] = (f"{label} — {m.name()}", BUILDERS[key](c))
+    site.update(c.subpages)             # a page's detail pages (stability: one per experiment)
     if against and reference is not None:
         from compare.site import against as vs
         nav.append(("Against reference", "against.html"))

@@ -40,6 +40,7 @@ class Ctx:
     def __init__(self, m: Machine, rows: list[Row], out: Path, store_arg: str, into: Path | None = None) -> None:
         self.m, self.rows, self.out, self.store_arg = m, rows, out, store_arg
         self.into = into or out
+        self.subpages: dict[str, tuple[str, Page]] = {}    # stem -> (title, blocks): pages a builder adds
         self.device = m.primary_device
         (self.into / "figures").mkdir(parents=True, exist_ok=True)
 
@@ -171,7 +172,9 @@ def _dedicated(recs: list[Record], run: tuple[Record, ...]) -> list[Record]:
     return [mine.get(_cell(r), r) for r in recs]
 
 
-def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False) -> Page:
+def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = False, compact: bool = False) -> Page:
+    """The scaling sweep's figures and table; ``compact``: the table only at the largest size
+    (the published one), every size in the CSV it links."""
     recs = _dedicated([r for r in c.m.sweep if data.tag(r, "sweep") == "scaling" and r.scenario == scenario
                        and r.device == c.device and r.precision == "float32"], c.m.run)
     ok = [r for r in recs if r.status == "ok"]
@@ -203,7 +206,20 @@ def _scaling(c: Ctx, scenario: str, ylabel: str, xlabel: str, memory: bool = Fal
                      fmt.nbytes(data.device_bytes(r)) if r.status == "ok" else "-",
                      "scaling sweep" if data.tag(r, "sweep") == "scaling" else "run",
                      r.status if r.status == "ok" else f"{r.status}: {r.reason[:120]}"))
-    blocks.append(Table(("framework", "variant", "size", ylabel, "device memory", "record", "status"), tuple(rows)))
+    heads = ("framework", "variant", "size", ylabel, "device memory", "record", "status")
+    if compact:
+        _, _, csv = c.fig(f"{scenario}-scaling")
+        charts.write_csv(c.into / csv, ("framework", "variant", "size", "items per second", "device bytes",
+                                        "record", "status"),
+                         [(r.backend, r.variant, data.size(r), data.item_rate(r) if r.status == "ok" else None,
+                           data.device_bytes(r) if r.status == "ok" else None,
+                           "scaling sweep" if data.tag(r, "sweep") == "scaling" else "run",
+                           r.status if r.status == "ok" else f"{r.status}: {r.reason}")
+                          for r in sorted(recs, key=lambda r: (r.backend, data.size(r)))])
+        top = max(data.size(r) for r in recs)
+        blocks.append(P(f"At the largest size ({top:.0f}), the one the verdicts read; every size: [CSV]({csv})."))
+        rows = [row for row in rows if row[2] == f"{top:.0f}"]
+    blocks.append(Table(heads, tuple(rows)))
     return blocks
 
 

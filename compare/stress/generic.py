@@ -20,14 +20,21 @@ from compare.stress.ulp_cases import ulp_cases
 from scenarios.base import Precision
 
 
+CONTROL = "control: "       # a racy control's row names what is wrong with it after this, in its detail
+
+
 def race_verdict(device: str, differing: int, oracle_ok: tuple[bool, bool]) -> str:
-    """Verdict of a racy control: flagged if two runs differ or a run misses the oracle's bound."""
+    """Verdict of a racy control: flagged if two runs differ or a run misses the oracle's bound.
+    The words say which evidence caught it: a race that gives the same wrong answer in both runs
+    (no element differs) is caught by the oracle alone, and the verdict says so, so that a row of
+    0 differing elements never reads as a detection by differing runs."""
     if differing != 0 or not all(oracle_ok):
         why = []
         if differing != 0:
-            why.append("runs differ" if differing > 0 else "runs differ in shape")
+            why.append(f"runs differ in {differing} values" if differing > 0 else "runs differ in shape")
         if not all(oracle_ok):
-            why.append("outside the oracle's bound")
+            why.append("outside the oracle's bound" + ("" if differing else
+                                                     "; the two runs agree bitwise, wrong alike"))
         return "RACE DETECTED (" + ", ".join(why) + ")"
     return "race not observable on CPU" if device == "cpu" else "MISSED: race not flagged"
 
@@ -125,7 +132,7 @@ def exp_races(ctx: StressContext) -> Result:
                                 "elements differing between two runs", diff, verdict,
                                 f"error vs oracle {ctx.fmt(check_of(ra).vs_oracle)} and "
                                 f"{ctx.fmt(check_of(rb).vs_oracle)} (bound {ctx.fmt(check_of(ra).tolerance)}); "
-                                f"control: {why}"))
+                                f"{CONTROL}{why}"))
             continue
         first_run[(s.scenario, s.backend, str(s.device), str(s.precision))] = (ra, oa)
         rows.append(ctx.row(name, s.backend, s.device, s.precision, setting,
@@ -164,6 +171,9 @@ def plot_ulps(series: Series, path: Path | BinaryIO, style: Style) -> None:
 
 
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
-    Experiment("ulps", "float32 error distributions in ulps, fast-math", exp_ulps, plot_ulps),
+    Experiment("ulps", "float32 error distributions in ulps, fast-math", exp_ulps, plot_ulps,
+               look="The share of an image's pixels within x ulps of the correctly rounded value, per framework "
+                    "and variant: a curve further left and higher is closer to correctly rounded; fast-math "
+                    "variants are dashed."),
     Experiment("races", "run-to-run, CPU vs GPU, racy control kernel", exp_races),
 )}

@@ -109,13 +109,15 @@ class StressContext(Protocol):
 class Experiment:
     """One stress experiment: ``run(ctx)`` gives (rows, series); ``plot(series, path, style)``
     draws the series kept in stress.json (so merged parts redraw); ``extra_markdown(rows)`` goes
-    above the row table on the page, which shows ``table_rows(rows)`` (default: all rows)."""
+    above the row table on the page, which shows ``table_rows(rows)`` (default: all rows);
+    ``look`` is the sentence under the plot that says what to see in it."""
     name: str
     title: str
     run: Callable[[StressContext], Result]
     plot: Callable[[Series, Path | BinaryIO, Style], None] | None = None
     extra_markdown: Callable[[list[Finding]], str] | None = None
     table_rows: Callable[[list[Finding]], list[Finding]] | None = None
+    look: str = ""
 
 
 def check_of(rec: Record) -> Check:

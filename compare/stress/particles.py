@@ -1,5 +1,6 @@
 """The particles scenario's stress experiments (docs/stress.md): particles-dt, particles-long,
-particles-inf, particles-divergence, their plots, and the contact-timing analysis they share.
+particles-inf, particles-divergence, and the contact-timing analysis they share (their plots:
+compare/stress/particles_plots.py).
 
 Every rollout comes from the scenario itself: the backends through cells, the float64 oracle
 (``Particles.oracle``) and the one NumPy stepper (``simulate``) here; energy and its derived bound
@@ -8,15 +9,15 @@ are the scenario's (``energy``, ``energy_bound``).
 from __future__ import annotations
 
 import math
-from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 import numpy as np
 
-from compare.stress.numerics import (Experiment, Outputs, Overrides, Result, Series, StressContext, Style,
-                                     bitwise_differences, check_of, log_floor)
+from compare.stress.numerics import (Experiment, Outputs, Overrides, Result, StressContext,
+                                     bitwise_differences, check_of)
 from scenarios.base import UNIT_ROUNDOFF, Precision, dtype_of
 from scenarios.particles import Particles, ParticlesParams, energy, energy_bound, simulate
+from compare.stress.particles_plots import LOOK, plot_particles_divergence, plot_particles_dt, plot_particles_long
 
 SC = Particles()
 STATE = ("x", "y", "vx", "vy")
@@ -299,62 +300,12 @@ def divergence_for(ctx: StressContext, name: str, n: int, steps: int, bounce: fl
 
 # ---- plots (from the series kept in stress.json) -------------------------------------------------
 
-def plot_particles_dt(series: Series, path: Path | BinaryIO, style: Style) -> None:
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for lbl, line in sorted(series["lines"].items()):
-        ax.plot(line["dt"], log_floor(line["median"]), ls="-" if "float32" in lbl else ":", label=lbl, lw=1, **style(lbl))
-    ax.plot(series["dt"], log_floor(series["discretisation"]), "k-", lw=2.5, label="discretisation (float64)")
-    ax.set_xscale("log"); ax.set_yscale("log"); ax.invert_xaxis()
-    ax.set_xlabel("dt [s] (T = 3 s fixed)"); ax.set_ylabel("median |state error| over particles")
-    ax.set_title("float32 rounding vs time discretisation (float64: max error, 0 drawn at 1e-18)", fontsize=8)
-    ax.legend(fontsize=6); ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
-
-
-def plot_particles_long(series: Series, path: Path | BinaryIO, style: Style) -> None:
-    import matplotlib.pyplot as plt
-    bounces = sorted({float(k.rsplit("bounce=", 1)[1]) for k in series})
-    fig, axes = plt.subplots(1, len(bounces), figsize=(5.2 * len(bounces), 4.2), squeeze=False)
-    for key, s in sorted(series.items()):
-        ax = axes[0][bounces.index(float(key.rsplit("bounce=", 1)[1]))]
-        ax.plot(s["steps"], log_floor(s["ratio"]), ls="-" if "float32" in key else ":",
-                label=key.rsplit("/bounce", 1)[0], lw=1, **style(key))
-    for ax, b in zip(axes[0], bounces):
-        ax.set_title(f"bounce {b:g}: " + ("must not gain energy" if b < 1 else "unstable (gaps: non-finite)"))
-        finite = any(np.isfinite(y).any() for line in ax.lines for y in [np.asarray(line.get_ydata(), float)])
-        if not finite:
-            ax.text(0.5, 0.5, "non-finite energy at every length", ha="center", transform=ax.transAxes)
-        ax.set_xscale("log"); ax.set_yscale("log" if finite else "linear"); ax.grid(True, which="both", alpha=0.3)
-        ax.set_xlabel("steps (dt = 0.01)"); ax.set_ylabel("total E(T) / E(0)"); ax.legend(fontsize=6)
-    fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
-
-
-def plot_particles_divergence(series: Series, path: Path | BinaryIO, style: Style) -> None:
-    import matplotlib.pyplot as plt
-    bounces = sorted({k.rsplit("bounce=", 1)[1] for k in series}, key=float)
-    fig, axes = plt.subplots(1, len(bounces), figsize=(6 * len(bounces), 4.5), squeeze=False)
-    for lbl, s in sorted(series.items()):
-        ax = axes[0][bounces.index(lbl.rsplit("bounce=", 1)[1])]
-        name = lbl.rsplit("/bounce", 1)[0]
-        st = style(lbl)
-        st["marker"] = None
-        ax.plot(s["step"], log_floor(s["median"]), label=f"{name} median", **st)
-        ax.plot(s["step"], log_floor(s["max"]), ls=":", label=f"{name} max", **st)
-    for ax, b in zip(axes[0], bounces):
-        ax.axhline(0.03, color="k", lw=0.8, ls="--", label="radius")
-        ax.set_xscale("log"); ax.set_yscale("log"); ax.grid(True, which="both", alpha=0.3)
-        ax.set_title(f"bounce {b}: float32 vs float64 port (0 drawn at 1e-18)", fontsize=9)
-        ax.set_xlabel("step"); ax.set_ylabel("|pos float32 - pos float64| over particles [m]")
-        ax.legend(fontsize=6)
-    fig.tight_layout(); fig.savefig(path, dpi=110); plt.close(fig)
-
-
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
-    Experiment("particles-dt", "dt sweep at fixed simulated time", exp_particles_dt, plot_particles_dt),
+    Experiment("particles-dt", "dt sweep at fixed simulated time", exp_particles_dt, plot_particles_dt,
+               look=LOOK["particles-dt"]),
     Experiment("particles-long", "long rollouts: energy bound (bounce < 1), growth (bounce > 1)",
-               exp_particles_long, plot_particles_long),
+               exp_particles_long, plot_particles_long, look=LOOK["particles-long"]),
     Experiment("particles-inf", "first non-finite step (bounce = 1.05)", exp_particles_inf),
     Experiment("particles-divergence", "float32 vs float64 over time, collision-timing flips",
-               exp_particles_divergence, plot_particles_divergence),
+               exp_particles_divergence, plot_particles_divergence, look=LOOK["particles-divergence"]),
 )}

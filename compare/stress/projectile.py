@@ -15,7 +15,7 @@ import numpy as np
 
 from compare.stress import projectile_tasks as T
 from compare.stress.numerics import ORACLE, Experiment, Result, Series, StressContext, check_of
-from compare.stress.projectile_plots import (lr_matrix, lr_table_rows, plot_projectile_gradient,
+from compare.stress.projectile_plots import (LOOK, lr_matrix, lr_table_rows, plot_projectile_gradient,
                                              plot_projectile_horizon, plot_projectile_lr)
 from compare.stress.projectile_rules import (CONTACTS, FD_AGREE, FD_STEPS, SC, classify, fd_gradient,
                                              loss_mispredictions, observed_boundary, predicted_lr)
@@ -233,9 +233,9 @@ def exp_projectile_horizon(ctx: StressContext) -> Result:
 
 EXPERIMENTS: dict[str, Experiment] = {e.name: e for e in (
     Experiment("projectile-lr", "learning-rate sweep x contact x optimiser", exp_projectile_lr,
-               plot_projectile_lr, extra_markdown=lr_matrix, table_rows=lr_table_rows),
+               plot_projectile_lr, extra_markdown=lr_matrix, table_rows=lr_table_rows, look=LOOK["projectile-lr"]),
     Experiment("projectile-gradient", "gradient quality: hard vs soft vs finite differences",
-               exp_projectile_gradient, plot_projectile_gradient),
+               exp_projectile_gradient, plot_projectile_gradient, look=LOOK["projectile-gradient"]),
     Experiment("projectile-horizon", "horizon sweep: gradient growth", exp_projectile_horizon,
-               plot_projectile_horizon),
+               plot_projectile_horizon, look=LOOK["projectile-horizon"]),
 )}

@@ -11,6 +11,20 @@ from compare.stress.numerics import ORACLE, Finding, Series, Style, log_floor
 from compare.stress.projectile_rules import CONTACTS, FD_AGREE
 from compare.stress.projectile_tasks import OPTIMISERS
 
+LOOK = {
+    "projectile-lr": "The loss after the descent over the loss before it, against the learning rate, per "
+                     "contact and optimiser: above 1 the descent diverged. Gradient descent should turn at "
+                     "the predicted boundary lr* = 2/lambda_max; frameworks whose curves lie on one another "
+                     "diverge at the same learning rate.",
+    "projectile-gradient": "The gradient against float64 finite differences as the step h shrinks, hard and "
+                           "soft contact, and d loss / d vy0 along a scan: finite differences agree only "
+                           "below a small h, and hard contact makes the loss jump where no gradient predicts it.",
+    "projectile-horizon": "|grad| and the float32 gradient's error relative to float64 against the number "
+                          "of steps, per contact: the gradient grows as a power of the horizon and the float32 "
+                          "error with it; an error that large can still be within the bound derived for a "
+                          "gradient that ill-conditioned (the row says which).",
+}
+
 
 def lr_matrix(rows: list[Finding]) -> str:
     """projectile-lr as one line per (backend, device, optimiser, contact): C/S/D per lr, under

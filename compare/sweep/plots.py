@@ -244,8 +244,15 @@ def plot_scaling(records: list[Record], device: str, path: Path, scenario: str) 
     return True
 
 
-def plot_horizon(records: list[Record], device: str, path: Path, scenario: str) -> bool:
-    return horizon.plot(records, device, path, scenario, colors(records), _plt())
+def plot_horizon(records: list[Record], device: str, path: Path, scenario: str, part: str = "all") -> bool:
+    """The horizon plot: all three panels ('all', the sweep's report), or one part as small multiples
+    per framework ('memory', 'time') or alone ('quality'): compare/sweep/horizon_panels.py."""
+    if part == "all":
+        return horizon.plot(records, device, path, scenario, colors(records), _plt())
+    from compare.sweep import horizon_panels
+    if part == "quality":
+        return horizon_panels.quality(records, device, path, scenario, _plt())
+    return horizon_panels.panels(records, device, path, scenario, colors(records), _plt(), part)
 
 
 def write_plots(records: list[Record], out: Path) -> dict[str, Path]:

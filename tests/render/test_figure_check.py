@@ -83,3 +83,16 @@ def test_charts_and_figures_saved_by_plot_functions_are_stamped(plt, tmp_path: P
     png = tmp_path / "own.png"
     figure_check.checked(lambda: own_save(png), png)
     assert len(figure_check.read(png)) == 1
+
+
+def test_a_legend_over_a_line_between_its_vertices_is_found(plt):
+    """A line of two vertices in the corners crosses the middle: a legend there hides it, though
+    it covers neither vertex (the stability dt figure's legend hid the discretisation line so)."""
+    fig, ax = plt.subplots(figsize=(4, 3), layout="constrained")
+    ax.plot([0, 1], [0, 1], "k-", label="a diagonal line")
+    ax.plot([0, 1], [1, 0], "o", ls="none", label="two points")
+    ax.legend(loc="center")
+    found = figure_check.problems(fig)
+    assert len(found) == 1 and "covers" in found[0]
+    ax.legend(loc="upper center", fontsize=6)        # above the diagonal, between the two points
+    assert figure_check.problems(fig) == []

@@ -1,38 +1,100 @@
-"""The stability page leads with one line per experiment (fast tier), the summary of
-compare/stress/page.py (tested in tests/stress/test_stress_page.py), before every experiment's
-rows; the site folds those rows under a <details> (compare/site/pages_stability.py), stress.md
-keeps them under each heading."""
+"""The stability pages (compare/site/pages_stability.py, compare/site/stability_outcomes.py): the
+page opens with its answer and the framework x experiment table, then one line per experiment
+(the summary of compare/stress/page.py, tested in tests/stress/test_stress_page.py); each
+experiment's figure and rows on its own page, every report page at most 300 lines. Built from the
+site's test store and from the committed H100 store (its figures not drawn: fast tier)."""
 from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
 
 import pytest
 
+from compare.site import stability_outcomes as so
 
-# ---- the stability page: a summary first, the rows folded ------------------------------------
+ROOT = Path(__file__).resolve().parents[2]
+H100 = ROOT / "docs" / "results" / "h100"
+MAX_LINES = 300
+
+
+def pages_of(store: Path, tmp: Path, monkeypatch) -> dict[str, str]:
+    """stem -> Markdown of the stability page and its experiment pages, built from ``store``."""
+    from compare.site import data
+    from compare.site import questions_pages as qp
+    from compare.site.pages_stability import stability
+    from compare.site.render import page_md
+    from compare.stress import plots
+    from compare.suites import formats
+    formats.register()
+    monkeypatch.setattr(plots, "draw", lambda exp, series, path: Path(path).write_bytes(b"png"))
+    c = qp.Ctx(data.load([store]), [], tmp, "STORE")
+    out = {"stability": page_md("Stability", [], stability(c))}
+    out |= {stem: page_md(title, [], blocks) for stem, (title, blocks) in c.subpages.items()}
+    return out
+
+
+@pytest.fixture(scope="module")
+def h100(tmp_path_factory) -> dict[str, str]:
+    mp = pytest.MonkeyPatch()
+    try:
+        return pages_of(H100, tmp_path_factory.mktemp("h100"), mp)
+    finally:
+        mp.undo()
+
+
+def stored_rows(store: Path = H100) -> list[dict]:
+    return json.loads((store / "stress.json").read_text())["analysis"]["rows"]
+
+
+def test_the_page_opens_with_its_answer_and_the_framework_by_experiment_table(h100):
+    md = h100["stability"]
+    lines = md.splitlines()
+    assert lines[4].startswith("**") and ("Fails alone" in lines[4] or "No framework fails" in lines[4])
+    table = md.index("## Each framework in each experiment")
+    assert table < md.index("## Summary") and table < 40 * 80      # on the first screen: nothing above but the answer
+    exps = sorted({r["experiment"] for r in stored_rows()})
+    for e in exps:            # one page per experiment, linked from the table's head and cells
+        assert f"[{e}](stability-{e}.md)" in md and f"stability-{e}" in h100
+    got = so.outcomes(stored_rows())
+    for fw in so.frameworks(stored_rows()):
+        row = next(line for line in lines if line.startswith(f"| {fw} |"))
+        for e in exps:
+            o = got.get((fw, e))
+            assert (o is None and "| - |" in row) or (o is not None and f"[{so.cell_text(o)}](stability-{e}.md)" in row)
+
+
+def test_no_stability_page_is_longer_than_a_screenful_of_detail(h100):
+    for stem, md in h100.items():
+        assert len(md.splitlines()) <= MAX_LINES, stem
+
+
+def test_a_caught_race_never_reads_as_zero_differing_elements_detected(h100):
+    """The H100 store keeps the racy control's row as the suite first wrote it: 0 elements differ
+    between the two runs, verdict 'RACE DETECTED (outside the oracle's bound)': both runs wrong
+    alike. The pages say which evidence caught it."""
+    rows = [r for r in stored_rows() if so.control(r) and str(r["verdict"]).startswith("RACE DETECTED")]
+    assert rows, "the H100 store has a caught racy control"
+    for r in rows:
+        assert r["value"] == 0 and "outside the oracle's bound" in r["verdict"]     # the store as it is
+    shown = "\n".join(h100.values())
+    assert "= 0 (RACE DETECTED (outside the oracle's bound))" not in shown
+    for line in shown.splitlines():
+        if "RACE DETECTED" in line and re.search(r"(= 0 \(| \| 0 \| )RACE DETECTED", line):
+            assert "the two runs agree bitwise" in line, line
+    # a caught control is the detector working: its framework passes that experiment
+    assert so.outcomes(stored_rows())[("warp", "races")].kind == so.PASS
+
+
 @pytest.mark.xdist_group("site")
-def test_stability_page_leads_with_one_line_per_experiment_and_folds_the_rows(tmp_path_factory):
-    import json
-    import re
-
+def test_the_built_site_has_every_experiment_page_and_none_longer_than_300_lines(tmp_path_factory):
     from test_site import STORE, built_site
     site = built_site(tmp_path_factory)
-
-    from compare.stress.registry import experiments
-    rows = json.loads((STORE / "stress.json").read_text())["analysis"]["rows"]
-    ran = [e for e in experiments() if any(r["experiment"] == e for r in rows)]
-    assert ran, "the committed store has stability rows"
-    html = (site / "stability.html").read_text()
-    summary = html.index("<h2>Summary</h2>")
-    table = html[summary:html.index("</table>", summary)]
-    assert [re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<tr><td[^>]*>(.*?)</td>", table)] == ran
-    # every experiment's rows under its own heading, folded, after the summary
-    assert html.count("<details><summary>") == len(ran)
-    for e in ran:
-        head = html.index(f'<h2 id="{e}">')
-        assert summary < head < html.index("<details><summary>", head)
-        assert "<p>From " in html[head:html.index("<details><summary>", head)], e     # the runs it came from
-    md = (site / "stability.md").read_text()
-    assert md.index("## Summary") < min(md.index(f"## {e}: ") for e in ran)
-    assert "<details>" not in md
+    for e in {r["experiment"] for r in stored_rows(STORE)}:
+        assert (site / f"stability-{e}.html").is_file() and (site / f"stability-{e}.md").is_file()
+        assert f'href="stability-{e}.html"' in (site / "stability.html").read_text()
+    for md in site.glob("*.md"):
+        assert len(md.read_text().splitlines()) <= MAX_LINES, md.name
 
 
 def test_an_experiment_names_each_run_its_rows_come_from_with_commit_and_tree_state():

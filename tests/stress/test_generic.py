@@ -64,3 +64,12 @@ def test_plot_ulps_draws_each_image_series():
                        "warp/cpu/float32/fastmath": {"ulps": [0.0, 2.0], "frac": [0.4, 1.0]}}, buf, _style)
     plt.close("all")
     assert buf.getvalue().startswith(b"\x89PNG")
+
+
+def test_the_race_verdict_says_which_evidence_caught_it():
+    """0 differing elements beside 'RACE DETECTED' must say the runs agreed and were wrong alike."""
+    alike = generic.race_verdict("cuda", 0, (False, False))
+    assert "agree bitwise" in alike and "outside the oracle's bound" in alike and "differ in" not in alike
+    assert generic.race_verdict("cuda", 96, (True, True)) == "RACE DETECTED (runs differ in 96 values)"
+    both = generic.race_verdict("cuda", 7, (False, True))
+    assert "differ in 7 values" in both and "agree bitwise" not in both

@@ -76,22 +76,29 @@ def page(c: Ctx) -> Page:
                     + (f" Hand-written adjoints here: {', '.join(hand)}." if hand else "")))
     blocks += verdicts(c.rows_of("gradients"))
     blocks += memory_design.table(at_scale(c.m, c.device), hand_adjoint)
-    blocks += _scaling(c, SCENARIO, "trajectory-gradients per second", "batch (trajectories)", memory=True)
+    blocks += _scaling(c, SCENARIO, "trajectory-gradients per second", "batch (trajectories)", memory=True,
+                       compact=True)
     hz = [r for r in c.m.sweep if data.tag(r, "sweep") == "horizon" and r.device == c.device]
     if hz:
         from compare.sweep import horizon as sweep_horizon, plots as sweep_plots
-        png, rel, _ = c.fig("gradients-horizon")
-        if figure_check.checked(lambda: sweep_plots.plot_horizon(list(hz), c.device, png, SCENARIO), png):
-            charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "contact", "steps",
-                                                       "device bytes", "gradient fd agreement", "status"),
-                             [(r.backend, r.variant, r.precision, (r.params or {}).get("contact"),
-                               (r.params or {}).get("steps"), data.device_bytes(r),
-                               r.fd_agreement, r.status)
-                              for r in sweep_horizon.gradient_cells(hz, c.device, SCENARIO)])
-            blocks += [H("Memory and gradient quality against the horizon"),
-                       Figure(rel, "Device memory and gradient agreement with float64 finite differences "
-                              "against the number of steps, with each framework's memory-saving variants.",
-                              c.cmd(f"sweep horizon --devices {c.device}"), rel[:-4] + ".csv")]
+        from compare.sweep.horizon_panels import LOOK
+        cmd = c.cmd(f"sweep horizon --devices {c.device}")
+        figs = []
+        for part, name in (("memory", "gradients-horizon"), ("time", "gradients-horizon-time"),
+                           ("quality", "gradients-horizon-quality")):
+            png, rel, csv = c.fig(name)
+            if figure_check.checked(lambda png=png, part=part: sweep_plots.plot_horizon(list(hz), c.device, png,
+                                                                                      SCENARIO, part), png):
+                figs.append(Figure(rel, LOOK[part], "" if figs else cmd, csv))
+                charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "contact", "steps",
+                                                           "device bytes", "time per call s", "gradient fd agreement",
+                                                           "status"),
+                                 [(r.backend, r.variant, r.precision, (r.params or {}).get("contact"),
+                                   (r.params or {}).get("steps"), data.device_bytes(r),
+                                   t.median if (t := data.per_call(r, "throughput")) else None, r.fd_agreement,
+                                   r.status) for r in sweep_horizon.gradient_cells(hz, c.device, SCENARIO)])
+        if figs:
+            blocks += [H("Memory, time and gradient quality against the horizon"), *figs]
             blocks += [P(t) for t in outside_bound(hz)]
         blocks += _longest_loop(hz)
     return blocks

@@ -18,7 +18,7 @@ def unrendered_horizon(monkeypatch):
     """The horizon plot is not drawn either (tests/sweep/test_sweep_plots.py checks it)."""
     from compare.sweep import plots as sweep_plots
 
-    def horizon(records, device, path, scenario):
+    def horizon(records, device, path, scenario, part="all"):
         Path(path).write_bytes(b"png")
         return True
     monkeypatch.setattr(sweep_plots, "plot_horizon", horizon)
@@ -57,9 +57,23 @@ def test_its_page_answers_both_rows(ctx):
     heads = [b.text for b in blocks if isinstance(b, H)]
     assert all(r.rule.question in heads for r in ctx.rows_of("gradients"))
     figs = [b for b in blocks if isinstance(b, Figure)]
-    assert "figures/gradients-horizon.png" in {f.png for f in figs}
+    assert {"figures/gradients-horizon.png", "figures/gradients-horizon-time.png",
+            "figures/gradients-horizon-quality.png"} <= {f.png for f in figs}
+    assert all(f.caption and f.csv == f.png[:-4] + ".csv" for f in figs if "horizon" in f.png)
     for f in figs:
         assert (ctx.into / f.png).is_file() and (ctx.into / f.csv).is_file()
+
+
+def test_its_scaling_table_is_the_published_size_with_every_size_in_a_csv(ctx):
+    from compare.site.render import P, Table
+    blocks = projectile.PAGES["gradients"][1](ctx)
+    head = next(i for i, b in enumerate(blocks) if isinstance(b, H) and b.text == "Projectile: scaling")
+    table = next(b for b in blocks[head:] if isinstance(b, Table))
+    sizes = {row[2] for row in table.rows}
+    assert len(sizes) == 1, sizes
+    note = next(b for b in blocks[head:] if isinstance(b, P) and "every size" in b.text)
+    assert "figures/projectile-scaling.csv" in note.text and f"({sizes.pop()})" in note.text
+    assert (ctx.into / "figures" / "projectile-scaling.csv").is_file()
 
 
 def horizon_rec(backend: str, status: str, ratio: float, variant: str = "default", steps: int = 600) -> Record:
