@@ -104,9 +104,14 @@ def dirty_paths() -> list[str]:
     return [line[3:].split(" -> ")[-1] for line in out.splitlines() if len(line) > 3]
 
 
+# The files a measurement can run: a copied tree is checked on these alone, so a lent machine's
+# copy may leave the stores and docs behind (its transfer limit) and still be the commit's code.
+CODE_PATHS = ("backends", "compare", "scenarios", "pyproject.toml")
+
+
 def files_digest(commit: str | None = None) -> str:
-    """A digest of a tree's files, path and content (not modes: a copy may drop an executable
-    bit): of ``commit``'s tree, or (None) of this checkout's files as they are, tracked and
+    """A digest of a tree's code files (``CODE_PATHS``), path and content (not modes: a copy may
+    drop an executable bit): of ``commit``'s tree, or (None) of this checkout's files as they are, tracked and
     untracked by .gitignore's rules, through a throwaway index, which needs no current .git
     history, so a copied tree whose .git is stale can be checked against the commit it claims
     (``python -m compare.measuring.environment COMMIT`` prints the commit's). A copy without its
@@ -132,7 +137,7 @@ def files_digest(commit: str | None = None) -> str:
     # ls-tree: "<mode> blob <hash>\t<path>"; ls-files -s: "<mode> <hash> <stage>\t<path>"
     rows = sorted(f"{meta.split()[2] if commit else meta.split()[1]} {path}"
                   for meta, _, path in (e.partition("\t") for e in done.stdout.split("\0") if e)
-                  if not commit or meta.split()[1] == "blob")
+                  if (not commit or meta.split()[1] == "blob") and path.split("/")[0] in CODE_PATHS)
     return hashlib.sha256("\n".join(rows).encode()).hexdigest() if rows else ""
 
 

@@ -34,7 +34,11 @@ def copy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     _git(repo, "init", "-q")
     _git(repo, "add", "-A")
     _git(repo, "commit", "-qm", "one")
+    (repo / "notes.md").write_text("not code\n")
+    _git(repo, "add", "-A")
+    _git(repo, "commit", "-qm", "notes")
     monkeypatch.setattr(environment, "ROOT", repo)
+    monkeypatch.setattr(environment, "CODE_PATHS", ("pkg", "run.sh"))
     return repo
 
 
@@ -55,6 +59,16 @@ def test_a_copy_of_the_commit_matches_its_digest_and_any_change_does_not(copy: P
     assert environment.copy_dirty() is True
     (copy / "pkg" / "b.py").unlink()
     (copy / "run.sh").unlink()                         # a file missing from the copy
+    assert environment.copy_dirty() is True
+
+
+def test_a_copy_is_checked_on_its_code_alone(copy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A lent machine's copy may leave the stores and docs behind (its transfer limit): files
+    outside CODE_PATHS, missing or changed, do not make it differ from the commit; code does."""
+    monkeypatch.setenv("COMPARE_GIT_TREE", environment.files_digest("HEAD"))
+    (copy / "notes.md").unlink()
+    assert environment.copy_dirty() is False
+    (copy / "pkg" / "a.py").write_text("x = 5\n")
     assert environment.copy_dirty() is True
 
 
