@@ -115,7 +115,8 @@ def detail(c: qp.Ctx, exp: Experiment, rows: list[Finding], got: dict[tuple[str,
                                  csv_rel[:-4] + ".csv"))
     shown = so.collapsed(exp.table_rows(rows) if exp.table_rows is not None else rows)
     if len(shown) > MAX_ROWS:           # the failing rows first, then the others as they come
-        bad = {i for i, s in enumerate(shown) if so.failing({"experiment": name, "verdict": s[6], "detail": s[7]})}
+        bad = {i for i, s in enumerate(shown) if so.failing(Finding(experiment=name, backend=s[0], device=s[1], precision=s[2], setting=s[3],
+                                                              figure=s[4], value=s[5], verdict=s[6], detail=s[7]))}
         shown = [shown[i] for i in sorted(range(len(shown)), key=lambda i: i not in bad)][:MAX_ROWS]
     blocks += [H("Rows", "rows"),
                P(f"{len(shown)} lines for {len(rows)} rows: frameworks that gave the same finding share a line"

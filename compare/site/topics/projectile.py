@@ -1,6 +1,8 @@
 """The batched differentiable projectile on the site: gradients through a simulation at scale."""
 from __future__ import annotations
 
+import functools
+
 from compare.render import charts, figure_check
 from compare.results.record import Record
 from compare.site import data, matrix, memory_design
@@ -83,12 +85,12 @@ def page(c: Ctx) -> Page:
         from compare.sweep import horizon as sweep_horizon, plots as sweep_plots
         from compare.sweep.horizon_panels import LOOK
         cmd = c.cmd(f"sweep horizon --devices {c.device}")
-        figs = []
+        figs: list[Figure] = []
         for part, name in (("memory", "gradients-horizon"), ("time", "gradients-horizon-time"),
                            ("quality", "gradients-horizon-quality")):
             png, rel, csv = c.fig(name)
-            if figure_check.checked(lambda png=png, part=part: sweep_plots.plot_horizon(list(hz), c.device, png,
-                                                                                      SCENARIO, part), png):
+            if figure_check.checked(functools.partial(sweep_plots.plot_horizon, list(hz), c.device, png,
+                                                      SCENARIO, part), png):
                 figs.append(Figure(rel, LOOK[part], "" if figs else cmd, csv))
                 charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "contact", "steps",
                                                            "device bytes", "time per call s", "gradient fd agreement",
