@@ -140,7 +140,15 @@ def machine(c: qp.Ctx) -> list[Any]:
                    for e in envs))]
     blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
                              + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "
-                             + pages.doc_link(c.out, "findings.md") + ".")]
+                             + pages.doc_link(c.out, "findings.md") + "."),
+               P("One rule for every framework (each port's idiom and its sources: "
+                 + pages.doc_link(c.out, "ports.md") + "): every ranked figure is IEEE arithmetic, so "
+                 "a framework whose shipped default is fast math (Taichi, quadrants, Dr.Jit) runs exact "
+                 "and its default is measured as its `fastmath` variant, shown and never ranked, as is "
+                 "any record whose kernel says it ran with fast math; a variant that is a launch path "
+                 "the user writes (Warp `record_cmd`, `torch.compile` modes, JAX's XLA command "
+                 "buffers, a CUDA graph the port captures) counts on every row its record has; the "
+                 "harness's replay of a captured call counts on the graph-replay row only.")]
     return blocks
 
 
