@@ -18,6 +18,7 @@ import enum
 import importlib
 import importlib.util
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
@@ -105,6 +106,12 @@ class Backend:
     def variants_for(self, scenario: str) -> tuple[str, ...]:
         """The variants a cell of ``scenario`` may take: every scenario's, then its own."""
         return self.variants + tuple(v for v in self.scenario_variants.get(scenario, ()) if v not in self.variants)
+
+    def ran_fast_math(self, precision: str, info: "Mapping[str, Any] | None") -> bool:
+        """Whether a record's kernel ran with fast math (never ranked: docs/ports.md), from its
+        ``info``. Default: where the info says so. A port whose default once was fast math
+        overrides it for the records made before it said so."""
+        return bool(info) and info.get("fast_math") is True
 
     def cache_environment(self, cache_dir: Path) -> dict[str, str]:
         """Environment variables that point this framework's on-disk kernel caches into

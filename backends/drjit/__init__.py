@@ -25,6 +25,7 @@ cannot select; the worker process then aborts (docs/findings.md).
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -125,6 +126,13 @@ class DrJitBackend(Backend):
         # Dr.Jit's own on-disk cache (LLVM kernels) and the CUDA driver's PTX cache
         return {"DRJIT_CACHE_DIR": str(cache_dir / "drjit"),
                 "CUDA_CACHE_PATH": str(cache_dir / "cuda-driver-jit")}
+
+    def ran_fast_math(self, precision: str, info: Mapping[str, Any] | None) -> bool:
+        # Every kernel's info records the flag; a record without it predates that, when float32
+        # cells ran Dr.Jit's FastMath default
+        if info and "fast_math" in info:
+            return info["fast_math"] is True
+        return precision == "float32"
 
     def setup(self, device: str, precision: str, variant: str) -> None:
         import drjit as dr

@@ -14,6 +14,7 @@ import dataclasses
 import math
 from typing import Any, Callable, cast
 
+import backends
 import scenarios
 from compare.render import colors
 from compare.results.record import Record
@@ -21,14 +22,12 @@ from compare.site import data, provenance, ranking
 from compare.site.data import Machine, Timing
 from scenarios.base import Precision
 
-# Variants that change the arithmetic (not the same work): never a row's figure, shown on pages.
-# A framework whose shipped default is fast math (Taichi, quadrants, Dr.Jit) runs exact by default.
+# Variants that change the arithmetic (a shipped fast-math default is one): never ranked, shown.
 NOT_SAME_WORK = ("fastmath",)
-# The variant rule, printed in every ranked row's rule (docs/ports.md says it in full).
-VARIANT_RULE = ("each framework's fastest variant: IEEE arithmetic only (fast-math variants shown, "
-                "never ranked); every launch path the user writes counts (Warp record_cmd, "
-                "torch.compile modes, XLA command buffers, a CUDA graph the port captures), the "
-                "harness's replay of a captured call only on the graph-replay row")
+FAST_REASON = "ran with fast math (its former default): shown on the page, never ranked"
+VARIANT_RULE = ("each framework's fastest variant: IEEE arithmetic only (fast-math variants shown, never ranked); "
+                "every launch path the user writes counts (Warp record_cmd, torch.compile modes, XLA command buffers, "
+                "a CUDA graph the port captures), the harness's replay of a captured call only on the graph-replay row")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,23 +122,25 @@ class Row:
 
 # ---- record selection -------------------------------------------------------------------------
 def latest(recs: list[Record]) -> list[Record]:
-    """One record per framework, variant and size: the one timed in the most processes, else the
-    last stored; a parameter an older record lacks is read at its default (projectile's ``batch``)."""
+    """One record per framework, variant and size: an exact one timed in the most processes, else
+    the last stored; a parameter an older record lacks is read at its default (projectile's batch)."""
     seen: dict[tuple[Any, ...], Record] = {}
     for r in recs:
         d = data.defaults(r.scenario)
         full = r if all(k in (r.params or {}) for k in d) else r.replace(params={**d, **(r.params or {})})
         k = (r.backend, r.scenario, r.device, r.precision, r.variant, data.size(full), data.at_defaults(r))
-        seen[k] = r if k not in seen or data.process_count(r) >= data.process_count(seen[k]) else seen[k]
+        rank = (exact(r), data.process_count(r))
+        seen[k] = r if k not in seen or rank >= (exact(seen[k]), data.process_count(seen[k])) else seen[k]
     return list(seen.values())
 
 
 def exact(r: Record) -> bool:
-    """The record's arithmetic is IEEE: not a fast-math variant, and not a default that ran with
-    fast math (Dr.Jit's float32 cells recorded before its default became exact say so in their
-    info): such a figure is shown on the pages, never ranked."""
-    info = r.info.get("fast_math") if r.info is not None else None
-    return r.variant not in NOT_SAME_WORK and info is not True
+    """IEEE arithmetic: not a fast-math variant nor a record its backend says ran fast math
+    (Dr.Jit's float32 cells before its exact default): shown on the pages, never ranked."""
+    if r.variant in NOT_SAME_WORK:
+        return False
+    be = backends.BACKENDS.get(r.backend, backends.Backend())
+    return not be.ran_fast_math(r.precision, r.info)
 
 
 def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precision.FLOAT32,
@@ -147,7 +148,7 @@ def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precisi
           keep: Callable[[Record], bool] = lambda r: True) -> list[Record]:
     return latest([r for r in m.records if r.device == device and r.scenario == scenario
                    and r.precision == precision and data.tag(r, "sweep") in sweep
-                   and exact(r) and keep(r)])
+                   and (exact(r) or r.variant == "default") and keep(r)])
 
 
 def _largest(recs: list[Record]) -> list[Record]:
@@ -310,14 +311,15 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
     plain: dict[str, float] = {}     # each framework's default-variant figure
     for r in recs:
         fw = r.backend
-        fig = rule.figure(r) if r.status == "ok" else None
+        fig = rule.figure(r) if r.status == "ok" and exact(r) else None
         val = fig.median if isinstance(fig, Timing) else fig
         if val is not None and r.variant == "default":
             plain[fw] = val
         if fig is None or val is None:
             if fw not in cells:      # keep why a framework has no figure, unless it has one
                 cells[fw] = Cell(fw, None, status=r.status if r.status != "ok" else "absent",
-                                 reason=r.reason or "no figure of this kind in its record")
+                                 reason=r.reason or ("no figure of this kind in its record" if exact(r)
+                                                     else FAST_REASON))
             continue
         cur = cells.get(fw)
         better = cur is None or cur.value is None or (

@@ -36,6 +36,8 @@ def memory_of(r: Record) -> Mapping[str, Any]:
 def design_bytes(r: Record) -> dict[str, float] | None:
     """The port's predicted bytes by name (``info.design_bytes``), or None where it gives none."""
     got = (r.info or {}).get("design_bytes")
+    if isinstance(got, (int, float)) and not isinstance(got, bool) and got > 0:
+        return {"total": float(got)}          # a port that gives one sum (Warp)
     if not isinstance(got, Mapping):
         return None
     parts = {str(k): v for k, v in got.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}

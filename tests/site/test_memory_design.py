@@ -40,3 +40,10 @@ def test_no_device_figure_no_table():
 def test_the_memory_row_says_what_its_figure_is():
     text = projectile.RULES[1].text
     assert "NVML peak of the process" not in text and "sampled every 2 ms" in text and "milestone" in text
+
+
+def test_a_port_that_gives_one_sum_is_predicted_as_its_total():
+    one = rec("warp", {"device_bytes": 132 * MiB, "device_bytes_sampled": 132 * MiB,
+                       "device_bytes_milestones": 132 * MiB}, {"design_bytes": 136 * MiB})
+    assert memory_design.design_bytes(one) == {"total": float(136 * MiB)}
+    assert memory_design.design_bytes(rec("warp", None, {"design_bytes": True})) is None

@@ -56,7 +56,8 @@ def test_a_far_cell_without_facts_in_its_record_says_nothing_rather_than_guess()
 def test_the_first_call_row_names_the_first_calls_and_the_largest():
     def rec(backend: str, scenario: str, first: float, compiled: str = "") -> Record:
         return Record(scenario=scenario, backend=backend, device="cuda", precision="float32", status="ok",
-                      params=dict(data.defaults(scenario)), info={"compiled": compiled} if compiled else {},
+                      params=dict(data.defaults(scenario)),
+                      info={"compiled": compiled} if compiled else {"fast_math": False},
                       run=RUN, time={"first_call_s": first, "setup_s": 0.01, "median_s": 1e-3, "iqr_s": 0.0,
                                      "repeats": 10})
     recs = [rec("drjit", sc, 0.02) for sc in matrix.IN_ALL] + \

@@ -66,9 +66,8 @@ def test_hand_adjoints_are_a_ceiling_only_where_every_one_beats_the_best_ad_figu
 
 def test_measurement_md_says_where_hand_adjoints_lead_as_the_stores_do(stores) -> None:
     text = re.sub(r"\s+", " ", (DOCS / "measurement.md").read_text(encoding="utf-8"))
-    assert ("on the H100 every hand adjoint outruns the best AD figure; on the 2-core CPUs the best "
-            "AD figure outruns every one") in text
-    for key, ahead in (("h100", True), ("cpu", False), ("xeon", False)):
+    assert "on the H100 and on the 2-core CPUs the best AD figure outruns every one" in text
+    for key, ahead in (("h100", False), ("cpu", False), ("xeon", False)):
         row = matrix.evaluate(RULES["gradients"], stores[key], fmt.value)
         refs = [c.ratio for c in row.cells.values() if c.reference and c.ratio is not None]
         assert refs and all((r < 1) == ahead for r in refs), (key, refs)
