@@ -247,14 +247,14 @@ AGGREGATES: dict[str, Callable[[list[Record]], Timing | float | None]] = {
 IN_ALL = tuple(n for n, sc in scenarios.SCENARIOS.items() if sc.in_all)   # the scenarios of `all`
 
 
-def _geomean_vs_best(m: Machine, device: str) -> dict[str, Cell]:
-    """CPU-only use: per framework, the geometric mean over the scenarios of its throughput-regime
-    time divided by the fastest framework's on that scenario."""
+def _geomean_vs_best(m: Machine, device: str, regime: str = "throughput") -> dict[str, Cell]:
+    """CPU-only use (the busy row too, on its records, in ``regime``): per framework, the geometric
+    mean over the scenarios of its ``regime`` time divided by the fastest framework's on that scenario."""
     recs = all_defaults(m, device)
     best: dict[str, float] = {}
     times: dict[tuple[str, str], float] = {}
     for r in recs:
-        t = data.per_call(r, "throughput") if r.status == "ok" else None
+        t = data.per_call(r, regime) if r.status == "ok" else None
         if t is not None:
             times[(r.backend, r.scenario)] = t.median
             best[r.scenario] = min(best.get(r.scenario, math.inf), t.median)
