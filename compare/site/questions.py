@@ -45,8 +45,11 @@ RULES: tuple[Rule, ...] = topics.RULES + (
     Rule("busy", "CPU, one core busy", "cpu", "x", "lower",
          "On the CPU, the four scenarios at their defaults, float32, default variant, each timed "
          "twice in one run: idle, then with one core kept busy by another process (`--busy 1`); a "
-         "framework's figure is the geometric mean over the scenarios of its busy latency over its "
-         "idle latency (1 = the busy core cost nothing).",
+         "framework's figure is its time under load, the geometric mean over the scenarios of its "
+         "busy latency divided by the fastest framework's busy latency on that scenario (1 = fastest "
+         "under load everywhere; a framework missing a scenario is not comparable). Its slowdown, "
+         "busy over idle latency, is shown beside it on the page, not ranked; a busy figure faster "
+         "than its idle one is marked as noise unless the records explain it.",
          shared_host.pick, lambda r: None, device="cpu", cells=shared_host.cells),
 )
 

@@ -1,6 +1,8 @@
 """The CPU on a shared host (compare/site/shared_host.py, ``run --busy N``): busy cells stay out
-of every other row, the row's figure is the geometric mean of busy over idle latency, and a large
-slowdown is explained from the cores the cell used while idle."""
+of every other row; the row ranks the time under load (busy latency against the fastest busy one
+per scenario), with the slowdown (busy over idle) beside it on the page, never ranked; a busy figure
+faster than its idle one is labelled noise unless the records explain it; a large slowdown is
+explained from the cores the cell used while idle."""
 from __future__ import annotations
 
 import json
@@ -13,17 +15,23 @@ from typing import Any
 import pytest
 
 from compare.results.record import Record
-from compare.site import data, fmt, matrix, questions, shared_host
+from compare.running import repeats
+from compare.site import data, fmt, matrix, questions, ranking, render, shared_host
 from conftest import ROOT
 
 RUN = {"created": "2026-11-27T00:00:00+00:00", "commit": "abc1234", "dirty": False}
 RULE = {r.key: r for r in questions.RULES}["busy"]
 
 
-def cell(backend: str, scenario: str, latency: float, busy: int | None = 0, own: float = 1.0) -> Record:
-    t = {"first_call_s": 1.0, "median_s": latency, "iqr_s": 0.0, "min_s": latency, "repeats": 10,
-         "latency": {"median_s": latency, "iqr_s": 0.0, "min_s": latency, "repeats": 10},
-         "noise": {"noisy": False, "reasons": [], "cores": 2, "own_cores": own, "others_cores": 1.0 if busy else 0.0}}
+def cell(backend: str, scenario: str, latency: float, busy: int | None = 0, own: float = 1.0,
+         iqr: float = 0.0, ci: tuple[float, float] | None = None) -> Record:
+    t: dict[str, Any] = {
+        "first_call_s": 1.0, "median_s": latency, "iqr_s": iqr, "min_s": latency, "repeats": 10,
+        "latency": {"median_s": latency, "iqr_s": iqr, "min_s": latency, "repeats": 10},
+        "noise": {"noisy": False, "reasons": [], "cores": 2, "own_cores": own, "others_cores": 1.0 if busy else 0.0}}
+    if ci is not None:      # timed in 6 processes: the median's interval at 95 % (compare.running.repeats)
+        t["processes"] = {"count": 6, "latency": {"values": [latency] * 6, "median_s": latency, "ci_lo_s": ci[0],
+                                                   "ci_hi_s": ci[1], "confidence": repeats.interval(range(6))[2]}}
     return Record(scenario=scenario, backend=backend, device="cpu", precision="float32", status="ok",
                   time=t, error={"vs_oracle": 0.0, "tolerance": 1.0}, run=RUN,
                   tags={"busy_cores": busy} if busy is not None else None)
@@ -34,7 +42,28 @@ def machine(recs: list[Record]) -> data.Machine:
                         tuple(r for r in recs if r.tags))    # as data.load splits a store
 
 
-def test_the_row_is_the_geometric_mean_of_busy_over_idle_and_explains_a_parallel_loop():
+def page(m: data.Machine) -> str:
+    return "\n".join(render.block_md(b) for b in shared_host.section(m))
+
+
+def test_the_row_ranks_time_under_load_not_the_slowdown_which_stands_beside_it():
+    """numba is 10x faster idle and loses 3x to the busy core; numpy loses only 10 %: the slowdown
+    would name numpy, the time a user waits under load names numba, 3.67x ahead."""
+    recs = []
+    for sc in matrix.IN_ALL:
+        recs += [cell("numpy", sc, 1e-3), cell("numpy", sc, 1.1e-3, busy=1),
+                 cell("numba", sc, 1e-4), cell("numba", sc, 3e-4, busy=1)]
+    m = machine(recs)
+    row = matrix.evaluate(RULE, m, fmt.value)
+    assert row.best == "numba" and row.cells["numba"].value == pytest.approx(1.0)
+    assert row.cells["numpy"].ratio == pytest.approx(1.1e-3 / 3e-4)
+    assert shared_host.slowdowns(m) == pytest.approx({"numpy": 1.1, "numba": 3.0})
+    line = next(x for x in page(m).splitlines() if x.startswith("| numpy |"))
+    assert "3.67×" in line and "1.10×" in line          # time under load, the slowdown beside it
+    assert "time under load" in RULE.text and "not ranked" in RULE.text
+
+
+def test_the_figure_is_the_geometric_mean_over_the_scenarios_against_the_fastest_busy_time():
     recs = []
     for sc in matrix.IN_ALL:
         recs += [cell("numpy", sc, 1e-3), cell("numpy", sc, 1.2e-3, busy=1),
@@ -42,12 +71,63 @@ def test_the_row_is_the_geometric_mean_of_busy_over_idle_and_explains_a_parallel
                                                          busy=1, own=1.0)]
     m = machine(recs)
     row = matrix.evaluate(RULE, m, fmt.value)
-    assert row.cells["numpy"].value == pytest.approx(1.2)
-    want = math.exp((3 * math.log(1.5) + math.log(75)) / 4)
-    assert row.cells["numba"].value == pytest.approx(want) and row.best == "numpy"
+    # numba fastest busy on three scenarios; on projectile 7.5 ms against numpy's 1.2 ms
+    assert row.cells["numba"].value == pytest.approx((7.5e-3 / 1.2e-3) ** 0.25)
+    assert row.cells["numpy"].value == pytest.approx((1.2e-3 / 1.5e-4) ** 0.75)
+    assert row.best == "numba" and row.cells["numba"].processes == 1 and row.cells["numba"].ci is None
     [(idle, busy)] = [p for p in shared_host.pairs(m) if p[0].backend == "numba" and p[0].scenario == "projectile"]
     assert "waits for its slowest thread" in shared_host.why(idle, busy)
     assert shared_host.why(*[p for p in shared_host.pairs(m) if p[0].backend == "numpy"][0]) == ""
+    assert "1.6× from the next" in page(m) and "--busy 1 --processes 6" in page(m)
+
+
+def test_a_framework_missing_a_scenario_is_not_comparable():
+    recs = [cell(fw, sc, 1e-3, busy=b) for fw in ("numpy", "numba") for sc in matrix.IN_ALL for b in (0, 1)]
+    m = machine([r for r in recs if not (r.backend == "numba" and r.scenario == matrix.IN_ALL[0])])
+    row = matrix.evaluate(RULE, m, fmt.value)
+    assert row.cells["numba"].value is None and row.cells["numpy"].value == 1.0
+
+
+def test_one_process_figures_need_the_one_process_gap_and_intervals_separate_sooner():
+    """1.3x apart: from one process a tie; from 6 processes with disjoint intervals, separated."""
+    def recs(ci: bool) -> list[Record]:
+        out = []
+        for sc in matrix.IN_ALL:
+            for fw, t in (("numba", 1e-4), ("numpy", 1.3e-4)):
+                out += [cell(fw, sc, t, ci=(0.98 * t, 1.02 * t) if ci else None),
+                        cell(fw, sc, t, busy=1, ci=(0.98 * t, 1.02 * t) if ci else None)]
+        return out
+    one = matrix.evaluate(RULE, machine(recs(False)), fmt.value)
+    assert one.best is None and set(one.tied) == {"numba", "numpy"}
+    six = matrix.evaluate(RULE, machine(recs(True)), fmt.value)
+    assert six.best == "numba" and six.cells["numpy"].processes == 6
+    assert six.cells["numpy"].ci == pytest.approx((1.3 * 0.98, 1.3 * 1.02))
+    assert ranking.separated(six.cells["numba"], six.cells["numpy"]).kind == ranking.INTERVALS
+
+
+def test_a_busy_figure_faster_than_idle_is_noise_unless_the_records_explain_it():
+    sc = matrix.IN_ALL
+    recs = [cell("numpy", s, 1e-3, iqr=0.4e-3) for s in sc] + [cell("numba", s, 1e-3) for s in sc]
+    recs += [cell("numpy", s, 0.9e-3, busy=1) for s in sc]          # inside the idle quartiles 0.8-1.2 ms
+    recs += [cell("numba", s, 0.5e-3, busy=1) for s in sc]          # idle had no spread: outside
+    m = machine(recs)
+    got = {(i.backend, i.scenario): shared_host.faster(i, b) for i, b in shared_host.pairs(m)}
+    assert got[("numpy", sc[0])] == shared_host.WITHIN == "within the spread of the idle figure"
+    assert got[("numba", sc[0])] == shared_host.UNEXPLAINED == "faster under load: unexplained by the records"
+    text = page(m)
+    numpy_row = next(x for x in text.splitlines() if x.startswith(f"| numpy | {sc[0]} |"))
+    assert "1 ms (quartiles 800 µs–1.2 ms)" in numpy_row and "900 µs" in numpy_row and shared_host.WITHIN in numpy_row
+    assert shared_host.UNEXPLAINED in next(x for x in text.splitlines() if x.startswith(f"| numba | {sc[0]} |"))
+    assert "4 of its 4 cells (below): 4 unexplained by the records" in text
+    # an idle cell timed while other processes held the host: its record explains the slow idle figure
+    flagged = cell("numba", sc[0], 1e-3)
+    flagged = flagged.replace(time={**flagged.time, "noise": {
+        "noisy": True, "cores": 2, "own_cores": 1.0, "others_cores": 1.5,
+        "reasons": [{"regime": "", "why": "host busy: other processes used 1.50 cores"}]}})
+    assert shared_host.faster(flagged, cell("numba", sc[0], 0.5e-3, busy=1)).startswith(
+        "faster under load: the idle figure was not idle (host busy")
+    assert shared_host.faster(*[p for p in shared_host.pairs(machine(
+        [cell("numpy", sc[0], 1e-3), cell("numpy", sc[0], 2e-3, busy=1)]))][0]) == ""
 
 
 def test_the_experiment_stays_out_of_every_other_row():
