@@ -186,6 +186,8 @@ class Scenario:
     has_gradient: ClassVar[bool] = False
     in_all: ClassVar[bool] = True          # False for measurement-only scenarios (launch, copy)
     item: ClassVar[str] = ""               # what one item is, for a sampled check's record
+    # its error.ulps counts the roundings of one fusable operation (1: once, as an FMA; above: twice)
+    ulps_count_roundings: ClassVar[bool] = False
 
     # ---- parameters -------------------------------------------------------------------------
     def params(self, overrides: Mapping[str, Any] | None = None, quick: bool = False):

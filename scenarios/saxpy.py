@@ -33,6 +33,7 @@ class SaxpyParams:
 
 
 class Saxpy(Scenario):
+    ulps_count_roundings = True       # a*x + y: rounded once (an FMA) or twice (accuracy page)
     name = "saxpy"
     title = "SAXPY out = a*x + y"
     Params = SaxpyParams

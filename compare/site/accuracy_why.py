@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from typing import Iterable
 
+import scenarios
 from compare.results.record import Record
 from compare.site import data, matrix
 
@@ -25,9 +26,15 @@ def _ulps(r: Record) -> float | None:
     return data.num(r.error.get("ulps")) if r.status == "ok" and r.error else None
 
 
+def _counts_roundings(scenario: str) -> bool:
+    sc = scenarios.SCENARIOS.get(scenario)
+    return bool(sc is not None and sc.ulps_count_roundings)
+
+
 def roundings(recs: Iterable[Record]) -> dict[str, float]:
-    """Each framework's SAXPY error in units of u (float32 cells at the defaults)."""
-    return {r.backend: u for r in recs if r.scenario == "saxpy" and r.precision == "float32"
+    """Each framework's error in units of u (float32 cells) in the scenario whose ulps count the
+    roundings of one fusable operation (SAXPY's a*x + y; the site names no scenario)."""
+    return {r.backend: u for r in recs if r.precision == "float32" and _counts_roundings(r.scenario)
             and (u := _ulps(r)) is not None}
 
 
@@ -41,7 +48,7 @@ def others_spread(recs: Iterable[Record]) -> float | None:
     shares: dict[str, dict[str, float]] = {}
     for r in recs:
         s = matrix.error_share(r) if r.status == "ok" else None
-        if r.scenario != "saxpy" and s is not None:
+        if not _counts_roundings(r.scenario) and s is not None:
             shares.setdefault(r.backend, {})[r.scenario] = s
     scen = {sc for per in shares.values() for sc in per}
     means = [_geomean(list(per.values())) for per in shares.values() if set(per) == scen and scen]
