@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, require_device
+from reliability_checks import run_main
 from compare.stress import numerics
 from scenarios import particles
 
@@ -47,11 +48,13 @@ def run_stress(*args):
     (("--merge", "/nonexistent/stress.json"), "cannot read"),
     (("--frobnicate",), "unrecognized"),
 ])
-def test_bad_usage_exits_2_with_one_line(args, needle):
-    p = run_stress(*args)
-    assert p.returncode == 2
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and needle in lines[0], p.stderr
+def test_bad_usage_exits_2_with_one_line(args, needle, tmp_path, monkeypatch):
+    # compare.cli.main in this process; the entry point in a real process:
+    # tests/test_options.py::test_entry_point_sample
+    monkeypatch.chdir(tmp_path)
+    rc, lines = run_main(["stress", *args])
+    assert rc == 2
+    assert len(lines) == 1 and needle in lines[0], lines
 
 
 @pytest.mark.early
