@@ -191,7 +191,9 @@ for n in (10, 30, 61):
               "segment": info.get("checkpoint_segment"),
               "per_stack": info["design_bytes"]["adstack_per_stack_per_thread"],
               "per_step_stack": k_step.info()["ad_stack_size"], "compiled_for": compiled_for,
-              "identical": all(np.array_equal(o[m], o_step[m]) for m in o)}
+              "identical": all(np.array_equal(o[m], o_step[m]) for m in o),
+              "rel": max(float(np.max(np.abs(o[m] - o_step[m]) / np.maximum(np.abs(o[m]), 1e-300)))
+                         for m in o)}
 out["margin"] = ADSTACK_MARGIN
 out["ceiling"] = b.ad_stack_limit
 print("RESULT" + json.dumps(out))
@@ -203,7 +205,9 @@ def test_adstacks_are_sized_to_the_rollout(device):
     """The backward kernel's adstacks hold steps + margin entries (the segment's steps for
     'checkpoint'), not the device's ceiling, whose local memory the CUDA driver would reserve for
     every resident thread; kernels of different depths in one process each get their own depth,
-    whatever the order they are built and launched in, and give the per-step path's outputs."""
+    whatever the order they are built and launched in, and give the per-step path's outputs: bitwise
+    on the CPU; on CUDA, whose compiler contracts products and sums into FMAs kernel by kernel, to a
+    few roundings (the bound of test_taichi_family's fused-against-per-step test)."""
     r = _script(SIZED, device)
     margin, ceiling = r.pop("margin"), r.pop("ceiling")
     assert margin == ADSTACK_MARGIN and ceiling == {"cpu": 4096, "cuda": 1024}[device]
@@ -214,7 +218,10 @@ def test_adstacks_are_sized_to_the_rollout(device):
         assert v["ad_stack_size"] == v["compiled_for"] == depth, n
         assert v["per_stack"] == 4 + 2 * 8 * depth, n
         assert v["per_step_stack"] is None, n
-        assert v["identical"], n
+        if device == "cpu":
+            assert v["identical"], n
+        else:
+            assert v["rel"] <= 1e-12, n
 
 
 # ---- 2. compilation, repeatability, trajectories ------------------------------------------------
