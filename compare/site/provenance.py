@@ -13,8 +13,10 @@ from typing import Iterable
 
 from compare.results.environment import tree_state
 from compare.results.record import Record
+from compare.results.stamps import is_unknown
 
 UNSTAMPED = "records without a run stamp (made before runs were recorded)"
+RUN_UNKNOWN = "run unknown"     # a record stamped as of a run its store's evidence could not tell
 
 
 def short(sha: object) -> str:
@@ -25,8 +27,11 @@ def short(sha: object) -> str:
 
 
 def label(rec: Record) -> str:
-    """A run in words: its start (to the minute), commit and a dirty tree; '' when unstamped."""
+    """A run in words: its start (to the minute), commit and a dirty tree; '' when unstamped,
+    "run unknown" where the stamp says the run could not be told (compare.results.stamps)."""
     run = rec.run or {}
+    if is_unknown(run):
+        return RUN_UNKNOWN
     return run_words(run.get("created"), run.get("commit"), run.get("dirty")) if run.get("created") else ""
 
 
@@ -47,12 +52,12 @@ def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:
 def one_run(runs: tuple[str, ...]) -> bool:
     """One stamped run, of a committed tree: the only figures a row ranks."""
     not_clean = tuple(f" ({tree_state(d)})" for d in (True, None))
-    return len(runs) == 1 and runs[0] != "" and not runs[0].endswith(not_clean)
+    return len(runs) == 1 and runs[0] not in ("", RUN_UNKNOWN) and not runs[0].endswith(not_clean)
 
 
 def uncommitted(runs: tuple[str, ...]) -> bool:
     """One stamped run, of an uncommitted tree or one whose state is not known."""
-    return len(runs) == 1 and runs[0] != "" and not one_run(runs)
+    return len(runs) == 1 and runs[0] not in ("", RUN_UNKNOWN) and not one_run(runs)
 
 
 def words(runs: tuple[str, ...]) -> str:

@@ -112,6 +112,15 @@ def environments(known: dict[tuple[object, object], RunEnvironment],
 OLD_MERGE = "named only, by an older stress merge"
 
 
+def record_runs(known: dict[tuple[object, object], RunEnvironment], prov: dict[str, list[RunInfo]],
+                target: Store) -> list[RunEnvironment]:
+    """The parts' runs that a kept cell record names (its ``run``) but no experiment's rows do
+    (a later part replaced those rows, not every cell): every record keeps a run in the file."""
+    have = {run_key(r)[0] for entry in prov.values() for r in entry}
+    named = {str((r.run or {}).get("created")) for r in target.records if r.run}
+    return [e for (created, _), e in known.items() if created not in have and str(created) in named]
+
+
 # A verdict flags a problem or a limit found in CAPITALS (docs/stress.md); these capitals are
 # names, never a flag.
 ACRONYMS = frozenset({"GD", "FD", "AD", "CPU", "GPU", "CUDA", "ULP", "SDF", "NaN"})
@@ -336,9 +345,10 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
         for k, v in run_env.get("packages", {}).items():
             if v not in versions.setdefault(k, []):
                 versions[k].append(v)
+    known = part_environments(envs)
     env: RunEnvironment = {**envs[-1], "packages": {k: " / ".join(v) for k, v in versions.items()},
                            "merged_from": [named(f, out) for f in files],
-                           "environments": environments(part_environments(envs), prov)}
+                           "environments": environments(known, prov) + record_runs(known, prov, target)}
     write_outputs(target, env, in_table_order(rows, seen), series, sorted({r["experiment"] for r in rows}), experiments,
                   plots_=plots_, prov={e: v if len(v) > 1 else v[0] for e, v in prov.items()})
     print(f"merged {len(files)} files into {target.path} ({len(rows)} rows)", file=sys.stderr)

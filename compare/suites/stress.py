@@ -29,9 +29,10 @@ from compare import options
 from compare.planning import outdir, preflight
 from compare.suites.driver import Planned, Run, Suite, claim, drive
 from compare.options import EXIT_FAIL, EXIT_INTERRUPTED, EXIT_OK, UsageError
+from compare.results.record import Record
 from compare.results.store import Store
 from compare.stress import page
-from compare.stress.numerics import Finding, Row, Series
+from compare.stress.numerics import Finding, Outputs, Row, Series
 from compare.suites.stress_context import Ctx
 from compare.stress.registry import experiments
 
@@ -121,9 +122,16 @@ class StressSuite(Suite):
         self.ctx = Ctx(self.chosen["backends"], self.chosen["devices"], args.quick, args.jobs, args.timeout,
                        run.probes, self.store_, on_record=self.on_record)
         self.env = environment.collect(run.argv)
+        # the run is in the store's runs before any record naming it is saved (as the run and
+        # sweep suites do); write_outputs keeps this entry, the last one, as the run's
+        self.store_.runs.append(self.env)
         self.rows: list[Row] = []
         self.series: dict[str, Series] = {}
         self.interrupted = False
+
+    def on_record(self, i: int, rec: Record, outputs: Outputs | None) -> Record:
+        """Every cell's record names the run that measured it, as a results record does."""
+        return rec.replace(run=environment.run_stamp(self.env))
 
     def execute(self, run: Run) -> list[Any]:
         only = [str(p.extra) for p in run.planned]

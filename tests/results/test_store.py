@@ -16,6 +16,7 @@ from compare.files import TEMP_MARK, TEMP_SUFFIX
 from compare.results import store as store_mod
 from compare.results.environment import RunEnvironment, machine, same_machine
 from compare.results.record import FORMAT_VERSION, Record
+from compare.results.stamps import unstamped
 from compare.results.store import (SUITES, Store, StoreError, jsonable, read_bounded, remove_stale_temps,
                                    run_environments)
 
@@ -86,6 +87,16 @@ def test_every_published_run_figure_names_a_clean_commit(path: Path) -> None:
     assert not_clean(s.runs) == []
     named = {str(r.run["created"]) for r in s.records if r.run}
     assert {str(e.get("created")) for e in s.runs} == named        # no entry that no record names
+
+
+@pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))
+def test_every_published_record_names_a_run_of_its_store(path: Path) -> None:
+    """Every record of every published store (results, sweep, stress) names the run that measured
+    it: an entry of the store's runs (a merged entry's environments too), by start and commit; a
+    record stored before its suite stamped records, whose run the store's evidence could not tell
+    (compare/suites/stamping.py), says so explicitly (its pages: "run unknown")."""
+    s = Store.read(path)
+    assert unstamped(s.records, s.runs) == []
 
 
 CLEAN = [p for m in ("cpu", "xeon") for p in sorted(ROOT.glob(f"docs/results/{m}/*.json"))

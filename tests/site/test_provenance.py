@@ -51,3 +51,16 @@ def test_a_full_commit_hash_is_shortened_on_pages_and_anything_else_kept():
     from compare.site import provenance
     assert provenance.short("0ffd82b02e538da2c427e5697a9f567f429b5845") == "0ffd82b"
     assert provenance.short("ae30861") == "ae30861" and provenance.short("?") == "?"
+
+
+def test_a_record_stamped_run_unknown_says_so_and_is_never_ranked():
+    """A record whose store could not tell its run (compare.results.stamps.unknown_stamp) reads
+    "run unknown" on every page, alone or beside a known run, and no row ranks on it."""
+    from compare.results.stamps import unknown_stamp
+    lost = rec(unknown_stamp("two runs fit"))
+    assert provenance.label(lost) == provenance.RUN_UNKNOWN == "run unknown"
+    alone = provenance.runs_of([lost, lost])
+    assert not provenance.one_run(alone) and not provenance.uncommitted(alone)
+    assert "run unknown" in provenance.words(alone) and "no best is named" in provenance.words(alone)
+    beside = provenance.runs_of([rec(A), lost])
+    assert not provenance.one_run(beside) and "run unknown" in provenance.words(beside)

@@ -95,6 +95,27 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
     assert len(merged) == len(again) and (tmp_path / "merged" / "stress.md").exists()
 
 
+def test_every_stress_record_names_its_run_and_a_merge_keeps_it(tmp_path):
+    """Each cell record a stress run stores is stamped with that run (created, commit, dirty),
+    as a results record is, and names an entry of the file's runs; a merge of the part keeps it."""
+    from compare.results.stamps import flat_runs, unstamped
+    from compare.results.store import Store
+    require_device("numpy", "cpu")
+    p = run_stress("--quick", "--backends", "numpy", "--devices", "cpu", "--only", "ulps",
+                   "--out", str(tmp_path / "part"), "--no-plots", "--jobs", "1")
+    assert p.returncode == 0, p.stderr[-3000:]
+    part = Store.read(tmp_path / "part" / "stress.json", "stress")
+    assert part.records and unstamped(part.records, part.runs) == []
+    env = part.runs[-1]
+    assert {tuple(r.run.items()) for r in part.records} == \
+        {(("created", env["created"]), ("commit", env.get("git_commit") or None), ("dirty", env.get("git_dirty")))}
+    p = run_stress("--merge", str(tmp_path / "part" / "stress.json"), "--out", str(tmp_path / "merged"), "--no-plots")
+    assert p.returncode == 0, p.stderr
+    merged = Store.read(tmp_path / "merged" / "stress.json", "stress")
+    assert len(merged.records) == len(part.records) and unstamped(merged.records, merged.runs) == []
+    assert env["created"] in {e.get("created") for e in flat_runs(merged.runs)}
+
+
 # ---- host-loop tasks and scheduling -------------------------------------------------------------
 
 

@@ -86,6 +86,20 @@ def test_sweep_resume_skips_ok_cells(quick_sweep):
     assert "scaling particles" not in p.stderr          # nothing rerun
 
 
+def test_every_sweep_record_names_its_run(tmp_path):
+    """Each record a sweep stores is stamped with its run (created, commit, dirty), an entry of
+    the file's runs, as a results record is."""
+    from compare.results.stamps import unstamped
+    from compare.results.store import Store
+    require_device("numpy", "cpu")
+    p = run_sweep("bandwidth", "--quick", "--backends", "numpy", "--devices", "cpu", "--out", str(tmp_path / "a"),
+                  "--no-plots")
+    assert p.returncode == 0, p.stderr[-3000:]
+    store = Store.read(tmp_path / "a" / "sweep.json", "sweep")
+    assert store.records and unstamped(store.records, store.runs) == []
+    assert {r.run["created"] for r in store.records} == {store.runs[-1]["created"]}
+
+
 @pytest.mark.parametrize("args,needle", [
     ((), "required"),
     (("bogus",), "unknown sweep"),
