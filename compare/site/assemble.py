@@ -138,6 +138,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                    (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e), _timed(e),
                     *((e.get("cpu_id") or "not recorded",) if ids else ()), str(e.get("command", "?")))
                    for e in envs))]
+    blocks += sittings(envs, c.out)
     blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
                              + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "
                              + pages.doc_link(c.out, "findings.md") + "."),
@@ -152,12 +153,38 @@ def machine(c: qp.Ctx) -> list[Any]:
     return blocks
 
 
+def sittings(envs: list[RunEnvironment], out: Path) -> list[Any]:
+    """The runs' sitting checks (compare.measuring.sitting), each run let through a noisy sitting
+    named with its reasons: a line on the page its figures feed."""
+    from compare.measuring.sitting import SittingCheck, summary
+    checked = [e for e in envs if isinstance(e.get("sitting"), dict)]
+    if not checked:
+        return []
+    noisy = [e for e in checked if e.get("noisy_sitting")]
+
+    def one(e: RunEnvironment, when: str) -> str:
+        c = (e.get("sitting") or {}).get(when)     # type: ignore[misc]
+        return summary(SittingCheck.from_json(c)) if isinstance(c, dict) else "-"
+    return [H("The sitting checks"),
+            P("Each run checked its sitting before its first cell (and a publish part after its last): "
+              "the launch floor and its spread, the copy, host load, other GPU processes, throttling "
+              "(" + pages.doc_link(out, "measurement.md") + ", the sitting check). "
+              + (" ".join(f"**Noisy sitting:** {provenance.run_words(e.get('created'), e.get('git_commit'), e.get('git_dirty'))}"
+                          f": {'; '.join(e.get('noisy_sitting_reasons') or ['not said'])}." for e in noisy)
+                 or "No run was let through a noisy sitting.")),
+            Table(("run", "start", "end", "verdict"), tuple(
+                (str(e.get("created", "?"))[:16], one(e, "start"), one(e, "end"),
+                 "noisy sitting" if e.get("noisy_sitting") else "quiet") for e in checked))]
+
+
 def _timed(env: RunEnvironment) -> str:
     """How the run timed its cells: processes a cell, and what ran beside a window."""
     procs = env.get("processes")
     words = [f"{procs} processes" if procs not in (None, 1) else "1 process"]
     if env.get("sitting_s") is not None:
         words.append(f"sitting {env['sitting_s']:g} s")
+    if env.get("noisy_sitting"):
+        words.append("noisy sitting")
     ahead = env.get("overlap") or 0
     if ahead:
         words.append(f"{ahead} set up ahead" + (", beside GPU windows" if env.get("overlap_beside") else ""))

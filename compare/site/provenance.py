@@ -15,6 +15,7 @@ from compare.results.environment import tree_state
 from compare.results.record import Record
 
 UNSTAMPED = "records without a run stamp (made before runs were recorded)"
+NOISY = " (noisy sitting)"     # beside a run publish let through a noisy sitting (compare.measuring.sitting)
 
 
 def short(sha: object) -> str:
@@ -27,16 +28,18 @@ def short(sha: object) -> str:
 def label(rec: Record) -> str:
     """A run in words: its start (to the minute), commit and a dirty tree; '' when unstamped."""
     run = rec.run or {}
-    return run_words(run.get("created"), run.get("commit"), run.get("dirty")) if run.get("created") else ""
+    return (run_words(run.get("created"), run.get("commit"), run.get("dirty"), run.get("noisy_sitting"))
+            if run.get("created") else "")
 
 
-def run_words(created: object, commit: object, dirty: object) -> str:
-    """'run START UTC, commit C' (START to the minute where it is ISO), with the tree's state."""
+def run_words(created: object, commit: object, dirty: object, noisy: object = False) -> str:
+    """'run START UTC, commit C' (START to the minute where it is ISO), with a noisy sitting
+    (``NOISY``) and the tree's state."""
     when = str(created or "?")
     if re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d", when):
         when = f"{when[:16].replace('T', ' ')} UTC"
     state = f" ({words})" if (words := tree_state(dirty)) else ""
-    return f"run {when}, commit {short(commit) if commit else 'unknown commit'}{state}"
+    return f"run {when}{NOISY if noisy else ''}, commit {short(commit) if commit else 'unknown commit'}{state}"
 
 
 def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:

@@ -24,7 +24,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from compare.measuring import environment
+from compare.measuring import environment, sitting_run
 from compare import options
 from compare.planning import outdir, preflight
 from compare.suites.driver import Planned, Run, Suite, claim, drive
@@ -121,6 +121,7 @@ class StressSuite(Suite):
         self.ctx = Ctx(self.chosen["backends"], self.chosen["devices"], args.quick, args.jobs, args.timeout,
                        run.probes, self.store_, on_record=self.on_record)
         self.env = environment.collect(run.argv)
+        sitting_run.start(self.env, measure=False)      # publish's check of this part, where it ran one
         self.rows: list[Row] = []
         self.series: dict[str, Series] = {}
         self.interrupted = False
@@ -159,6 +160,7 @@ class StressSuite(Suite):
         if self.interrupted:
             return EXIT_INTERRUPTED
         only, store, rows = [str(p.extra) for p in run.planned], self.store_, self.rows
+        sitting_run.end(self.env)       # a publish part's end check
         stored = page.write_outputs(store, self.env, rows, self.series, only, self.registry,
                                     plots_=not run.args.no_plots)
         failed = [r for r in stored if r["experiment"] in only and failure(r)]
