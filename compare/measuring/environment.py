@@ -194,7 +194,7 @@ class RunStamp(TypedDict):
     created: str
     commit: str | None
     dirty: bool | None
-    noisy_sitting: NotRequired[bool]     # publish let a noisy sitting through (compare.measuring.sitting_run)
+    noisy_sitting: NotRequired[bool]     # publish let a noisy sitting through (compare.running.sitting_run)
 
 
 def run_stamp(env: RunEnvironment) -> RunStamp:

@@ -2,7 +2,8 @@
 
 Processes on lent machines disagree by up to 1.6x between sittings, and the driver's empty-kernel
 launch shows it before any framework runs (docs/measurement.md, "The sitting check"). So before
-anything is timed, ``check_sitting`` looks at what pyperf's ``system show`` / ``check`` look at
+anything is timed, a check (``sitting_from``; ``compare.running.sitting_run.check_sitting`` measures
+it) looks at what pyperf's ``system show`` / ``check`` look at
 that can move a figure here:
 
 - the launch floor, with a synchronise (``launch_latency_s``) and pipelined, and the null call's
@@ -18,7 +19,7 @@ that can move a figure here:
 Each figure is None where it cannot be read (no GPU, no NVML, no /proc), and ``notes`` says why.
 ``judge`` compares a check with the quiet sittings of its machine kind learned from the stored
 runs (``compare.measuring.sitting_quiet``); the run keeps its checks (``sitting``:
-``{"start": ..., "end": ...}``, ``compare.measuring.sitting_run``).
+``{"start": ..., "end": ...}``, ``compare.running.sitting_run``).
 """
 from __future__ import annotations
 
@@ -47,7 +48,7 @@ SLOWING = ("hw_slowdown", "sw_thermal_slowdown", "hw_thermal_slowdown", "hw_powe
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class SittingCheck(Part):
-    """One sitting check (``check_sitting``): its figures, each None where not read."""
+    """One sitting check (``sitting_from``): its figures, each None where not read."""
     device: str = "cpu"
     measured: str | None = None               # ISO time (UTC) it was taken
     gpu: str | None = None                    # the machine kind: the GPU's name, else the CPU's
@@ -134,25 +135,12 @@ def _cpu_null() -> dict[str, Any]:
                                               "(not judged: its spread is the clock's grain)"}
 
 
-def measure_yardstick(device: str) -> Yardstick:
-    """The device's yardstick for a check: CUDA's in its own process (no framework's context);
-    the CPU's copy in this process, without the curve of smaller sizes (a third of a second)."""
-    from compare.running import hardware
-    if device == "cuda":
-        return hardware.measure("cuda", timeout=120.0)
-    try:
-        return hardware.measure_cpu(curve_sizes=())
-    except Exception as exc:  # a figure lost, never the check
-        return Yardstick(error=f"{type(exc).__name__}: {exc}")
-
-
-def check_sitting(device: str, yardstick: Yardstick | None = None, window_s: float = WINDOW_S) -> SittingCheck:
-    """The sitting of ``device`` ('cuda' or 'cpu') now. ``yardstick``: a yardstick this run has just
-    measured (``compare all`` reuses its own; the check then costs the host window, under a
-    second); None measures one."""
+def sitting_from(device: str, hw: Yardstick, window_s: float = WINDOW_S) -> SittingCheck:
+    """The sitting of ``device`` ('cuda' or 'cpu') now, its launch and copy figures from ``hw``, a
+    yardstick just measured (``compare.running.sitting_run.check_sitting`` measures one; ``compare
+    all`` reuses its own): the host window and NVML on top, a quarter of a second."""
     from compare.measuring import environment
     t0 = time.perf_counter()
-    hw = yardstick if yardstick is not None else measure_yardstick(device)
     notes: list[str] = []
     fig: dict[str, Any] = {}
     if hw.get("error"):
@@ -171,7 +159,8 @@ def check_sitting(device: str, yardstick: Yardstick | None = None, window_s: flo
     fig.update(host_figures(window_s))
     name = (hw.get("gpu") or next((g["name"] for g in environment.gpus()), None)) if device == "cuda" else None
     return SittingCheck.of(device=device, measured=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                           gpu=name, cpu=environment.cpu_model(), cpu_id=environment.cpu_id(), cores=environment.usable_cores(),
+                           gpu=name, cpu=environment.cpu_model(), cpu_id=environment.cpu_id(),
+                           cores=environment.usable_cores(),
                            **{k: v for k, v in fig.items() if k in SittingCheck.names()},
                            seconds=round(time.perf_counter() - t0, 3), notes=notes)
 
@@ -186,7 +175,7 @@ def summary(c: SittingCheck) -> str:
     if c.null_spread is not None and c.device == "cuda":
         words.append(f"spread {100 * c.null_spread:.0f} %")
     if c.copy_bytes_per_s:
-        words.append(f"copy {c.copy_bytes_per_s / 1e9:.3g} GB/s")
+        words.append(f"copy {_rate(c.copy_bytes_per_s)}")
     if c.others_cores is not None:
         words.append(f"others on {c.others_cores:.2f} of {c.host_cores} cores")
     if c.loadavg_1m is not None:
@@ -227,6 +216,10 @@ def _us(s: float) -> str:
     return f"{s * 1e6:.3g} us"
 
 
+def _rate(bps: float) -> str:
+    return f"{bps / 1e12:.3g} TB/s" if bps >= 1e12 else f"{bps / 1e9:.3g} GB/s"
+
+
 def judge(sitting: SittingCheck, quiet: Quiet | None) -> tuple[str, ...]:
     """Why ``sitting`` is measurably worse than ``quiet`` (empty: it is not). Thresholds: the
     module's constants (docs/measurement.md, "The sitting check"). Without a quiet reference
@@ -240,8 +233,8 @@ def judge(sitting: SittingCheck, quiet: Quiet | None) -> tuple[str, ...]:
             why.append(f"{words} {_us(mine)}, {mine / best:.2f}x the quiet {_us(best)} (limit {FLOOR_RATIO}x)")
     best_copy = q.copy_bytes_per_s if q else None
     if sitting.copy_bytes_per_s and best_copy and sitting.copy_bytes_per_s * COPY_RATIO < best_copy:
-        why.append(f"copy {sitting.copy_bytes_per_s / 1e9:.3g} GB/s, 1/{best_copy / sitting.copy_bytes_per_s:.2f} "
-                   f"of the quiet {best_copy / 1e9:.3g} GB/s (limit 1/{COPY_RATIO})")
+        why.append(f"copy {_rate(sitting.copy_bytes_per_s)}, 1/{best_copy / sitting.copy_bytes_per_s:.2f} "
+                   f"of the quiet {_rate(best_copy)} (limit 1/{COPY_RATIO})")
     if sitting.device == "cuda" and sitting.null_spread is not None and sitting.null_spread > NULL_SPREAD:
         why.append(f"empty-launch spread {100 * sitting.null_spread:.0f} % of the median (limit {100 * NULL_SPREAD:.0f} %)")
     if sitting.gpu_processes:
@@ -259,4 +252,4 @@ def judge(sitting: SittingCheck, quiet: Quiet | None) -> tuple[str, ...]:
 
 
 __all__ = ["BUSY_SHARE", "COPY_RATIO", "FLOOR_RATIO", "NULL_SPREAD", "Quiet", "SittingCheck", "THROTTLE_BITS",
-           "WINDOW_S", "check_sitting", "judge", "summary", "throttle_names"]
+           "WINDOW_S", "judge", "sitting_from", "summary", "throttle_names"]

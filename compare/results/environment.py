@@ -66,7 +66,7 @@ class Phases(TypedDict, total=False):
 
 
 class Sitting(TypedDict, total=False):
-    """A run's sitting checks (``compare.measuring.sitting_run``): each a ``SittingCheck``'s JSON."""
+    """A run's sitting checks (``compare.running.sitting_run``): each a ``SittingCheck``'s JSON."""
     start: dict[str, Any]
     end: dict[str, Any]
 

@@ -301,7 +301,7 @@ RUN.fields["environments"] = Seq(RUN)     # type: ignore[index]
 ROW_FIELDS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 ROW = Obj({**{k: TEXT for k in ROW_FIELDS}, "value": SCALAR}, ROW_FIELDS, null=False)
 PROVENANCE_RUN = Obj({"command": OPT_TEXT, "created": OPT_TEXT, "git_commit": OPT_TEXT, "git_dirty": FLAG,
-                      "backends": Seq(TEXT, null=False)}, null=False)
+                      "backends": Seq(TEXT, null=False), "noisy_sitting": FLAG}, null=False)
 ANALYSIS = Obj({"rows": Seq(ROW, null=False), "series": Obj(null=False),
                 "provenance": Obj(rest=Either("a run (command, created, git_commit) or a list of runs",
                                               (PROVENANCE_RUN, Seq(PROVENANCE_RUN, null=False))), null=False)},

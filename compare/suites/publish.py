@@ -52,7 +52,7 @@ which its files must match (its runs then say clean); with the commit alone it i
 word (tree state unknown). A folder whose log names another machine (GPU models, else the CPU
 model) is refused too: one store, one machine.
 
-The sitting check (compare.measuring.sitting; docs/measurement.md): before each measuring part
+The sitting check (compare.measuring.sitting, compare.running.sitting_run; docs/measurement.md): before each measuring part
 (not stress-merge, not site) publish checks the sitting (the launch floor and its spread, the copy,
 host load, other GPU processes, throttling) against the quiet sittings of this machine kind in DIR
 and docs/results/*/, and refuses a measurably worse one (exit 2, one line) unless
@@ -153,12 +153,13 @@ def stop(proc: subprocess.Popen, interrupt: bool = True) -> int:
 def sitting_gate(devices: list[str], out: Path, allowed: bool) -> Callable[[], str]:
     """The check before each measuring part: what to hand the part (``sitting_run.ENV``), or a
     refusal of a sitting measurably worse than the kind's quiet ones (unless ``allowed``)."""
-    from compare.measuring import sitting, sitting_quiet, sitting_run
+    from compare.measuring import sitting, sitting_quiet
+    from compare.running import sitting_run
     device = sitting_run.device_of(devices)
     learned: dict[str, sitting.Quiet | None] = {}
 
     def gate() -> str:
-        check = sitting.check_sitting(device)
+        check = sitting_run.check_sitting(device)
         if "quiet" not in learned:       # the stores are read once
             learned["quiet"] = sitting_quiet.quiet_for(check, [out, *sitting_quiet.repository_stores()])
         quiet = learned["quiet"]
@@ -177,7 +178,7 @@ def sitting_gate(devices: list[str], out: Path, allowed: bool) -> Callable[[], s
 def execute(argv: list[str], deadline: float | None, tick: Any, sitting: str | None = None) -> tuple[int, str | None]:
     """Run one part to its end; (exit code, None | 'budget' | 'interrupted'). ``sitting``: the
     check publish hands the part."""
-    from compare.measuring.sitting_run import ENV
+    from compare.running.sitting_run import ENV
     env = child_env()
     env.pop(ENV, None)
     if sitting is not None:

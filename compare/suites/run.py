@@ -25,7 +25,8 @@ from backends.base import Device
 from compare.planning import calibrate, outdir
 from compare.render import console, report, run_plots
 from compare.running import engine, hardware, scaleout
-from compare.measuring import environment, phases, sitting_run
+from compare.measuring import environment, phases
+from compare.running import sitting_run
 from compare import options
 from compare.site import versus
 from compare.suites.driver import Planned, Run, Suite, drive

@@ -24,7 +24,8 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from compare.measuring import environment, sitting_run
+from compare.measuring import environment
+from compare.running import sitting_run
 from compare import options
 from compare.planning import outdir, preflight
 from compare.suites.driver import Planned, Run, Suite, claim, drive

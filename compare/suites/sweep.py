@@ -32,7 +32,8 @@ import backends
 import scenarios
 from backends.base import Device
 from compare.running import engine, hardware, scaleout
-from compare.measuring import environment, sitting_run
+from compare.measuring import environment
+from compare.running import sitting_run
 from compare import options
 from compare.planning import outdir, preflight
 from compare.suites.driver import Planned, Run, Suite, claim, drive

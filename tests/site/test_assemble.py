@@ -3,6 +3,7 @@ Markdown), from the site's test store (fast tier: figures drawn but not rasteris
 site's links and layout: tests/site/test_site.py)."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -122,3 +123,25 @@ def test_store_label_names_a_store_in_the_repository_by_its_path(tmp_path):
 
 def test_every_page_has_a_builder():
     assert set(questions.PAGES) == set(assemble.BUILDERS)
+
+
+def test_the_machine_page_says_noisy_sitting(tmp_path, loaded):
+    """A run publish let through a noisy sitting: the machine page names it with its reasons, the
+    runs table says so, and the checks of every run that kept them are listed."""
+    from compare.measuring.sitting import SittingCheck
+    m = data.load([STORE])
+    check = SittingCheck.of(device="cuda", launch_latency_s=12.65e-6, launch_pipelined_s=7.6e-6).to_json()
+    noisy, quiet = dict(m.runs[0]), dict(m.runs[0])
+    noisy.update(sitting={"start": check, "end": check}, noisy_sitting=True,
+                 noisy_sitting_reasons=["pipelined launch 7.6 us, 1.49x the quiet 5.09 us (limit 1.25x)"])
+    quiet.update(sitting={"start": check})
+    m = dataclasses.replace(m, runs=(noisy, quiet))
+    blocks = assemble.machine(ctx(m, loaded[1], tmp_path))
+    text = " ".join(getattr(b, "text", "") for b in blocks)
+    assert "**Noisy sitting:** run " in text and ": pipelined launch 7.6 us, 1.49x the quiet 5.09 us" in text
+    table = next(b for b in blocks if isinstance(b, Table) and b.headers == ("run", "start", "end", "verdict"))
+    assert [r[3] for r in table.rows] == ["noisy sitting", "quiet"] and table.rows[1][2] == "-"
+    assert table.rows[0][1].startswith("launch + sync 12.6 us, pipelined 7.6 us")
+    runs = next(b for b in blocks if isinstance(b, Table) and b.headers[0] == "created")
+    assert runs.rows[0][3].endswith("noisy sitting") and not runs.rows[1][3].endswith("noisy sitting")
+    assert assemble.sittings([dict(m.runs[1], sitting=None)], tmp_path) == []      # no checks: no block

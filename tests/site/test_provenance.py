@@ -51,3 +51,12 @@ def test_a_full_commit_hash_is_shortened_on_pages_and_anything_else_kept():
     from compare.site import provenance
     assert provenance.short("0ffd82b02e538da2c427e5697a9f567f429b5845") == "0ffd82b"
     assert provenance.short("ae30861") == "ae30861" and provenance.short("?") == "?"
+
+
+def test_a_noisy_sitting_is_named_and_the_row_still_ranks():
+    noisy = {**A, "noisy_sitting": True}
+    assert provenance.label(rec(noisy)) == "run 2026-11-27 10:20 UTC (noisy sitting), commit abc1234"
+    runs = provenance.runs_of([rec(noisy)])
+    assert provenance.one_run(runs) and "(noisy sitting)" in provenance.words(runs)
+    dirty = provenance.runs_of([rec({**B, "noisy_sitting": True})])
+    assert provenance.uncommitted(dirty) and "(noisy sitting)" in provenance.words(dirty)

@@ -1,4 +1,5 @@
-"""A run's sitting checks, kept in its entry of the store's ``runs`` (``compare.measuring.sitting``).
+"""The sitting check measured (``check_sitting``), and a run's checks kept in its entry of the
+store's ``runs`` (``compare.measuring.sitting``: the check's figures and the verdict).
 
 ``sitting: {"start": check, "end": check}``. ``compare all`` / ``compare run`` / a sweep measure
 the start once, before any cell, from the yardstick the run has just measured (the host window
@@ -15,10 +16,29 @@ import json
 import os
 from typing import Any, Iterable, Mapping
 
-from compare.measuring.sitting import Quiet, SittingCheck, check_sitting, judge
-from compare.results.environment import RunEnvironment
+from compare.measuring.sitting import Quiet, SittingCheck, judge, sitting_from
+from compare.results.environment import RunEnvironment, Yardstick
 
 ENV = "COMPARE_SITTING"       # publish -> its part: {"start", "reasons", "quiet"} as JSON
+
+
+def measure_yardstick(device: str) -> Yardstick:
+    """The device's yardstick for a check: CUDA's in its own process (no framework's context);
+    the CPU's copy in this process, without the curve of smaller sizes."""
+    from compare.running import hardware
+    if device == "cuda":
+        return hardware.measure("cuda", timeout=120.0)
+    try:
+        return hardware.measure_cpu(curve_sizes=())
+    except Exception as exc:  # a figure lost, never the check
+        return Yardstick(error=f"{type(exc).__name__}: {exc}")
+
+
+def check_sitting(device: str, yardstick: Yardstick | None = None) -> SittingCheck:
+    """The sitting of ``device`` ('cuda' or 'cpu') now: from ``yardstick``, one this run has just
+    measured (the check then costs the host window), else from one measured here (the CPU's: about
+    a second on 2 cores; CUDA's: a process, the driver's start, the copies and launches)."""
+    return sitting_from(device, yardstick if yardstick is not None else measure_yardstick(device))
 
 
 def device_of(devices: Iterable[str]) -> str:
@@ -79,4 +99,4 @@ def end(env: RunEnvironment) -> None:
     stamp(env, [f"at the end: {r}" for r in judge(check, quiet)])
 
 
-__all__ = ["ENV", "device_of", "end", "from_publish", "handed", "stamp", "start"]
+__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "stamp", "start"]
