@@ -9,7 +9,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import TypedDict
+from typing import NotRequired, TypedDict
 
 from compare.results.environment import Gpu, RunEnvironment
 
@@ -194,13 +194,17 @@ class RunStamp(TypedDict):
     created: str
     commit: str | None
     dirty: bool | None
+    noisy_sitting: NotRequired[bool]     # publish let a noisy sitting through (compare.running.sitting_run)
 
 
 def run_stamp(env: RunEnvironment) -> RunStamp:
     """What a record keeps of the run that measured it (``Record.run``): when it started, the
-    commit and whether the tree was dirty (None: unknown, a copied tree)."""
-    return RunStamp(created=str(env.get("created", "")), commit=env.get("git_commit") or None,
-                    dirty=env.get("git_dirty"))
+    commit, whether the tree was dirty (None: unknown, a copied tree) and a noisy sitting."""
+    stamp = RunStamp(created=str(env.get("created", "")), commit=env.get("git_commit") or None,
+                     dirty=env.get("git_dirty"))
+    if env.get("noisy_sitting"):
+        stamp["noisy_sitting"] = True
+    return stamp
 
 
 if __name__ == "__main__":      # the digest a copied tree is checked against (COMPARE_GIT_TREE)

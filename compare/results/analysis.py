@@ -39,6 +39,7 @@ class RunInfo(TypedDict, total=False):
     created: str | None
     git_commit: str | None
     git_dirty: bool | None
+    noisy_sitting: bool                 # publish let a noisy sitting through (compare.running.sitting_run)
     backends: list[str]
 
 

@@ -32,6 +32,7 @@ class Yardstick(TypedDict, total=False):
     copy_how: str
     copy_curve: list[list[float]]          # [bytes per array, bandwidth]
     launch_latency_s: float
+    launch_latency_iqr_s: float            # the spread of the synchronised launches (the sitting check)
     launch_pipelined_s: float
     launch_how: str
     gpu: str
@@ -64,6 +65,12 @@ class Phases(TypedDict, total=False):
     cells: dict[str, float]
 
 
+class Sitting(TypedDict, total=False):
+    """A run's sitting checks (``compare.running.sitting_run``): each a ``SittingCheck``'s JSON."""
+    start: dict[str, Any]
+    end: dict[str, Any]
+
+
 class RunEnvironment(TypedDict, total=False):
     """One entry of a results file's ``runs``. ``collect`` gives the first fields (``git_dirty``
     None: a copied tree, dirtiness not known); a suite adds the rest. A merged report's entry
@@ -91,6 +98,9 @@ class RunEnvironment(TypedDict, total=False):
     sitting_s: float                    # --sitting: rounds past the fewest only within it
     kinds: list[str] | None             # a sweep's kinds
     hardware: dict[str, Yardstick] | None     # device -> its same-run yardstick
+    sitting: Sitting                    # the sitting checks at its start and (publish) end
+    noisy_sitting: bool                 # publish ran it in a noisy sitting (--allow-noisy-sitting)
+    noisy_sitting_reasons: list[str]
     scheduler: Scheduler | None
     phases: Phases
     seed: int
@@ -133,7 +143,8 @@ def environment_of(obj: Mapping[str, object]) -> RunEnvironment:    # a stored r
     return cast(RunEnvironment, obj)
 
 
-__all__ = ["Gpu", "Host", "Phases", "Probe", "PublishEntry", "PublishLog", "RunEnvironment", "Scheduler", "Yardstick",
+__all__ = ["Gpu", "Host", "Phases", "Probe", "PublishEntry", "PublishLog", "RunEnvironment", "Scheduler", "Sitting",
+           "Yardstick",
            "environment_of", "machine", "same_machine", "tree_state"]
 
 

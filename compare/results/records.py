@@ -204,7 +204,8 @@ RECORD = Obj({
                      ("error", "metric")),
     "hardware": HARDWARE, "info": Obj(), "versions": Obj(),
     "host": OPT_TEXT, "host_load_1m": OPT_NUMBER, "host_cores": OPT_COUNT, "machine": OPT_TEXT,
-    "run": Obj({"created": TEXT, "commit": OPT_TEXT, "dirty": FLAG, "note": TEXT}, ("created",)),
+    "run": Obj({"created": TEXT, "commit": OPT_TEXT, "dirty": FLAG, "note": TEXT, "noisy_sitting": FLAG},
+               ("created",)),
     "traceback": TEXT})
 
 
@@ -292,13 +293,15 @@ RUN = Obj({
     "gpus": Seq(Obj({"name": TEXT, "driver": TEXT, "memory": TEXT}, ("name", "driver", "memory"), null=False),
                 null=False),
     "packages": Obj(rest=TEXT, null=False), "hardware": Obj(rest=HARDWARE), "merged_from": Seq(TEXT, null=False),
-    "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT)}, null=False)
+    "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT),
+    "sitting": Obj({"start": Obj(), "end": Obj()}), "noisy_sitting": FLAG,
+    "noisy_sitting_reasons": Seq(TEXT, null=False)}, null=False)
 # a merged report's entry holds the runs it merged (its header shows each): runs, checked alike
 RUN.fields["environments"] = Seq(RUN)     # type: ignore[index]
 ROW_FIELDS = ("experiment", "backend", "device", "precision", "setting", "figure", "value", "verdict", "detail")
 ROW = Obj({**{k: TEXT for k in ROW_FIELDS}, "value": SCALAR}, ROW_FIELDS, null=False)
 PROVENANCE_RUN = Obj({"command": OPT_TEXT, "created": OPT_TEXT, "git_commit": OPT_TEXT, "git_dirty": FLAG,
-                      "backends": Seq(TEXT, null=False)}, null=False)
+                      "backends": Seq(TEXT, null=False), "noisy_sitting": FLAG}, null=False)
 ANALYSIS = Obj({"rows": Seq(ROW, null=False), "series": Obj(null=False),
                 "provenance": Obj(rest=Either("a run (command, created, git_commit) or a list of runs",
                                               (PROVENANCE_RUN, Seq(PROVENANCE_RUN, null=False))), null=False)},

@@ -75,9 +75,11 @@ def copy_in_slices(dst: np.ndarray, src: np.ndarray, pool: ThreadPoolExecutor, p
     list(pool.map(lambda i: np.copyto(dst[cut[i]:cut[i + 1]], src[cut[i]:cut[i + 1]]), range(parts)))
 
 
-def measure_cpu() -> Yardstick:
+def measure_cpu(curve_sizes: tuple[int, ...] | None = None) -> Yardstick:
     """The faster of one thread's ``numpy.copyto`` and one per core on a slice each (copyto
-    releases the GIL): the multi-threaded ports' copies beat one thread's (docs/measurement.md)."""
+    releases the GIL): the multi-threaded ports' copies beat one thread's (docs/measurement.md).
+    ``curve_sizes``: the smaller copies' sizes (default ``CURVE_BYTES``; the sitting check
+    passes none, its figure is the main copy's)."""
     n = 1 << 25                                    # float32: 128 MiB per array
     src = np.ones(n, np.float32)
     dst = np.empty_like(src)
@@ -88,7 +90,7 @@ def measure_cpu() -> Yardstick:
         # the same copy at the sizes a cell's working set may have: a cache-resident cell is
         # judged against a copy that fits the same caches (docs/measurement.md)
         curve = []
-        for nbytes in CURVE_BYTES:
+        for nbytes in CURVE_BYTES if curve_sizes is None else curve_sizes:
             a, b = src[: nbytes // 4], dst[: nbytes // 4]
             reps = max(1, (4 << 20) // nbytes)
             tc = min(_copy_seconds(lambda: np.copyto(b, a), reps),
@@ -176,9 +178,11 @@ def measure_cuda() -> Yardstick:
         ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
         piped.append((time.perf_counter() - t0) / k)
     t = _median(copies)
+    q1, q3 = np.percentile(np.asarray(lat), [25, 75])
     out = Yardstick(copy_bytes_per_s=2.0 * n / t, copy_bytes=n, copy_median_s=t,
                     copy_how="cuMemcpyDtoDAsync of 1 GiB, CUDA events, median of 20 (2 x bytes / time)",
-                    launch_latency_s=_median(lat), launch_pipelined_s=_median(piped[1:]),
+                    launch_latency_s=_median(lat), launch_latency_iqr_s=float(q3 - q1),
+                    launch_pipelined_s=_median(piped[1:]),
                     launch_how="empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize "
                                "(median of 2000); pipelined = 2000 launches, one synchronise, / 2000")
     try:

@@ -13,16 +13,17 @@ import json
 import os
 from pathlib import Path
 
+from compare.running.repeats import AUTO_MIN
 from compare.site import ranking
 from compare.site.data import Machine
 from compare.site.matrix import Cell, Row
 
 # How sure a separation is, in words a chooser reads (the test that decided it)
 SURE = {ranking.INTERVALS: "95 % intervals apart",
-        ranking.ONE_PROCESS: f"one process each, past the {ranking.ONE_PROCESS_GAP:g}× that needs",
+        ranking.ONE_PROCESS: f"under {AUTO_MIN} processes, no 95 % interval: past the {ranking.ONE_PROCESS_GAP:g}× that needs",
         ranking.EXACT: "exact figures"}
 UNSURE = {ranking.OVERLAP: "95 % intervals overlap",
-          ranking.ONE_PROCESS: f"one process each, under {ranking.ONE_PROCESS_GAP:g}×",
+          ranking.ONE_PROCESS: f"under {AUTO_MIN} processes, no 95 % interval: under {ranking.ONE_PROCESS_GAP:g}×",
           ranking.INTERVALS: f"under {100 * (ranking.SEPARATED_GAP - 1):.0f} % apart",
           ranking.EXACT: f"under {100 * (ranking.SEPARATED_GAP - 1):.0f} % apart",
           ranking.EQUAL: "equal figures"}
@@ -60,7 +61,8 @@ def answer(row: Row) -> str:
     noisy = " ~noisy" if lead.noisy else ""
     if not row.tied:          # figures of several runs, unstamped or of an uncommitted tree
         why = row.best_text().removeprefix("— (").removesuffix(")")
-        ahead = f", {_x(runner.ratio)} ahead of {runner.framework}" if runner else ""
+        ahead = "" if runner is None else (f", level with {runner.framework}" if _x(runner.ratio) == "1×"
+                                           else f", {_x(runner.ratio)} ahead of {runner.framework}")
         return f"{ad}{row.top} leads{ahead}, not ranked ({why}){noisy}{_references(row)}"
     if len(row.tied) == 1:
         if runner is None:

@@ -138,6 +138,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                    (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e), _timed(e),
                     *((e.get("cpu_id") or "not recorded",) if ids else ()), str(e.get("command", "?")))
                    for e in envs))]
+    blocks += sittings(envs, c.out)
     blocks += [H("Method"), P("How cells are timed, the regimes, the yardstick and the floors: "
                              + pages.doc_link(c.out, "measurement.md") + ". Framework defects found on the way: "
                              + pages.doc_link(c.out, "findings.md") + "."),
@@ -152,12 +153,56 @@ def machine(c: qp.Ctx) -> list[Any]:
     return blocks
 
 
+def sittings(envs: list[RunEnvironment], out: Path) -> list[Any]:
+    """Each run's sitting: its own check where it took one (compare.measuring.sitting), else its
+    yardstick judged after the fact against the kind's quiet sittings learned from the stores (a
+    run before the check existed, whose rows the page may still show); a noisy one named with its
+    reasons: a line on the page its figures feed."""
+    from compare.measuring import sitting_quiet as sq
+    from compare.measuring.sitting import SittingCheck, judge, summary
+    stores = sq.stored_runs([out.parent, out, *sq.repository_stores()])
+    rows, noisy = [], []
+    for e in envs:
+        check = (e.get("sitting") or {}).get("start") if isinstance(e.get("sitting"), dict) else None
+        hw = next(((d, v) for d, v in (e.get("hardware") or {}).items()
+                   if isinstance(v, dict) and not v.get("error") and d == "cuda"), None)
+        end = (e.get("sitting") or {}).get("end") if isinstance(e.get("sitting"), dict) else None
+        if isinstance(check, dict):
+            c, how = SittingCheck.from_json(check), "its check" + (
+                f" (at its end: {summary(SittingCheck.from_json(end))})" if isinstance(end, dict) else "")
+            why = list(e.get("noisy_sitting_reasons") or []) if e.get("noisy_sitting") else []
+        elif hw:
+            c = SittingCheck.of(device="cuda", gpu=hw[1].get("gpu"), launch_latency_s=hw[1].get("launch_latency_s"),
+                                launch_pipelined_s=hw[1].get("launch_pipelined_s"),
+                                copy_bytes_per_s=hw[1].get("copy_bytes_per_s"))
+            why = list(judge(c, sq.quiet(stores, "cuda", sq.kind_of("cuda", c.gpu, None, None, None))))
+            how = "its yardstick, after the fact"
+        else:
+            continue
+        noisy += [e] if why else []
+        rows.append((provenance.run_words(e.get("created"), e.get("git_commit"), e.get("git_dirty")), summary(c), how,
+                     f"**noisy sitting**: {'; '.join(why)}" if why else "quiet"))
+    if not rows:
+        return []
+    return [H("The sittings"),
+            P("A run checks its sitting before its first cell (and a publish part after its last): "
+              "the launch floor and its spread, the copy, host load, other GPU processes, throttling "
+              "(" + pages.doc_link(out, "measurement.md") + ", the sitting check); a run from before "
+              "the check is judged by its yardstick against the same quiet sittings. A noisy "
+              "sitting's figures are slow for the machine, not its orderings: rank within its run. "
+              + (f"**{len(noisy)} of {len(rows)} runs sat in a noisy sitting** (the table says why)."
+                 if noisy else "Every run's sitting was quiet.")),
+            Table(("run", "figures", "judged by", "verdict"), tuple(rows))]
+
+
 def _timed(env: RunEnvironment) -> str:
     """How the run timed its cells: processes a cell, and what ran beside a window."""
     procs = env.get("processes")
     words = [f"{procs} processes" if procs not in (None, 1) else "1 process"]
     if env.get("sitting_s") is not None:
         words.append(f"sitting {env['sitting_s']:g} s")
+    if env.get("noisy_sitting"):
+        words.append("noisy sitting")
     ahead = env.get("overlap") or 0
     if ahead:
         words.append(f"{ahead} set up ahead" + (", beside GPU windows" if env.get("overlap_beside") else ""))

@@ -142,6 +142,6 @@ def made_by(runs: list[RunInfo]) -> str:
         return "Its run is not recorded."
     def one(r: RunInfo) -> str:
         gave = f": {', '.join(r['backends'])}" if len(runs) > 1 and r.get("backends") else ""
-        return run_words(r.get("created"), r.get("git_commit"), r.get("git_dirty")) + gave
+        return run_words(r.get("created"), r.get("git_commit"), r.get("git_dirty"), r.get("noisy_sitting")) + gave
     return ("From " if len(runs) == 1 else f"From {len(runs)} runs: ") + "; ".join(map(one, runs)) + "."
 

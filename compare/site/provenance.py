@@ -17,6 +17,7 @@ from compare.results.stamps import is_unknown
 
 UNSTAMPED = "records without a run stamp (made before runs were recorded)"
 RUN_UNKNOWN = "run unknown"     # a record stamped as of a run its store's evidence could not tell
+NOISY = " (noisy sitting)"     # beside a run publish let through a noisy sitting (compare.measuring.sitting)
 
 
 def short(sha: object) -> str:
@@ -32,16 +33,18 @@ def label(rec: Record) -> str:
     run = rec.run or {}
     if is_unknown(run):
         return RUN_UNKNOWN
-    return run_words(run.get("created"), run.get("commit"), run.get("dirty")) if run.get("created") else ""
+    return (run_words(run.get("created"), run.get("commit"), run.get("dirty"), run.get("noisy_sitting"))
+            if run.get("created") else "")
 
 
-def run_words(created: object, commit: object, dirty: object) -> str:
-    """'run START UTC, commit C' (START to the minute where it is ISO), with the tree's state."""
+def run_words(created: object, commit: object, dirty: object, noisy: object = False) -> str:
+    """'run START UTC, commit C' (START to the minute where it is ISO), with a noisy sitting
+    (``NOISY``) and the tree's state."""
     when = str(created or "?")
     if re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d", when):
         when = f"{when[:16].replace('T', ' ')} UTC"
     state = f" ({words})" if (words := tree_state(dirty)) else ""
-    return f"run {when}, commit {short(commit) if commit else 'unknown commit'}{state}"
+    return f"run {when}{NOISY if noisy else ''}, commit {short(commit) if commit else 'unknown commit'}{state}"
 
 
 def runs_of(recs: Iterable[Record]) -> tuple[str, ...]:

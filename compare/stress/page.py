@@ -50,6 +50,8 @@ def provenance(data: PageData) -> Provenance:
     env = data.get("environment", {})
     run = RunInfo(command=env.get("command"), created=env.get("created"), git_commit=env.get("git_commit"),
                   git_dirty=env.get("git_dirty"))
+    if env.get("noisy_sitting"):
+        run["noisy_sitting"] = True
     if "merged_from" in env:      # an old merged file: its parts' commands and trees were not kept
         run["command"] = f"merge of {len(env['merged_from'])} parts (commands not recorded)"
         run["git_dirty"] = None

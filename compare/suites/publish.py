@@ -1,7 +1,7 @@
 """Run what a machine's report needs, then build its site (``python -m compare publish``).
 
     compare publish --out DIR [--part NAME[,NAME...]] [--list] [--devices ...] [--backends ...]
-                    [--timeout S] [--quick] [--budget S] [--allow-dirty]
+                    [--timeout S] [--quick] [--budget S] [--allow-dirty] [--allow-noisy-sitting]
 
 DIR is one machine's store, as docs/results/h100/ and cpu/ are: results.json, sweep.json,
 stress.json, and the site in DIR/report/. The parts, in order (``--list`` prints each command):
@@ -52,6 +52,13 @@ which its files must match (its runs then say clean); with the commit alone it i
 word (tree state unknown). A folder whose log names another machine (GPU models, else the CPU
 model) is refused too: one store, one machine.
 
+The sitting check (compare.measuring.sitting, compare.running.sitting_run; docs/measurement.md): before each measuring part
+(not stress-merge, not site) publish checks the sitting (the launch floor and its spread, the copy,
+host load, other GPU processes, throttling) against the quiet sittings of this machine kind in DIR
+and docs/results/*/, and refuses a measurably worse one (exit 2, one line) unless
+--allow-noisy-sitting; the part keeps the check as its run's sitting start, measures its end, and a
+run let through is stamped noisy_sitting (its pages say "noisy sitting").
+
 Exit: 0 every selected part done with 0; 1 some part ended with 1 or failed (rerun); 2 bad usage
 (one line, nothing written); 3 stopped by --budget with parts left; 130 Ctrl-C.
 
@@ -67,7 +74,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import backends
 from compare.measuring import environment
@@ -93,6 +100,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="pass --quick to every part (small sizes: CI)")
     p.add_argument("--allow-dirty", action="store_true",
                    help="run from a checkout with uncommitted changes (its runs name the changed paths)")
+    p.add_argument("--allow-noisy-sitting", action="store_true",
+                   help="run parts in a sitting noisier than this machine kind's quiet ones (their runs say so)")
     p.add_argument("--budget", type=options.seconds, default=None, metavar="S",
                    help="stop after S seconds (the running part keeps its finished cells)")
 
@@ -141,9 +150,40 @@ def stop(proc: subprocess.Popen, interrupt: bool = True) -> int:
         return proc.wait()
 
 
-def execute(argv: list[str], deadline: float | None, tick: Any) -> tuple[int, str | None]:
-    """Run one part to its end; (exit code, None | 'budget' | 'interrupted')."""
-    proc = subprocess.Popen([sys.executable, "-m", "compare", *argv], env=child_env())
+def sitting_gate(devices: list[str], out: Path, allowed: bool) -> Callable[[], str]:
+    """The check before each measuring part: what to hand the part (``sitting_run.ENV``), or a
+    refusal of a sitting measurably worse than the kind's quiet ones (unless ``allowed``)."""
+    from compare.measuring import sitting, sitting_quiet
+    from compare.running import sitting_run
+    device = sitting_run.device_of(devices)
+    learned: dict[str, sitting.Quiet | None] = {}
+
+    def gate() -> str:
+        check = sitting_run.check_sitting(device)
+        if "quiet" not in learned:       # the stores are read once
+            learned["quiet"] = sitting_quiet.quiet_for(check, [out, *sitting_quiet.repository_stores()])
+        quiet = learned["quiet"]
+        why = sitting.judge(check, quiet)
+        if why and not allowed:
+            raise UsageError(f"a noisy sitting: {'; '.join(why)} (against "
+                             f"{f'{quiet.runs} stored runs of {quiet.kind}' if quiet else 'the absolute limits'}); "
+                             "wait or take another machine, or pass --allow-noisy-sitting (its runs then say so)")
+        print(f"publish: sitting: {sitting.summary(check)}" + (f"; NOISY, let through: {'; '.join(why)}" if why else
+                                                               "; quiet" if quiet else "; no quiet reference"),
+              flush=True)
+        return sitting_run.handed(check, why, quiet)
+    return gate
+
+
+def execute(argv: list[str], deadline: float | None, tick: Any, sitting: str | None = None) -> tuple[int, str | None]:
+    """Run one part to its end; (exit code, None | 'budget' | 'interrupted'). ``sitting``: the
+    check publish hands the part."""
+    from compare.running.sitting_run import ENV
+    env = child_env()
+    env.pop(ENV, None)
+    if sitting is not None:
+        env[ENV] = sitting
+    proc = subprocess.Popen([sys.executable, "-m", "compare", *argv], env=env)
     try:
         while True:
             left = HEARTBEAT_S if deadline is None else min(HEARTBEAT_S, deadline - time.monotonic())
@@ -169,8 +209,10 @@ def catch_signals() -> None:
         signal.signal(sig, interrupt)
 
 
-def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: float | None) -> int:
-    """Run the chosen parts not done yet (all of them when ``forced``), logging every attempt."""
+def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: float | None,
+              gate: Callable[[], str] | None = None) -> int:
+    """Run the chosen parts not done yet (all of them when ``forced``), logging every attempt;
+    ``gate`` checks the sitting before each measuring part (``sitting_gate``)."""
     log = load_log(out)
     deadline = None if budget is None else time.monotonic() + budget
     who = host()
@@ -186,6 +228,7 @@ def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: f
         if argv is None:
             print(f"publish: {part.name}: no stress experiment has run, nothing to merge", flush=True)
             continue
+        handed = gate() if gate is not None and not part.reads else None     # may refuse (exit 2)
         print(f"publish: [{k}/{len(chosen)}] {part.name}: python -m compare {shlex.join(argv)}", flush=True)
         entry = Entry(name=part.name, argv=list(argv), started=started(), seconds=0.0, exit_code=None,
                       interrupted=False, host=who)
@@ -199,7 +242,7 @@ def run_parts(chosen: list[Part], forced: bool, out_s: str, out: Path, budget: f
                 save_log(out, log)
             except OSError:
                 pass
-        code, why = execute(list(argv), deadline, tick)
+        code, why = execute(list(argv), deadline, tick, handed)
         entry["seconds"], entry["exit_code"] = round(time.monotonic() - t0, 1), code
         entry["interrupted"] = why is not None
         save_log(out, log)
@@ -274,7 +317,8 @@ class Publish(Command):
         out, lock = claim(args, 0.0, lock_name=LOCK)
         catch_signals()
         with lock:
-            return run_parts(chosen, args.part is not None, args.out, out, args.budget)
+            return run_parts(chosen, args.part is not None, args.out, out, args.budget,
+                             sitting_gate(devices, out, args.allow_noisy_sitting))
 
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:

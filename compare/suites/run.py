@@ -26,6 +26,7 @@ from compare.planning import calibrate, outdir
 from compare.render import console, report, run_plots
 from compare.running import engine, hardware, scaleout
 from compare.measuring import environment, phases
+from compare.running import sitting_run
 from compare import options
 from compare.site import versus
 from compare.suites.driver import Planned, Run, Suite, drive
@@ -257,6 +258,9 @@ class RunSuite(Suite):
         env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
                            if any(p["available"].get(d) is None for p in probes.values())}
         run.spent["yardstick"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        sitting_run.start(env)          # before any cell: reuses the yardstick just measured
+        run.spent["sitting"] = time.perf_counter() - t0
         store.runs = [*store.runs, env] if args.resume else [env]
         if args.resume:
             # kept cells keep their own run's yardstick (each record is judged before it is saved):
@@ -306,6 +310,7 @@ class RunSuite(Suite):
         store.save()
         render(out, env, records, outputs, plots=not args.no_plots, clean=not args.resume)
         spent["tables and pictures"] = time.perf_counter() - t0
+        sitting_run.end(env)        # a publish part's end check
         env["phases"] = {"run": spent, "cells": phases.cell_parts(self.ran)}
         store.save()                # the run's parts beside its records
         print("\n".join(console.closing(records, env, args.verbose, args.wide)))

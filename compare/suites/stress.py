@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from compare.measuring import environment
+from compare.running import sitting_run
 from compare import options
 from compare.planning import outdir, preflight
 from compare.suites.driver import Planned, Run, Suite, claim, drive
@@ -122,6 +123,7 @@ class StressSuite(Suite):
         self.ctx = Ctx(self.chosen["backends"], self.chosen["devices"], args.quick, args.jobs, args.timeout,
                        run.probes, self.store_, on_record=self.on_record)
         self.env = environment.collect(run.argv)
+        sitting_run.start(self.env, measure=False)      # publish's check of this part, where it ran one
         # the run is in the store's runs before any record naming it is saved (as the run and
         # sweep suites do); write_outputs keeps this entry, the last one, as the run's
         self.store_.runs.append(self.env)
@@ -167,6 +169,7 @@ class StressSuite(Suite):
         if self.interrupted:
             return EXIT_INTERRUPTED
         only, store, rows = [str(p.extra) for p in run.planned], self.store_, self.rows
+        sitting_run.end(self.env)       # a publish part's end check
         stored = page.write_outputs(store, self.env, rows, self.series, only, self.registry,
                                     plots_=not run.args.no_plots)
         failed = [r for r in stored if r["experiment"] in only and failure(r)]

@@ -33,6 +33,7 @@ import scenarios
 from backends.base import Device
 from compare.running import engine, hardware, scaleout
 from compare.measuring import environment
+from compare.running import sitting_run
 from compare import options
 from compare.planning import outdir, preflight
 from compare.suites.driver import Planned, Run, Suite, claim, drive
@@ -259,6 +260,7 @@ class SweepSuite(Suite):
         env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
         env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
                            if any(p["available"].get(d) is None for p in run.probes.values())}
+        sitting_run.start(env)          # before any cell: reuses the yardstick just measured
         if run.client is not None:
             env["scheduler"] = {"address": args.scheduler, **scaleout.placement(run.client)}
         store.runs.append(env)
@@ -286,6 +288,9 @@ class SweepSuite(Suite):
 
     def render(self, run: Run, results: list[Any]) -> int:
         store = self.store_
+        if sitting_run.from_publish() is not None:
+            sitting_run.end(self.env)   # a publish part's end check, beside its records
+            store.save()
         page = rebuild(contents(store), run.args, [str(store.path)], self.notes)
         print(pages.summary(store.records))
         print(f"wrote {store.path} and {page}")

@@ -29,12 +29,12 @@ def row(*recs: Record) -> Row:
 
 def test_a_separated_leader_names_its_lead_over_the_next_and_the_test_that_separated_them():
     r = row(particles("warp", 10e-6), particles("cupy", 20e-6), particles("jax", 90e-6))
-    assert answers.answer(r) == "**warp**, 2× ahead of cupy (one process each, past the 1.6× that needs)"
+    assert answers.answer(r) == "**warp**, 2× ahead of cupy (under 6 processes, no 95 % interval: past the 1.6× that needs)"
 
 
 def test_a_tie_names_everyone_in_it_the_spread_why_and_the_next():
     r = row(particles("warp", 10e-6), particles("cupy", 12e-6), particles("jax", 30e-6))
-    assert answers.answer(r) == "tie: **warp**, **cupy** (within 1.2×: one process each, under 1.6×; next jax 3×)"
+    assert answers.answer(r) == "tie: **warp**, **cupy** (within 1.2×: under 6 processes, no 95 % interval: under 1.6×; next jax 3×)"
 
 
 def test_intervals_decide_where_every_figure_has_one():
@@ -60,7 +60,7 @@ def test_gradient_rows_rank_ad_and_name_a_hand_adjoint_that_beats_it():
              "jax": Cell("jax", 5.0, status="ok", ratio=2.0),
              "triton": Cell("triton", 25.0, status="ok", ratio=0.4, reference=True)}
     r = Row(rule, "cuda", cells, "drjit", ("drjit",), "", "", ("run x",))
-    assert answers.answer(r) == ("AD: **drjit**, 2× ahead of jax (one process each, past the 1.6× that needs); "
+    assert answers.answer(r) == ("AD: **drjit**, 2× ahead of jax (under 6 processes, no 95 % interval: past the 1.6× that needs); "
                                  "hand-written triton 2.5× better")
     behind = {**cells, "triton": Cell("triton", 2.0, status="ok", ratio=5.0, reference=True)}
     assert "hand-written" not in answers.answer(Row(rule, "cuda", behind, "drjit", ("drjit",), "", "", ("run x",)))

@@ -3,6 +3,7 @@ Markdown), from the site's test store (fast tier: figures drawn but not rasteris
 site's links and layout: tests/site/test_site.py)."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -122,3 +123,34 @@ def test_store_label_names_a_store_in_the_repository_by_its_path(tmp_path):
 
 def test_every_page_has_a_builder():
     assert set(questions.PAGES) == set(assemble.BUILDERS)
+
+
+def test_the_machine_page_says_noisy_sitting(tmp_path, loaded):
+    """A run publish let through a noisy sitting: the machine page names it with its reasons, the
+    runs table says so; a run from before the check is judged by its yardstick against the quiet
+    sittings the stores give (a slow floor noisy, a quiet one quiet); a run with neither is not listed."""
+    from compare.measuring.sitting import SittingCheck
+    m = data.load([STORE])
+    check = SittingCheck.of(device="cuda", launch_latency_s=12.65e-6, launch_pipelined_s=7.6e-6).to_json()
+    noisy, quiet = dict(m.runs[0]), dict(m.runs[0])
+    noisy.update(sitting={"start": check, "end": check}, noisy_sitting=True,
+                 noisy_sitting_reasons=["pipelined launch 7.6 us, 1.49x the quiet 5.09 us (limit 1.25x)"])
+    quiet.update(sitting={"start": check})
+
+    def yardstick(sync_us: float, pipelined_us: float) -> dict:
+        return dict(m.runs[0], sitting=None, hardware={"cuda": {
+            "gpu": "NVIDIA H100 80GB HBM3", "copy_bytes_per_s": 3e12, "launch_latency_s": sync_us * 1e-6,
+            "launch_pipelined_s": pipelined_us * 1e-6}})
+    m = dataclasses.replace(m, runs=(noisy, quiet, yardstick(14.4, 11.0), yardstick(9.5, 4.6)))
+    blocks = assemble.machine(ctx(m, loaded[1], tmp_path))
+    text = " ".join(getattr(b, "text", "") for b in blocks)
+    assert "**2 of 4 runs sat in a noisy sitting**" in text
+    table = next(b for b in blocks if isinstance(b, Table) and b.headers == ("run", "figures", "judged by", "verdict"))
+    assert [r[3].split(":")[0] for r in table.rows] == ["**noisy sitting**", "quiet", "**noisy sitting**", "quiet"]
+    assert table.rows[0][3].endswith("1.49x the quiet 5.09 us (limit 1.25x)") and "at its end" in table.rows[0][2]
+    assert table.rows[1][2] == "its check" and table.rows[2][2] == table.rows[3][2] == "its yardstick, after the fact"
+    assert table.rows[0][1].startswith("launch + sync 12.6 us, pipelined 7.6 us")
+    assert "pipelined launch 11 us" in table.rows[2][3]
+    runs = next(b for b in blocks if isinstance(b, Table) and b.headers[0] == "created")
+    assert runs.rows[0][3].endswith("noisy sitting") and not runs.rows[1][3].endswith("noisy sitting")
+    assert assemble.sittings([dict(m.runs[1], sitting=None, hardware={})], tmp_path) == []    # neither: no block

@@ -64,3 +64,12 @@ def test_a_record_stamped_run_unknown_says_so_and_is_never_ranked():
     assert "run unknown" in provenance.words(alone) and "no best is named" in provenance.words(alone)
     beside = provenance.runs_of([rec(A), lost])
     assert not provenance.one_run(beside) and "run unknown" in provenance.words(beside)
+
+
+def test_a_noisy_sitting_is_named_and_the_row_still_ranks():
+    noisy = {**A, "noisy_sitting": True}
+    assert provenance.label(rec(noisy)) == "run 2026-11-27 10:20 UTC (noisy sitting), commit abc1234"
+    runs = provenance.runs_of([rec(noisy)])
+    assert provenance.one_run(runs) and "(noisy sitting)" in provenance.words(runs)
+    dirty = provenance.runs_of([rec({**B, "noisy_sitting": True})])
+    assert provenance.uncommitted(dirty) and "(noisy sitting)" in provenance.words(dirty)

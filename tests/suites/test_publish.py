@@ -16,8 +16,9 @@ from compare.measuring import environment
 from compare.suites import publish
 
 pytestmark = pytest.mark.cli
-# --allow-dirty: a developer's checkout may hold uncommitted changes (the guard has its own test)
-NUMPY = ["--backends", "numpy", "--devices", "cpu", "--quick", "--allow-dirty"]
+# --allow-dirty: a developer's checkout may hold uncommitted changes; --allow-noisy-sitting: a test
+# machine is busy with other tests (each guard has its own test)
+NUMPY = ["--backends", "numpy", "--devices", "cpu", "--quick", "--allow-dirty", "--allow-noisy-sitting"]
 
 
 def compare(*args):
@@ -197,3 +198,29 @@ def test_large_parts_share_results_json_with_other_sizes(tmp_path):
     records = json.loads((out / "results.json").read_text())["records"]
     assert sorted(r["params"]["n"] for r in records) == [2**16, 2**18]
     assert all(r["status"] == "ok" and r["precision"] == "float32" for r in records)
+
+
+def test_a_noisy_sitting_is_refused_unless_allowed(tmp_path, monkeypatch, capsys):
+    """The sitting check before a measuring part (faked noisy floor): exit 2 in one line, nothing
+    started or logged; --allow-noisy-sitting runs the part and hands it the check and its reasons."""
+    from compare.measuring import sitting, sitting_quiet
+    from compare.running import sitting_run
+    bad = sitting.SittingCheck.of(device="cpu", cores=2, host_cores=2, copy_bytes_per_s=1e10, others_cores=0.0)
+    monkeypatch.setattr(sitting_run, "check_sitting", lambda device: bad)
+    monkeypatch.setattr(sitting_quiet, "quiet_for", lambda check, folders: sitting.Quiet(
+        kind="AMD EPYC", runs=8, copy_bytes_per_s=3e10))
+    ran: list = []
+    monkeypatch.setattr(publish, "execute", lambda argv, deadline, tick, handed=None: (ran.append(handed), (0, None))[1])
+    out = tmp_path / "m"
+    argv = ["publish", "--out", str(out), "--part", "all", *[a for a in NUMPY if a != "--allow-noisy-sitting"]]
+    assert cli.main(argv) == options.EXIT_USAGE
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("error: a noisy sitting: copy 10 GB/s, 1/3.00 of the quiet 30 GB/s")
+    assert "(against 8 stored runs of AMD EPYC)" in err and "--allow-noisy-sitting" in err
+    assert ran == [] and not (out / "publish.json").exists()
+    assert cli.main([*argv, "--allow-noisy-sitting"]) == options.EXIT_OK
+    assert "publish: sitting: copy 10 GB/s" in capsys.readouterr().out
+    (handed,) = ran
+    got = json.loads(handed)
+    assert got["start"] == bad.to_json() and got["reasons"][0].startswith("copy 10 GB/s") and got["quiet"]["runs"] == 8
+    assert sitting_run.ENV == "COMPARE_SITTING"

@@ -1,0 +1,102 @@
+"""The sitting check measured (``check_sitting``), and a run's checks kept in its entry of the
+store's ``runs`` (``compare.measuring.sitting``: the check's figures and the verdict).
+
+``sitting: {"start": check, "end": check}``. ``compare all`` / ``compare run`` / a sweep measure
+the start once, before any cell, from the yardstick the run has just measured (the host window
+and NVML on top: a quarter of a second on the CPU). A publish part is handed its start by
+``publish`` (``ENV``: the check publish judged before starting the part, its reasons and the quiet
+reference) and measures its end after its last cell, judged against the same reference. A run
+whose sitting publish let through (``--allow-noisy-sitting``), or whose end is noisy, is stamped
+``noisy_sitting: true`` with ``noisy_sitting_reasons``; its records' run stamps say so from the
+start's verdict (``compare.measuring.environment.run_stamp``), and the pages name it.
+"""
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Iterable, Mapping
+
+from compare.measuring.sitting import Quiet, SittingCheck, judge, sitting_from
+from compare.results.environment import RunEnvironment, Yardstick
+
+ENV = "COMPARE_SITTING"       # publish -> its part: {"start", "reasons", "quiet"} as JSON
+
+
+def measure_yardstick(device: str) -> Yardstick:
+    """The device's yardstick for a check: CUDA's in its own process (no framework's context);
+    the CPU's copy in this process, without the curve of smaller sizes."""
+    from compare.running import hardware
+    if device == "cuda":
+        return hardware.measure("cuda", timeout=120.0)
+    try:
+        return hardware.measure_cpu(curve_sizes=())
+    except Exception as exc:  # a figure lost, never the check
+        return Yardstick(error=f"{type(exc).__name__}: {exc}")
+
+
+def check_sitting(device: str, yardstick: Yardstick | None = None) -> SittingCheck:
+    """The sitting of ``device`` ('cuda' or 'cpu') now: from ``yardstick``, one this run has just
+    measured (the check then costs the host window), else from one measured here (the CPU's: about
+    a second on 2 cores; CUDA's: a process, the driver's start, the copies and launches)."""
+    return sitting_from(device, yardstick if yardstick is not None else measure_yardstick(device))
+
+
+def device_of(devices: Iterable[str]) -> str:
+    """The device a run's sitting is checked on: CUDA where the run uses it, else the CPU."""
+    return "cuda" if "cuda" in set(devices) else "cpu"
+
+
+def handed(check: SittingCheck, reasons: Iterable[str], quiet: Quiet | None) -> str:
+    """What publish hands its part (``ENV``)."""
+    return json.dumps({"start": check.to_json(), "reasons": list(reasons),
+                       "quiet": quiet.to_json() if quiet else None})
+
+
+def from_publish() -> Mapping[str, Any] | None:
+    """What publish handed this part, or None (not a publish part, or unreadable)."""
+    text = os.environ.get(ENV, "")
+    try:
+        got = json.loads(text) if text else None
+    except ValueError:
+        return None
+    return got if isinstance(got, dict) and isinstance(got.get("start"), dict) else None
+
+
+def stamp(env: RunEnvironment, reasons: Iterable[str]) -> None:
+    """Mark the run a noisy sitting, with ``reasons`` (nothing when there are none)."""
+    why = list(reasons)
+    if why:
+        env["noisy_sitting"] = True
+        env["noisy_sitting_reasons"] = [*(env.get("noisy_sitting_reasons") or []), *why]
+
+
+def start(env: RunEnvironment, measure: bool = True) -> None:
+    """``env['sitting'] = {'start': ...}``: publish's check in a publish part, else (``measure``)
+    one taken now, reusing the run's own yardstick (``env['hardware']``) of its device."""
+    got = from_publish()
+    if got is not None:
+        env["sitting"] = {"start": dict(got["start"])}
+        stamp(env, [str(r) for r in got.get("reasons") or []])
+        return
+    if not measure:
+        return
+    hw = env.get("hardware") or {}
+    dev = device_of(hw)
+    yard = hw.get(dev)
+    check = check_sitting(dev, yardstick=yard if yard and not yard.get("error") else None)
+    env["sitting"] = {"start": check.to_json()}
+
+
+def end(env: RunEnvironment) -> None:
+    """A publish part's end check, judged against the quiet reference publish used (outside a
+    publish part: nothing, the start alone is kept)."""
+    got = from_publish()
+    if got is None or "sitting" not in env:
+        return
+    check = check_sitting(str(env["sitting"]["start"].get("device") or "cpu"))
+    env["sitting"] = {**env["sitting"], "end": check.to_json()}
+    quiet = Quiet.from_json(got["quiet"]) if isinstance(got.get("quiet"), dict) else None
+    stamp(env, [f"at the end: {r}" for r in judge(check, quiet)])
+
+
+__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "stamp", "start"]

@@ -1,0 +1,83 @@
+"""compare/measuring/sitting.py: the sitting check's figures, its JSON, and the verdict's limits
+both ways (fast tier; the CUDA path needs a GPU: the lead's run)."""
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+
+from compare.measuring import sitting
+from compare.measuring.sitting import Quiet, SittingCheck, judge
+
+QUIET = Quiet(kind="NVIDIA H100 80GB HBM3", runs=21, launch_latency_s=10e-6, launch_pipelined_s=5e-6,
+              copy_bytes_per_s=3e12)
+
+
+def gpu_check(**kw) -> SittingCheck:
+    base = dict(device="cuda", gpu="NVIDIA H100 80GB HBM3", cores=16, host_cores=16, launch_latency_s=10e-6,
+                launch_pipelined_s=5e-6, null_spread=0.02, copy_bytes_per_s=3e12, others_cores=0.1,
+                gpu_processes=(), throttle_reasons=("gpu_idle",))
+    return SittingCheck.of(**{**base, **kw})
+
+
+def test_a_quiet_sitting_has_no_reason():
+    assert judge(gpu_check(), QUIET) == ()
+
+
+@pytest.mark.parametrize("field, under, over, needle", [
+    # each limit just under (quiet) and just over (noisy)
+    ("launch_latency_s", 12.4e-6, 12.6e-6, "launch + synchronise 12.6 us, 1.26x the quiet 10 us"),
+    ("launch_pipelined_s", 6.2e-6, 6.3e-6, "pipelined launch 6.3 us, 1.26x the quiet 5 us"),
+    ("copy_bytes_per_s", 2.41e12, 2.39e12, "copy 2.39 TB/s, 1/1.26 of the quiet 3 TB/s"),
+    ("null_spread", 0.099, 0.101, "empty-launch spread 10 % of the median"),
+    ("others_cores", 3.99, 4.01, "host busy: other processes used 4.01 of 16 cores (limit 4.00)"),
+    ("gpu_processes", (), (4242,), "1 other process(es) running on the GPU (pid 4242)"),
+    ("throttle_reasons", ("gpu_idle", "sw_power_cap"), ("gpu_idle", "hw_thermal_slowdown"),
+     "GPU clocks throttled: hw_thermal_slowdown"),
+])
+def test_each_limit_both_ways(field, under, over, needle):
+    assert judge(gpu_check(**{field: under}), QUIET) == ()
+    (why,) = judge(gpu_check(**{field: over}), QUIET)
+    assert why.startswith(needle), why
+
+
+def test_without_a_quiet_reference_only_the_absolute_limits_apply():
+    slow = gpu_check(launch_latency_s=30e-6, launch_pipelined_s=20e-6, copy_bytes_per_s=1e12)
+    assert judge(slow, None) == () and len(judge(slow, QUIET)) == 3
+    assert judge(gpu_check(gpu_processes=(1,)), None) != ()
+
+
+def test_the_cpu_null_call_is_recorded_not_judged():
+    cpu = SittingCheck.of(device="cpu", cores=2, host_cores=2, null_spread=0.5, copy_bytes_per_s=3e10, others_cores=0.2)
+    assert judge(cpu, Quiet(kind="x", runs=5, copy_bytes_per_s=3e10)) == ()
+    (why,) = judge(cpu.__class__.of(**{**cpu.to_json(), "others_cores": 0.6}), None)
+    assert "of 2 cores (limit 0.50)" in why
+
+
+def test_the_check_round_trips_through_json():
+    c = gpu_check(measured="2026-12-06T03:42:03Z", sm_clock_hz=1.98e9, notes=["SM clock: not read"])
+    back = SittingCheck.from_json(json.loads(json.dumps(c.to_json())))
+    assert back.to_json() == c.to_json() and list(back) == list(c)
+    assert back.gpu_processes == () and back.throttle_reasons == ("gpu_idle",) and back.notes == ("SM clock: not read",)
+    assert back.launch_latency_s == 10e-6 and judge(back, QUIET) == judge(c, QUIET)
+    assert SittingCheck.from_json({"device": "cuda", "later": 1}).extra["later"] == 1     # a newer key is kept
+    assert Quiet.from_json(json.loads(json.dumps(QUIET.to_json()))) == QUIET
+
+
+def test_throttle_reasons_are_decoded_to_names():
+    assert sitting.throttle_names(0) == ()
+    assert sitting.throttle_names(0x1 | 0x40) == ("gpu_idle", "hw_thermal_slowdown")
+    assert sitting.throttle_names(0x4 | 0x1000) == ("sw_power_cap", "0x1000")
+
+
+def test_a_check_from_a_yardstick_reads_the_host():
+    t0 = time.perf_counter()
+    c = sitting.sitting_from("cpu", {"copy_bytes_per_s": 1.5e10})     # a run's own, just measured
+    assert time.perf_counter() - t0 < 1.0
+    assert c.device == "cpu" and c.launch_latency_s is None and c.gpu is None and c.copy_bytes_per_s == 1.5e10
+    assert c.others_cores is not None and c.host_cores and c.loadavg_1m is not None and c.null_spread is not None
+    assert c.cpu and c.cores and c.measured and c.notes == ()
+    assert "copy 15 GB/s" in sitting.summary(c) and "others on" in sitting.summary(c)
+    lost = sitting.sitting_from("cpu", {"error": "boom"})       # a yardstick that failed: the notes say why
+    assert lost.copy_bytes_per_s is None and lost.notes == ("yardstick: boom",)

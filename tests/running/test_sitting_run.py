@@ -1,0 +1,53 @@
+"""compare/running/sitting_run.py: the check measured, a run's sitting checks in its entry of
+``runs``, publish's handed check and the noisy-sitting stamp (fast tier; CUDA: the lead's run)."""
+from __future__ import annotations
+
+import time
+
+from compare.measuring import environment
+from compare.running import sitting_run
+from compare.measuring.sitting import Quiet, SittingCheck
+
+BAD = SittingCheck.of(device="cpu", cores=2, host_cores=2, others_cores=1.9, copy_bytes_per_s=1e10)
+
+
+def test_a_run_outside_publish_keeps_its_start_from_its_own_yardstick(monkeypatch):
+    monkeypatch.delenv(sitting_run.ENV, raising=False)
+    env = {"created": "t", "hardware": {"cpu": {"copy_bytes_per_s": 2.5e10}}}
+    sitting_run.start(env)
+    assert env["sitting"]["start"]["copy_bytes_per_s"] == 2.5e10 and env["sitting"]["start"]["device"] == "cpu"
+    sitting_run.end(env)                          # outside publish: no end check
+    assert set(env["sitting"]) == {"start"} and "noisy_sitting" not in env
+    quiet = {}
+    sitting_run.start(quiet, measure=False)       # the stress suite outside publish measures nothing
+    assert quiet == {}
+
+
+def test_a_publish_part_takes_its_start_and_is_stamped(monkeypatch):
+    monkeypatch.setenv(sitting_run.ENV, sitting_run.handed(BAD, ["host busy: x"], Quiet(kind="k", runs=5)))
+    env = {"created": "t", "git_commit": "abc", "git_dirty": False}
+    sitting_run.start(env)
+    assert env["sitting"]["start"] == BAD.to_json()
+    assert env["noisy_sitting"] is True and env["noisy_sitting_reasons"] == ["host busy: x"]
+    assert environment.run_stamp(env) == {"created": "t", "commit": "abc", "dirty": False, "noisy_sitting": True}
+    monkeypatch.setattr(sitting_run, "check_sitting", lambda device: BAD)
+    sitting_run.end(env)
+    assert env["sitting"]["end"] == BAD.to_json()
+    assert env["noisy_sitting_reasons"][1].startswith("at the end: host busy: other processes used 1.90 of 2 cores")
+
+
+def test_a_quiet_start_stamps_nothing_and_bad_handed_text_is_ignored(monkeypatch):
+    monkeypatch.setenv(sitting_run.ENV, sitting_run.handed(BAD, [], None))
+    env: dict = {"created": "t"}
+    sitting_run.start(env, measure=False)
+    assert "noisy_sitting" not in env and "noisy_sitting" not in environment.run_stamp(env)
+    monkeypatch.setenv(sitting_run.ENV, "{not json")
+    assert sitting_run.from_publish() is None
+    assert sitting_run.device_of(["cpu", "cuda"]) == "cuda" and sitting_run.device_of({"cpu": {}}) == "cpu"
+
+
+def test_the_cpu_check_measures_its_copy_fast():
+    t0 = time.perf_counter()
+    c = sitting_run.check_sitting("cpu")
+    assert time.perf_counter() - t0 < 2.0
+    assert c.device == "cpu" and c.copy_bytes_per_s > 0 and c.others_cores is not None and c.notes == ()
