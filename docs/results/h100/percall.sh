@@ -12,6 +12,7 @@
 #   clean only where the copy's files are the commit's, by the digest TREE: COMPARE_GIT_TREE)
 #   next calls:        bash docs/results/h100/percall.sh          (until it says "ended")
 #   e.g. ROWS="gradients particles percall" RUNS=a PROCESSES=3 OVERLAP=auto SKIP=checkpoint,evaluated,step
+#   (3 processes give no 95 % interval of a median: such rows rank only past 1.6x; 6 is the least that does)
 #   (issue 56, session 29: the rows its port changes touch, within the lease's time)
 # RUNS names the runs (default "a b"); they run in a copy of the tree (/root/tree), so that a later
 # call's fresh copy of the working tree cannot change a module under a running worker.
