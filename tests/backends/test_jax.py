@@ -243,15 +243,25 @@ def test_checkpoint_variant_through_the_worker():
     assert outputs["loss_history"].shape == (21, 37) and outputs["grad"].dtype == np.float32
 
 
-def test_the_design_bytes_name_what_the_program_keeps_and_the_checkpoint_keeps_less():
-    """info()["design_bytes"] (the gradients page's prediction): checkpointing keeps segment
-    boundaries, one segment and the tail instead of every step's four state values."""
+def test_the_design_bytes_are_the_compiled_programs_plan_and_the_checkpoint_keeps_less():
+    """info()["design_bytes"] (the gradients page's prediction) is XLA's plan of the compiled program:
+    the donated outputs alias the inputs, and the reverse pass keeps what the transposed step needs
+    (hard contact: about one predicate byte per step and trajectory, far below a tape of four
+    state values); checkpointing keeps less; nothing before the program is compiled."""
     import scenarios
     from backends.jax.projectile import Kernel
     sc = scenarios.get("projectile")
-    p = sc.params({"batch": 8, "iters": 3, "steps": 50}, quick=True)
-    got = {v: Kernel(p, sc.inputs(p, "float32"), "cpu", "float32", v).info()["design_bytes"]
-           for v in ("default", "checkpoint")}
-    col = 8 * 4
-    assert got["default"] == {"inputs": 4 * col, "outputs": 9 * col, "scan_carry": 4 * col, "residuals": 50 * 4 * col}
-    assert got["checkpoint"]["residuals"] == (50 // 7 + 7 + 50 % 7) * 4 * col
+    got = {}
+    for contact in ("hard", "soft"):
+        p = sc.params({"batch": 4096, "iters": 3, "steps": 180, "contact": contact})
+        for v in ("default", "checkpoint"):
+            k = Kernel(p, sc.inputs(p, "float32"), "cpu", "float32", v)
+            assert k.info()["design_bytes"] == {}
+            k.run()
+            got[contact, v] = k.info()["design_bytes"]
+    col = 4096 * 4
+    for d in got.values():
+        assert set(d) == {"inputs", "outputs", "xla_temporaries"} and 9 * col <= d["outputs"] < 9 * col + 256
+    assert 180 * 4096 <= got["hard", "default"]["xla_temporaries"] < 180 * 4 * col / 4     # >= a byte a step
+    assert got["hard", "checkpoint"]["xla_temporaries"] < got["hard", "default"]["xla_temporaries"]
+    assert got["soft", "checkpoint"]["xla_temporaries"] < got["soft", "default"]["xla_temporaries"] / 2
