@@ -38,9 +38,10 @@ loop at code generation: the differentiability guide ("Dynamic Loops") says a dy
 intermediates are not replayed in the backward pass, while a static loop within ``max_unroll`` is
 unrolled and stores each iteration's values. The adjoint is Warp's generated reverse of the
 unrolled code, which replays the segment's forward from its start state in registers or local
-memory. The contact model is a closure constant, so only its branch is generated, with the default
-path's arithmetic (the same bits). Only v, target and loss are arrays (v and loss with gradients);
-the loss is computed in the same kernel.
+memory. Every kernel takes its steps from one wp.func (``_step``): the same arithmetic in the same
+order, so the same bits; here the contact model is a constant argument, whose other branches the
+compiler folds away in the inlined step. Only v, target and loss are arrays (v and loss with
+gradients); the loss is computed in the same kernel.
 Code size and compile time grow with the unrolled length, so a horizon longer than UNROLL_MAX is
 cut into ceil(steps / UNROLL_MAX) equal segments, launched in turn, whose start states are kept in
 (segments - 1, B) arrays with gradients; the segments' adjoints chain through their gradients.
@@ -75,10 +76,41 @@ UNROLL_MAX = 256        # most steps one unrolled kernel holds (its code grows w
 # of the store to it reads it, so after a backward pass only arrays that are read but never written
 # on the tape (here v) hold gradients; before it, every accumulated gradient must be cleared.
 CONSUMES_GRADIENTS = "retain_grad" in inspect.signature(wp.zeros).parameters
+# A Warp with wp.func's inlining hint (1.18 has it) forces the shared step inline (CUDA
+# __forceinline__), as it was when each kernel spelled it out; an older one leaves it to the compiler.
+inline_func = (functools.partial(wp.func, inline=True) if "inline" in inspect.signature(wp.func).parameters
+               else wp.func)
+
+
+@functools.cache
+def _step(scalar):
+    """The one definition of a step's arithmetic (scenarios/projectile.py's docstring; contact: 0
+    none, 1 hard, 2 soft), called by the segment and the unrolled kernel: the same bits in both."""
+    @inline_func
+    def step(contact: int, dt: scalar, gravity: scalar, bounce: scalar, damping: scalar,
+             stiffness: scalar, softness: scalar, x: scalar, y: scalar, vx: scalar, vy: scalar):
+        acc = gravity
+        if contact == 2:
+            z = -y / softness
+            sp = wp.max(z, scalar(0.0)) + wp.log(scalar(1.0) + wp.exp(-wp.abs(z)))
+            acc = gravity + stiffness * (softness * sp)
+        vy = vy + acc * dt
+        x = x + vx * dt
+        y = y + vy * dt
+        if contact == 1:
+            if y < scalar(0.0):
+                y = scalar(0.0)
+                vy = -bounce * vy
+                vx = damping * vx
+        return x, y, vx, vy
+
+    return step
 
 
 @functools.cache
 def _kernels(scalar):
+    step = _step(scalar)
+
     @wp.kernel(module="unique")
     def segment(seg: int, n: int, contact: int, dt: scalar, gravity: scalar, bounce: scalar,
                 damping: scalar, stiffness: scalar, softness: scalar, v: wp.array2d(dtype=scalar),
@@ -100,23 +132,8 @@ def _kernels(scalar):
             vxs[0, b] = evx[seg - 1, b]
             vys[0, b] = evy[seg - 1, b]
         for s in range(n):
-            x = xs[s, b]
-            y = ys[s, b]
-            vx = vxs[s, b]
-            vy = vys[s, b]
-            acc = gravity
-            if contact == 2:
-                z = -y / softness
-                sp = wp.max(z, scalar(0.0)) + wp.log(scalar(1.0) + wp.exp(-wp.abs(z)))
-                acc = gravity + stiffness * (softness * sp)
-            vy = vy + acc * dt
-            x = x + vx * dt
-            y = y + vy * dt
-            if contact == 1:
-                if y < scalar(0.0):
-                    y = scalar(0.0)
-                    vy = -bounce * vy
-                    vx = damping * vx
+            x, y, vx, vy = step(contact, dt, gravity, bounce, damping, stiffness, softness,
+                                xs[s, b], ys[s, b], vxs[s, b], vys[s, b])
             xs[s + 1, b] = x
             ys[s + 1, b] = y
             vxs[s + 1, b] = vx
@@ -161,7 +178,7 @@ def _unrolled(scalar, n: int, contact: str, max_unroll: int | None = None):
     """n steps unrolled in one thread: from v (seg 0) or the start state segment seg-1 kept, to
     the loss (seg == last) or the next start state. ``max_unroll`` below n: a control for the
     tests (Warp then emits a dynamic loop, whose loop-carried locals it differentiates wrongly)."""
-    hard, soft = contact == "hard", contact == "soft"     # constants: one branch is generated
+    step, code = _step(scalar), CONTACT[contact]      # code: a constant the compiler folds
 
     @wp.kernel(module="unique", module_options={"max_unroll": n if max_unroll is None else max_unroll})
     def rollout(seg: int, last: int, dt: scalar, gravity: scalar, bounce: scalar, damping: scalar,
@@ -183,19 +200,7 @@ def _unrolled(scalar, n: int, contact: str, max_unroll: int | None = None):
             vx = evx[seg - 1, b]
             vy = evy[seg - 1, b]
         for s in range(n):      # n is a closure constant within max_unroll: unrolled
-            acc = gravity
-            if soft:
-                z = -y / softness
-                sp = wp.max(z, scalar(0.0)) + wp.log(scalar(1.0) + wp.exp(-wp.abs(z)))
-                acc = gravity + stiffness * (softness * sp)
-            vy = vy + acc * dt
-            x = x + vx * dt
-            y = y + vy * dt
-            if hard:
-                if y < scalar(0.0):
-                    y = scalar(0.0)
-                    vy = -bounce * vy
-                    vx = damping * vx
+            x, y, vx, vy = step(code, dt, gravity, bounce, damping, stiffness, softness, x, y, vx, vy)
         if seg == last:
             dx = x - target[b, 0]
             dy = y - target[b, 1]

@@ -9,12 +9,20 @@
    every gradient but v's is zero (what the default's clearing relies on), and ``design_bytes`` is
    the bytes of the arrays each path allocates. Through the worker, every variant passes the oracle
    check of the parity suite's projectile cases in float64 with the default's outputs.
+   The step is one wp.func (no other function of the module computes with its constants) that
+   both kernels call, in the operation order of a scalar reference: the float64 and float32
+   losses are its bits (controls: a copy of the step, and a reference in another order, are seen).
 3. Batched trajectories are independent: permuting the batch permutes every output bit for bit.
 4. ``set_input("v0", ...)`` reruns at the new v0 exactly as a kernel built with it.
 """
 from __future__ import annotations
 
+import ast
+import ctypes
+import ctypes.util
 import dataclasses
+import inspect
+import textwrap
 
 import numpy as np
 import pytest
@@ -123,6 +131,82 @@ def test_unrolled_as_a_dynamic_loop_is_wrong():
     good, bad = build(p, "float64", "unrolled"), build(p, "float64", "unrolled", cls=Dynamic)
     assert same_bits(good.outputs(), bad.outputs())[:2] == ["grad", "loss_history"]
     assert good.outputs()["loss"].tobytes() == bad.outputs()["loss"].tobytes()
+
+
+STEP_CONSTANTS = {"dt", "gravity", "bounce", "damping", "stiffness", "softness"}
+
+
+def step_arithmetic(source: str) -> tuple[list[str], set[str]]:
+    """(functions but ``step`` that compute with the step's constants: a copy of its arithmetic,
+    functions that call ``step``) in ``source``, each function's own body, nested ones apart."""
+    copies, callers = [], set()
+    for f in (n for n in ast.walk(ast.parse(source)) if isinstance(n, ast.FunctionDef)):
+        todo, own = list(f.body), []
+        while todo:
+            node = todo.pop()
+            if not isinstance(node, ast.FunctionDef):
+                own.append(node)
+                todo.extend(ast.iter_child_nodes(node))
+        ops = [n for n in own if isinstance(n, (ast.BinOp, ast.UnaryOp, ast.Compare))]
+        if f.name != "step" and any(isinstance(m, ast.Name) and m.id in STEP_CONSTANTS
+                                    for op in ops for m in ast.walk(op)):
+            copies.append(f.name)
+        if any(isinstance(n, ast.Call) and getattr(n.func, "id", None) == "step" for n in own):
+            callers.add(f.name)
+    return copies, callers
+
+
+def test_the_step_is_one_function_both_kernels_call():
+    from backends.warp import projectile
+    source = inspect.getsource(projectile)
+    assert step_arithmetic(source) == ([], {"segment", "rollout"})
+    step = textwrap.dedent(inspect.getsource(projectile._step)).replace("def step(", "def copy(")
+    assert step_arithmetic(source + step)[0] == ["copy"]        # control: a second definition
+
+
+LIBM = ctypes.CDLL(ctypes.util.find_library("m"))
+
+
+def reference_losses(p, ins, precision: str, reorder: bool = False) -> np.ndarray:
+    """Each trajectory's loss at v0 from scalar steps in the shared step's operation order (with
+    ``reorder``, another: the control), rounding each operation to ``precision``; exp and log
+    are the C library's, which Warp's CPU kernels call."""
+    t, suffix = (np.float32, "f") if precision == "float32" else (np.float64, "")
+    exp, log = getattr(LIBM, "exp" + suffix), getattr(LIBM, "log" + suffix)
+    for fn in (exp, log):
+        fn.restype = ctypes.c_float if suffix else ctypes.c_double
+        fn.argtypes = [fn.restype]
+    c = {k: t(float(ins[k])) for k in STEP_CONSTANTS}
+    out = []
+    for (vx, vy), (tx, ty) in zip(ins["v0"].astype(t), ins["target"].astype(t)):
+        x = y = t(0.0)
+        for _ in range(p.steps):
+            acc = c["gravity"]
+            if p.contact == "soft":
+                z = -y / c["softness"]
+                sp = max(z, t(0.0)) + t(log(float(t(1.0) + t(exp(float(-abs(z)))))))
+                k_sp = (c["stiffness"] * c["softness"]) * sp if reorder else c["stiffness"] * (c["softness"] * sp)
+                acc = c["gravity"] + k_sp
+            vy = vy + acc * c["dt"]
+            x_next = x + vx * c["dt"]
+            y = y + vy * c["dt"]
+            if p.contact == "hard" and y < t(0.0):
+                y, vy, vx = t(0.0), -c["bounce"] * vy, c["damping"] * vx
+            x = x + vx * c["dt"] if reorder else x_next         # reorder: x after the bounce
+        out.append((x - tx) * (x - tx) + (y - ty) * (y - ty))
+    return np.array(out, dtype=t)
+
+
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+@pytest.mark.parametrize("contact", ["none", "hard", "soft"])
+def test_the_step_has_the_reference_operation_order(contact, precision):
+    p = SC.params({**SMALL, "contact": contact})
+    ins = SC.inputs(p, precision)
+    for variant in ("default", "unrolled"):         # the segment kernel's path and the unrolled one
+        loss = build(p, precision, variant).outputs()["loss"]
+        assert loss.tobytes() == reference_losses(p, ins, precision).tobytes(), variant
+    if contact != "none":       # control: another order gives other bits
+        assert loss.tobytes() != reference_losses(p, ins, precision, reorder=True).tobytes()
 
 
 @pytest.mark.parametrize("variant", ["default", "checkpoint", "unrolled"])
