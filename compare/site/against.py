@@ -26,6 +26,7 @@ from compare.site.render import Block, Figure, H, Items, P, Table
 
 DIFF_MARK = "≠"
 WITHIN, FASTER, SLOWER = "within spread", "faster", "slower"
+FLOORS = "in units of each run's own launch floor"     # the unit that travels (site/data.floors)
 SUITES = ("run", "sweep")
 COMMAND = "python -m compare site MINE --out REPORT --against REFERENCE"
 
@@ -141,6 +142,13 @@ class Compared:
         return self.mine.median / self.ref.median
 
     @property
+    def floor_ratio(self) -> float | None:
+        """The ratio in units of each run's own launch floor (``data.floors``); None without both yardsticks."""
+        a = data.floors(self.rec, self.regime, self.mine)
+        b = data.floors(self.there, self.regime, self.ref) if self.there is not None else None
+        return a / b if a is not None and b else None
+
+    @property
     def verdict(self) -> str:
         if self.mine.lo <= self.ref.hi and self.ref.lo <= self.mine.hi:
             return WITHIN
@@ -252,8 +260,11 @@ def summary(mm: Matching) -> list[Block]:
         on = [c for c in cs if c.rec.device == dev]
         per = [f"{g} {fmt.ratio(statistics.median(c.ratio for c in on if c.regime == g))}"
                for g in data.REGIMES if any(c.regime == g for c in on)]
+        fl = [f for c in on if (f := c.floor_ratio) is not None]
         lines.append(f"Median ratio on {dev}: **{fmt.ratio(statistics.median(c.ratio for c in on))}** "
-                     f"over {len(on)} pairs ({'; '.join(per)}).")
+                     f"over {len(on)} pairs ({'; '.join(per)})." + (
+                         f" {FLOORS.capitalize()}: **{fmt.ratio(statistics.median(fl))}** over the {len(fl)} "
+                         "latency and pipelined pairs with both yardsticks." if fl else ""))
     if mm.changed:
         lines.append(f"**{_n(len(mm.changed), 'cell')} changed status** (listed after the matched cells).")
     skipped = [f"{_n(k, 'cell')} {why}" for k, why in ((mm.both_failed, "failed or skipped on both sides"),
@@ -335,15 +346,16 @@ def tables(mm: Matching) -> list[Block]:
         noisy = (fmt.NOISY_MARK if x.mine.noisy else "", fmt.NOISY_MARK if x.ref.noisy else "")
         rows.append((*_cell_words(x.rec), x.regime,
                      fmt.seconds(x.mine.median) + noisy[0], fmt.seconds(x.ref.median) + noisy[1],
-                     fmt.ratio(x.ratio), x.verdict))
+                     fmt.ratio(x.ratio), fmt.ratio(f) if (f := x.floor_ratio) is not None else "-", x.verdict))
     if rows:
         blocks += [H("Every matched cell", "cells"),
                    P("Per-call time in each regime both runs measured; ratio = this run / reference "
-                     f"(below 1: faster here). {WITHIN.capitalize()}: the two quartile ranges overlap. "
+                     f"(below 1: faster here); in floors: the same {FLOORS}. "
+                     f"{WITHIN.capitalize()}: the two quartile ranges overlap. "
                      f"{fmt.NOISY_MARK} marks a noisy figure (wide spread, few repeats or a busy host). Click a "
                      "header to sort."),
                    Table(("device", "scenario", "framework", "variant", "precision", "parameters", "regime",
-                          "this run", "reference", "ratio", "verdict"), tuple(rows))]
+                          "this run", "reference", "ratio", "in floors", "verdict"), tuple(rows))]
     if mm.changed:
         blocks += [H("Status changes", "status"),
                    P("Cells ok on one side and failed, mismatched or skipped on the other, one row per "

@@ -237,6 +237,22 @@ def per_call(rec: Record, regime: str) -> Timing | None:
     return timing(rec, regime)
 
 
+# The unit that travels between sittings (docs/results/h100/evidence/units): a per-call figure
+# over its own run's empty-kernel launch (each record keeps its run's yardstick in ``hardware``);
+# graph replay travels in seconds and has none.
+FLOOR_OF = {"latency": "launch_latency_s", "throughput": "launch_pipelined_s"}
+
+
+def floors(rec: Record, regime: str, t: Timing | None = None) -> float | None:
+    """``regime``'s per-call figure (``t``, else read here) in launch floors of the same run: the
+    latency over the empty launch + synchronise, pipelined calls over the pipelined empty launch.
+    None where the regime has no such unit or the record no yardstick (a CPU run, an older one)."""
+    key = FLOOR_OF.get(regime)
+    floor = num(getattr(rec.hardware, key, None)) if key and rec.hardware else None
+    t = t or per_call(rec, regime)
+    return t.median / floor if t is not None and floor else None
+
+
 def defaults(scenario: str) -> dict[str, ParamValue]:
     sc = scenarios.SCENARIOS.get(scenario)
     return dataclasses.asdict(sc.params()) if sc is not None else {}

@@ -136,11 +136,15 @@ def block(records: list[Record], env: RunEnvironment, out: Path, against: str | 
              + (f" ({noisy} noisy here ~)." if noisy else "."),
              f"  ratio = per-call time here / there (below 1: faster here), median and quartiles; every cell: "
              f"{_shown(Path(out) / PAGE)}"]
+    if any(c.floor_ratio is not None for c in per.values()):
+        lines.append(f"  'in floors': the same ratio {vs.FLOORS} (the raw ratio beside it moves with the sitting)")
     for (dev, scenario), cs in sorted(groups.items(), key=lambda kv: (devices.index(kv[0][0]), kv[0][1])):
         q1, q2, q3 = _quartiles(sorted(c.ratio for c in cs))
         within = sum(c.verdict == vs.WITHIN for c in cs)
+        fl = [f for c in cs if (f := c.floor_ratio) is not None]
         lines.append(f"    {scenario:<11} {dev:<5} {_ratio(q2):>7}  (quartiles {_ratio(q1)} – {_ratio(q3)}; "
-                     f"{len(cs)} cells, {within} within both runs' spread)")
+                     f"{len(cs)} cells, {within} within both runs' spread"
+                     + (f"; {_ratio(statistics.median(fl))} in floors, {len(fl)} cells)" if fl else ")"))
     # the yardstick of the reference runs that timed the matched cells (a store's runs may span hosts)
     stamps = {(c.there.run or {}).get("created") for c in per.values() if c.there is not None}
     ref_runs = tuple(e for e in ref.runs if e.get("created") in stamps) or ref.runs

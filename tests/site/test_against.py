@@ -94,10 +94,11 @@ def test_against_page(stores: dict[str, Any]) -> None:
     assert "against.html" in (out / "index.html").read_text()          # in the navigation
     cell = ("cuda", "saxpy", "warp", "default", "float32", "defaults", "latency")
     row = _row(md, *cell)
-    assert row[-2:] == ["0.50×", "faster"]                              # hand-checked: m / (2 m)
-    assert _row(md, *cell[:-1], "throughput")[-2:] == ["1.00×", "within spread"]   # untouched
+    # ratio, ratio in launch floors (the same yardstick on both sides: the same ratio), verdict
+    assert row[-3:] == ["0.50×", "0.50×", "faster"]                     # hand-checked: m / (2 m)
+    assert _row(md, *cell[:-1], "throughput")[-3:] == ["1.00×", "1.00×", "within spread"]   # untouched
     row = _row(md, "cuda", "saxpy", "cupy", "default", "float32", "defaults", "latency")
-    assert row[-2:] == [f"{1 / 1.05:.2f}×", "within spread"]
+    assert row[-3:] == [f"{1 / 1.05:.2f}×", "-", "within spread"]      # no yardstick: no floors
     # the page opens with what matched; the status change follows, the removed cell only counted
     status = md.index("## Status changes")
     assert md.index("## Every matched cell") < status
@@ -145,3 +146,20 @@ def test_against_one_of_the_results_is_refused(stores: dict[str, Any],
         err = capsys.readouterr().err.strip()
         assert err.startswith("error: --against") and "\n" not in err
     assert not out.exists()
+
+
+def test_against_compares_in_launch_floors(stores: dict[str, Any]) -> None:
+    """A reference whose run had twice the launch floor: warp's latency, twice as slow there in
+    seconds, is the same in floors; the raw ratio stays beside it and the page names the unit."""
+    doc = json.loads((stores["ref"] / "results.json").read_text())
+    hw = _find(doc["records"], "warp")["hardware"]
+    hw["launch_latency_s"] *= 2
+    (stores["ref"] / "results.json").write_text(json.dumps(doc))
+    md = (_site(stores, stores["ref"]) / "against.md").read_text()
+    row = _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "latency")
+    assert row[-3:] == ["0.50×", "1.00×", "faster"]          # (m / L) / (2 m / 2 L) = 1
+    # the pipelined floor was left alone: the throughput cell's floors ratio is its raw ratio
+    assert _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "throughput")[-3:-1] == ["1.00×", "1.00×"]
+    assert "in units of each run's own launch floor" in md
+    summary = md[md.index("## Summary"):md.index("## Every matched cell")]
+    assert "In units of each run's own launch floor: **" in summary

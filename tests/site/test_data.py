@@ -129,3 +129,18 @@ def test_fraction_label(fraction, work, device, label):
 def test_the_cpu_is_named_without_trademark_signs(cpu, cores, name):
     m = data.Machine((), (), (), None, ({"cpu": cpu, "cores": cores},), None)
     assert m.cpu_name() == name and m.name() == name       # the default title of a CPU store
+
+
+def test_floors_are_the_figure_over_its_own_runs_launch_floor():
+    """Latency over the run's launch + synchronise, pipelined calls over its pipelined launch; graph
+    replay has no such unit; a record without a yardstick (or with a null or zero floor) none."""
+    one = lambda m: {"median_s": m, "iqr_s": m / 10, "repeats": 50}  # noqa: E731
+    time = {**one(30e-6), "latency": one(30e-6), "throughput": {**one(12e-6), "k": 100}, "graph": one(5e-6)}
+    r = rec(time=time, hardware={"launch_latency_s": 10e-6, "launch_pipelined_s": 4e-6})
+    assert data.floors(r, "latency") == pytest.approx(3.0)
+    assert data.floors(r, "throughput") == pytest.approx(3.0)
+    assert data.floors(r, "graph") is None
+    assert data.floors(rec(time=time), "latency") is None
+    assert data.floors(rec(time=time, hardware={"launch_latency_s": None, "launch_pipelined_s": 0.0}), "latency") is None
+    assert data.floors(rec(time=time, hardware={"launch_pipelined_s": 0.0}), "throughput") is None
+    assert data.floors(rec(hardware={"launch_latency_s": 10e-6}), "latency") is None     # nothing timed

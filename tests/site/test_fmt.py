@@ -67,3 +67,9 @@ def test_params_text_lists_only_what_differs_from_the_defaults():
 def test_every_band_has_an_emoji():
     from compare.render.colors import BANDS
     assert set(fmt.BAND_EMOJI) == {b.name for b in BANDS}
+
+
+def test_with_floors_gives_the_figure_and_its_launch_floors():
+    assert fmt.with_floors(37.9e-6, 37.9 / 13.7) == "37.9 µs = 2.77 floors"
+    assert fmt.with_floors(37.9e-6, None) == "37.9 µs"            # no yardstick: the figure alone
+    assert fmt.with_floors(None, 2.0) == "-"

@@ -71,6 +71,40 @@ def test_every_ratio_of_a_twice_slower_reference_is_one_half(mine, tmp_path, mon
     assert (out / versus.PAGE).read_text().startswith("# This run against the reference")
 
 
+def test_a_reference_slower_with_its_launch_floor_is_level_in_floors(mine, tmp_path, monkeypatch):
+    """Every time twice as long there, its yardstick's launch floors too (``slower`` scales every
+    ``*_s``): 0.50× in seconds, 1.00× in floors, and the block says which unit that is."""
+    records, env = mine
+    ref = tmp_path / "ref"
+    ref.mkdir()
+    (ref / "results.json").write_text(json.dumps(slower(json.loads(STORE.read_text()), 2.0)))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    lines = versus.block(records, env, out, against=str(ref))
+    assert "  'in floors': the same ratio in units of each run's own launch floor" in lines[2]
+    rows = [ln for ln in lines if ln.startswith("    ") and "in floors" in ln]
+    assert rows and all(ln.split()[2] == "0.50×" and "; 1.00× in floors," in ln for ln in rows), rows
+
+
+def test_no_yardstick_no_floors(mine, tmp_path, monkeypatch):
+    """Records without a launch yardstick (``hardware`` removed on both sides) give the raw ratio
+    alone: no floors line, no division by a missing floor."""
+    records, env = mine
+    bare = [r.replace(hardware=None) for r in records]
+    doc = json.loads(STORE.read_text())
+    for r in doc["records"]:
+        r.pop("hardware", None)
+    ref = tmp_path / "ref"
+    ref.mkdir()
+    (ref / "results.json").write_text(json.dumps(doc))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    lines = versus.block(bare, env, out, against=str(ref))
+    assert len(lines) > 2 and not any("in floors" in ln or "launch floor" in ln for ln in lines), lines
+
+
 def test_nothing_to_compare_is_one_line(mine, tmp_path):
     records, env = mine
     assert versus.block(records, env, tmp_path, against="none") == []

@@ -85,6 +85,16 @@ def bandwidth(c: Ctx) -> Page:
     return blocks
 
 
+FLOORS = ("Each latency and pipelined figure is also given in **launch floors** of the run that "
+          "timed it: `37.9 µs = 2.77 floors` is 2.77 times that run's own empty-kernel launch, with "
+          "a synchronise for the latency, pipelined for the pipelined calls (the driver's yardstick, "
+          "`hardware.launch_latency_s` and `launch_pipelined_s` of the record). A slow sitting slows "
+          "the launch with the calls, so floors compare runs of two sittings better than seconds "
+          "where the yardstick was taken minutes before the cells (a `compare run`), not across a "
+          "long `compare all` (docs/results/h100/evidence/units). Graph replay is in seconds only: "
+          "it travels as it is. A record without a yardstick (a CPU run) has seconds only.")
+
+
 def per_call(c: Ctx) -> Page:
     from compare.site import topics
     blocks: Page = [P("What one call costs when the kernel is small: the framework's launch path, "
@@ -104,7 +114,9 @@ def per_call(c: Ctx) -> Page:
     blocks += [Figure(rel, "Per-call cost of the default-size SAXPY in the three regimes, every variant."
                       + (f" For scale, the driver's own empty-kernel launch in the run that timed these cells: {yard}." if yard else ""),
                       c.cmd(f"run {' '.join(topics.SMALL)} --devices {c.device} --precision float32 --variants all"), csv),
-               H("Every small cell"), timing_table(recs, extra=_host_share, extra_headers=("host share",))]
+               H("Every small cell"),
+               *([P(FLOORS)] if any(data.floors(r, "latency") for r in recs if r.status == "ok") else []),
+               timing_table(recs, extra=_host_share, extra_headers=("host share",), floors=True)]
     if any(r.time and r.time.null for r in mine):
         blocks += [H("What the clock costs"),
                    P("The latency is the wall clock around one call and the framework's synchronise, "

@@ -35,3 +35,28 @@ def test_each_page_has_its_verdicts_and_figures_that_exist(ctx, page):
     for f in figs:
         assert (ctx.into / f.png).is_file() and (ctx.into / f.csv).is_file(), f.png
         assert "python -m compare" in f.command
+
+
+def test_the_per_call_table_gives_each_figure_in_its_runs_launch_floors(ctx):
+    """Latency and pipelined cells read '<time> = <n> floors' where the record keeps its run's
+    yardstick, the unit is defined once on the page; graph replay and the bandwidth page's table
+    stay in seconds."""
+    from compare.site import data, fmt
+    from compare.site.render import P, Table
+    blocks = saxpy.PAGES["per-call"][1](ctx)
+    assert sum(isinstance(b, P) and b.text == saxpy.FLOORS for b in blocks) == 1
+    table = next(b for b in blocks if isinstance(b, Table) and "latency" in b.headers and "host share" in b.headers)
+    from compare.site import matrix
+    recs = [r for r in matrix.defaults_of("saxpy")(ctx.m, ctx.device)
+            if r.status == "ok" and (t := data.per_call(r, "latency")) and data.floors(r, "latency")]
+    assert recs, "the store holds a timed small cell with a yardstick"
+    lat = table.headers.index("latency")
+    for r in recs:
+        t = data.per_call(r, "latency")
+        want = fmt.with_floors(t.median, data.floors(r, "latency")) + (fmt.NOISY_MARK if t.noisy else "")
+        assert " floors" in want
+        assert any(row[:3] == (r.backend, r.variant, "saxpy") and row[lat] == want for row in table.rows), want
+    graph = table.headers.index("graph")
+    assert not any("floors" in row[graph] for row in table.rows)
+    bw = saxpy.PAGES["bandwidth"][1](ctx)
+    assert not any("floors" in c for b in bw if isinstance(b, Table) for row in b.rows for c in row)
