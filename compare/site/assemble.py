@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from compare.site import data, fmt, glossary, pages, pages_why, provenance, questions, topics
+from compare.site import sittings as second
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
 from compare.site.render import H, Items, P, Table, page_html, page_md
@@ -258,8 +259,12 @@ def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, aga
     nav = [("Overview", "index.html")] + [(t, f"{k}.html") for k, t in questions.PAGES.items()]
     written: list[Path] = []
     site = {"index": (title, pages.index(c, title, empty))}
+    later = second.load_all(inputs)       # the rows measured again in later sittings (issue 57)
+    between = second.compare(rows, later)
     for key, label in questions.PAGES.items():
-        site[key] = (f"{label} — {m.name()}", BUILDERS[key](c))
+        more = (second.summary(between, [n for n, _ in later]) if key == "machine"
+                else second.row_blocks(c.rows_of(key), between))
+        site[key] = (f"{label} — {m.name()}", BUILDERS[key](c) + more)
     site.update(c.subpages)             # a page's detail pages (stability: one per experiment)
     if against and reference is not None:
         from compare.site import against as vs

@@ -1,0 +1,150 @@
+"""A report's rows beside the same rows measured in another sitting (issue 57, item 3).
+
+A figure's 95 % interval says how far it moves between the processes of one run; a lent machine's
+next session (a *sitting*) can move it further (docs/measurement.md, "The sitting check"). So a
+machine's folder may hold later sittings of its rows: ``DIR/sittings/<label>/`` (any store:
+results.json, sweep.json), each a re-measurement of some rows on another machine of the kind or
+another day, never merged into the report's own records. The row pages set each figure's range
+across the sittings beside its within-run interval, and the machine page counts how many figures
+of the other sittings fall inside the report's stated interval. A sitting's rows are read by the
+same rules as the report's (compare/site/matrix.py), so the two name the same variant-picking.
+"""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, Iterable
+
+from compare.site.render import H, P, Table
+from compare.site import fmt, matrix, questions
+from compare.site.data import Machine, load
+from compare.site.matrix import Row
+
+FOLDER = "sittings"
+
+
+@dataclasses.dataclass(frozen=True)
+class Between:
+    """One framework's figure of one row in the report and in another sitting."""
+    row: str                      # the rule's key
+    question: str
+    framework: str
+    variant: str                  # the variant the row picked in both (another pick is not compared)
+    unit: str
+    first: float                  # the report's figure
+    ci: tuple[float, float] | None    # its 95 % interval across processes (None: no interval)
+    sitting: str                  # the other sitting's label (its folder's name)
+    other: float
+    processes: int                # the other sitting's processes for this figure
+
+    @property
+    def spread(self) -> float:
+        """The larger figure over the smaller: how far the sittings disagree."""
+        lo, hi = sorted((self.first, self.other))
+        return hi / lo if lo > 0 else float("inf")
+
+    @property
+    def inside(self) -> bool | None:
+        """Whether the other sitting's figure lies inside the report's interval (None: no interval)."""
+        return None if self.ci is None else self.ci[0] <= self.other <= self.ci[1]
+
+
+def folders(inputs: Iterable[Path]) -> list[tuple[str, Path]]:
+    """(label, folder) of every later sitting beside the report's stores, in name order."""
+    out = []
+    for p in inputs:
+        root = Path(p) / FOLDER
+        if Path(p).is_dir() and root.is_dir() and not root.is_symlink():
+            out += [(d.name, d) for d in sorted(root.iterdir()) if d.is_dir() and not d.is_symlink()]
+    return out
+
+
+def compare(rows: list[Row], sittings: list[tuple[str, Machine]]) -> list[Between]:
+    """Every figure a row of the report and the same row of another sitting both have, where the
+    row picked the same variant in both (a sitting that timed fewer variants may pick another)."""
+    out = []
+    for label, other in sittings:
+        for row in rows:
+            if row.rule.device and row.rule.device not in other.devices():
+                continue
+            theirs = matrix.evaluate(row.rule, other, fmt.value)
+            # the same cells only: the same sizes read (a row that picks the largest size would
+            # read a smaller one in a sitting without it) and, for a row that aggregates
+            # scenarios, every one of them
+            if theirs.device != row.device or theirs.scope != row.scope:
+                continue
+            for fw, c in row.cells.items():
+                o = theirs.cells.get(fw)
+                if (c.value is None or o is None or o.value is None or c.reference != o.reference
+                        or o.variant != c.variant):
+                    continue
+                out.append(Between(row.rule.key, row.rule.question, fw, c.variant, row.rule.unit, c.value, c.ci,
+                                   label, o.value, o.processes))
+    return out
+
+
+def load_all(inputs: Iterable[Path]) -> list[tuple[str, Machine]]:
+    """The later sittings' stores, loaded (an unreadable one is an error, as for the report's)."""
+    return [(label, load([d])) for label, d in folders(inputs)]
+
+
+def _inside_words(b: Between) -> str:
+    return "no interval" if b.inside is None else ("inside" if b.inside else "**outside**")
+
+
+def _interval(b: Between) -> str:
+    return "-" if b.ci is None else f"{fmt.value(b.ci[0], b.unit)} – {fmt.value(b.ci[1], b.unit)}"
+
+
+def row_blocks(rows: list[Row], between: list[Between]) -> list[Any]:
+    """A page's rows in the other sittings: each figure's range across sittings beside its interval."""
+    keys = {r.rule.key for r in rows}
+    mine = [b for b in between if b.row in keys]
+    if not mine:
+        return []
+    return [H("The same rows in another sitting"),
+            P("Each figure of these rows beside the same figure measured in another sitting (another "
+              "machine of the kind, or another day: the folder `sittings/` beside the report's records). "
+              "The 95 % interval is the report's, across its processes; the range across sittings is "
+              "how far the machine's sessions move the figure, which no single run's interval shows."),
+            Table(("row", "framework", "variant", "this report", "95 % interval", "other sitting", "its figure",
+                   "range across sittings", "inside the interval"), tuple(
+                (b.question, b.framework, b.variant or "default", fmt.value(b.first, b.unit), _interval(b), b.sitting,
+                 fmt.value(b.other, b.unit) + ("" if b.processes > 1 else " (1 process)"),
+                 f"{b.spread:.3g}×", _inside_words(b))
+                for b in sorted(mine, key=lambda x: (x.question, x.sitting, x.framework))))]
+
+
+def summary(between: list[Between], labels: list[str]) -> list[Any]:
+    """The machine page's count: how many figures of the other sittings fall inside the report's
+    stated interval, by row; or that no row has a second sitting yet."""
+    if not between:
+        return [H("Second sittings"),
+                P("No row of this report has been re-measured in a second sitting yet "
+                  f"(`{FOLDER}/<label>/` beside the records; issue 57): its figures' intervals are "
+                  "within one run, and how far the next session of the machine moves them is not known.")]
+    by_row: dict[str, list[Between]] = {}
+    for b in between:
+        by_row.setdefault(b.question, []).append(b)
+    with_ci = [b for b in between if b.inside is not None]
+    inside = sum(1 for b in with_ci if b.inside)
+    spreads = sorted(b.spread for b in between)
+    mid = spreads[len(spreads) // 2]
+    return [H("Second sittings"),
+            P(f"{len(between)} figure{'s' if len(between) != 1 else ''} of {len(by_row)} "
+              f"row{'s' if len(by_row) != 1 else ''} measured again in {len(labels)} later "
+              f"sitting{'s' if len(labels) != 1 else ''} ({', '.join(labels)}): "
+              + (f"**{inside} of {len(with_ci)}** with an interval fall inside the report's stated "
+                 f"95 % interval ({len(between) - len(with_ci)} have none: fewer than 6 processes)"
+                 if with_ci else "none has a 95 % interval in the report to hold it to (fewer than 6 "
+                 "processes)")
+              + f"; the sittings differ by {mid:.3g}× in the median figure, {spreads[-1]:.3g}× at most. "
+              "Each row's page lists its figures; the machine's sittings, quiet or noisy, are above."),
+            Table(("row", "figures", "inside the interval", "no interval", "median range", "largest range"), tuple(
+                (q, str(len(bs)), str(sum(1 for b in bs if b.inside)), str(sum(1 for b in bs if b.inside is None)),
+                 f"{sorted(b.spread for b in bs)[len(bs) // 2]:.3g}×", f"{max(b.spread for b in bs):.3g}×")
+                for q, bs in sorted(by_row.items(), key=lambda kv: [r.question for r in questions.RULES].index(kv[0])
+                                    if kv[0] in [r.question for r in questions.RULES] else 99)))]
+
+
+__all__ = ["FOLDER", "Between", "compare", "folders", "load_all", "row_blocks", "summary"]

@@ -1,0 +1,117 @@
+"""compare/site/sittings.py: a report's rows beside the same rows measured in a later sitting
+(fast tier, from the site's test store)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from compare.site import data, pages, sittings
+
+STORE = Path(__file__).resolve().parents[2] / "tests" / "data" / "site"
+
+
+def _scaled(t: Any, k: float) -> Any:
+    """A record's time block with every duration multiplied by ``k`` (counts untouched)."""
+    if isinstance(t, dict):
+        return {key: (v * k if key.endswith("_s") and isinstance(v, (int, float)) else _scaled(v, k))
+                for key, v in t.items()}
+    if isinstance(t, list):
+        return [_scaled(v, k) for v in t]
+    return t
+
+
+def _sitting(tmp_path: Path, change) -> Path:
+    """A report folder whose sittings/later/ holds the test store's records, each passed through ``change``."""
+    store = json.loads((STORE / "results.json").read_text())
+    store["records"] = [r for r in (change(r) for r in store["records"]) if r is not None]
+    later = tmp_path / "report-store" / sittings.FOLDER / "later"
+    later.mkdir(parents=True)
+    (later / "results.json").write_text(json.dumps(store))
+    return tmp_path / "report-store"
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return pages.evaluate(data.load([STORE]))[0]
+
+
+def test_the_same_figures_in_a_later_sitting_lie_inside_and_a_slower_one_is_measured(tmp_path, rows):
+    def slower_warp(r):
+        return {**r, "time": _scaled(r["time"], 1.5)} if r["backend"] == "warp" and r.get("time") else r
+    folder = _sitting(tmp_path, slower_warp)
+    got = sittings.compare(rows, sittings.load_all([folder]))
+    assert {b.sitting for b in got} == {"later"} and {"latency", "pipelined", "particles-small"} <= {b.row for b in got}
+    for b in got:
+        timed = b.framework == "warp" and b.unit in ("s", "1/s")      # durations and rates moved; bytes and errors not
+        assert b.spread == pytest.approx(1.5 if timed else 1.0), (b.row, b.framework)
+        assert b.inside is (None if b.ci is None else (b.ci[0] <= b.other <= b.ci[1]))
+        if not timed:
+            assert b.inside in (None, True)
+    text = " ".join(getattr(x, "text", "") for x in sittings.summary(got, ["later"]))
+    assert f"{len(got)} figures of " in text and "1 later sitting (later)" in text
+
+
+def test_a_row_read_at_another_size_or_another_variant_is_not_compared(tmp_path, rows):
+    def other_size(r):            # every SAXPY cell of the sitting at another n
+        return {**r, "params": {**r["params"], "n": r["params"]["n"] * 2}} if r["scenario"] == "saxpy" else r
+    got = sittings.compare(rows, sittings.load_all([_sitting(tmp_path, other_size)]))
+    assert not [b for b in got if "saxpy" in b.row], "a row read at another size was compared"
+
+    def no_default(r):            # the sitting timed none of the default variants: the rows pick others
+        return None if r.get("variant") == "default" else r
+    (tmp_path / "b").mkdir()
+    picked = {(r.rule.key, f): c.variant for r in rows for f, c in r.cells.items()}
+    for b in sittings.compare(rows, sittings.load_all([_sitting(tmp_path / "b", no_default)])):
+        assert b.variant == picked[b.row, b.framework] != "default"
+
+
+def test_no_sitting_says_so_and_no_row_block_is_added(tmp_path, rows):
+    assert sittings.folders([STORE, tmp_path]) == [] and sittings.compare(rows, []) == []
+    text = " ".join(getattr(x, "text", "") for x in sittings.summary([], []))
+    assert "No row of this report has been re-measured in a second sitting yet" in text
+    assert sittings.row_blocks(rows, []) == []
+
+
+def test_a_symlinked_sitting_is_not_followed(tmp_path):
+    real = tmp_path / "elsewhere"
+    real.mkdir()
+    (tmp_path / "store" / sittings.FOLDER).mkdir(parents=True)
+    (tmp_path / "store" / sittings.FOLDER / "linked").symlink_to(real)
+    assert sittings.folders([tmp_path / "store"]) == []
+
+
+def _with_interval(r: dict) -> dict:
+    """A SAXPY record as if timed in six processes: its latency's median within +-2 % at 97 % confidence."""
+    lat = ((r.get("time") or {}).get("latency") or {}).get("median_s")
+    if r["scenario"] != "saxpy" or not lat:
+        return r
+    block = {"median_s": lat, "ci_lo_s": 0.98 * lat, "ci_hi_s": 1.02 * lat, "values": [lat] * 6, "confidence": 0.969}
+    return {**r, "time": {**r["time"], "processes": {"count": 6, "latency": block}}}
+
+
+def test_a_figure_moved_past_its_interval_is_counted_outside(tmp_path):
+    """Where the report's figure has a 95 % interval (six processes), a later sitting's figure
+    1.5x slower lies outside it, an unchanged one inside, and the machine page counts them."""
+    store = json.loads((STORE / "results.json").read_text())
+    store["records"] = [_with_interval(r) for r in store["records"]]
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "results.json").write_text(json.dumps(store))
+    rows = pages.evaluate(data.load([report]))[0]
+
+    def slower_warp(r):
+        r = _with_interval(r)
+        return {**r, "time": _scaled(r["time"], 1.5)} if r["backend"] == "warp" and r.get("time") else r
+    (tmp_path / "s").mkdir()
+    got = [b for b in sittings.compare(rows, sittings.load_all([_sitting(tmp_path / "s", slower_warp)]))
+           if b.row == "latency"]
+    assert got and all(b.ci is not None for b in got)
+    assert [b.inside for b in got if b.framework == "warp"] == [False]
+    assert all(b.inside for b in got if b.framework != "warp") and len(got) > 1
+    text = " ".join(getattr(x, "text", "") for x in sittings.summary(got, ["later"]))
+    assert f"**{len(got) - 1} of {len(got)}** with an interval fall inside" in text
+    table = sittings.row_blocks(rows, got)[-1]
+    assert [r[-1] for r in table.rows if r[1] == "warp"] == ["**outside**"]
