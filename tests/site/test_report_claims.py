@@ -91,3 +91,16 @@ def test_the_accuracy_page_says_why_jax_leads_on_the_cpu_and_not_on_the_h100(sto
     assert fits and ("jax" in fits.group(1).split(", ")) == once
     acc = next(r for r in rows if r.rule.key == "accuracy")
     assert (acc.top == "jax") == once and ("jax" in acc.tied) == once
+
+
+def test_every_run_of_the_results_stores_is_of_a_checked_clean_commit() -> None:
+    """measurement.md: "Every run entry of the three `results.json` stores is now of a checked clean
+    commit": each names a commit (older runs by its short hash) and a tree known clean (not dirty, not unknown)."""
+    assert "Every run entry\nof the three `results.json` stores is now of a checked clean commit" in (
+        DOCS / "measurement.md").read_text()
+    for key in MACHINES:
+        runs = json.loads((DOCS / "results" / key / "results.json").read_text())["runs"]
+        assert runs, key
+        for r in runs:
+            assert re.fullmatch(r"[0-9a-f]{7,40}", str(r.get("git_commit"))) and r.get("git_dirty") is False, (
+                key, r.get("created"))
