@@ -3,7 +3,8 @@ store's ``runs`` (``compare.measuring.sitting``: the check's figures and the ver
 
 ``sitting: {"start": check, "end": check}``. ``compare all`` / ``compare run`` / a sweep measure
 the start once, before any cell, from the yardstick the run has just measured (the host window
-and NVML on top: a quarter of a second on the CPU). A publish part is handed its start by
+and NVML on top: a quarter of a second on the CPU), and judge it against the published stores'
+quiet sittings of the kind: a noisy one is stamped, never refused (only publish refuses). A publish part is handed its start by
 ``publish`` (``ENV``: the check publish judged before starting the part, its reasons and the quiet
 reference) and measures its end after its last cell, judged against the same reference. A run
 whose sitting publish let through (``--allow-noisy-sitting``), or whose end is noisy, is stamped
@@ -85,6 +86,17 @@ def start(env: RunEnvironment, measure: bool = True) -> None:
     yard = hw.get(dev)
     check = check_sitting(dev, yardstick=yard if yard and not yard.get("error") else None)
     env["sitting"] = {"start": check.to_json()}
+    stamp(env, judged(check))        # outside publish a noisy sitting is said, never refused
+
+
+def judged(check: SittingCheck) -> tuple[str, ...]:
+    """Why ``check`` is a noisy sitting against its kind's quiet sittings in the published stores
+    (nothing where it is quiet, or where the stores cannot be read: a verdict lost, never the run)."""
+    from compare.measuring import sitting_quiet
+    try:
+        return judge(check, sitting_quiet.quiet_for(check, sitting_quiet.repository_stores()))
+    except (OSError, ValueError, TypeError, KeyError):
+        return ()
 
 
 def end(env: RunEnvironment) -> None:
@@ -99,4 +111,4 @@ def end(env: RunEnvironment) -> None:
     stamp(env, [f"at the end: {r}" for r in judge(check, quiet)])
 
 
-__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "stamp", "start"]
+__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "judged", "stamp", "start"]

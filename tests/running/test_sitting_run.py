@@ -13,6 +13,7 @@ BAD = SittingCheck.of(device="cpu", cores=2, host_cores=2, others_cores=1.9, cop
 
 def test_a_run_outside_publish_keeps_its_start_from_its_own_yardstick(monkeypatch):
     monkeypatch.delenv(sitting_run.ENV, raising=False)
+    monkeypatch.setattr(sitting_run, "judged", lambda check: ())      # this host's load: the next test's
     env = {"created": "t", "hardware": {"cpu": {"copy_bytes_per_s": 2.5e10}}}
     sitting_run.start(env)
     assert env["sitting"]["start"]["copy_bytes_per_s"] == 2.5e10 and env["sitting"]["start"]["device"] == "cpu"
@@ -21,6 +22,23 @@ def test_a_run_outside_publish_keeps_its_start_from_its_own_yardstick(monkeypatc
     quiet = {}
     sitting_run.start(quiet, measure=False)       # the stress suite outside publish measures nothing
     assert quiet == {}
+
+
+def test_a_run_outside_publish_in_a_noisy_sitting_is_stamped_not_refused(monkeypatch):
+    monkeypatch.delenv(sitting_run.ENV, raising=False)
+    for check, noisy in ((BAD, True), (SittingCheck.of(device="cpu", cores=2, host_cores=2, others_cores=0.0), False)):
+        monkeypatch.setattr(sitting_run, "check_sitting", lambda device, yardstick=None, c=check: c)
+        env = {"created": "t", "git_commit": "abc", "git_dirty": False, "hardware": {"cpu": {"copy_bytes_per_s": 1e10}}}
+        sitting_run.start(env)
+        assert bool(env.get("noisy_sitting")) is noisy
+        if noisy:
+            assert env["noisy_sitting_reasons"][0].startswith("host busy: other processes used 1.90 of 2 cores")
+            assert environment.run_stamp(env)["noisy_sitting"] is True
+    quiet = sitting_run.judged(SittingCheck.of(device="cuda", gpu="NVIDIA H100 80GB HBM3", launch_latency_s=9.5e-6,
+                                               launch_pipelined_s=4.4e-6, copy_bytes_per_s=3e12))
+    slow = sitting_run.judged(SittingCheck.of(device="cuda", gpu="NVIDIA H100 80GB HBM3", launch_latency_s=13.7e-6,
+                                              launch_pipelined_s=8.34e-6, copy_bytes_per_s=3e12))
+    assert quiet == () and any(r.startswith("pipelined launch 8.34 us") for r in slow)    # from the H100 store
 
 
 def test_a_publish_part_takes_its_start_and_is_stamped(monkeypatch):
