@@ -1,7 +1,10 @@
 from __future__ import annotations
 
+import fcntl
 import functools
 import json
+import os
+import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -183,3 +186,26 @@ def run_script(backend: str, body: str, device: str = "cpu") -> dict:
     assert line, proc.stderr[-3000:]
     return json.loads(line[len("RESULT"):])
 
+
+
+@pytest.fixture(scope="session")
+def compare_list(tmp_path_factory: pytest.TempPathFactory) -> subprocess.CompletedProcess:
+    """``python -m compare list`` (no extra backend folders), run once per test run: it probes
+    every backend in its own process, seconds each, and several tests read it. xdist's workers
+    share it through a file under the run's temporary root; the first to take the lock runs it."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base   # a worker's is <root>/<id>
+    path = root / "compare-list.json"
+    with open(root / "compare-list.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not path.exists():
+            env = {k: v for k, v in os.environ.items() if k != "COMPARE_BACKENDS_EXTRA"}
+            args = [sys.executable, "-m", "compare", "list"]
+            p = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600,
+                               stdin=subprocess.DEVNULL)
+            tmp = path.with_suffix(".tmp")
+            tmp.write_text(json.dumps({"args": args, "returncode": p.returncode, "stdout": p.stdout,
+                                       "stderr": p.stderr}))
+            os.replace(tmp, path)
+        got = json.loads(path.read_text())
+    return subprocess.CompletedProcess(got["args"], got["returncode"], got["stdout"], got["stderr"])

@@ -21,8 +21,8 @@ def compare(*args, cwd=ROOT):
                           text=True, timeout=1200)
 
 
-def test_list_names_everything():
-    p = compare("list")
+def test_list_names_everything(compare_list):
+    p = compare_list
     assert p.returncode == 0, p.stderr
     for name in ("saxpy", "sdf", "particles", "projectile", "warp"):
         assert name in p.stdout

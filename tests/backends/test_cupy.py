@@ -71,9 +71,8 @@ def test_backend_facts() -> None:
     assert set(BACKEND.cache_environment(ROOT)) == {"CUPY_CACHE_DIR", "CUDA_CACHE_PATH"}
 
 
-def test_compare_list_shows_cupy_and_why() -> None:
-    proc = subprocess.run([sys.executable, "-m", "compare", "list"], cwd=ROOT, capture_output=True,
-                          text=True, timeout=600)
+def test_compare_list_shows_cupy_and_why(compare_list) -> None:
+    proc = compare_list
     line = next(line for line in proc.stdout.splitlines() if line.strip().startswith("cupy "))
     assert "gradient=adjoint" in line and "cpu: CuPy runs on CUDA devices only" in line
     assert re.search(r"cuda: (yes|no CUDA device visible to CuPy|cupy-cuda12x not importable)", line), line

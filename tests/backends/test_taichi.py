@@ -89,7 +89,8 @@ print("RESULT" + json.dumps(out))
 
 
 @pytest.mark.early
-# a process each (ti.init); float32's is the long tier's (the same segments, the same checks)
+@pytest.mark.xdist_group("taichi-adstack-scripts")     # _adstack_scripts' cache: one process
+# float32's is the long tier's (the same segments, the same checks)
 @pytest.mark.parametrize("precision", ["float64", pytest.param("float32", marks=pytest.mark.slow)])
 @pytest.mark.parametrize("device", backends.DEVICES)
 def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device, precision):
@@ -97,7 +98,7 @@ def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device, precision)
     the fused rollout, and past the adstack depth those of the per-step path, while storing only
     the segment starts and one segment of scratch: bitwise on the CPU, to a few roundings on CUDA
     (different kernels, different FMA contraction); within the oracle's bounds."""
-    r = _script(CHECKPOINT, device, PRECISION=precision)
+    r = dict(_adstack_scripts(device, precision)["checkpoint"])
     limit = r.pop("limit")
     assert limit == 40 - ADSTACK_MARGIN and len(r) == 8 and all(case.startswith(precision) for case in r)
     for case, v in r.items():
@@ -147,13 +148,31 @@ print("RESULT" + json.dumps(out))
 """
 
 
+# ti.init and the small stacks of CHECKPOINT: both scripts run in one process (a start and the
+# shared kernels' compilation saved), each on its own kernels, with its own results
+_ADSTACK: dict[tuple[str, str], dict] = {}
+
+
+def _adstack_scripts(device: str, precision: str) -> dict:
+    """CHECKPOINT's results, and on the CPU in float64 GUARD's after them, from one process."""
+    if (device, precision) not in _ADSTACK:
+        def body(script: str) -> str:
+            return script.replace('print("RESULT" + json.dumps(out))', "")
+        guard = device == "cpu" and precision == "float64"
+        code = (body(CHECKPOINT) + "checkpoint = out\n" + (body(GUARD) if guard else "out = None\n")
+                + 'print("RESULT" + json.dumps({"checkpoint": checkpoint, "guard": out}))\n')
+        _ADSTACK[device, precision] = _script(code, device, PRECISION=precision)
+    return _ADSTACK[device, precision]
+
+
 @pytest.mark.early
+@pytest.mark.xdist_group("taichi-adstack-scripts")
 def test_fused_rollout_only_where_the_adstacks_hold_it():
     """Past the configured depth Taichi overflows its adstacks silently (wrong gradients, a crash
     or a hang), so longer rollouts must take the per-step path. At the limit, even with a contact
     on every step in every trajectory of a batch, the fused path equals the per-step one
     bitwise."""
-    r = _script(GUARD)
+    r = dict(_adstack_scripts("cpu", "float64")["guard"])
     limit = r.pop("limit")
     assert limit == 40 - ADSTACK_MARGIN
     for case, v in r.items():

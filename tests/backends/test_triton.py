@@ -150,9 +150,8 @@ def test_interpreter_is_never_offered_for_timing() -> None:
     assert got["cuda"].startswith("TRITON_INTERPRET=1 is set")
 
 
-def test_compare_list_and_a_cpu_run_skip_triton_with_the_reason(tmp_path) -> None:
-    proc = subprocess.run([sys.executable, "-m", "compare", "list"], cwd=ROOT, capture_output=True,
-                          text=True, timeout=600)
+def test_compare_list_and_a_cpu_run_skip_triton_with_the_reason(tmp_path, compare_list) -> None:
+    proc = compare_list
     line = next(r for r in proc.stdout.splitlines() if r.strip().startswith("triton "))
     assert "gradient=adjoint" in line and "cpu: Triton compiles for GPUs only" in line, line
     proc = subprocess.run([sys.executable, "-m", "compare", "saxpy", "--backends", "triton,numpy", "--devices",
