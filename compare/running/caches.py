@@ -12,6 +12,23 @@ from pathlib import Path
 from backends.base import Backend
 
 
+def shared_temp() -> None:
+    """Warm caches that a framework keeps under the temporary directory by default (MLX's compiled
+    CPU kernels, Inductor's) live for the driver's life instead of one worker's: the temporary
+    directory moves from the worker's own folder to one in the driver's temporary root (deleted with
+    it), which every worker of the driver shares."""
+    import tempfile
+    from compare.running.lifeline import ROOT_ENV
+    root = os.environ.get(ROOT_ENV, "")
+    if not root or not Path(root).is_dir():
+        return
+    shared = Path(root) / "warm-temp"
+    shared.mkdir(exist_ok=True)
+    for var in ("TMPDIR", "TEMP", "TMP"):
+        os.environ[var] = str(shared)
+    tempfile.tempdir = None          # gettempdir() reads the variables again
+
+
 def apply(policy: str, backend: Backend, out_dir: Path, kept: str = "") -> str:
     """Point the backend's on-disk kernel caches at empty directories inside the cell's own
     temporary directory (deleted with it), so first_call_s always includes compilation; set before
@@ -19,6 +36,7 @@ def apply(policy: str, backend: Backend, out_dir: Path, kept: str = "") -> str:
     an earlier process of the cell that found it empty filled it, and this one starts from what
     it left ('kept'). Returns the note recorded with the time."""
     if policy == "warm":
+        shared_temp()
         return "warm: framework default caches, which may hold kernels compiled by earlier runs"
     cache = Path(kept) if kept else out_dir / "cache"
     filled = cache.is_dir() and any(cache.iterdir())

@@ -28,6 +28,7 @@ import threading
 from pathlib import Path
 
 PARENT_ENV = "COMPARE_PARENT_PID"
+ROOT_ENV = "COMPARE_TEMP_ROOT"     # the driver's temporary root, where a worker's warm caches outlive it
 PREFIX = "compare-"
 PR_SET_PDEATHSIG = 1
 
@@ -67,7 +68,7 @@ def child_environment(env: dict[str, str], tmp: str | Path | None = None) -> dic
     temporary files (``TMPDIR``: a framework's own, e.g. NVRTC's precompiled headers) inside
     ``tmp`` (default: this driver's root), so they go when the root goes."""
     tmp = str(tmp if tmp is not None else temp_root())
-    return {**env, PARENT_ENV: str(os.getpid()), "TMPDIR": tmp, "TEMP": tmp, "TMP": tmp}
+    return {**env, PARENT_ENV: str(os.getpid()), ROOT_ENV: str(temp_root()), "TMPDIR": tmp, "TEMP": tmp, "TMP": tmp}
 
 
 # ---- the worker side -------------------------------------------------------------------------

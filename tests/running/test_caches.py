@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import os
 
-from compare.running import caches
+import tempfile
+
+from compare.running import caches, lifeline
 
 
 class Caching:
@@ -16,7 +18,7 @@ class Caching:
 def test_cold_caches_are_empty_folders_in_the_cell_and_warm_ones_untouched(tmp_path, monkeypatch):
     """A cache folder is named empty, a cleared variable off, and a flag (JAX's
     JAX_ENABLE_COMPILATION_CACHE=false) by its value: a flag is not a folder."""
-    for var in ("FAKE_CACHE_DIR", "FAKE_CACHE_OFF", "FAKE_CACHE_FLAG"):
+    for var in ("FAKE_CACHE_DIR", "FAKE_CACHE_OFF", "FAKE_CACHE_FLAG", lifeline.ROOT_ENV):
         monkeypatch.delenv(var, raising=False)
     assert caches.apply("warm", Caching(), tmp_path).startswith("warm: framework default caches")
     assert "FAKE_CACHE_DIR" not in os.environ
@@ -36,3 +38,25 @@ def test_kept_caches_are_cold_for_the_process_that_fills_them_and_kept_for_the_n
     assert os.environ["FAKE_CACHE_DIR"] == str(kept / "kernels") and not (tmp_path / "a" / "cache").exists()
     note = caches.apply("cold", Caching(), tmp_path / "b", str(kept))
     assert note.startswith("kept: FAKE_CACHE_DIR as an earlier process of this cell left it")
+
+
+def test_warm_caches_under_the_temporary_directory_outlive_the_worker(tmp_path, monkeypatch):
+    """MLX keeps its compiled CPU kernels, Inductor its graphs, under the temporary directory, which
+    the driver points at each worker's own folder: warm, they move to one folder of the driver's
+    temporary root, shared by its workers (gone with the root); without a root nothing moves."""
+    for var in ("TMPDIR", "TEMP", "TMP"):
+        monkeypatch.setenv(var, str(tmp_path / "worker"))
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    monkeypatch.delenv(lifeline.ROOT_ENV, raising=False)
+    caches.apply("warm", Caching(), tmp_path)
+    assert os.environ["TMPDIR"] == str(tmp_path / "worker")
+    monkeypatch.setenv(lifeline.ROOT_ENV, str(tmp_path))
+    caches.apply("warm", Caching(), tmp_path)
+    shared = tmp_path / "warm-temp"
+    assert shared.is_dir() and all(os.environ[v] == str(shared) for v in ("TMPDIR", "TEMP", "TMP"))
+    assert tempfile.gettempdir() == str(shared)
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "worker"))
+    caches.apply("cold", Caching(), tmp_path / "c")          # cold: the worker's own folder stays
+    assert os.environ["TMPDIR"] == str(tmp_path / "worker")
+    env = lifeline.child_environment({}, tmp_path / "batch")
+    assert env[lifeline.ROOT_ENV] == str(lifeline.temp_root()) and env["TMPDIR"] == str(tmp_path / "batch")
