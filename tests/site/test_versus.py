@@ -55,7 +55,8 @@ def test_check_refuses_a_reference_without_results(tmp_path):
     versus.check(str(tmp_path / "results.json"))
 
 
-def test_every_ratio_of_a_twice_slower_reference_is_one_half(mine, tmp_path, monkeypatch):
+def _against_twice_slower(mine, tmp_path, monkeypatch) -> tuple[list[str], Path, Path]:
+    """The block of this run against a reference whose every time (yardstick too) is twice as long."""
     records, env = mine
     ref = tmp_path / "ref"
     ref.mkdir()
@@ -63,7 +64,11 @@ def test_every_ratio_of_a_twice_slower_reference_is_one_half(mine, tmp_path, mon
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "out"
     out.mkdir()
-    lines = versus.block(records, env, out, against=str(ref))
+    return versus.block(records, env, out, against=str(ref)), ref, out
+
+
+def test_every_ratio_of_a_twice_slower_reference_is_one_half(mine, tmp_path, monkeypatch):
+    lines, ref, out = _against_twice_slower(mine, tmp_path, monkeypatch)
     assert lines[0].startswith(f"This run against the report in {ref}: NVIDIA H100") and "timed cells matched" in lines[0]
     assert lines[1].endswith("every cell: out/against.md")
     rows = [ln for ln in lines[2:] if ln.startswith("    ") and "cells," in ln]
@@ -74,14 +79,7 @@ def test_every_ratio_of_a_twice_slower_reference_is_one_half(mine, tmp_path, mon
 def test_a_reference_slower_with_its_launch_floor_is_level_in_floors(mine, tmp_path, monkeypatch):
     """Every time twice as long there, its yardstick's launch floors too (``slower`` scales every
     ``*_s``): 0.50× in seconds, 1.00× in floors, and the block says which unit that is."""
-    records, env = mine
-    ref = tmp_path / "ref"
-    ref.mkdir()
-    (ref / "results.json").write_text(json.dumps(slower(json.loads(STORE.read_text()), 2.0)))
-    monkeypatch.chdir(tmp_path)
-    out = tmp_path / "out"
-    out.mkdir()
-    lines = versus.block(records, env, out, against=str(ref))
+    lines, _, _ = _against_twice_slower(mine, tmp_path, monkeypatch)
     assert "  'in floors': the same ratio in units of each run's own launch floor" in lines[2]
     rows = [ln for ln in lines if ln.startswith("    ") and "in floors" in ln]
     assert rows and all(ln.split()[2] == "0.50×" and "; 1.00× in floors," in ln for ln in rows), rows
