@@ -26,7 +26,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-from typing import Any, Mapping
+from typing import Any, Mapping, TypedDict
 
 from compare.measuring import noise
 from compare.results.environment import Yardstick
@@ -79,9 +79,28 @@ def throttle_names(mask: int) -> tuple[str, ...]:
     return tuple(names + ([hex(rest)] if rest else []))
 
 
-def host_figures(window_s: float = WINDOW_S) -> dict[str, Any]:
+class HostFigures(TypedDict, total=False):
+    window_s: float
+    loadavg_1m: float
+    host_cores: int
+    others_cores: float
+
+
+class GpuFigures(TypedDict, total=False):
+    gpu_processes: tuple[int, ...]
+    sm_clock_hz: float
+    sm_clock_max_hz: float
+    throttle_reasons: tuple[str, ...]
+
+
+class NullFigures(TypedDict):
+    null_spread: float | None
+    null_how: str
+
+
+def host_figures(window_s: float = WINDOW_S) -> HostFigures:
     """The load average and the cores other processes used over ``window_s`` (this process idle)."""
-    out: dict[str, Any] = {"window_s": window_s}
+    out: HostFigures = {"window_s": window_s}
     try:
         out["loadavg_1m"] = os.getloadavg()[0]
     except OSError:
@@ -95,13 +114,13 @@ def host_figures(window_s: float = WINDOW_S) -> dict[str, Any]:
     return out
 
 
-def gpu_figures() -> tuple[dict[str, Any], list[str]]:
+def gpu_figures() -> tuple[GpuFigures, list[str]]:
     """Other compute processes on the GPU, its SM clock and throttle reasons (NVML), and notes."""
     from compare.measuring.nvml import open_nvml
     nv, why = open_nvml("cuda")
     if nv is None:
         return {}, [why or "NVML unavailable"]
-    out: dict[str, Any] = {}
+    out: GpuFigures = {}
     notes: list[str] = []
     lib, h = nv.nv, nv.handle
     try:
@@ -125,7 +144,7 @@ def gpu_figures() -> tuple[dict[str, Any], list[str]]:
     return out, notes
 
 
-def _cpu_null() -> dict[str, Any]:
+def _cpu_null() -> NullFigures:
     """The harness's null call on the CPU (a no-op and a no-op synchronise): its spread."""
     from compare.measuring import timing
     r = timing.null_call(lambda _: None)
@@ -142,7 +161,7 @@ def sitting_from(device: str, hw: Yardstick, window_s: float = WINDOW_S) -> Sitt
     from compare.measuring import environment
     t0 = time.perf_counter()
     notes: list[str] = []
-    fig: dict[str, Any] = {}
+    fig: dict[str, object] = {}
     if hw.get("error"):
         notes.append(f"yardstick: {hw.get('error')}")
     fig["copy_bytes_per_s"] = hw.get("copy_bytes_per_s")

@@ -130,6 +130,7 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
     inside = sum(1 for b in with_ci if b.inside)
     spreads = sorted(b.spread for b in between)
     mid = spreads[len(spreads) // 2]
+    order = {r.question: i for i, r in enumerate(questions.RULES)}     # the matrix's row order
     return [H("Second sittings"),
             P(f"{len(between)} figure{'s' if len(between) != 1 else ''} of {len(by_row)} "
               f"row{'s' if len(by_row) != 1 else ''} measured again in {len(labels)} later "
@@ -143,8 +144,7 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
             Table(("row", "figures", "inside the interval", "no interval", "median range", "largest range"), tuple(
                 (q, str(len(bs)), str(sum(1 for b in bs if b.inside)), str(sum(1 for b in bs if b.inside is None)),
                  f"{sorted(b.spread for b in bs)[len(bs) // 2]:.3g}×", f"{max(b.spread for b in bs):.3g}×")
-                for q, bs in sorted(by_row.items(), key=lambda kv: [r.question for r in questions.RULES].index(kv[0])
-                                    if kv[0] in [r.question for r in questions.RULES] else 99)))]
+                for q, bs in sorted(by_row.items(), key=lambda kv: order.get(kv[0], len(order)))))]
 
 
 __all__ = ["FOLDER", "Between", "compare", "folders", "load_all", "row_blocks", "summary"]
