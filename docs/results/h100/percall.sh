@@ -26,6 +26,8 @@ export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1 COMPARE_GIT_COMMIT=${COMMIT:
 #              contact, 20 iterations (both gradient rows); REPEAT timed calls (default 3)
 #   particles  the particle loop at its defaults (n = 256) and at n = 2^24 (both particle rows)
 #   defaults   the four scenarios at their defaults, default variants (accuracy, first call)
+#   matrix     the four scenarios at their defaults, every variant, host profile: the publish
+#              protocol's matrix part (accuracy, first call, per-call and particle rows from one run)
 # VARIANTS (default: every variant but fast math, which no row ranks) and PROCESSES (default 6)
 # apply to every row; OVERLAP (default 0) sets --overlap.
 V=${VARIANTS:-nofast}
@@ -38,7 +40,8 @@ row() {   # the command of row $1, for the variants $V
     particles) echo "python -m compare run particles --devices cuda --precision float32 --variants \$(vs particles $vs) $P" ;;
     particles-large) echo "python -m compare run particles --devices cuda --precision float32 --set n=16777216 --check-sample 4096 --variants \$(vs particles $vs) $P" ;;
     defaults) echo "python -m compare all --devices cuda --precision float32 $P" ;;
-    *) echo "ROWS: percall, gradients, particles, particles-large or defaults" >&2; exit 2 ;;
+    matrix) echo "python -m compare all --devices cuda --precision float32 --variants all --host-profile 12 $P" ;;
+    *) echo "ROWS: percall, gradients, particles, particles-large, defaults or matrix" >&2; exit 2 ;;
   esac
 }
 # every variant any backend offers for a scenario, fast math left out unless VARIANTS names them
