@@ -134,9 +134,16 @@ def machine(c: qp.Ctx) -> list[Any]:
     # the processor's family and model where runs recorded them: one CPU model name ("AMD EPYC")
     # can stand for several generations of processor
     ids = any(e.get("cpu_id") for e in envs)
+    ran: dict[str, int] = {}      # the most processes any record of a run kept: fewer than asked if cut short
+    for r in m.records:
+        t = r.time
+        if r.run and t is not None and t.processes is not None:
+            k = str(r.run.get("created"))
+            ran[k] = max(ran.get(k, 0), t.processes.count)
     blocks += [H("Runs that produced these records"),
                Table(("created", "commit", "tree", "timed", *(("processor",) if ids else ()), "command"), tuple(
-                   (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e), _timed(e),
+                   (str(e.get("created", "?"))[:19], provenance.short(e.get("git_commit", "?")), _tree(e),
+                    _timed(e, ran.get(str(e.get("created")))),
                     *((e.get("cpu_id") or "not recorded",) if ids else ()), str(e.get("command", "?")))
                    for e in envs))]
     blocks += sittings(envs, c.out)
@@ -196,10 +203,13 @@ def sittings(envs: list[RunEnvironment], out: Path) -> list[Any]:
             Table(("run", "figures", "judged by", "verdict"), tuple(rows))]
 
 
-def _timed(env: RunEnvironment) -> str:
-    """How the run timed its cells: processes a cell, and what ran beside a window."""
+def _timed(env: RunEnvironment, ran: int | None = None) -> str:
+    """How the run timed its cells: processes a cell (``ran``: the most its records kept, fewer
+    than asked where the run was cut short after a round), and what ran beside a window."""
     procs = env.get("processes")
     words = [f"{procs} processes" if procs not in (None, 1) else "1 process"]
+    if isinstance(procs, int) and ran is not None and ran < procs:
+        words[0] = f"{procs} processes asked, {ran} ran (cut short after round {ran})"
     if env.get("sitting_s") is not None:
         words.append(f"sitting {env['sitting_s']:g} s")
     if env.get("noisy_sitting"):

@@ -114,6 +114,9 @@ def test_a_run_says_how_it_timed_its_cells():
     assert assemble._timed({"processes": "auto", "sitting_s": 1500.0, "overlap": 7, "overlap_beside": True}) == \
         "auto processes; sitting 1500 s; 7 set up ahead, beside GPU windows"
     assert assemble._timed({"processes": 6, "overlap": 1, "overlap_beside": False}) == "6 processes; 1 set up ahead"
+    # a run cut short after its second round says so: its records kept 2 processes, not the 3 asked
+    assert assemble._timed({"processes": 3}, ran=2) == "3 processes asked, 2 ran (cut short after round 2)"
+    assert assemble._timed({"processes": 3}, ran=3) == "3 processes"
 
 
 def test_store_label_names_a_store_in_the_repository_by_its_path(tmp_path):
