@@ -69,6 +69,7 @@ class Sitting(TypedDict, total=False):
     """A run's sitting checks (``compare.running.sitting_run``): each a ``SittingCheck``'s JSON."""
     start: dict[str, Any]
     end: dict[str, Any]
+    quiet: dict[str, Any] | None    # the quiet reference the start was judged against (None: none)
 
 
 class RunEnvironment(TypedDict, total=False):

@@ -16,7 +16,8 @@ version below and saves the newest; users load these files with pandas, so keys 
       ``time.null``, ``time.own_timer``, ``time.processes`` (compare.running.repeats); in a
       stress file, each provenance run's ``git_dirty`` and a merged run entry's ``environments``
       (every run its rows come from); a run entry's ``sitting`` (``{"start", "end"}``: the sitting
-      checks, ``compare.measuring.sitting``), ``noisy_sitting`` and ``noisy_sitting_reasons``, its
+      checks, ``compare.measuring.sitting``; later ``quiet``, the reference the start was judged
+      against, null where there was none), ``noisy_sitting`` and ``noisy_sitting_reasons``, its
       CUDA yardstick's ``launch_latency_iqr_s``, and ``run.noisy_sitting`` in its records (and in a
       stress provenance run).
   1 - no ``format_version``: ``results.json`` is ``{"environment", "records"}``, ``sweep.json``

@@ -294,7 +294,7 @@ RUN = Obj({
                 null=False),
     "packages": Obj(rest=TEXT, null=False), "hardware": Obj(rest=HARDWARE), "merged_from": Seq(TEXT, null=False),
     "backends": Obj(), "scheduler": Obj(), "kinds": Seq(TEXT),
-    "sitting": Obj({"start": Obj(), "end": Obj()}), "noisy_sitting": FLAG,
+    "sitting": Obj({"start": Obj(), "end": Obj(), "quiet": Obj()}), "noisy_sitting": FLAG,
     "noisy_sitting_reasons": Seq(TEXT, null=False)}, null=False)
 # a merged report's entry holds the runs it merged (its header shows each): runs, checked alike
 RUN.fields["environments"] = Seq(RUN)     # type: ignore[index]

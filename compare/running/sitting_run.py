@@ -76,7 +76,7 @@ def start(env: RunEnvironment, measure: bool = True) -> None:
     one taken now, reusing the run's own yardstick (``env['hardware']``) of its device."""
     got = from_publish()
     if got is not None:
-        env["sitting"] = {"start": dict(got["start"])}
+        env["sitting"] = {"start": dict(got["start"]), "quiet": got.get("quiet") if isinstance(got.get("quiet"), dict) else None}
         stamp(env, [str(r) for r in got.get("reasons") or []])
         return
     if not measure:
@@ -85,18 +85,27 @@ def start(env: RunEnvironment, measure: bool = True) -> None:
     dev = device_of(hw)
     yard = hw.get(dev)
     check = check_sitting(dev, yardstick=yard if yard and not yard.get("error") else None)
-    env["sitting"] = {"start": check.to_json()}
-    stamp(env, judged(check))        # outside publish a noisy sitting is said, never refused
+    quiet = reference(check)
+    # the reference is kept (null: none, e.g. a copy of the tree without the stores), so a page can
+    # judge a run that had none against the stores' quiet sittings after the fact
+    env["sitting"] = {"start": check.to_json(), "quiet": quiet.to_json() if quiet else None}
+    stamp(env, judge(check, quiet))        # outside publish a noisy sitting is said, never refused
+
+
+def reference(check: SittingCheck) -> Quiet | None:
+    """The quiet sittings of ``check``'s kind in the published stores (None: too few stored runs,
+    or the stores cannot be read: a verdict lost, never the run)."""
+    from compare.measuring import sitting_quiet
+    try:
+        return sitting_quiet.quiet_for(check, sitting_quiet.repository_stores())
+    except (OSError, ValueError, TypeError, KeyError):
+        return None
 
 
 def judged(check: SittingCheck) -> tuple[str, ...]:
     """Why ``check`` is a noisy sitting against its kind's quiet sittings in the published stores
-    (nothing where it is quiet, or where the stores cannot be read: a verdict lost, never the run)."""
-    from compare.measuring import sitting_quiet
-    try:
-        return judge(check, sitting_quiet.quiet_for(check, sitting_quiet.repository_stores()))
-    except (OSError, ValueError, TypeError, KeyError):
-        return ()
+    (nothing where it is quiet or no reference can be had)."""
+    return judge(check, reference(check))
 
 
 def end(env: RunEnvironment) -> None:
@@ -111,4 +120,4 @@ def end(env: RunEnvironment) -> None:
     stamp(env, [f"at the end: {r}" for r in judge(check, quiet)])
 
 
-__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "judged", "stamp", "start"]
+__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "judged", "reference", "stamp", "start"]

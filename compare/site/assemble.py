@@ -179,6 +179,12 @@ def sittings(envs: list[RunEnvironment], out: Path) -> list[Any]:
             c, how = SittingCheck.from_json(check), "its check" + (
                 f" (at its end: {summary(SittingCheck.from_json(end))})" if isinstance(end, dict) else "")
             why = list(e.get("noisy_sitting_reasons") or []) if e.get("noisy_sitting") else []
+            if not (e.get("sitting") or {}).get("quiet"):      # judged without a reference: judge it now
+                others = [s for s in stores if s.get("created") != e.get("created")]
+                late = judge(c, sq.quiet(others, c.device, sq.kind_of(c.device, c.gpu, c.cpu, c.cpu_id, c.cores)))
+                why += [f"{r} (judged after the fact)" for r in late if r not in why]
+                how += (", against the stores' quiet sittings after the fact ("
+                        + ("it had none when it ran)" if "quiet" in (e.get("sitting") or {}) else "its reference was not recorded)"))
         elif hw:
             c = SittingCheck.of(device="cuda", gpu=hw[1].get("gpu"), launch_latency_s=hw[1].get("launch_latency_s"),
                                 launch_pipelined_s=hw[1].get("launch_pipelined_s"),

@@ -13,12 +13,13 @@ BAD = SittingCheck.of(device="cpu", cores=2, host_cores=2, others_cores=1.9, cop
 
 def test_a_run_outside_publish_keeps_its_start_from_its_own_yardstick(monkeypatch):
     monkeypatch.delenv(sitting_run.ENV, raising=False)
-    monkeypatch.setattr(sitting_run, "judged", lambda check: ())      # this host's load: the next test's
+    monkeypatch.setattr(sitting_run, "reference", lambda check: None)      # no stores of this kind
     env = {"created": "t", "hardware": {"cpu": {"copy_bytes_per_s": 2.5e10}}}
     sitting_run.start(env)
     assert env["sitting"]["start"]["copy_bytes_per_s"] == 2.5e10 and env["sitting"]["start"]["device"] == "cpu"
     sitting_run.end(env)                          # outside publish: no end check
-    assert set(env["sitting"]) == {"start"} and "noisy_sitting" not in env
+    # the reference it was judged against is kept: none here, so a page judges it after the fact
+    assert env["sitting"] == {"start": env["sitting"]["start"], "quiet": None} and "noisy_sitting" not in env
     quiet = {}
     sitting_run.start(quiet, measure=False)       # the stress suite outside publish measures nothing
     assert quiet == {}
@@ -45,7 +46,7 @@ def test_a_publish_part_takes_its_start_and_is_stamped(monkeypatch):
     monkeypatch.setenv(sitting_run.ENV, sitting_run.handed(BAD, ["host busy: x"], Quiet(kind="k", runs=5)))
     env = {"created": "t", "git_commit": "abc", "git_dirty": False}
     sitting_run.start(env)
-    assert env["sitting"]["start"] == BAD.to_json()
+    assert env["sitting"]["start"] == BAD.to_json() and env["sitting"]["quiet"] == Quiet(kind="k", runs=5).to_json()
     assert env["noisy_sitting"] is True and env["noisy_sitting_reasons"] == ["host busy: x"]
     assert environment.run_stamp(env) == {"created": "t", "commit": "abc", "dirty": False, "noisy_sitting": True}
     monkeypatch.setattr(sitting_run, "check_sitting", lambda device: BAD)

@@ -131,14 +131,20 @@ def test_every_page_has_a_builder():
 def test_the_machine_page_says_noisy_sitting(tmp_path, loaded):
     """A run publish let through a noisy sitting: the machine page names it with its reasons, the
     runs table says so; a run from before the check is judged by its yardstick against the quiet
-    sittings the stores give (a slow floor noisy, a quiet one quiet); a run with neither is not listed."""
+    sittings the stores give (a slow floor noisy, a quiet one quiet); so is a run whose check had no
+    reference when it ran (null) or did not record one; a run with neither is not listed."""
     from compare.measuring.sitting import SittingCheck
     m = data.load([STORE])
     check = SittingCheck.of(device="cuda", launch_latency_s=12.65e-6, launch_pipelined_s=7.6e-6).to_json()
     noisy, quiet = dict(m.runs[0]), dict(m.runs[0])
     noisy.update(sitting={"start": check, "end": check}, noisy_sitting=True,
                  noisy_sitting_reasons=["pipelined launch 7.6 us, 1.49x the quiet 5.09 us (limit 1.25x)"])
-    quiet.update(sitting={"start": check})
+    # judged quiet at the time against a lenient reference it recorded: the page keeps its verdict
+    quiet.update(sitting={"start": check, "quiet": {"kind": "NVIDIA H100 80GB HBM3", "runs": 4,
+                                                    "launch_latency_s": 12e-6, "launch_pipelined_s": 7e-6}})
+    h100 = SittingCheck.of(device="cuda", gpu="NVIDIA H100 80GB HBM3", launch_latency_s=12.65e-6,
+                           launch_pipelined_s=7.6e-6).to_json()
+    unjudged, unrecorded = dict(m.runs[0], sitting={"start": h100, "quiet": None}), dict(m.runs[0], sitting={"start": h100})
 
     def yardstick(sync_us: float, pipelined_us: float) -> dict:
         return dict(m.runs[0], sitting=None, hardware={"cuda": {
@@ -150,6 +156,14 @@ def test_the_machine_page_says_noisy_sitting(tmp_path, loaded):
     assert "**2 of 4 runs sat in a noisy sitting**" in text
     table = next(b for b in blocks if isinstance(b, Table) and b.headers == ("run", "figures", "judged by", "verdict"))
     assert [r[3].split(":")[0] for r in table.rows] == ["**noisy sitting**", "quiet", "**noisy sitting**", "quiet"]
+    # a check judged with no reference is judged now against the stores' quiet sittings (the
+    # published H100 runs: pipelined about 5 us): the same 7.6 us floor, quiet by the run's stamp,
+    # is noisy after the fact
+    late = {r[2]: r[3] for r in assemble.sittings([unjudged, unrecorded], tmp_path)[-1].rows}
+    assert late["its check, against the stores' quiet sittings after the fact (it had none when it ran)"].startswith(
+        "**noisy sitting**: pipelined launch 7.6 us")
+    assert "(judged after the fact)" in late["its check, against the stores' quiet sittings after the fact "
+                                              "(its reference was not recorded)"]
     assert table.rows[0][3].endswith("1.49x the quiet 5.09 us (limit 1.25x)") and "at its end" in table.rows[0][2]
     assert table.rows[1][2] == "its check" and table.rows[2][2] == table.rows[3][2] == "its yardstick, after the fact"
     assert table.rows[0][1].startswith("launch + sync 12.6 us, pipelined 7.6 us")

@@ -6,8 +6,11 @@
 # seconds, then copies what is finished to $OUT:
 #
 #   device calls 1..N: bash .gpu/pK/install.sh   (the wheels the GPU image lacks: ../shared/gpu/stage-wheels)
-#   device call N:     ... && COMMIT=$(git rev-parse HEAD) TREE=$(python -m compare.measuring.environment HEAD) \
+#   device call N+1:   COMMIT=$(git rev-parse HEAD) TREE=$(python -m compare.measuring.environment HEAD) \
 #                      bash docs/results/h100/percall.sh start      (both expanded here)
+#   (start in a call that carries no wheel part, with docs/results/*/results.json, sweep.json and
+#   stress.json in the tree: a run judges its sitting against the quiet sittings those stores hold,
+#   and a tree without them judges nothing; leave only the reports and evidence behind)
 #   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT, and say
 #   clean only where the copy's files are the commit's, by the digest TREE: COMPARE_GIT_TREE)
 #   next calls:        bash docs/results/h100/percall.sh          (until it says "ended")
