@@ -26,19 +26,17 @@ def _drawn_texts(fig: Any) -> list[Any]:
     string, is never drawn): the renderer is asked, not the artist tree."""
     renderer = fig.canvas.get_renderer()
     seen: list[Any] = []
-    original = renderer.draw_text
 
     def record(gc: Any, x: float, y: float, s: str, prop: Any, angle: float, ismath: Any = False,
-               mtext: Any = None) -> Any:
+               mtext: Any = None) -> None:
         if mtext is not None and s.strip() and mtext not in seen:
             seen.append(mtext)
-        return original(gc, x, y, s, prop, angle, ismath=ismath, mtext=mtext)
 
-    renderer.draw_text = record
-    try:
+    # laid out and measured as a real draw, nothing rasterised (the saved PNG was drawn already):
+    # every draw_* is a no-op for this draw but draw_text, which only records
+    with renderer._draw_disabled():
+        renderer.draw_text = record      # undone on leaving: the class's method again
         fig.draw(renderer)
-    finally:
-        del renderer.draw_text           # the instance attribute: the class's method again
     return seen
 
 
@@ -165,7 +163,8 @@ def keep_apart(texts: list[Any]) -> list[Any]:
         return []
     fig = texts[0].figure
     renderer = fig.canvas.get_renderer()
-    fig.draw(renderer)
+    with renderer._draw_disabled():      # laid out for the extents, nothing rasterised
+        fig.draw(renderer)
     kept: list[tuple[Any, Any]] = []
     canvas = fig.bbox
     for t in texts:

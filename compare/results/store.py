@@ -192,6 +192,7 @@ class Store:
         self.analysis: Analysis = analysis.copy() if analysis else {}     # the file's analysis (stress: its findings)
         self.upgraded_from = upgraded_from
         self._records: dict[str, Record] = {}
+        self._encoded: dict[int, tuple[Record, str]] = {}     # to_json's text of each record
         for r in records:
             self.put(r)
 
@@ -255,10 +256,21 @@ class Store:
     # ---- writing --------------------------------------------------------------------------
     def to_json(self) -> str:
         data = {"format_version": FORMAT_VERSION, "suite": self.suite, "runs": self.runs,
-                "records": [r.to_json() for r in self.records], "analysis": self.analysis}
+                "records": [], "analysis": self.analysis}
         if self.upgraded_from is not None:      # a file converted from an older format says so
             data["upgraded_from"] = self.upgraded_from
-        return json.dumps(jsonable(data), indent=1)
+        text = json.dumps(jsonable(data), indent=1)
+        if not self._records:
+            return text
+        # a run saves after every cell: each record (frozen) is encoded once, and its text put in
+        # the list at its depth, as json.dumps(..., indent=1) of the whole would put it
+        cache = getattr(self, "_encoded", {})
+        self._encoded = {id(r): cache.get(id(r)) or (r, json.dumps(jsonable(r.to_json()), indent=1))
+                         for r in self.records}     # the record held: its id is not reused
+        body = ",\n".join("  " + t.replace("\n", "\n  ") for _, t in self._encoded.values())
+        head, mark, tail = text.partition('\n "records": []')
+        assert mark, "the top-level records list"       # one line of indent 1: no string holds it
+        return f'{head}\n "records": [\n{body}\n ]{tail}'
 
     def save(self) -> None:
         atomic_write(self.path, self.to_json())
