@@ -4,7 +4,9 @@ MINE is a copy of the small committed store tests/data/site; REFERENCE is anothe
 records perturbed by hand: one cell twice as slow with a narrow spread (ratio 0.50×, outside the
 spread: "faster" here), one 5 % slower with the same spread (inside it), one failed, one
 removed, and one package version changed. Everything runs in tmp_path with the working directory
-there too, so a file written anywhere but --out is caught.
+there too, so a file written anywhere but --out is caught. test_against_page builds the whole
+site; the tests that read only SAXPY rows of against.md build it from MINE's SAXPY records alone
+(``_saxpy_only``: the other pages' figures took most of a whole build's ~12 s).
 """
 from __future__ import annotations
 
@@ -68,6 +70,16 @@ def stores(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, Any]:
     return {"mine": mine, "ref": ref, "tmp": tmp_path, "lat": lat}
 
 
+def _saxpy_only(store: Path) -> None:
+    """Keep only the SAXPY records of ``store``'s results.json (no sweep or stress file): a site
+    of a few pages, for the tests that read only SAXPY rows of against.md."""
+    doc = json.loads((store / "results.json").read_text())
+    doc["records"] = [r for r in doc["records"] if r["scenario"] == "saxpy"]
+    (store / "results.json").write_text(json.dumps(doc))
+    for f in ("sweep.json", "stress.json"):
+        (store / f).unlink()
+
+
 def _site(stores: dict[str, Any], *against: Path) -> Path:
     out = stores["tmp"] / "out"
     before = _snapshot(stores["tmp"], out)
@@ -126,6 +138,7 @@ def test_against_page(stores: dict[str, Any]) -> None:
 
 
 def test_nothing_in_common(stores: dict[str, Any]) -> None:
+    _saxpy_only(stores["mine"])
     ref = stores["ref"]
     (ref / "sweep.json").unlink()
     (ref / "stress.json").unlink()
@@ -151,6 +164,7 @@ def test_against_one_of_the_results_is_refused(stores: dict[str, Any],
 def test_against_compares_in_launch_floors(stores: dict[str, Any]) -> None:
     """A reference whose run had twice the launch floor: warp's latency, twice as slow there in
     seconds, is the same in floors; the raw ratio stays beside it and the page names the unit."""
+    _saxpy_only(stores["mine"])
     doc = json.loads((stores["ref"] / "results.json").read_text())
     hw = _find(doc["records"], "warp")["hardware"]
     hw["launch_latency_s"] *= 2
