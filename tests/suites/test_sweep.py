@@ -155,10 +155,10 @@ def test_plan_comes_from_the_scenarios_sweeps():
     hard = plan_of("error", "--quick", "--backends", "warp", "--devices", "cpu", "--set", "contact=hard",
                    "--scenarios", "projectile,saxpy")
     assert {s.params.contact for s, _ in hard if s.scenario == "projectile"} == {"hard"}
-    assert [s.scenario for s, _ in hard][:4] == ["projectile"] * 3 + ["saxpy"]   # the given order
+    assert [s.scenario for s, _ in hard][:3] == ["projectile"] * 2 + ["saxpy"]   # the given order
     scal = plan_of("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--record-every", "50")
     assert {s.params.record_every for s, _ in scal if s.scenario == "particles"} == {50}
-    assert [s.params.batch for s, _ in scal if s.scenario == "projectile"] == [1, 16, 256]
+    assert [s.params.batch for s, _ in scal if s.scenario == "projectile"] == [1, 256]
     hz = plan_of("horizon", "--quick", "--backends", "warp,numba", "--devices", "cpu")
     assert {(s.backend, s.variant) for s, _ in hz} == {("warp", "default"), ("warp", "checkpoint"),
                                                        ("warp", "unrolled"), ("numba", "default")}
