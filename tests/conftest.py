@@ -155,7 +155,8 @@ def shared_cell(name: str, cases: list[Case], backend: str, scenario: str, preci
     under xdist they share one run."""
     require_device(backend, device)
     if name not in _SHARED:
-        runnable = [c for c in cases if not availability(c[0]).get(c[4], "unknown device")]
+        # each distinct case once (a group may list one twice: Taichi's FRAMES cell is a SMALL one)
+        runnable = list({_case_key(c): c for c in cases if not availability(c[0]).get(c[4], "unknown device")}.values())
         specs = [{"scenario": s, "backend": b, "device": d, "precision": p, "params": o, "quick": True,
                   "repeat": 1, "min_time": 0.0, "variant": v, **CORRECTNESS}
                  for b, s, p, o, d, v in runnable]

@@ -55,11 +55,13 @@ reference = {}                          # (contact, steps) -> the uncheckpointed
 for precision in (PRECISION,):
     b.setup(DEVICE, precision, "default")   # the variant's arithmetic is IEEE, as 'default'
     out["limit"] = fused_steps_limit()
-    # (steps, forced segment length): ceil(sqrt(60)) = 8 (uneven last segment), 7, 1 step per
-    # segment, and 100 steps > the adstack limit: segments of 10, against the per-step path;
-    # the forced lengths with the hard contact only (the segment loop is the same for every contact)
+    # (steps, forced segment length): 60 steps > the adstack limit (37), against the per-step
+    # path: ceil(sqrt(60)) = 8 (uneven last segment) and 7; 23 steps under the limit, against the
+    # fused rollout: 1 step per segment (every segment full); the forced lengths with the hard
+    # contact only (the segment loop is the same for every contact). (A 100-step case, segments
+    # of 10, added only another per-step reference: 60 is past the limit already.)
     for contact in ("none", "hard", "soft"):
-        for steps, seg in ((60, None), (60, 7), (23, 1), (100, None)):
+        for steps, seg in ((60, None), (60, 7), (23, 1)):
             if seg is not None and contact != "hard":
                 continue
             p = sc.params({"contact": contact, "steps": steps, "dt": 1.5 / steps, "iters": 3,
@@ -100,7 +102,8 @@ def test_checkpoint_variant_equals_the_uncheckpointed_rollout(device, precision)
     (different kernels, different FMA contraction); within the oracle's bounds."""
     r = dict(_adstack_scripts(device, precision)["checkpoint"])
     limit = r.pop("limit")
-    assert limit == 40 - ADSTACK_MARGIN and len(r) == 8 and all(case.startswith(precision) for case in r)
+    assert limit == 40 - ADSTACK_MARGIN and len(r) == 5 and all(case.startswith(precision) for case in r)
+    assert {v["reference_fused"] for v in r.values()} == {True, False}     # both sides of the limit
     for case, v in r.items():
         _, _, steps, seg = case.split("-")
         steps = int(steps)
@@ -139,10 +142,15 @@ for steps in (fused_steps_limit(), fused_steps_limit() + 1):
             k = Kernel(p, i, DEVICE, "float64", "default")
             b.synchronize(DEVICE, k.run())
             res.append((k.outputs(), k.info()["fused_rollout"]))
+            # the guard chose the per-step path: forcing it would run the same kernels again
+            # (their repeatability: test_repeated_run_neither_recompiles_nor_changes_outputs)
+            if not res[0][1]:
+                break
         Kernel.fused = None
-        (o, fused), (o_step, _) = res
+        (o, fused), o_step = res[0], res[-1][0]
         out[f"{steps}-{contact}-{vy0}"] = {
-            "fused": fused, "identical": all(np.array_equal(o[n], o_step[n]) for n in o),
+            "fused": fused, "compared": len(res) == 2,
+            "identical": all(np.array_equal(o[n], o_step[n]) for n in o),
             "ok": bool(sc.check(p, i, o, sc.oracle(p, i, "float64"), "float64").ok)}
 print("RESULT" + json.dumps(out))
 """
@@ -178,7 +186,7 @@ def test_fused_rollout_only_where_the_adstacks_hold_it():
     for case, v in r.items():
         steps, contact, vy0 = case.split("-")
         assert v["fused"] == (int(steps) <= limit), case
-        assert v["identical"], case
+        assert v["compared"] == v["fused"] and v["identical"], case     # fused against per step
         if vy0 != "0.0":   # clamped on the last step: the check divides zero error by zero bound
             assert v["ok"], case
 
