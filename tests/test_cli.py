@@ -62,8 +62,10 @@ def test_bad_usage_exits_2_with_one_line(args, needle, tmp_path, monkeypatch):
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
+    # warm kernel caches: the records' contract, not their first calls (a cold first call
+    # compiles every cell's Warp module, ~2 s each: test_host_profile_sample_check_and_variant_skips)
     p = compare("all", "--quick", "--backends", "warp", "--devices", "cpu", "--repeat", "2",
-                "--out", str(out), "--save-arrays")
+                "--cache", "warm", "--out", str(out), "--save-arrays")
     return p, out
 
 

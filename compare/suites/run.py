@@ -47,6 +47,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="scenario parameter (repeatable; applies to every chosen scenario that has it)")
     p.add_argument("--quick", action="store_true", help="small sizes (CI)")
     options.add_timing(p)
+    p.add_argument("--cache", default="cold", choices=("cold", "warm"),
+                   help="framework kernel caches for the first call (default cold; warm: a correctness "
+                        "run such as the tests', whose first calls need not include compilation)")
     options.add_output(p, "results")
     p.add_argument("--save-arrays", action="store_true", help="write inputs/outputs per cell (npz)")
     p.add_argument("--check-sample", type=options.nonnegative_int, default=0, metavar="K",
@@ -84,7 +87,8 @@ def plan(args: argparse.Namespace, chosen: list[scenarios.Scenario]) -> list[Cel
         for prec in sel["precisions"]:
             options.check_precision(sc, params[sc.name], prec)
     specs = [Cell(sc.name, b, Device(d), Precision(p), v, params[sc.name], repeat=args.repeat, min_time=args.min_time,
-                  save_inputs=args.save_arrays, check_sample=args.check_sample, host_profile=args.host_profile)
+                  cache=args.cache, save_inputs=args.save_arrays, check_sample=args.check_sample,
+                  host_profile=args.host_profile)
              for sc in chosen for b in sel["backends"] for d in sel["devices"]
              for p in sel["precisions"] for v in sel["variants"] if v in backends.get(b).variants_for(sc.name)]
     if args.busy:     # the shared-host experiment: each CPU cell idle, then with cores kept busy
