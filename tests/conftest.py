@@ -189,6 +189,23 @@ def run_script(backend: str, body: str, device: str = "cpu") -> dict:
 
 
 
+@pytest.fixture(scope="session", autouse=True)
+def shared_yardstick(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The runs of the tests (in this process and the ones they start) share one hardware
+    yardstick per device, the first run's (compare.running.hardware.for_run): each run measured
+    its own, seconds each. xdist's workers share the folder under the run's temporary root. Set
+    COMPARE_YARDSTICK_REUSE empty to measure one per run; tests/running/test_hardware.py and the
+    yardstick's fault tests call ``hardware.measure``, which always measures."""
+    from compare.running import hardware
+    if hardware.REUSE_ENV in os.environ:
+        return
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base   # a worker's is <root>/<id>
+    folder = root / "yardstick"
+    folder.mkdir(exist_ok=True)
+    os.environ[hardware.REUSE_ENV] = str(folder)
+
+
 @pytest.fixture(scope="session")
 def compare_list(tmp_path_factory: pytest.TempPathFactory) -> subprocess.CompletedProcess:
     """``python -m compare list`` (no extra backend folders), run once per test run: it probes

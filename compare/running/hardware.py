@@ -25,10 +25,12 @@ from __future__ import annotations
 import ctypes
 import json
 import math
+import os
 import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -217,6 +219,32 @@ def measure(device: str, timeout: float = 300.0) -> Yardstick:
             return json.loads(line[len("YARDSTICK"):])
     tail = " | ".join(proc.stderr.strip().splitlines()[-2:])
     return Yardstick(error=f"yardstick process failed (exit {proc.returncode}): {tail}")
+
+
+REUSE_ENV = "COMPARE_YARDSTICK_REUSE"     # a folder: the tests' runs share one yardstick per device
+
+
+def for_run(device: str) -> Yardstick:
+    """A run's yardstick of ``device``: ``measure``d now. Where ``REUSE_ENV`` names a folder (the
+    test suite sets it, tests/conftest.py; nothing else does) the first run's, kept there, stands
+    for every later run's: the tests check what a run does with its yardstick, and measuring one
+    (a process, 128 MiB copies) costs each of their runs seconds on a small host."""
+    folder = os.environ.get(REUSE_ENV, "")
+    path = Path(folder) / f"yardstick-{device}.json"
+    if folder:
+        try:
+            return json.loads(path.read_text())
+        except (OSError, ValueError):
+            pass
+    got = measure(device)
+    if folder and "error" not in got:
+        try:
+            tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+            tmp.write_text(json.dumps(got))
+            os.replace(tmp, path)       # whole or absent for a run reading it meanwhile
+        except OSError:
+            pass
+    return got
 
 
 def annotated(rec: Record, hardware: Mapping[str, Yardstick]) -> Record:

@@ -259,7 +259,7 @@ class RunSuite(Suite):
         env["backends"] = probes
         env.update(run.protocol())
         t0 = time.perf_counter()
-        env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
+        env["hardware"] = {d: hardware.for_run(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
                            if any(p["available"].get(d) is None for p in probes.values())}
         run.spent["yardstick"] = time.perf_counter() - t0
         t0 = time.perf_counter()

@@ -258,7 +258,7 @@ class SweepSuite(Suite):
         env["backends"] = run.probes
         env.update(run.protocol())
         env["kinds"] = list(KINDS if args.kind == "all" else (args.kind,))
-        env["hardware"] = {d: hardware.measure(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
+        env["hardware"] = {d: hardware.for_run(d) for d in dict.fromkeys(str(c.device) for c in run.cells)
                            if any(p["available"].get(d) is None for p in run.probes.values())}
         sitting_run.start(env)          # before any cell: reuses the yardstick just measured
         if run.client is not None:
