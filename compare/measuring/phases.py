@@ -20,6 +20,7 @@ CELL_PARTS = {
     "start": "process start and imports",
     "inputs": "inputs",
     "framework": "framework set-up",
+    "floor": "the cell's own launch floor (two probes, CUDA)",
     "wait": "waiting for its turn (an overlapped run)",
     "build": "kernel build",
     "first_call": "compile and first call",

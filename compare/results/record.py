@@ -19,14 +19,17 @@ version below and saves the newest; users load these files with pandas, so keys 
       checks, ``compare.measuring.sitting``; later ``quiet``, the reference the start was judged
       against, null where there was none), ``noisy_sitting`` and ``noisy_sitting_reasons``, its
       CUDA yardstick's ``launch_latency_iqr_s``, and ``run.noisy_sitting`` in its records (and in a
-      stress provenance run).
+      stress provenance run); ``cell_floor`` (a CUDA cell's own launch floor, probed in its worker
+      ``before`` the framework's set-up and ``after`` the timed regimes, ``compare.running.cell_floor``:
+      each probe's ``latency_s``, ``latency_iqr_s``, ``pipelined_s``, ``launches``, ``k``,
+      ``batches``, ``spent_s``, ``context``, ``error``; and ``how``).
   1 - no ``format_version``: ``results.json`` is ``{"environment", "records"}``, ``sweep.json``
       ``{"runs", "records"}``, ``stress.json`` ``{"environment", "provenance", "rows", "series"}``.
       Each suite's format upgrades its records (``compare.results.formats``).
 
 The measured blocks are typed parts (``compare.results.record_parts``: ``Timing`` with its ``Regime``s,
 ``Noise`` and ``HostProfile``, ``Check``, ``Memory``, ``Gradient``, ``Hardware``, ``Throughput``,
-``Converged``), built where they are measured and read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
+``Converged``; ``CellFloor`` in ``compare.results.record_floor``), built where they are measured and read by attribute; each is also a read-only mapping of its JSON object, so the format is unchanged.
 
 ``Record.from_json`` is the one validating loader: every record a reader sees (report, resume,
 merge, the site, the sweep and stress pages) and every record the engine stores went through it,
@@ -41,12 +44,14 @@ import types
 from typing import Any, Callable, Mapping
 
 from compare.results import records
+from compare.results.record_floor import CellFloor
 from compare.results.record_parts import (PARTS, Check, Converged, Gradient, Hardware, Memory, Part, Regime, Throughput,
                                           Timing, plain)
 from compare.spec import Identity, key as cell_key
 from scenarios.base import Precision
 
 FORMAT_VERSION = 2
+TYPED: Mapping[str, type[Part]] = {**PARTS, "cell_floor": CellFloor}     # the record fields that are parts
 Block = Mapping[str, Any]      # a read-only JSON object; its lists are tuples
 
 
@@ -91,6 +96,7 @@ class Record:
     gradient: Gradient | None = None    # how a gradient was obtained and its errors
     converged: Converged | None = None  # the error sweep's distance to a converged reference
     hardware: Hardware | None = None    # the yardstick the cell was judged against
+    cell_floor: CellFloor | None = None     # the cell's own launch floor, probed in its worker
     info: Block | None = None           # the kernel's own notes
     versions: Block | None = None       # the framework's packages
     host: str | None = None
@@ -111,8 +117,8 @@ class Record:
                 continue
             v = (types.MappingProxyType({k: _freeze(x, records.show_key(k)) for k, x in v.items()})
                  if f.name == "extra" else _freeze(v, f.name))
-            if f.name in PARTS and isinstance(v, Mapping):     # a typed part, from its JSON
-                v = PARTS[f.name].from_json(v)
+            if f.name in TYPED and isinstance(v, Mapping):     # a typed part, from its JSON
+                v = TYPED[f.name].from_json(v)
             object.__setattr__(self, f.name, v)
         if not isinstance(self.precision, Precision):     # checked on load (compare.results.records)
             object.__setattr__(self, "precision", Precision(self.precision))
@@ -170,5 +176,5 @@ class Record:
 
 NAMED = tuple(f.name for f in dataclasses.fields(Record) if f.name not in ("extra", "layout"))
 
-__all__ = ["Block", "Check", "Converged", "FORMAT_VERSION", "Gradient", "Hardware", "Memory", "Record", "RecordError",
-           "Regime", "Throughput", "Timing", "plain"]
+__all__ = ["Block", "CellFloor", "Check", "Converged", "FORMAT_VERSION", "Gradient", "Hardware", "Memory", "Record",
+           "RecordError", "Regime", "Throughput", "Timing", "plain"]

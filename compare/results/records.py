@@ -189,6 +189,10 @@ CHECKED_ERROR = Obj({**ERROR.fields, "vs_oracle": CHECKED, "tolerance": CHECKED}
 HARDWARE = Obj({"copy_bytes_per_s": POSITIVE, "copy_how": TEXT, "launch_latency_s": OPT_SECONDS,
                 "launch_pipelined_s": OPT_SECONDS, "gpu": TEXT, "copy_bytes": OPT_AMOUNT,
                 "copy_median_s": OPT_SECONDS, "error": TEXT})
+# a CUDA cell's own launch floor (compare.running.cell_floor): its probes before and after the regimes
+PROBE = Obj({"latency_s": OPT_SECONDS, "latency_iqr_s": OPT_SECONDS, "pipelined_s": OPT_SECONDS,
+             "launches": OPT_COUNT, "k": OPT_COUNT, "batches": OPT_COUNT, "spent_s": OPT_SECONDS,
+             "context": OPT_TEXT, "error": OPT_TEXT})
 RECORD = Obj({
     "reason": TEXT, "params": Obj(), "time": TIME, "error": ERROR,
     "tags": Obj({"sweep": OPT_TEXT, "role": OPT_TEXT,
@@ -202,7 +206,8 @@ RECORD = Obj({
                      "reference_value": FIGURES, "tolerance": FIGURES}),
     "converged": Obj({"error": FIGURE, "metric": TEXT, "reference": Obj(rest=SCALAR, null=False)},
                      ("error", "metric")),
-    "hardware": HARDWARE, "info": Obj(), "versions": Obj(),
+    "hardware": HARDWARE, "cell_floor": Obj({"before": PROBE, "after": PROBE, "how": OPT_TEXT}),
+    "info": Obj(), "versions": Obj(),
     "host": OPT_TEXT, "host_load_1m": OPT_NUMBER, "host_cores": OPT_COUNT, "machine": OPT_TEXT,
     "run": Obj({"created": TEXT, "commit": OPT_TEXT, "dirty": FLAG, "note": TEXT, "noisy_sitting": FLAG},
                ("created",)),
@@ -235,7 +240,7 @@ def shape_problem(rec: Any) -> str | None:
 # Record fields that are objects (or null), and the figures inside them that are numbers (or
 # null, or the strings 'nan', 'inf', '-inf' that jsonable writes for non-finite floats).
 OBJECT_FIELDS = ("params", "time", "error", "tags", "work", "throughput", "memory", "info", "versions",
-                 "gradient", "converged")
+                 "gradient", "converged", "cell_floor")
 NUMBER_FIELDS = {"time": ("first_call_s", "median_s", "iqr_s", "min_s"),
                  "error": ("vs_oracle", "tolerance", "vs_reference")}
 

@@ -22,9 +22,10 @@ from compare.spec import IDENTITY, key
 from compare.results.store import SUITES, StoreError, array_file
 
 # Record fields (dotted paths) whose values are measurements or environment: timings, memory,
-# the host, the framework versions, the run's hardware yardstick. Their keys must still agree.
+# the host, the framework versions, the run's hardware yardstick and the cell's own launch floor.
+# Their keys must still agree.
 MEASURED = ("time", "throughput", "memory", "host", "host_load_1m", "host_cores", "versions",
-            "hardware", "machine")
+            "hardware", "cell_floor", "machine")
 # Fields whose very shape is a measurement or the environment: the noise verdict's reasons and the
 # host profile (what the host did), a traceback (file paths and line numbers of the code).
 FREE = ("time.noise.reasons", "time.host_profile", "traceback")

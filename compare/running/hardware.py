@@ -31,7 +31,7 @@ import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -120,24 +120,56 @@ def matched_copy(hw: Yardstick, traffic: float) -> tuple[float, int] | None:
     return bw, int(nbytes)
 
 
-def measure_cuda() -> Yardstick:
-    cu = ctypes.CDLL("libcuda.so.1")
-    P, U64, SZ = ctypes.c_void_p, ctypes.c_uint64, ctypes.c_size_t
-    sig = {"cuInit": [ctypes.c_uint], "cuDeviceGet": [ctypes.POINTER(ctypes.c_int), ctypes.c_int],
-           "cuDevicePrimaryCtxRetain": [ctypes.POINTER(P), ctypes.c_int], "cuCtxSetCurrent": [P],
-           "cuMemAlloc_v2": [ctypes.POINTER(U64), SZ], "cuMemsetD8_v2": [U64, ctypes.c_ubyte, SZ],
-           "cuMemcpyDtoDAsync_v2": [U64, U64, SZ, P], "cuEventCreate": [ctypes.POINTER(P), ctypes.c_uint],
-           "cuEventRecord": [P, P], "cuEventSynchronize": [P],
-           "cuEventElapsedTime": [ctypes.POINTER(ctypes.c_float), P, P],
-           "cuModuleLoadData": [ctypes.POINTER(P), ctypes.c_char_p],
-           "cuModuleGetFunction": [ctypes.POINTER(P), P, ctypes.c_char_p],
-           "cuLaunchKernel": [P] + [ctypes.c_uint] * 7 + [P, P, P], "cuCtxSynchronize": []}
-    for name, args in sig.items():
-        getattr(cu, name).argtypes = args
+# The driver functions the yardstick and the cells' own floor probes (compare.measuring.cell_floor)
+# call, with their ctypes signatures: one definition for both.
+_P, _U64, _SZ = ctypes.c_void_p, ctypes.c_uint64, ctypes.c_size_t
+SIGNATURES = {
+    "cuInit": [ctypes.c_uint], "cuDeviceGet": [ctypes.POINTER(ctypes.c_int), ctypes.c_int],
+    "cuDevicePrimaryCtxRetain": [ctypes.POINTER(_P), ctypes.c_int], "cuCtxSetCurrent": [_P],
+    "cuDevicePrimaryCtxRelease_v2": [ctypes.c_int], "cuCtxGetCurrent": [ctypes.POINTER(_P)],
+    "cuDevicePrimaryCtxGetState": [ctypes.c_int, ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_int)],
+    "cuMemAlloc_v2": [ctypes.POINTER(_U64), _SZ], "cuMemsetD8_v2": [_U64, ctypes.c_ubyte, _SZ],
+    "cuMemcpyDtoDAsync_v2": [_U64, _U64, _SZ, _P], "cuEventCreate": [ctypes.POINTER(_P), ctypes.c_uint],
+    "cuEventRecord": [_P, _P], "cuEventSynchronize": [_P],
+    "cuEventElapsedTime": [ctypes.POINTER(ctypes.c_float), _P, _P],
+    "cuModuleLoadData": [ctypes.POINTER(_P), ctypes.c_char_p], "cuModuleUnload": [_P],
+    "cuModuleGetFunction": [ctypes.POINTER(_P), _P, ctypes.c_char_p],
+    "cuLaunchKernel": [_P] + [ctypes.c_uint] * 7 + [_P, _P, _P], "cuCtxSynchronize": []}
 
-    def ck(r: int, what: str) -> None:
-        if r != 0:
-            raise OSError(f"{what} failed (CUresult {r})")
+
+def cuda_driver() -> Any:
+    """The CUDA driver library through ctypes, its functions' signatures set (``SIGNATURES``)."""
+    cu = ctypes.CDLL("libcuda.so.1")
+    for name, args in SIGNATURES.items():
+        getattr(cu, name).argtypes = args
+    return cu
+
+
+def ck(r: int, what: str) -> None:
+    """A driver call's result: 0, or an OSError naming the call."""
+    if r != 0:
+        raise OSError(f"{what} failed (CUresult {r})")
+
+
+def noop_function(cu: Any) -> tuple[Any, Any]:
+    """The empty kernel (``PTX``) loaded into the current context: (module, function)."""
+    mod, fn = ctypes.c_void_p(), ctypes.c_void_p()
+    ck(cu.cuModuleLoadData(ctypes.byref(mod), PTX), "cuModuleLoadData")
+    ck(cu.cuModuleGetFunction(ctypes.byref(fn), mod, b"noop"), "cuModuleGetFunction")
+    return mod, fn
+
+
+def noop_launcher(cu: Any, fn: Any) -> Callable[[], None]:
+    """One launch of the empty kernel per call: one block of one thread, the default stream (the
+    same closure for the yardstick and the cells' probes: the same Python cost per launch)."""
+    def launch() -> None:
+        ck(cu.cuLaunchKernel(fn, 1, 1, 1, 1, 1, 1, 0, None, None, None), "cuLaunchKernel")
+    return launch
+
+
+def measure_cuda() -> Yardstick:
+    cu = cuda_driver()
+    P, U64 = _P, _U64
     ck(cu.cuInit(0), "cuInit")
     dev, ctx = ctypes.c_int(), P()
     ck(cu.cuDeviceGet(ctypes.byref(dev), 0), "cuDeviceGet")
@@ -160,12 +192,8 @@ def measure_cuda() -> Yardstick:
         ck(cu.cuEventElapsedTime(ctypes.byref(ms), a, b), "cuEventElapsedTime")
         if i >= 3:
             copies.append(ms.value * 1e-3)
-    mod, fn = P(), P()
-    ck(cu.cuModuleLoadData(ctypes.byref(mod), PTX), "cuModuleLoadData")
-    ck(cu.cuModuleGetFunction(ctypes.byref(fn), mod, b"noop"), "cuModuleGetFunction")
-
-    def launch() -> None:
-        ck(cu.cuLaunchKernel(fn, 1, 1, 1, 1, 1, 1, 0, None, None, None), "cuLaunchKernel")
+    _, fn = noop_function(cu)
+    launch = noop_launcher(cu, fn)
     lat, piped, k = [], [], 2000
     for i in range(2100):
         t0 = time.perf_counter()

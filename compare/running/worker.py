@@ -30,7 +30,7 @@ import scenarios
 from backends.base import OWN_TIMER_S, Backend, Device
 from compare.measuring import noise, phases, timing
 from compare.running import scaleout
-from compare.running import caches
+from compare.running import caches, cell_floor
 from compare.running.gate import Gate
 from compare.measuring.memory_sampler import Sampler, memory_pass
 from compare.measuring.nvml import open_nvml
@@ -95,8 +95,6 @@ def profile_calls(throughput: Regime) -> int:
 
 
 OWN_TIMER_BELOW_S = 0.01     # the framework's own timer cross-checks per-call cells, not long ones
-
-
 CROSS_ROUNDS = 7     # our clock and the framework's own, alternated: the same minutes of the process
 
 
@@ -176,6 +174,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     laps.lap("inputs")
 
     nvml, nvml_note = open_nvml(device)       # baseline before the framework touches the GPU
+    floor = cell_floor.Probes(device, laps, gate.gated)     # the cell's own launch floor (CUDA)
     if not set_up:
         be.setup(device, precision, variant)
     be.ensure_context(device)
@@ -187,6 +186,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     gate.wait()
     if gate.gated:
         laps.lap("wait")
+    floor.gate_opened()
     t0 = time.perf_counter()
     kernel = be.kernel(sc.name)(params, inputs, device, precision, variant)
     sync(None)
@@ -251,6 +251,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         if (own := own_latency(be, device, kernel.run, sync)) is not None:
             regimes["own_timer"] = own
         laps.lap("own_timer")
+    floor.after()
     gate.release()
 
     def timed() -> Timing:
@@ -265,7 +266,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     if not cell.check:      # a repeat process (compare.running.repeats): the first process checked the cell
         # a miniature's (compare.planning.calibrate) peak, which the memory preflight scales to its big cell
         return record_of(cell, status="ok", reason="", params=params_json, time=timed(),
-                         memory=Memory.of(peak_host_rss_bytes=run_peak))
+                         memory=Memory.of(peak_host_rss_bytes=run_peak), **floor.fields())
     violation = contract_violation(sc, params, precision, outputs)
     if violation:
         raise ContractError(violation)
@@ -318,7 +319,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         host=host_name,
         host_load_1m=load,          # other processes on the host perturb CPU timings
         host_cores=cores,           # fewer than the host's under a Dask core set
-        versions=versions, **({"gradient": gradient} if gradient is not None else {}))
+        versions=versions, **({"gradient": gradient} if gradient is not None else {}), **floor.fields())
 
 
 def record_of(cell: Cell, **measured: Any) -> Record:

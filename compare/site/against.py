@@ -19,7 +19,7 @@ from typing import Any, Iterable, Mapping
 
 from compare.render import charts
 from compare.results.record import Record
-from compare.site import data, fmt, provenance
+from compare.site import data, floors, fmt, provenance
 from compare.site.data import Machine, Timing
 from compare.site.questions_pages import Ctx
 from compare.site.render import Block, Figure, H, Items, P, Table
@@ -143,7 +143,7 @@ class Compared:
 
     @property
     def floor_ratio(self) -> float | None:
-        """The ratio in units of each run's own launch floor (``data.floors``); None without both yardsticks."""
+        """The ratio in each side's launch floors (``data.floors``: its cell's own or its run's); None without both."""
         a = data.floors(self.rec, self.regime, self.mine)
         b = data.floors(self.there, self.regime, self.ref) if self.there is not None else None
         return a / b if a is not None and b else None
@@ -264,7 +264,7 @@ def summary(mm: Matching) -> list[Block]:
         lines.append(f"Median ratio on {dev}: **{fmt.ratio(statistics.median(c.ratio for c in on))}** "
                      f"over {len(on)} pairs ({'; '.join(per)})." + (
                          f" {FLOORS.capitalize()}: **{fmt.ratio(statistics.median(fl))}** over the {len(fl)} "
-                         "latency and pipelined pairs with both yardsticks." if fl else ""))
+                         f"latency and pipelined pairs with both yardsticks{floors.count(on)}." if fl else ""))
     if mm.changed:
         lines.append(f"**{_n(len(mm.changed), 'cell')} changed status** (listed after the matched cells).")
     skipped = [f"{_n(k, 'cell')} {why}" for k, why in ((mm.both_failed, "failed or skipped on both sides"),
@@ -346,11 +346,12 @@ def tables(mm: Matching) -> list[Block]:
         noisy = (fmt.NOISY_MARK if x.mine.noisy else "", fmt.NOISY_MARK if x.ref.noisy else "")
         rows.append((*_cell_words(x.rec), x.regime,
                      fmt.seconds(x.mine.median) + noisy[0], fmt.seconds(x.ref.median) + noisy[1],
-                     fmt.ratio(x.ratio), fmt.ratio(f) if (f := x.floor_ratio) is not None else "-", x.verdict))
+                     fmt.ratio(x.ratio), fmt.ratio(f) + floors.mark(x) if (f := x.floor_ratio) is not None else "-",
+                     x.verdict))
     if rows:
         blocks += [H("Every matched cell", "cells"),
                    P("Per-call time in each regime both runs measured; ratio = this run / reference "
-                     f"(below 1: faster here); in floors: the same {FLOORS}. "
+                     f"(below 1: faster here); in floors: the same {FLOORS}{floors.note(mm.compared)}. "
                      f"{WITHIN.capitalize()}: the two quartile ranges overlap. "
                      f"{fmt.NOISY_MARK} marks a noisy figure (wide spread, few repeats or a busy host). Click a "
                      "header to sort."),

@@ -241,16 +241,39 @@ def per_call(rec: Record, regime: str) -> Timing | None:
 # over its own run's empty-kernel launch (each record keeps its run's yardstick in ``hardware``);
 # graph replay travels in seconds and has none.
 FLOOR_OF = {"latency": "launch_latency_s", "throughput": "launch_pipelined_s"}
+# A CUDA cell's own floor (``cell_floor``, compare.running.cell_floor) where the record has one:
+# its ``before`` probe alone, not the mean with ``after``. ``before`` runs on the primary context
+# before the cell's first kernel (before the framework's set-up, or at its window's opening), as
+# the run's yardstick does; ``after`` runs on the framework's context after its regimes, so the
+# framework's own state (its context and flags, its threads) would enter the divisor and flatter
+# a framework that slows every launch. ``after`` stays in the record: how far the floor moved.
+OWN_FLOOR_OF = {"latency": "latency_s", "throughput": "pipelined_s"}
+
+
+def floor_of(rec: Record, regime: str) -> tuple[float, bool] | None:
+    """The launch floor ``regime``'s per-call figure is divided by, and whether it is the cell's
+    own (else its run's yardstick); None where the regime has no such unit or the record no floor."""
+    key = FLOOR_OF.get(regime)
+    before = rec.cell_floor.before if key and rec.cell_floor else None
+    own = num(getattr(before, OWN_FLOOR_OF[regime], None)) if key and before else None
+    run = num(getattr(rec.hardware, key, None)) if key and rec.hardware else None
+    return (own, True) if own else (run, False) if run else None
+
+
+def own_floor(rec: Record | None, regime: str) -> bool:
+    """Whether ``rec``'s ``regime`` figure is divided by its cell's own floor (not its run's yardstick)."""
+    got = floor_of(rec, regime) if rec is not None else None
+    return bool(got and got[1])
 
 
 def floors(rec: Record, regime: str, t: Timing | None = None) -> float | None:
-    """``regime``'s per-call figure (``t``, else read here) in launch floors of the same run: the
-    latency over the empty launch + synchronise, pipelined calls over the pipelined empty launch.
-    None where the regime has no such unit or the record no yardstick (a CPU run, an older one)."""
-    key = FLOOR_OF.get(regime)
-    floor = num(getattr(rec.hardware, key, None)) if key and rec.hardware else None
+    """``regime``'s per-call figure (``t``, else read here) in launch floors: the latency over the
+    empty launch + synchronise, pipelined calls over the pipelined empty launch, of the cell's own
+    floor where it has one, else of its run's yardstick (``floor_of``). None where the regime has
+    no such unit or the record no floor (a CPU run, an older one)."""
+    got = floor_of(rec, regime)
     t = t or per_call(rec, regime)
-    return t.median / floor if t is not None and floor else None
+    return t.median / got[0] if t is not None and got else None
 
 
 def defaults(scenario: str) -> dict[str, ParamValue]:

@@ -29,10 +29,11 @@ def seconds(v: float | None) -> str:
     return f"{v:.3g} s"
 
 
-def with_floors(v: float | None, n: float | None) -> str:
-    """A per-call figure and the same in its run's launch floors: ``37.9 µs = 2.77 floors``; the
-    figure alone where there is no yardstick."""
-    return seconds(v) + (f" = {_g(n)} floors" if v is not None and n is not None and math.isfinite(n) else "")
+def with_floors(v: float | None, n: float | None, own: bool = False) -> str:
+    """A per-call figure and the same in its run's launch floors: ``37.9 µs = 2.77 floors``, or in
+    its cell's own (``own``): ``37.9 µs = 2.77 cell floors``; the figure alone where there is no floor."""
+    unit = "cell floors" if own else "floors"
+    return seconds(v) + (f" = {_g(n)} {unit}" if v is not None and n is not None and math.isfinite(n) else "")
 
 
 def rate(v: float | None, unit: str = "/s") -> str:

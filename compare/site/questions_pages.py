@@ -104,15 +104,16 @@ def _bar(r: Record, fig: Callable[[Record], Any], note: str = "") -> charts.Bar:
 def timing_table(recs: list[Record], regimes: tuple[str, ...] = data.REGIMES,
                  extra: Callable[[Record], list[str]] | None = None,
                  extra_headers: tuple[str, ...] = (), floors: bool = False) -> Table:
-    """Each record's per-call figures by regime; ``floors``: each beside its run's launch floors
-    where the regime has that unit (``data.floors``)."""
+    """Each record's per-call figures by regime; ``floors``: each beside its launch floors where the
+    regime has that unit (``data.floors``: the cell's own, 'cell floors', else its run's yardstick)."""
     rows = []
     for r in sorted(recs, key=lambda r: (r.scenario, data.size(r), r.backend, r.variant)):
         cells = [r.backend, r.variant, r.scenario,
                  fmt.params_text(r.params or {}, data.defaults(r.scenario)), r.precision]
         for g in regimes:
             t = data.per_call(r, g) if r.status == "ok" else None
-            text = fmt.with_floors(t.median, data.floors(r, g, t)) if t and floors else fmt.seconds(t.median) if t else ""
+            text = (fmt.with_floors(t.median, data.floors(r, g, t), data.own_floor(r, g)) if t and floors
+                    else fmt.seconds(t.median) if t else "")
             cells.append("-" if t is None else text + (fmt.NOISY_MARK if t.noisy else ""))
             if g != "graph":
                 cells.append("-" if t is None else fmt.seconds(t.hi - t.lo))

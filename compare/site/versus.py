@@ -111,7 +111,7 @@ def block(records: list[Record], env: RunEnvironment, out: Path, against: str | 
         return [f"against {label}: this run's --out is that report itself; nothing to compare"]
     if not (ref_dir / "results.json").is_file():
         return [f"against {label}: no stored report there (no results.json)"]
-    from compare.site import against as vs, data
+    from compare.site import against as vs, data, floors
     from compare.results.store import StoreError
     try:
         ref = data.load([ref_dir / "results.json"])
@@ -137,7 +137,8 @@ def block(records: list[Record], env: RunEnvironment, out: Path, against: str | 
              f"  ratio = per-call time here / there (below 1: faster here), median and quartiles; every cell: "
              f"{_shown(Path(out) / PAGE)}"]
     if any(c.floor_ratio is not None for c in per.values()):
-        lines.append(f"  'in floors': the same ratio {vs.FLOORS} (the raw ratio beside it moves with the sitting)")
+        lines.append(f"  'in floors': the same ratio {vs.FLOORS} (the raw ratio beside it moves with the sitting)"
+                     + floors.note(per.values()))
     for (dev, scenario), cs in sorted(groups.items(), key=lambda kv: (devices.index(kv[0][0]), kv[0][1])):
         q1, q2, q3 = _quartiles(sorted(c.ratio for c in cs))
         within = sum(c.verdict == vs.WITHIN for c in cs)

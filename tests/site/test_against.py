@@ -177,3 +177,27 @@ def test_against_compares_in_launch_floors(stores: dict[str, Any]) -> None:
     assert "in units of each run's own launch floor" in md
     summary = md[md.index("## Summary"):md.index("## Every matched cell")]
     assert "In units of each run's own launch floor: **" in summary
+
+
+def test_against_divides_by_a_cells_own_floor_and_says_so(stores: dict[str, Any]) -> None:
+    """The reference's warp cell carries its own floor (``cell_floor.before``) at twice its run's
+    yardstick: its latency, twice as slow there in seconds, is the same in floors, divided by the
+    cell's own floor (not the run's), and the row, the page and the summary say so."""
+    doc = json.loads((stores["ref"] / "results.json").read_text())
+    warp = _find(doc["records"], "warp")
+    warp["cell_floor"] = {"before": {"latency_s": 2 * warp["hardware"]["launch_latency_s"]},
+                          "after": {"latency_s": 1e-9}}           # never the divisor
+    (stores["ref"] / "results.json").write_text(json.dumps(doc))
+    md = (_site(stores, stores["ref"]) / "against.md").read_text()
+    row = _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "latency")
+    assert row[-3:] == ["0.50×", "1.00× (cell floors: there)", "faster"]      # (m / L) / (2 m / 2 L) = 1
+    # the pipelined figure has no probe of its own: both sides in their runs' yardsticks, unmarked
+    assert _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "throughput")[-3:-1] == ["1.00×", "1.00×"]
+    assert "divides that side by its cell's own floor" in md
+    summary = md[md.index("## Summary"):md.index("## Every matched cell")]
+    assert "(1 with a cell's own floor on one side or both)" in summary
+
+
+def test_against_without_cells_own_floors_reads_as_before(stores: dict[str, Any]) -> None:
+    md = (_site(stores, stores["ref"]) / "against.md").read_text()
+    assert "cell floors" not in md and "cell's own floor" not in md

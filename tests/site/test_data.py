@@ -144,3 +144,23 @@ def test_floors_are_the_figure_over_its_own_runs_launch_floor():
     assert data.floors(rec(time=time, hardware={"launch_latency_s": None, "launch_pipelined_s": 0.0}), "latency") is None
     assert data.floors(rec(time=time, hardware={"launch_pipelined_s": 0.0}), "throughput") is None
     assert data.floors(rec(hardware={"launch_latency_s": 10e-6}), "latency") is None     # nothing timed
+
+
+def test_a_cells_own_floor_is_the_divisor_where_the_record_has_one():
+    """``cell_floor.before`` (probed beside the cell) wins over the run's yardstick, per regime; a
+    probe without that figure (failed, cut short) leaves the run's yardstick; ``after`` never divides."""
+    one = lambda m: {"median_s": m, "iqr_s": m / 10, "repeats": 50}  # noqa: E731
+    time = {**one(30e-6), "latency": one(30e-6), "throughput": {**one(12e-6), "k": 100}}
+    hw = {"launch_latency_s": 10e-6, "launch_pipelined_s": 4e-6}
+    own = {"before": {"latency_s": 15e-6, "pipelined_s": 6e-6}, "after": {"latency_s": 1e-6, "pipelined_s": 1e-6}}
+    r = rec(time=time, hardware=hw, cell_floor=own)
+    assert data.floor_of(r, "latency") == (15e-6, True) and data.floor_of(r, "throughput") == (6e-6, True)
+    assert data.floors(r, "latency") == pytest.approx(2.0) and data.floors(r, "throughput") == pytest.approx(2.0)
+    assert data.own_floor(r, "latency") and not data.own_floor(r, "graph") and not data.own_floor(None, "latency")
+    half = rec(time=time, hardware=hw, cell_floor={"before": {"latency_s": 15e-6, "error": "cut"}})
+    assert data.floor_of(half, "latency") == (15e-6, True) and data.floor_of(half, "throughput") == (4e-6, False)
+    failed = rec(time=time, hardware=hw, cell_floor={"before": {"error": "OSError: no driver"}, "after": None})
+    assert data.floors(failed, "latency") == pytest.approx(3.0) and not data.own_floor(failed, "latency")
+    # a cell's own floor without a run's yardstick still gives the unit; neither: none
+    assert data.floors(rec(time=time, cell_floor=own), "throughput") == pytest.approx(2.0)
+    assert data.floor_of(rec(time=time), "latency") is None

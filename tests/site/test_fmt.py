@@ -73,3 +73,4 @@ def test_with_floors_gives_the_figure_and_its_launch_floors():
     assert fmt.with_floors(37.9e-6, 37.9 / 13.7) == "37.9 µs = 2.77 floors"
     assert fmt.with_floors(37.9e-6, None) == "37.9 µs"            # no yardstick: the figure alone
     assert fmt.with_floors(None, 2.0) == "-"
+    assert fmt.with_floors(37.9e-6, 37.9 / 13.7, own=True) == "37.9 µs = 2.77 cell floors"   # the cell's own

@@ -93,6 +93,11 @@ FLOORS = ("Each latency and pipelined figure is also given in **launch floors** 
           "where the yardstick was taken minutes before the cells (a `compare run`), not across a "
           "long `compare all` (docs/results/h100/evidence/units). Graph replay is in seconds only: "
           "it travels as it is. A record without a yardstick (a CPU run) has seconds only.")
+OWN_FLOORS = ("A figure in **cell floors** is divided by the cell's own floor instead of its run's yardstick: "
+              "the same empty-kernel launch, probed in the cell's worker seconds before its timed window "
+              "(before the framework's set-up, or at the window's opening in an overlapped run; "
+              "`cell_floor.before` of the record), so the floor is of the cell's own minutes, not the "
+              "run's start. `floors` alone: the run's yardstick.")
 
 
 def per_call(c: Ctx) -> Page:
@@ -116,6 +121,8 @@ def per_call(c: Ctx) -> Page:
                       c.cmd(f"run {' '.join(topics.SMALL)} --devices {c.device} --precision float32 --variants all"), csv),
                H("Every small cell"),
                *([P(FLOORS)] if any(data.floors(r, "latency") for r in recs if r.status == "ok") else []),
+               *([P(OWN_FLOORS)] if any(data.own_floor(r, g) for r in recs for g in data.FLOOR_OF
+                                        if r.status == "ok") else []),
                timing_table(recs, extra=_host_share, extra_headers=("host share",), floors=True)]
     if any(r.time and r.time.null for r in mine):
         blocks += [H("What the clock costs"),

@@ -60,3 +60,42 @@ def test_the_per_call_table_gives_each_figure_in_its_runs_launch_floors(ctx):
     assert not any("floors" in row[graph] for row in table.rows)
     bw = saxpy.PAGES["bandwidth"][1](ctx)
     assert not any("floors" in c for b in bw if isinstance(b, Table) for row in b.rows for c in row)
+
+
+def test_a_cells_own_floor_is_named_where_it_divides(tmp_path):
+    """A record with its cell's own floor (``cell_floor.before``) reads '<time> = <n> cell floors',
+    divided by that floor, and the page defines the unit once; the store's other records keep their
+    run's yardstick ('floors'); a store without one (every committed store) reads as before."""
+    import json
+    import shutil
+    from site_topics import STORE
+    from compare.site import data, fmt, matrix, pages
+    from compare.site import questions_pages as qp
+    from compare.site.render import P, Table
+    shutil.copytree(STORE, tmp_path / "store")
+    doc = json.loads((tmp_path / "store" / "results.json").read_text())
+    mine = next(r for r in doc["records"] if r["backend"] == "warp" and r["status"] == "ok" and r["device"] == "cuda"
+                and r["scenario"] == "saxpy" and r["precision"] == "float32" and r["variant"] == "default"
+                and r["params"]["n"] == 1000000 and r.get("hardware"))
+    lat = mine["time"]["latency"]["median_s"]
+    mine["cell_floor"] = {"before": {"latency_s": lat / 4, "pipelined_s": 1e-6, "context": "test"}}
+    (tmp_path / "store" / "results.json").write_text(json.dumps(doc))
+    m = data.load([tmp_path / "store"])
+    c = qp.Ctx(m, pages.evaluate(m)[0], tmp_path / "site", "STORE")
+    blocks = saxpy.PAGES["per-call"][1](c)
+    assert sum(isinstance(b, P) and b.text == saxpy.OWN_FLOORS for b in blocks) == 1
+    table = next(b for b in blocks if isinstance(b, Table) and "host share" in b.headers)
+    col = table.headers.index("latency")
+    row = next(row for row in table.rows if row[:3] == ("warp", "default", "saxpy") and row[3] == "defaults")
+    assert row[col].startswith(fmt.with_floors(lat, 4.0, own=True)) and "= 4 cell floors" in row[col]
+    others = [row[col] for row in table.rows if row[:2] != ("warp", "default") and " floors" in row[col]]
+    assert others and not any("cell floors" in t for t in others)
+    assert all(not data.own_floor(r, "latency") for r in matrix.defaults_of("saxpy")(c.m, c.device)
+               if r.backend != "warp")
+
+
+def test_without_a_cells_own_floor_the_page_does_not_mention_one(ctx):
+    from compare.site.render import P, Table
+    blocks = saxpy.PAGES["per-call"][1](ctx)
+    assert not any(isinstance(b, P) and b.text == saxpy.OWN_FLOORS for b in blocks)
+    assert not any("cell floors" in c for b in blocks if isinstance(b, Table) for row in b.rows for c in row)

@@ -4,7 +4,9 @@ Reads every stored H100 run of the per-call cells (SAXPY n = 10^6 and particles 
 float32, CUDA): the published store and every evidence store. One figure per (run, cell); a run
 stored twice (published and in its evidence folder) counts once. For every pair of runs that
 measured the same cell it compares the figure in each candidate unit: the pair's ratio (larger
-over smaller) and the share of pairs within 10 % and 20 %. Pairs from one machine session (runs
+over smaller) and the share of pairs within 10 % and 20 %. "/ the cell's own floor" divides by the
+launch floor probed in the cell's own worker (``cell_floor``); records before it carry none, so
+those rows count no pairs until such runs are stored. Pairs from one machine session (runs
 less than SESSION apart) are reported apart from pairs across sessions, the case that matters.
 
     python docs/results/h100/evidence/units/travel.py        (from the repository root)
@@ -114,6 +116,15 @@ def _figs(r: Record) -> Fig | None:
     null = r.time.null if r.time else None
     if null and data.num(null.get("median_s")):
         f["null"] = float(null["median_s"])
+    # the cell's own floor (``cell_floor``, probed in its worker beside its timed window) where the
+    # record has one: its ``before`` probe (the site's divisor) and the mean with ``after``
+    before, after = (r.cell_floor.before, r.cell_floor.after) if r.cell_floor else (None, None)
+    for key, field in (("cell_lat", "latency_s"), ("cell_pipe", "pipelined_s")):
+        b, a = (data.num(p.get(field)) if p else None for p in (before, after))
+        if b:
+            f[key] = b
+        if b and a:
+            f[key + "_mean"] = (b + a) / 2
     return f
 
 
@@ -131,7 +142,9 @@ CANDIDATES: dict[str, list[tuple[str, Callable[[Fig], float | None]]]] = {
                 ("/ launch + sync floor", _div("latency", "floor_lat")),
                 ("/ pipelined floor", _div("latency", "floor_pipe")),
                 ("/ null call", _div("latency", "null")),
-                ("- launch + sync floor", _minus("latency", "floor_lat"))],
+                ("- launch + sync floor", _minus("latency", "floor_lat")),
+                ("/ the cell's own floor", _div("latency", "cell_lat")),
+                ("/ the cell's own floor (mean of before, after)", _div("latency", "cell_lat_mean"))],
     "throughput": [("raw us", lambda f: f.get("throughput")),
                    ("/ pipelined floor", _div("throughput", "floor_pipe")),
                    ("/ launch + sync floor", _div("throughput", "floor_lat")),
@@ -139,7 +152,9 @@ CANDIDATES: dict[str, list[tuple[str, Callable[[Fig], float | None]]]] = {
                     if "throughput" in f else None),
                    ("/ null call", _div("throughput", "null")),
                    ("- pipelined floor", _minus("throughput", "floor_pipe")),
-                   ("/ own latency", _div("throughput", "latency"))],
+                   ("/ own latency", _div("throughput", "latency")),
+                   ("/ the cell's own floor", _div("throughput", "cell_pipe")),
+                   ("/ the cell's own floor (mean of before, after)", _div("throughput", "cell_pipe_mean"))],
     "graph": [("raw us", lambda f: f.get("graph")),
               ("/ pipelined floor", _div("graph", "floor_pipe")),
               ("/ launch + sync floor", _div("graph", "floor_lat"))],
