@@ -5,7 +5,7 @@ records perturbed by hand: one cell twice as slow with a narrow spread (ratio 0.
 spread: "faster" here), one 5 % slower with the same spread (inside it), one failed, one
 removed, and one package version changed. Everything runs in tmp_path with the working directory
 there too, so a file written anywhere but --out is caught. test_against_page builds the whole
-site; the tests that read only SAXPY rows of against.md build it from MINE's SAXPY records alone
+site; the tests that read only SAXPY rows (or whole-page wording) of against.md build it from MINE's SAXPY records alone
 (``_saxpy_only``: the other pages' figures took most of a whole build's ~12 s).
 """
 from __future__ import annotations
@@ -183,6 +183,7 @@ def test_against_divides_by_a_cells_own_floor_and_says_so(stores: dict[str, Any]
     """The reference's warp cell carries its own floor (``cell_floor.before``) at twice its run's
     yardstick: its latency, twice as slow there in seconds, is the same in floors, divided by the
     cell's own floor (not the run's), and the row, the page and the summary say so."""
+    _saxpy_only(stores["mine"])
     doc = json.loads((stores["ref"] / "results.json").read_text())
     warp = _find(doc["records"], "warp")
     warp["cell_floor"] = {"before": {"latency_s": 2 * warp["hardware"]["launch_latency_s"]},
@@ -199,5 +200,6 @@ def test_against_divides_by_a_cells_own_floor_and_says_so(stores: dict[str, Any]
 
 
 def test_against_without_cells_own_floors_reads_as_before(stores: dict[str, Any]) -> None:
+    _saxpy_only(stores["mine"])
     md = (_site(stores, stores["ref"]) / "against.md").read_text()
     assert "cell floors" not in md and "cell's own floor" not in md
