@@ -5,8 +5,8 @@ records perturbed by hand: one cell twice as slow with a narrow spread (ratio 0.
 spread: "faster" here), one 5 % slower with the same spread (inside it), one failed, one
 removed, and one package version changed. Everything runs in tmp_path with the working directory
 there too, so a file written anywhere but --out is caught. test_against_page builds the whole
-site; the tests that read only SAXPY rows (or whole-page wording) of against.md build it from MINE's SAXPY records alone
-(``_saxpy_only``: the other pages' figures took most of a whole build's ~12 s).
+site; the tests that read only SAXPY rows (or whole-page wording) of against.md build it from
+MINE's SAXPY records alone (``_saxpy_only``: the other pages' figures took most of a build's ~12 s).
 """
 from __future__ import annotations
 
