@@ -62,6 +62,7 @@ def test_a_site_in_the_repository_links_docs_and_one_elsewhere_gets_a_copy(tmp_p
     assert "](#variants)" in copy                                  # its own anchors kept
 
 
+@pytest.mark.xdist_group("site")       # test_site.built_site: one build, on the worker of its group
 def test_every_page_of_a_built_site_links_the_glossary(tmp_path_factory: pytest.TempPathFactory):
     site = built_site(tmp_path_factory)
     assert (site / glossary.NAME).is_file()

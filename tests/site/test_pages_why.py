@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
+
 from compare.results.record import Record
 from compare.site import data, fmt, matrix, pages, pages_why, questions, questions_pages
 from compare.site.render import Items
@@ -109,6 +111,7 @@ def test_reference_cells_and_rows_within_twenty_times_carry_no_footnote():
     assert "<sup>" not in pages.matrix_md([row], ["triton", "torch"]) and "\n\n" not in pages.matrix_md([row], ["triton"])
 
 
+@pytest.mark.xdist_group("site")       # test_site.built_site: one build, on the worker of its group
 def test_no_page_promises_a_tooltip_and_the_footnotes_reach_their_rows(tmp_path_factory):
     import re
 
