@@ -79,3 +79,17 @@ def test_main_prints_one_yardstick_line_even_when_it_cannot_measure(monkeypatch,
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 1 and json.loads(out[0][len("YARDSTICK"):]) == {
         "error": "OSError: libcuda.so.1: cannot open shared object file"}
+
+
+def test_for_run_measures_each_run_unless_the_tests_folder_keeps_the_first(monkeypatch, tmp_path):
+    calls = []
+    monkeypatch.setattr(hardware, "measure", lambda device: calls.append(device) or {"copy_bytes_per_s": len(calls)})
+    monkeypatch.delenv(hardware.REUSE_ENV, raising=False)
+    assert [hardware.for_run("cpu")["copy_bytes_per_s"] for _ in range(2)] == [1, 2]     # each run its own
+    monkeypatch.setenv(hardware.REUSE_ENV, str(tmp_path))
+    assert [hardware.for_run("cpu")["copy_bytes_per_s"] for _ in range(2)] == [3, 3]     # the first one's
+    assert hardware.for_run("cuda") == {"copy_bytes_per_s": 4} and len(calls) == 4         # per device
+    monkeypatch.setattr(hardware, "measure", lambda device: calls.append(device) or {"error": "no device"})
+    (tmp_path / "yardstick-cuda.json").unlink()
+    assert hardware.for_run("cuda") == hardware.for_run("cuda") == {"error": "no device"}
+    assert len(calls) == 6 and not (tmp_path / "yardstick-cuda.json").exists()          # a failure not kept
