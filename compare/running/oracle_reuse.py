@@ -23,7 +23,7 @@ ENV = "COMPARE_ORACLE_REUSE"
 
 def _key(name: str, params: Any, inputs: dict[str, Any], precision: str) -> str | None:
     """A hash of the question, or None where an input is not a plain array (not kept)."""
-    p = dataclasses.asdict(params) if dataclasses.is_dataclass(params) else params
+    p = dataclasses.asdict(params) if dataclasses.is_dataclass(params) and not isinstance(params, type) else params
     h = hashlib.sha256(json.dumps([name, p, str(precision)], sort_keys=True, default=repr).encode())
     for k in sorted(inputs):
         a = np.asarray(inputs[k])

@@ -90,6 +90,15 @@ def _site(stores: dict[str, Any], *against: Path) -> Path:
     return out
 
 
+def _against_warp_edited(stores: dict[str, Any], edit: Any) -> str:
+    """against.md of MINE's SAXPY rows against the reference, its warp SAXPY record changed by ``edit``."""
+    _saxpy_only(stores["mine"])
+    doc = json.loads((stores["ref"] / "results.json").read_text())
+    edit(_find(doc["records"], "warp"))
+    (stores["ref"] / "results.json").write_text(json.dumps(doc))
+    return (_site(stores, stores["ref"]) / "against.md").read_text()
+
+
 def _row(md: str, *cells: str) -> list[str]:
     """The cells of the Markdown table row that starts with ``cells``."""
     head = "| " + " | ".join(cells) + " |"
@@ -161,42 +170,35 @@ def test_against_one_of_the_results_is_refused(stores: dict[str, Any],
     assert not out.exists()
 
 
-def test_against_compares_in_launch_floors(stores: dict[str, Any]) -> None:
-    """A reference whose run had twice the launch floor: warp's latency, twice as slow there in
-    seconds, is the same in floors; the raw ratio stays beside it and the page names the unit."""
-    _saxpy_only(stores["mine"])
-    doc = json.loads((stores["ref"] / "results.json").read_text())
-    hw = _find(doc["records"], "warp")["hardware"]
-    hw["launch_latency_s"] *= 2
-    (stores["ref"] / "results.json").write_text(json.dumps(doc))
-    md = (_site(stores, stores["ref"]) / "against.md").read_text()
-    row = _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "latency")
-    assert row[-3:] == ["0.50×", "1.00×", "faster"]          # (m / L) / (2 m / 2 L) = 1
-    # the pipelined floor was left alone: the throughput cell's floors ratio is its raw ratio
-    assert _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "throughput")[-3:-1] == ["1.00×", "1.00×"]
-    assert "in units of each run's own launch floor" in md
-    summary = md[md.index("## Summary"):md.index("## Every matched cell")]
-    assert "In units of each run's own launch floor: **" in summary
+def _twice_the_run_floor(warp: dict[str, Any]) -> None:
+    warp["hardware"]["launch_latency_s"] *= 2
 
 
-def test_against_divides_by_a_cells_own_floor_and_says_so(stores: dict[str, Any]) -> None:
-    """The reference's warp cell carries its own floor (``cell_floor.before``) at twice its run's
-    yardstick: its latency, twice as slow there in seconds, is the same in floors, divided by the
-    cell's own floor (not the run's), and the row, the page and the summary say so."""
-    _saxpy_only(stores["mine"])
-    doc = json.loads((stores["ref"] / "results.json").read_text())
-    warp = _find(doc["records"], "warp")
+def _twice_in_its_own_floor(warp: dict[str, Any]) -> None:
     warp["cell_floor"] = {"before": {"latency_s": 2 * warp["hardware"]["launch_latency_s"]},
-                          "after": {"latency_s": 1e-9}}           # never the divisor
-    (stores["ref"] / "results.json").write_text(json.dumps(doc))
-    md = (_site(stores, stores["ref"]) / "against.md").read_text()
+                          "after": {"latency_s": 1e-9}}           # the after probe: never the divisor
+
+
+@pytest.mark.parametrize("edit,floors,page,summary", [
+    # the reference's run had twice the launch floor: the raw ratio stays beside the floors' and the
+    # page names the unit
+    (_twice_the_run_floor, "1.00×", "in units of each run's own launch floor",
+     "In units of each run's own launch floor: **"),
+    # its warp cell carries its own floor (cell_floor.before) at twice its run's yardstick: divided by
+    # the cell's floor, not the run's, and the row, the page and the summary say so
+    (_twice_in_its_own_floor, "1.00× (cell floors: there)", "divides that side by its cell's own floor",
+     "(1 with a cell's own floor on one side or both)"),
+], ids=["run-floor", "cell-floor"])
+def test_against_compares_in_launch_floors(stores: dict[str, Any], edit: Any, floors: str, page: str,
+                                           summary: str) -> None:
+    """Warp's latency, twice as slow there in seconds, is the same in floors: (m / L) / (2 m / 2 L) = 1."""
+    md = _against_warp_edited(stores, edit)
     row = _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "latency")
-    assert row[-3:] == ["0.50×", "1.00× (cell floors: there)", "faster"]      # (m / L) / (2 m / 2 L) = 1
-    # the pipelined figure has no probe of its own: both sides in their runs' yardsticks, unmarked
+    assert row[-3:] == ["0.50×", floors, "faster"]
+    # the pipelined floor was left alone (no probe of its own): its floors ratio is the raw one, unmarked
     assert _row(md, "cuda", "saxpy", "warp", "default", "float32", "defaults", "throughput")[-3:-1] == ["1.00×", "1.00×"]
-    assert "divides that side by its cell's own floor" in md
-    summary = md[md.index("## Summary"):md.index("## Every matched cell")]
-    assert "(1 with a cell's own floor on one side or both)" in summary
+    assert page in md
+    assert summary in md[md.index("## Summary"):md.index("## Every matched cell")]
 
 
 def test_against_without_cells_own_floors_reads_as_before(stores: dict[str, Any]) -> None:
