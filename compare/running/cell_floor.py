@@ -33,54 +33,17 @@ import ctypes
 import time
 from typing import Any, Callable, Iterator
 
-import numpy as np
-
 from compare.measuring.phases import Laps
 from compare.results.record_floor import CellFloor, FloorProbe
 from compare.running import hardware
 from compare.running.hardware import ck
 
 WARMUP, LATENCY, K, BATCHES = 20, 300, 200, 6
+FIGURES = ("latency_s", "latency_iqr_s", "pipelined_s", "launches", "k", "batches")    # FloorProbe's order
 BUDGET_S = 0.1          # the launch loops' wall-clock bound (a probe's figures take ~10 ms on an H100)
 HOW = (f"empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize (median of up to {LATENCY} "
        f"after {WARMUP}); pipelined = k launches (k <= {K}), one synchronise, / k (median of up to "
        f"{BATCHES - 1} batches after one); launch loops within {BUDGET_S:g} s")
-
-
-def launch_loops(cu: Any, launch: Callable[[], None], budget_s: float = BUDGET_S) -> dict[str, Any]:
-    """The probe's figures from ``launch`` (one empty launch) and the driver's synchronise, the
-    loops together within ``budget_s`` (half for the latency, half for the batches)."""
-    start = time.perf_counter()
-    half, end = start + budget_s / 2, start + budget_s
-    for _ in range(WARMUP):
-        launch()
-        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
-        if time.perf_counter() > half:
-            break
-    lat: list[float] = []
-    while len(lat) < LATENCY and time.perf_counter() < half:
-        t0 = time.perf_counter()
-        launch()
-        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
-        lat.append(time.perf_counter() - t0)
-    out: dict[str, Any] = {}
-    if lat:
-        q1, q2, q3 = np.percentile(np.asarray(lat), [25, 50, 75])
-        out.update(latency_s=float(q2), latency_iqr_s=float(q3 - q1), launches=len(lat))
-    # a pipelined launch costs no more than one with its synchronise: k sized by the latency fits
-    # each batch in its share of the budget (no clock read inside a batch: the yardstick's loop)
-    share = budget_s / 2 / BATCHES
-    k = max(1, min(K, int(share / max(float(np.median(lat)) if lat else share, 1e-9))))
-    piped: list[float] = []
-    while len(piped) < BATCHES and time.perf_counter() + share < end:
-        t0 = time.perf_counter()
-        for _ in range(k):
-            launch()
-        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
-        piped.append((time.perf_counter() - t0) / k)
-    if piped:
-        out.update(pipelined_s=float(np.median(piped[1:] or piped)), k=k, batches=len(piped))
-    return out
 
 
 @contextlib.contextmanager
@@ -119,21 +82,23 @@ def probe(current: bool = False, when: str = "", keep: bool = False, budget_s: f
           driver: Callable[[], Any] = hardware.cuda_driver) -> FloorProbe:
     """One probe (``launch_loops``) on ``on_context``; ``when`` prefixes its context's words. Never raises."""
     t0 = time.perf_counter()
-    got: dict[str, Any] = {}
+    floor: hardware.LaunchFloor = {}
+    said: dict[str, str] = {}       # its context, or why it has no figures
     try:
         cu = driver()
         with on_context(cu, current, keep) as words:
-            got["context"] = f"{when}{words}"
+            said["context"] = f"{when}{words}"
             mod, fn = hardware.noop_function(cu)
             try:
-                got.update(launch_loops(cu, hardware.noop_launcher(cu, fn), budget_s))
+                floor = hardware.launch_loops(cu, hardware.noop_launcher(cu, fn), budget_s,
+                                              WARMUP, LATENCY, K, BATCHES)
             finally:
                 cu.cuModuleUnload(mod)
     except Exception as exc:  # the probe is a yardstick beside the cell, never the cell
-        got["error"] = f"{type(exc).__name__}: {str(exc).strip()[:200]}"
-    first = {k: got.pop(k) for k in ("latency_s", "latency_iqr_s", "pipelined_s", "launches", "k", "batches")
-             if k in got}
-    return FloorProbe.of(**first, spent_s=time.perf_counter() - t0, **got)
+        said["error"] = f"{type(exc).__name__}: {str(exc).strip()[:200]}"
+    got = dict(floor)
+    figures = {k: got[k] for k in FIGURES if k in got}
+    return FloorProbe.of(**figures, spent_s=time.perf_counter() - t0, **said)
 
 
 class Probes:

@@ -31,7 +31,7 @@ import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, TypedDict
 
 import numpy as np
 
@@ -167,6 +167,59 @@ def noop_launcher(cu: Any, fn: Any) -> Callable[[], None]:
     return launch
 
 
+class LaunchFloor(TypedDict, total=False):
+    """``launch_loops``' figures: an empty launch + synchronise (median, IQR, samples) and one
+    launch of k back to back with one synchronise (median over the batches after the first)."""
+    latency_s: float
+    latency_iqr_s: float
+    launches: int
+    pipelined_s: float
+    k: int
+    batches: int
+
+
+def launch_loops(cu: Any, launch: Callable[[], None], budget_s: float | None, warmup: int, latency: int,
+                 k: int, batches: int) -> LaunchFloor:
+    """The launch floor from ``launch`` (one empty launch) and the driver's synchronise: ``warmup``
+    synchronised launches, ``latency`` timed ones, then ``batches`` of k launches and one synchronise
+    (the first batch left out of the median). The yardstick and the cells' own probes
+    (``compare.running.cell_floor``) both measure it here. ``budget_s``: the loops stop at it (half for
+    the latency, half for the batches; k shrinks so that a batch fits its share), so a slow launch
+    gives fewer samples, never a longer cell; None: the counts alone."""
+    start = time.perf_counter()
+    half, end = (start + budget_s / 2, start + budget_s) if budget_s is not None else (math.inf, math.inf)
+    for _ in range(warmup):
+        launch()
+        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
+        if time.perf_counter() > half:
+            break
+    lat: list[float] = []
+    while len(lat) < latency and time.perf_counter() < half:
+        t0 = time.perf_counter()
+        launch()
+        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
+        lat.append(time.perf_counter() - t0)
+    out: LaunchFloor = {}
+    if lat:
+        q1, q2, q3 = np.percentile(np.asarray(lat), [25, 50, 75])
+        out["latency_s"], out["latency_iqr_s"], out["launches"] = float(q2), float(q3 - q1), len(lat)
+    # a pipelined launch costs no more than one with its synchronise: k sized by the latency fits
+    # each batch in its share of the budget (no clock read inside a batch)
+    share = budget_s / 2 / batches if budget_s is not None else 0.0
+    if budget_s is not None:
+        k = max(1, min(k, int(share / max(float(np.median(lat)) if lat else share, 1e-9))))
+    piped: list[float] = []
+    while len(piped) < batches and time.perf_counter() + share < end:
+        t0 = time.perf_counter()
+        for _ in range(k):
+            launch()
+        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
+        piped.append((time.perf_counter() - t0) / k)
+    if piped:
+        out["pipelined_s"], out["k"], out["batches"] = float(np.median(piped[1:] or piped)), k, len(piped)
+    return out
+
+
 def measure_cuda() -> Yardstick:
     cu = cuda_driver()
     P, U64 = _P, _U64
@@ -193,26 +246,12 @@ def measure_cuda() -> Yardstick:
         if i >= 3:
             copies.append(ms.value * 1e-3)
     _, fn = noop_function(cu)
-    launch = noop_launcher(cu, fn)
-    lat, piped, k = [], [], 2000
-    for i in range(2100):
-        t0 = time.perf_counter()
-        launch()
-        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
-        if i >= 100:
-            lat.append(time.perf_counter() - t0)
-    for _ in range(6):
-        t0 = time.perf_counter()
-        for _ in range(k):
-            launch()
-        ck(cu.cuCtxSynchronize(), "cuCtxSynchronize")
-        piped.append((time.perf_counter() - t0) / k)
+    floor = launch_loops(cu, noop_launcher(cu, fn), None, warmup=100, latency=2000, k=2000, batches=6)
     t = _median(copies)
-    q1, q3 = np.percentile(np.asarray(lat), [25, 75])
     out = Yardstick(copy_bytes_per_s=2.0 * n / t, copy_bytes=n, copy_median_s=t,
                     copy_how="cuMemcpyDtoDAsync of 1 GiB, CUDA events, median of 20 (2 x bytes / time)",
-                    launch_latency_s=_median(lat), launch_latency_iqr_s=float(q3 - q1),
-                    launch_pipelined_s=_median(piped[1:]),
+                    launch_latency_s=floor["latency_s"], launch_latency_iqr_s=floor["latency_iqr_s"],
+                    launch_pipelined_s=floor["pipelined_s"],
                     launch_how="empty PTX kernel, cuLaunchKernel: latency = launch + cuCtxSynchronize "
                                "(median of 2000); pipelined = 2000 launches, one synchronise, / 2000")
     try:

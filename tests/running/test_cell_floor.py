@@ -10,7 +10,7 @@ import pytest
 
 from compare.measuring.phases import CELL_PARTS, Laps
 from compare.results.record_floor import CellFloor, FloorProbe
-from compare.running import cell_floor
+from compare.running import cell_floor, hardware
 
 PRIMARY, FRAMEWORK = 0x1000, 0x2000
 
@@ -27,7 +27,9 @@ def spin(s: float) -> None:
 
 @pytest.fixture(autouse=True)
 def fake_clock(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(cell_floor, "time", type("FakeTime", (), {"perf_counter": staticmethod(lambda: Clock.now)}))
+    fake = type("FakeTime", (), {"perf_counter": staticmethod(lambda: Clock.now)})
+    monkeypatch.setattr(cell_floor, "time", fake)
+    monkeypatch.setattr(hardware, "time", fake)         # its launch loops (hardware.launch_loops)
 
 
 class FakeDriver:
@@ -186,3 +188,15 @@ def test_the_worker_probes_cuda_cells_at_its_points_and_nothing_else(monkeypatch
     assert seen == []
     gated.gate_opened()
     assert seen == [(False, "at its window's opening, the framework set up, on ")]
+
+
+def test_the_yardstick_measures_its_floor_by_counts_in_the_same_loops() -> None:
+    """hardware.measure_cuda's launch figures come from the same loops, unbounded: 100 warm-up
+    launches, 2000 timed, 6 batches of 2000 (the first left out of the median)."""
+    fake = FakeDriver()
+    floor = hardware.launch_loops(fake, lambda: fake.cuLaunchKernel(None), None, warmup=100, latency=2000,
+                                  k=2000, batches=6)
+    assert floor["launches"] == 2000 and floor["k"] == 2000 and floor["batches"] == 6
+    assert floor["latency_s"] == pytest.approx(50e-6) and floor["latency_iqr_s"] == pytest.approx(0.0, abs=1e-12)
+    assert floor["pipelined_s"] == pytest.approx(20e-6 + 30e-6 / 2000)
+    assert fake.launches == 100 + 2000 + 6 * 2000
