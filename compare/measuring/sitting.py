@@ -29,7 +29,7 @@ import time
 from typing import Any, Mapping, TypedDict
 
 from compare.measuring import noise
-from compare.results.environment import Yardstick
+from compare.results.environment import QuietSittings, Yardstick
 from compare.results.record_parts import Part
 
 WINDOW_S = 0.25           # the host meter's window: long enough for /proc/stat's 10 ms ticks
@@ -218,8 +218,9 @@ class Quiet:
     launch_pipelined_s: float | None = None
     copy_bytes_per_s: float | None = None
 
-    def to_json(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+    def to_json(self) -> QuietSittings:
+        return QuietSittings(kind=self.kind, runs=self.runs, launch_latency_s=self.launch_latency_s,
+                             launch_pipelined_s=self.launch_pipelined_s, copy_bytes_per_s=self.copy_bytes_per_s)
 
     @classmethod
     def from_json(cls, obj: Mapping[str, Any]) -> Quiet:

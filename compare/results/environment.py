@@ -65,11 +65,21 @@ class Phases(TypedDict, total=False):
     cells: dict[str, float]
 
 
+class QuietSittings(TypedDict):
+    """The quiet sittings of a machine kind (``compare.measuring.sitting.Quiet``): the best quartile
+    of its stored runs' launch floors and copy, and how many runs."""
+    kind: str
+    runs: int
+    launch_latency_s: float | None
+    launch_pipelined_s: float | None
+    copy_bytes_per_s: float | None
+
+
 class Sitting(TypedDict, total=False):
     """A run's sitting checks (``compare.running.sitting_run``): each a ``SittingCheck``'s JSON."""
     start: dict[str, Any]
     end: dict[str, Any]
-    quiet: dict[str, Any] | None    # the quiet reference the start was judged against (None: none)
+    quiet: QuietSittings | None     # the reference the start was judged against (None: none)
 
 
 class RunEnvironment(TypedDict, total=False):

@@ -25,12 +25,10 @@ from __future__ import annotations
 import ctypes
 import json
 import math
-import os
 import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 from typing import Any, Callable, Mapping, TypedDict
 
 import numpy as np
@@ -38,6 +36,7 @@ import numpy as np
 from compare.measuring import environment
 from compare.results.environment import Yardstick
 from compare.results.record import Record, plain
+from compare.running import reuse
 
 # Stated peak non-tensor FLOP rates (NVIDIA datasheets, boost clock): the FLOP floors' denominators.
 STATED_PEAK_FLOPS: dict[str, dict[str, float | str]] = {
@@ -296,22 +295,8 @@ def for_run(device: str) -> Yardstick:
     test suite sets it, tests/conftest.py; nothing else does) the first run's, kept there, stands
     for every later run's: the tests check what a run does with its yardstick, and measuring one
     (a process, 128 MiB copies) costs each of their runs seconds on a small host."""
-    folder = os.environ.get(REUSE_ENV, "")
-    path = Path(folder) / f"yardstick-{device}.json"
-    if folder:
-        try:
-            return json.loads(path.read_text())
-        except (OSError, ValueError):
-            pass
-    got = measure(device)
-    if folder and "error" not in got:
-        try:
-            tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-            tmp.write_text(json.dumps(got))
-            os.replace(tmp, path)       # whole or absent for a run reading it meanwhile
-        except OSError:
-            pass
-    return got
+    return reuse.kept(REUSE_ENV, f"yardstick-{device}.json", lambda: measure(device),
+                lambda got: None if "error" in got else json.dumps(got).encode(), json.loads)
 
 
 def annotated(rec: Record, hardware: Mapping[str, Yardstick]) -> Record:

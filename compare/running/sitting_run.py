@@ -76,7 +76,8 @@ def start(env: RunEnvironment, measure: bool = True) -> None:
     one taken now, reusing the run's own yardstick (``env['hardware']``) of its device."""
     got = from_publish()
     if got is not None:
-        env["sitting"] = {"start": dict(got["start"]), "quiet": got.get("quiet") if isinstance(got.get("quiet"), dict) else None}
+        q = got.get("quiet")
+        env["sitting"] = {"start": dict(got["start"]), "quiet": Quiet.from_json(q).to_json() if isinstance(q, dict) else None}
         stamp(env, [str(r) for r in got.get("reasons") or []])
         return
     if not measure:

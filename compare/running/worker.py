@@ -30,7 +30,7 @@ import scenarios
 from backends.base import OWN_TIMER_S, Backend, Device
 from compare.measuring import noise, phases, timing
 from compare.running import scaleout
-from compare.running import caches, cell_floor, oracle_reuse
+from compare.running import caches, cell_floor, reuse
 from compare.running.gate import Gate
 from compare.measuring.memory_sampler import Sampler, memory_pass
 from compare.measuring.nvml import open_nvml
@@ -272,7 +272,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
         raise ContractError(violation)
     sampled = sc.sample(params, inputs, outputs, cell.check_sample)
     c_in, c_out = (sampled.inputs, sampled.outputs) if sampled else (inputs, outputs)
-    reference = oracle_reuse.oracle(sc, params, c_in, precision)     # the tests': kept across workers
+    reference = reuse.oracle(sc, params, c_in, precision)     # the tests': kept across workers
     check = sc.check(params, c_in, c_out, reference, precision)
     work = sc.work(params, precision)
     laps.lap("check")

@@ -1,4 +1,4 @@
-"""compare/running/oracle_reuse.py: the oracle's outputs kept across the tests' workers."""
+"""compare/running/reuse.py: the oracle's outputs kept across the tests' workers."""
 from __future__ import annotations
 
 import dataclasses
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import scenarios
-from compare.running import oracle_reuse
+from compare.running import reuse
 
 
 @dataclasses.dataclass
@@ -30,31 +30,31 @@ def _question(**overrides):
 
 
 def test_without_the_folder_every_call_computes(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv(oracle_reuse.ENV, raising=False)
+    monkeypatch.delenv(reuse.ENV, raising=False)
     sc, (p, i) = Counting(), _question()
-    oracle_reuse.oracle(sc, p, i, "float64")
-    oracle_reuse.oracle(sc, p, i, "float64")
+    reuse.oracle(sc, p, i, "float64")
+    reuse.oracle(sc, p, i, "float64")
     assert sc.calls == 2
 
 
 def test_a_question_asked_again_is_read_back_bit_for_bit(monkeypatch, tmp_path) -> None:
-    monkeypatch.setenv(oracle_reuse.ENV, str(tmp_path))
+    monkeypatch.setenv(reuse.ENV, str(tmp_path))
     sc, (p, i) = Counting(), _question()
-    first = oracle_reuse.oracle(sc, p, i, "float64")
-    again = oracle_reuse.oracle(sc, p, i, "float64")
+    first = reuse.oracle(sc, p, i, "float64")
+    again = reuse.oracle(sc, p, i, "float64")
     assert sc.calls == 1 and list(again) == list(first)
     assert all(again[k].dtype == first[k].dtype and again[k].tobytes() == first[k].tobytes() for k in first)
     # other inputs, parameters or precision: another question, computed
     i2 = dict(i, v0=i["v0"] * 0.5)
-    assert not np.array_equal(oracle_reuse.oracle(sc, p, i2, "float64")["grad"], first["grad"])
-    oracle_reuse.oracle(sc, dataclasses.replace(p, iters=p.iters + 1), i, "float64")
-    oracle_reuse.oracle(sc, p, i, "float32")
+    assert not np.array_equal(reuse.oracle(sc, p, i2, "float64")["grad"], first["grad"])
+    reuse.oracle(sc, dataclasses.replace(p, iters=p.iters + 1), i, "float64")
+    reuse.oracle(sc, p, i, "float32")
     assert sc.calls == 4 and not list(tmp_path.glob("*.tmp*"))
 
 
 def test_outputs_that_are_not_plain_arrays_are_not_kept(monkeypatch, tmp_path) -> None:
-    monkeypatch.setenv(oracle_reuse.ENV, str(tmp_path))
+    monkeypatch.setenv(reuse.ENV, str(tmp_path))
     sc, (p, i) = Counting(plain=False), _question()
-    assert oracle_reuse.oracle(sc, p, i, "float64")["note"] == 1.0
-    assert oracle_reuse.oracle(sc, p, i, "float64")["note"] == 1.0
+    assert reuse.oracle(sc, p, i, "float64")["note"] == 1.0
+    assert reuse.oracle(sc, p, i, "float64")["note"] == 1.0
     assert sc.calls == 2 and not list(tmp_path.iterdir())

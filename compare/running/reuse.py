@@ -1,0 +1,81 @@
+"""Answers the test suite's processes share: the float64 oracle's outputs of a cell (here), the
+run's hardware yardstick (``compare.running.hardware.for_run``), through ``kept``.
+
+Many of the tests' cells ask the oracle the same question (the parity suite's cases for every
+backend, the variants' runs, the frameworks' own groups): the same scenario, parameters,
+precision and inputs give the same outputs, and the projectile's Python rollout and adjoint cost
+up to a second a batch. Where ``ENV`` names a folder (tests/conftest.py sets it; no command
+does) the first worker's outputs are kept there, keyed by a hash of the question, and later
+workers read them back bit for bit; without it every call computes them, as before.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import io
+import json
+import os
+from pathlib import Path
+from typing import Any, Callable, Mapping, TypeVar
+
+import numpy as np
+
+from compare.files import atomic_write
+
+ENV = "COMPARE_ORACLE_REUSE"
+T = TypeVar("T")
+
+
+def _key(name: str, params: Any, inputs: Mapping[str, np.ndarray], precision: str) -> str | None:
+    """A hash of the question, or None where an input is not a plain array (not kept)."""
+    p = dataclasses.asdict(params) if dataclasses.is_dataclass(params) and not isinstance(params, type) else params
+    h = hashlib.sha256(json.dumps([name, p, str(precision)], sort_keys=True, default=repr).encode())
+    for k in sorted(inputs):
+        a = np.asarray(inputs[k])
+        if a.dtype.hasobject:
+            return None
+        h.update(f"{k}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def kept(env: str, name: str | None, compute: Callable[[], T], encode: Callable[[T], bytes | None],
+         decode: Callable[[bytes], T]) -> T:
+    """``compute()``, or, where ``env`` names a folder, the answer kept there as ``name`` by the first
+    process that computed it (``encode``: its bytes, None to keep nothing; ``decode``: back). The
+    file is written whole or not at all (``atomic_write``); one that cannot be read is computed again."""
+    folder = os.environ.get(env, "")
+    if not folder or name is None:
+        return compute()
+    path = Path(folder) / name
+    try:
+        return decode(path.read_bytes())
+    except (OSError, ValueError):
+        pass
+    got = compute()
+    raw = encode(got)
+    if raw is not None:
+        try:
+            atomic_write(path, raw)
+        except OSError:
+            pass
+    return got
+
+
+def _npz(out: Any) -> bytes | None:     # an oracle's answer: kept only where it is plain arrays
+    if not (isinstance(out, dict) and all(isinstance(v, np.ndarray) and not v.dtype.hasobject for v in out.values())):
+        return None
+    buf = io.BytesIO()
+    np.savez(buf, **out)
+    return buf.getvalue()
+
+
+def _arrays(raw: bytes) -> dict[str, np.ndarray]:
+    with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def oracle(sc: Any, params: Any, inputs: Mapping[str, np.ndarray], precision: str) -> dict[str, np.ndarray]:
+    """``sc.oracle(params, inputs, precision)``, read from ``ENV``'s folder where kept there."""
+    key = _key(sc.name, params, inputs, precision) if os.environ.get(ENV) else None
+    return kept(ENV, key and f"oracle-{key}.npz", lambda: sc.oracle(params, inputs, precision), _npz, _arrays)
