@@ -8,6 +8,8 @@ saved without the check is told apart. Reading needs the standard library only.
 """
 from __future__ import annotations
 
+import contextlib
+
 import json
 import struct
 import zlib
@@ -33,10 +35,17 @@ def _drawn_texts(fig: Any) -> list[Any]:
             seen.append(mtext)
 
     # laid out and measured as a real draw, nothing rasterised (the saved PNG was drawn already):
-    # every draw_* is a no-op for this draw but draw_text, which only records
-    with renderer._draw_disabled():
-        renderer.draw_text = record      # undone on leaving: the class's method again
-        fig.draw(renderer)
+    # every draw_* is a no-op for this draw but draw_text, which only records. The renderer's
+    # no-op switch is matplotlib's own (what Figure.draw_without_rendering uses, not public); where
+    # a matplotlib lacks it, the draw paints as well, with the same texts recorded.
+    quiet = getattr(renderer, "_draw_disabled", None)
+    with quiet() if quiet is not None else contextlib.nullcontext():
+        renderer.draw_text = record
+        try:
+            fig.draw(renderer)
+        finally:
+            if quiet is None:                    # (the switch undoes its own on leaving)
+                del renderer.draw_text           # the instance attribute: the class's method again
     return seen
 
 
@@ -163,8 +172,7 @@ def keep_apart(texts: list[Any]) -> list[Any]:
         return []
     fig = texts[0].figure
     renderer = fig.canvas.get_renderer()
-    with renderer._draw_disabled():      # laid out for the extents, nothing rasterised
-        fig.draw(renderer)
+    fig.draw_without_rendering()        # laid out for the extents, nothing rasterised
     kept: list[tuple[Any, Any]] = []
     canvas = fig.bbox
     for t in texts:
