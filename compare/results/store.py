@@ -264,7 +264,7 @@ class Store:
             return text
         # a run saves after every cell: each record (frozen) is encoded once, and its text put in
         # the list at its depth, as json.dumps(..., indent=1) of the whole would put it
-        cache = getattr(self, "_encoded", {})
+        cache = self._encoded
         self._encoded = {id(r): cache.get(id(r)) or (r, json.dumps(jsonable(r.to_json()), indent=1))
                          for r in self.records}     # the record held: its id is not reused
         body = ",\n".join("  " + t.replace("\n", "\n  ") for _, t in self._encoded.values())

@@ -103,12 +103,6 @@ def reference(check: SittingCheck) -> Quiet | None:
         return None
 
 
-def judged(check: SittingCheck) -> tuple[str, ...]:
-    """Why ``check`` is a noisy sitting against its kind's quiet sittings in the published stores
-    (nothing where it is quiet or no reference can be had)."""
-    return judge(check, reference(check))
-
-
 def end(env: RunEnvironment) -> None:
     """A publish part's end check, judged against the quiet reference publish used (outside a
     publish part: nothing, the start alone is kept)."""
@@ -121,4 +115,4 @@ def end(env: RunEnvironment) -> None:
     stamp(env, [f"at the end: {r}" for r in judge(check, quiet)])
 
 
-__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "judged", "reference", "stamp", "start"]
+__all__ = ["ENV", "check_sitting", "device_of", "measure_yardstick", "end", "from_publish", "handed", "reference", "stamp", "start"]
