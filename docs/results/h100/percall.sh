@@ -14,7 +14,7 @@
 #   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT, and say
 #   clean only where the copy's files are the commit's, by the digest TREE: COMPARE_GIT_TREE)
 #   next calls:        bash docs/results/h100/percall.sh          (until it says "ended")
-#   e.g. ROWS="gradients particles percall" RUNS=a PROCESSES=3 OVERLAP=auto SKIP=checkpoint,evaluated,step
+#   e.g. ROWS="gradients particles percall" RUNS=a PROCESSES=3 OVERLAP=auto
 #   (3 processes give no 95 % interval of a median: such rows rank only past 1.6x; 6 is the least that does)
 #   (issue 56, session 29: the rows its port changes touch, within the lease's time)
 # RUNS names the runs (default "a b"); they run in a copy of the tree (/root/tree), so that a later
@@ -48,7 +48,9 @@ row() {   # the command of row $1, for the variants $V
   esac
 }
 # every variant any backend offers for a scenario, fast math left out unless VARIANTS names them
-# (SKIP: a comma-separated list of variants to leave out as well, e.g. the slower checkpoints)
+# (SKIP: a comma-separated list of variants to leave out as well. Not on a published row: a row ranks
+#  each framework's fastest variant, and session 29's SKIP=checkpoint,evaluated,step left out JAX's and
+#  Dr.Jit's fastest gradient cells, evidence/session32)
 vs() { if [ "$2" = nofast ]; then python -c "import backends,sys; skip={'fastmath',*sys.argv[2].split(',')}; print(','.join(sorted({v for b in backends.BACKENDS.values() for v in b.variants_for(sys.argv[1]) if v not in skip})))" "$1" "${SKIP:-}"; else echo "$2"; fi; }
 if [ "${1:-wait}" = start ]; then
   [ -n "${COMMIT:-}" ] && [ -n "${TREE:-}" ] || { echo "name the commit and its tree: COMMIT=<sha> TREE=<sha> bash $0 start"; exit 2; }
