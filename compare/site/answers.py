@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 
 from compare.running.repeats import AUTO_MIN
-from compare.site import ranking
+from compare.site import ranking, untimed
 from compare.site.data import Machine
 from compare.site.matrix import Cell, Row
 
@@ -48,10 +48,22 @@ def _references(row: Row) -> str:
     return f"; hand-written {best.framework} {_x(1 / (best.ratio or 1.0))} better"
 
 
+def _untimed(row: Row) -> str:
+    """The frameworks with a variant never timed at the row's point (compare/site/untimed.py),
+    as a short clause (the row's page names the variants): the answer ranks only those timed."""
+    names = untimed.in_order(c.framework for c in row.cells.values() if c.untimed)
+    return f"; variants not timed: {ranking.shorten(names)}" if names else ""
+
+
 def answer(row: Row) -> str:
     """One row's answer: ``**numba**, 1.27× ahead of torch (95 % intervals apart)``, ``tie:
     **cupy**, **torch** (within 1.03×: 95 % intervals overlap; next warp 1.30×)``, or the leading
-    figure of a row that is not ranked, with the reason."""
+    figure of a row that is not ranked, with the reason; then the frameworks with a variant not
+    timed there."""
+    return _answer(row) + (_untimed(row) if row.top is not None else "")
+
+
+def _answer(row: Row) -> str:
     if row.top is None:
         return "—"
     ranked = _ranked(row)

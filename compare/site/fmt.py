@@ -11,6 +11,7 @@ from compare.spec import ParamValue
 
 BAND_EMOJI = {b.name: b.emoji for b in BANDS}
 REFERENCE_MARK = "✎"           # a cell shown beside the ranking, never in it (a hand adjoint)
+UNTIMED_MARK = "†"             # a variant of the framework not timed at the row's point (site/untimed.py)
 
 
 def _g(x: float) -> str:
@@ -76,12 +77,20 @@ def fraction(v: float | None, label: str = "") -> str:
 
 
 def cell_text(c: Cell) -> str:
-    """What the matrix shows: the ratio to the row's best, or why there is none."""
+    """What the matrix shows: the ratio to the row's best, or why there is none; marked where a
+    variant of the framework was not timed at the row's point."""
+    untimed = UNTIMED_MARK if c.untimed else ""
     if c.ratio is not None:
-        return ratio(c.ratio) + (NOISY_MARK if c.noisy else "") + (f" {REFERENCE_MARK}" if c.reference else "")
+        ref = f" {REFERENCE_MARK}" if c.reference else ""
+        return ratio(c.ratio) + (NOISY_MARK if c.noisy else "") + untimed + ref
     if c.status in ("error", "mismatch"):
-        return "✗ " + c.status
-    return "skipped" if c.status == "skipped" else "—"
+        return "✗ " + c.status + untimed
+    return ("skipped" if c.status == "skipped" else "—") + untimed
+
+
+def untimed_text(c: Cell) -> str:
+    """The variants of the cell's framework not timed at the row's point, in words ('' if none)."""
+    return f"not timed at this point: {', '.join(c.untimed)}" if c.untimed else ""
 
 
 def variant_label(c: Cell) -> str:
@@ -100,7 +109,7 @@ def cell_title(c: Cell, unit: str, reference: str = "a reference") -> str:
     """The cell's tooltip: the figure itself, its variant and spread, or the reason;
     ``reference`` names what a reference cell is (the rule's words)."""
     if c.value is None:
-        return c.reason or c.status
+        return "; ".join(x for x in (c.reason or c.status, untimed_text(c)) if x)
     parts = [value(c.value, unit)]
     if c.reference:
         parts.append(f"{reference}: beside the ranking, never ranked")
@@ -114,6 +123,8 @@ def cell_title(c: Cell, unit: str, reference: str = "a reference") -> str:
         parts.append(f"95 % interval over {c.processes} processes {value(c.ci[0], unit)} – {value(c.ci[1], unit)}")
     if c.noisy:
         parts.append(f"noisy: {c.noisy}")
+    if c.untimed:
+        parts.append(f"{untimed_text(c)} (the fastest of the variants timed)")
     return "; ".join(parts)
 
 

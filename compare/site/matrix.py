@@ -48,6 +48,7 @@ class Cell:
     default_value: float | None = None   # the default variant's figure, where another variant won
     default_ratio: float | None = None   # ... and its ratio to the row's leader
     why: str = ""                 # a far ratio's reason, read from its records (site/pages_why.py)
+    untimed: tuple[str, ...] = ()   # its variants never timed at the row's point (site/untimed.py)
 
     @property
     def winner_not_default(self) -> bool:   # the plain call gets the default's figure instead
@@ -393,8 +394,7 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
     runs = provenance.runs_of(r for r in recs if r.status == "ok")
     verdict = _verdict(rule, cells, top, tied, fmt)
     if top is not None and not provenance.one_run(runs):     # never ranked across runs
-        tied = ()
-        cells = {f: dataclasses.replace(c, tied=False) for f, c in cells.items()}
+        tied, cells = (), {f: dataclasses.replace(c, tied=False) for f, c in cells.items()}
         verdict = f"{provenance.words(runs)} Leading figure: {top} ({fmt(values[top], rule.unit)})."
     return Row(rule, device, cells, top, tied, verdict, data.scope(recs), runs)
 
