@@ -14,7 +14,7 @@ import json
 import struct
 import zlib
 from pathlib import Path
-from typing import Any, Callable, TypeVar
+from typing import Any, Callable, TypedDict, TypeVar
 
 T = TypeVar("T")
 
@@ -106,6 +106,13 @@ INSIDE = ("best", "upper right", "upper left", "lower left", "lower right", "cen
 GAP_PT = 4.0          # between an axes' x label and a legend below it
 
 
+class LegendStyle(TypedDict, total=False):
+    """The legend keywords the figures set (matplotlib's ``legend`` takes them as they are; one
+    not set is matplotlib's default)."""
+    fontsize: float
+    ncol: int
+
+
 def _renderer(fig: Any) -> Any:
     if not hasattr(fig.canvas, "get_renderer"):       # closed by pyplot: draw it on Agg again
         from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -113,15 +120,15 @@ def _renderer(fig: Any) -> Any:
     return fig.canvas.get_renderer()
 
 
-def _inside(ax: Any, renderer: Any, kwargs: dict[str, Any]) -> bool:
+def _inside(ax: Any, renderer: Any, style: LegendStyle) -> bool:
     """Put the legend at the first place inside the axes where it covers no data point."""
     for loc in INSIDE:
-        if _covered(ax, ax.legend(loc=loc, **kwargs), renderer) == 0:
+        if _covered(ax, ax.legend(loc=loc, **style), renderer) == 0:
             return True
     return False
 
 
-def _below(ax: Any, renderer: Any, kwargs: dict[str, Any]) -> float:
+def _below(ax: Any, renderer: Any, style: LegendStyle) -> float:
     """Put the legend under the axes' x label, in as many columns as the axes' width holds (a
     fixed distance in points, so a later layout keeps it there); its height in inches."""
     from matplotlib.transforms import ScaledTranslation
@@ -129,21 +136,24 @@ def _below(ax: Any, renderer: Any, kwargs: dict[str, Any]) -> float:
     ax.get_legend().remove()                  # the axes' own extent: tick labels and x label
     bottom = ax.get_tightbbox(renderer).y0
     drop = (ax.bbox.y0 - bottom) / fig.dpi + GAP_PT / 72
-    one = ax.legend(**{**kwargs, "ncol": 1}).get_window_extent(renderer).width
+    one = ax.legend(**{**style, "ncol": 1}).get_window_extent(renderer).width
     ncol = max(1, int(ax.bbox.width // max(one, 1.0)))
     under = ax.transAxes + ScaledTranslation(0, -drop, fig.dpi_scale_trans)
-    legend = ax.legend(**{**kwargs, "ncol": ncol}, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+    legend = ax.legend(**{**style, "ncol": ncol}, loc="upper center", bbox_to_anchor=(0.5, 0.0),
                        bbox_transform=under)
     return legend.get_window_extent(renderer).height / fig.dpi + drop
 
 
-def place_legends(axes: list[Any], **kwargs: Any) -> None:
+def place_legends(axes: list[Any], fontsize: float | None = None, ncol: int = 1) -> None:
     """Legends of ``axes`` (all of one figure) clear of their data: inside the axes where a
     place covers no point, else below the axes, the figure grown by what those take per row;
     then the figure is laid out (tight_layout). A layout that shrinks an axes may put data
     under a legend again, so the placing repeats (three rounds at most)."""
     if not axes:
         return
+    style = LegendStyle(ncol=ncol)
+    if fontsize is not None:
+        style["fontsize"] = fontsize
     fig = axes[0].figure
     fig.tight_layout()
     renderer = _renderer(fig)
@@ -154,9 +164,9 @@ def place_legends(axes: list[Any], **kwargs: Any) -> None:
             legend = ax.get_legend()
             if legend is not None and (i in below or _covered(ax, legend, renderer) == 0):
                 continue
-            if not _inside(ax, renderer, kwargs):
+            if not _inside(ax, renderer, style):
                 row = ax.get_subplotspec().rowspan.start if ax.get_subplotspec() else 0
-                grow[row] = max(grow.get(row, 0.0), _below(ax, renderer, kwargs))
+                grow[row] = max(grow.get(row, 0.0), _below(ax, renderer, style))
                 below.add(i)
         if not grow:            # legends inside the axes leave the layout as it is
             return
