@@ -9,7 +9,6 @@ saved without the check is told apart. Reading needs the standard library only.
 from __future__ import annotations
 
 import contextlib
-
 import json
 import struct
 import zlib

@@ -8,6 +8,7 @@ from compare.measuring import environment
 from compare.running import sitting_run
 from compare.measuring.sitting import Quiet, SittingCheck, judge
 
+
 def judge_now(check: SittingCheck) -> tuple[str, ...]:
     """``check`` judged against its kind's quiet sittings in the published stores."""
     return judge(check, sitting_run.reference(check))
@@ -42,9 +43,9 @@ def test_a_run_outside_publish_in_a_noisy_sitting_is_stamped_not_refused(monkeyp
             assert env["noisy_sitting_reasons"][0].startswith("host busy: other processes used 1.90 of 2 cores")
             assert environment.run_stamp(env)["noisy_sitting"] is True
     quiet = judge_now(SittingCheck.of(device="cuda", gpu="NVIDIA H100 80GB HBM3", launch_latency_s=9.5e-6,
-                                               launch_pipelined_s=4.4e-6, copy_bytes_per_s=3e12))
+                                      launch_pipelined_s=4.4e-6, copy_bytes_per_s=3e12))
     slow = judge_now(SittingCheck.of(device="cuda", gpu="NVIDIA H100 80GB HBM3", launch_latency_s=13.7e-6,
-                                              launch_pipelined_s=8.34e-6, copy_bytes_per_s=3e12))
+                                     launch_pipelined_s=8.34e-6, copy_bytes_per_s=3e12))
     assert quiet == () and any(r.startswith("pipelined launch 8.34 us") for r in slow)    # from the H100 store
 
 
