@@ -205,7 +205,7 @@ def write_plots(records: list[Record], outputs: dict[int, dict[str, np.ndarray]]
     """Every picture of a run in ``plots``: speed per scenario, the CPU speed-up against NumPy,
     time against error, and each scenario's own picture of its outputs. The pictures are
     independent, so they are drawn side by side in ``workers`` forked processes (default: one
-    per usable core; one, or no fork: here, in turn); this runs after every cell's clocks."""
+    per usable core; one, or not Linux: here, in turn); this runs after every cell's clocks."""
     global _jobs
     plots.mkdir(parents=True, exist_ok=True)
     jobs = plot_jobs(records, outputs, plots)
@@ -213,10 +213,11 @@ def write_plots(records: list[Record], outputs: dict[int, dict[str, np.ndarray]]
         from compare.measuring.environment import usable_cores
         workers = usable_cores()
     import multiprocessing
+    import sys
     import threading
-    # a fork copies no other thread (nor the locks one holds): only a driver with none forks
-    if min(workers, len(jobs)) <= 1 or threading.active_count() > 1 \
-            or "fork" not in multiprocessing.get_all_start_methods():
+    # a fork copies no other thread (nor the locks one holds): only a driver with none forks, and
+    # only on Linux (macOS's system libraries are not safe to use after a fork)
+    if min(workers, len(jobs)) <= 1 or threading.active_count() > 1 or not sys.platform.startswith("linux"):
         for fn, args in jobs:
             fn(*args)
         return
