@@ -7,7 +7,7 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -171,14 +171,64 @@ def remove_pictures(plots: Path) -> None:
                 old.unlink()
 
 
-def write_plots(records: list[Record], outputs: dict[int, dict[str, np.ndarray]], plots: Path) -> None:
-    """Every picture of a run in ``plots``: speed per scenario, the CPU speed-up against NumPy,
-    time against error, and each scenario's own picture of its outputs."""
-    plots.mkdir(parents=True, exist_ok=True)
-    plot_speed(records, plots)
+Job = tuple[Callable[..., Any], tuple[Any, ...]]
+_jobs: list[Job] = []       # a forked drawing process's jobs, inherited: records do not pickle
+
+
+def plot_jobs(records: list[Record], outputs: dict[int, dict[str, np.ndarray]],
+              plots: Path) -> list[Job]:
+    """Every picture of a run as its own job (function, arguments), each writing its own files:
+    the CPU speed-up, speed per scenario, time against error, each scenario's own picture (its
+    records and their outputs, renumbered)."""
     import backends
     base = backends.cpu_baseline()
+    groups = by_scenario(records)
+    jobs: list[Job] = []
     if base:
-        plot_speedup_vs_baseline(records, plots / f"speedup_vs_{base}_cpu.png", base)
-    plot_time_vs_error(records, plots / "time_vs_error.png")
-    plot_outputs(records, outputs, plots)
+        jobs.append((plot_speedup_vs_baseline, (records, plots / f"speedup_vs_{base}_cpu.png", base)))
+    jobs += [(plot_speed, (recs, plots)) for recs in groups.values()]
+    jobs.append((plot_time_vs_error, (records, plots / "time_vs_error.png")))
+    for scenario in groups:
+        mine = [i for i, r in enumerate(records) if r.scenario == scenario and i in outputs]
+        if mine:
+            jobs.append((plot_outputs, ([records[i] for i in mine], {k: outputs[i] for k, i in enumerate(mine)}, plots)))
+    return jobs
+
+
+def _draw(k: int) -> None:
+    fn, args = _jobs[k]
+    fn(*args)
+
+
+def write_plots(records: list[Record], outputs: dict[int, dict[str, np.ndarray]], plots: Path,
+                workers: int | None = None) -> None:
+    """Every picture of a run in ``plots``: speed per scenario, the CPU speed-up against NumPy,
+    time against error, and each scenario's own picture of its outputs. The pictures are
+    independent, so they are drawn side by side in ``workers`` forked processes (default: one
+    per usable core; one, or not Linux: here, in turn); this runs after every cell's clocks."""
+    global _jobs
+    plots.mkdir(parents=True, exist_ok=True)
+    jobs = plot_jobs(records, outputs, plots)
+    if workers is None:
+        from compare.measuring.environment import usable_cores
+        workers = usable_cores()
+    import multiprocessing
+    import sys
+    import threading
+    # a fork copies no other thread (nor the locks one holds): only a driver with none forks, and
+    # only on Linux (macOS's system libraries are not safe to use after a fork)
+    if min(workers, len(jobs)) <= 1 or threading.active_count() > 1 or not sys.platform.startswith("linux"):
+        for fn, args in jobs:
+            fn(*args)
+        return
+    import concurrent.futures
+    from compare.render import charts
+    charts.pyplot()         # imported (and matplotlib's font list built) once, before the fork
+    _jobs = jobs
+    try:
+        with concurrent.futures.ProcessPoolExecutor(min(workers, len(jobs)),
+                                                    mp_context=multiprocessing.get_context("fork")) as pool:
+            for done in [pool.submit(_draw, k) for k in range(len(jobs))]:
+                done.result()
+    finally:
+        _jobs = []

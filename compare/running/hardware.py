@@ -23,6 +23,7 @@ or a cell that beats a plain copy (fewer writes than it counts).
 from __future__ import annotations
 
 import ctypes
+import os
 import json
 import math
 import subprocess
@@ -295,7 +296,7 @@ def for_run(device: str) -> Yardstick:
     test suite sets it, tests/conftest.py; nothing else does) the first run's, kept there, stands
     for every later run's: the tests check what a run does with its yardstick, and measuring one
     (a process, 128 MiB copies) costs each of their runs seconds on a small host."""
-    return reuse.kept(REUSE_ENV, f"yardstick-{device}.json", lambda: measure(device),
+    return reuse.kept(os.environ.get(REUSE_ENV, ""), f"yardstick-{device}.json", lambda: measure(device),
                 lambda got: None if "error" in got else json.dumps(got).encode(), json.loads)
 
 

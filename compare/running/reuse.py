@@ -4,9 +4,11 @@ run's hardware yardstick (``compare.running.hardware.for_run``), through ``kept`
 Many of the tests' cells ask the oracle the same question (the parity suite's cases for every
 backend, the variants' runs, the frameworks' own groups): the same scenario, parameters,
 precision and inputs give the same outputs, and the projectile's Python rollout and adjoint cost
-up to a second a batch. Where ``ENV`` names a folder (tests/conftest.py sets it; no command
-does) the first worker's outputs are kept there, keyed by a hash of the question, and later
-workers read them back bit for bit; without it every call computes them, as before.
+up to a second a batch; a run's cells of one scenario and precision, one per framework, ask it
+too. The first worker's outputs are kept, keyed by a hash of the question, and later workers
+read them back bit for bit: in ``ENV``'s folder where it names one (tests/conftest.py sets it),
+else in an ``oracles`` folder of the driver's temporary root (``compare.running.lifeline``: one
+driver's workers, deleted with it); outside a driver's worker every call computes them.
 """
 from __future__ import annotations
 
@@ -39,12 +41,11 @@ def _key(name: str, params: Any, inputs: Mapping[str, np.ndarray], precision: st
     return h.hexdigest()
 
 
-def kept(env: str, name: str | None, compute: Callable[[], T], encode: Callable[[T], bytes | None],
+def kept(folder: str, name: str | None, compute: Callable[[], T], encode: Callable[[T], bytes | None],
          decode: Callable[[bytes], T]) -> T:
-    """``compute()``, or, where ``env`` names a folder, the answer kept there as ``name`` by the first
+    """``compute()``, or, where ``folder`` is given, the answer kept there as ``name`` by the first
     process that computed it (``encode``: its bytes, None to keep nothing; ``decode``: back). The
     file is written whole or not at all (``atomic_write``); one that cannot be read is computed again."""
-    folder = os.environ.get(env, "")
     if not folder or name is None:
         return compute()
     path = Path(folder) / name
@@ -62,8 +63,13 @@ def kept(env: str, name: str | None, compute: Callable[[], T], encode: Callable[
     return got
 
 
+KEPT_BYTES = 16 * 2**20     # a larger oracle is computed by every worker: no gigabytes kept on disk (a sweep)
+
+
 def _npz(out: Any) -> bytes | None:     # an oracle's answer: kept only where it is plain arrays
     if not (isinstance(out, dict) and all(isinstance(v, np.ndarray) and not v.dtype.hasobject for v in out.values())):
+        return None
+    if sum(v.nbytes for v in out.values()) > KEPT_BYTES:
         return None
     buf = io.BytesIO()
     np.savez(buf, **out)
@@ -75,7 +81,25 @@ def _arrays(raw: bytes) -> dict[str, np.ndarray]:
         return {k: z[k] for k in z.files}
 
 
+def folder() -> str:
+    """Where oracles are kept: ``ENV``'s folder, else (a driver's worker) its temporary root's
+    ``oracles``, made here; empty: nowhere."""
+    given = os.environ.get(ENV, "")
+    if given:
+        return given
+    from compare.running.lifeline import ROOT_ENV
+    root = os.environ.get(ROOT_ENV, "")
+    if not root or not Path(root).is_dir():
+        return ""
+    try:
+        (Path(root) / "oracles").mkdir(exist_ok=True)
+    except OSError:
+        return ""
+    return str(Path(root) / "oracles")
+
+
 def oracle(sc: Any, params: Any, inputs: Mapping[str, np.ndarray], precision: str) -> dict[str, np.ndarray]:
-    """``sc.oracle(params, inputs, precision)``, read from ``ENV``'s folder where kept there."""
-    key = _key(sc.name, params, inputs, precision) if os.environ.get(ENV) else None
-    return kept(ENV, key and f"oracle-{key}.npz", lambda: sc.oracle(params, inputs, precision), _npz, _arrays)
+    """``sc.oracle(params, inputs, precision)``, read back where a worker before kept it (``folder``)."""
+    where = folder()
+    key = _key(sc.name, params, inputs, precision) if where else None
+    return kept(where, key and f"oracle-{key}.npz", lambda: sc.oracle(params, inputs, precision), _npz, _arrays)

@@ -105,3 +105,15 @@ def test_remove_pictures_follows_no_symlink(tmp_path):
     (tmp_path / "plots").symlink_to(real)
     run_plots.remove_pictures(tmp_path / "plots")
     assert (real / "speed_saxpy.png").exists()
+
+
+def test_pictures_drawn_side_by_side_are_the_ones_drawn_in_turn(tmp_path):
+    """write_plots' forked drawing processes write the same files, byte for byte, as one
+    process drawing them in turn (each job its own files)."""
+    recs = synthetic_records()
+    run_plots.write_plots(recs, {}, tmp_path / "turn", workers=1)
+    run_plots.write_plots(recs, {}, tmp_path / "side", workers=2)
+    turn = {p.name: p.read_bytes() for p in (tmp_path / "turn").iterdir()}
+    assert {"speed_saxpy.png", "speed_sdf.png", "speedup_vs_numpy_cpu.png", "time_vs_error.png"} <= set(turn)
+    assert turn == {p.name: p.read_bytes() for p in (tmp_path / "side").iterdir()}
+    assert not run_plots._jobs          # nothing left for a later fork

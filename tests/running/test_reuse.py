@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import scenarios
-from compare.running import reuse
+from compare.running import lifeline, reuse
 
 
 @dataclasses.dataclass
@@ -31,6 +31,7 @@ def _question(**overrides):
 
 def test_without_the_folder_every_call_computes(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(reuse.ENV, raising=False)
+    monkeypatch.delenv(lifeline.ROOT_ENV, raising=False)
     sc, (p, i) = Counting(), _question()
     reuse.oracle(sc, p, i, "float64")
     reuse.oracle(sc, p, i, "float64")
@@ -57,4 +58,28 @@ def test_outputs_that_are_not_plain_arrays_are_not_kept(monkeypatch, tmp_path) -
     sc, (p, i) = Counting(plain=False), _question()
     assert reuse.oracle(sc, p, i, "float64")["note"] == 1.0
     assert reuse.oracle(sc, p, i, "float64")["note"] == 1.0
+    assert sc.calls == 2 and not list(tmp_path.iterdir())
+
+
+def test_a_drivers_workers_keep_it_in_its_temporary_root(monkeypatch, tmp_path) -> None:
+    """No folder named: a worker of a driver (its root in the environment) keeps the oracle in the
+    root's ``oracles``, so the run's other cells of the question read it back."""
+    monkeypatch.delenv(reuse.ENV, raising=False)
+    monkeypatch.setenv(lifeline.ROOT_ENV, str(tmp_path))
+    sc, (p, i) = Counting(), _question()
+    first = reuse.oracle(sc, p, i, "float64")
+    again = reuse.oracle(sc, p, i, "float64")
+    assert sc.calls == 1 and all(again[k].tobytes() == first[k].tobytes() for k in first)
+    assert len(list((tmp_path / "oracles").glob("oracle-*.npz"))) == 1
+    monkeypatch.setenv(lifeline.ROOT_ENV, str(tmp_path / "gone"))      # a root that is not there: computed
+    reuse.oracle(sc, p, i, "float64")
+    assert sc.calls == 2 and not (tmp_path / "gone").exists()
+
+
+def test_an_oracle_over_the_limit_is_not_kept(monkeypatch, tmp_path) -> None:
+    monkeypatch.setenv(reuse.ENV, str(tmp_path))
+    monkeypatch.setattr(reuse, "KEPT_BYTES", 8)
+    sc, (p, i) = Counting(), _question()
+    reuse.oracle(sc, p, i, "float64")
+    reuse.oracle(sc, p, i, "float64")
     assert sc.calls == 2 and not list(tmp_path.iterdir())
