@@ -16,9 +16,12 @@ PRECISIONS = ("float64", "float32")
 SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 11, "height": 7},
          "particles": {"n": 33, "steps": 57, "record_every": 7},
          "projectile": {"contact": "soft", "iters": 3}}
-# (scenario, precision, device) of the fast-math cells: Taichi's everywhere, Quadrants' a sample
-FASTMATH = {"taichi": [(s, p, d) for s in SMALL for p in PRECISIONS for d in backends.DEVICES],
+# (scenario, precision, device) of the fast-math cells: Taichi's float32 on every device,
+# Quadrants' a sample. The flag is the process's init option whatever the precision: Taichi's
+# float64 cells (FASTMATH_SLOW, a framework start and four compilations) are the long tier's.
+FASTMATH = {"taichi": [(s, "float32", d) for s in SMALL for d in backends.DEVICES],
             "quadrants": [(s, "float32", "cpu") for s in ("sdf", "projectile")]}
+FASTMATH_SLOW = {"taichi": [(s, "float64", d) for s in SMALL for d in backends.DEVICES], "quadrants": []}
 # (scenario, overrides) of the float32 cells compared with Warp's
 VS_WARP = {"taichi": [("saxpy", {}), ("saxpy", {"n": 257, "inputs": "random", "seed": 3}), ("sdf", {}),
                       ("particles", {}), ("particles", {"n": 33, "steps": 57, "record_every": 7}),
@@ -57,15 +60,16 @@ def script(framework: str, body: str, device: str = "cpu", **constants) -> dict:
     return run_script(framework, head + body, device)
 
 
-def each(cases: dict[str, list] | None = None, *, group: bool = False, early: tuple[str, ...] = ()) -> list:
+def each(cases: dict[str, list] | None = None, *, group: bool = False, early: tuple[str, ...] = (),
+         slow: bool = False) -> list:
     """A pytest.param per framework (per case of ``cases[framework]``, its values after the
     framework's name), marked with its framework (so `-m taichi` / `-m quadrants` select it), with
-    ``group`` its framework's xdist_group of cells, and ``early`` where the framework is listed
-    (Taichi's long script tests start first, as they did in its own file)."""
+    ``group`` its framework's xdist_group of cells, ``early`` where the framework is listed
+    (Taichi's long script tests start first, as they did in its own file), ``slow`` the long tier's."""
     out = []
     for fw in FRAMEWORKS:
         marks = [getattr(pytest.mark, fw)] + [pytest.mark.xdist_group(f"{fw}-cells")] * group \
-            + [pytest.mark.early] * (fw in early)
+            + [pytest.mark.early] * (fw in early) + [pytest.mark.slow] * slow
         for case in (cases[fw] if cases else [()]):
             out.append(pytest.param(fw, *case, marks=marks, id="-".join(map(str, (fw, *case)))))
     return out
