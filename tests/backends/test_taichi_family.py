@@ -10,9 +10,9 @@ framework's marker, so `pytest -m taichi` / `-m quadrants` select exactly that f
 2. precision and operation order: outputs carry the cell's dtype and agree with Warp's float32
    output to a couple of ulps (a float64 literal or a reordered expression would show);
 3. autodiff: the fused rollout (one launch, step loop reversed through adstacks) against one
-   launch per step, for one trajectory here and for a batch through the 'per_step' variant; every batch row against its own single-trajectory run
-   (independent losses, per-thread adstacks), and set_input replaces a batch's v0 in place; the
-   projectile's named variants against the default rollout.
+   launch per step, single and (through the 'per_step' variant) batched; every batch row against
+   its own single-trajectory run (independent losses, per-thread adstacks), and set_input
+   replaces a batch's v0 in place; the projectile's named variants against the default rollout.
 Anything that initialises the framework runs in a subprocess or a worker (its init is
 process-global).
 """
