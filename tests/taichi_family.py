@@ -13,9 +13,10 @@ from oracle_checks import FD, FRAMES
 
 FRAMEWORKS = ("taichi", "quadrants")
 PRECISIONS = ("float64", "float32")
-SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 11, "height": 7},
-         "particles": {"n": 33, "steps": 57, "record_every": 7},
-         "projectile": {"contact": "soft", "iters": 3}}
+# small cells, each one of the parity suite's cases (tests/backends/test_parity.py): the parity
+# suite's worker processes give them (conftest.run_cases), no other process starts for them
+SMALL = {"saxpy": {"n": 257, "inputs": "random", "seed": 3}, "sdf": {"width": 2, "height": 3},
+         "particles": {"n": 33, "steps": 57, "record_every": 7}, "projectile": {"contact": "soft"}}
 # (scenario, precision, device) of the fast-math cells: Taichi's float32 on every device,
 # Quadrants' a sample. The flag is the process's init option whatever the precision: Taichi's
 # float64 cells (FASTMATH_SLOW, a framework start and four compilations) are the long tier's.
