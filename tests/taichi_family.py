@@ -155,10 +155,11 @@ for contact in ("hard", "soft"):
     b.synchronize(DEVICE, k.run())
     o = k.outputs()
     own = own_checks(contact, p, i, k, o)
-    # each row against a single-trajectory kernel at that row's v0 and target
+    # each row against a single-trajectory kernel at that row's v0 and target; row 0, the seed
+    # case, is the parity suite's (test_batch_row0_is_the_single_trajectory)
     p1 = sc.params({"contact": contact, "steps": 60, "iters": 3})
     rows = {}
-    for row in (0, 17, 36):
+    for row in (17, 36):
         i1 = dict(sc.inputs(p1, "float64"), v0=i["v0"][row].copy(), target=i["target"][row].copy())
         k1 = Kernel(p1, i1, DEVICE, "float64", "default")
         b.synchronize(DEVICE, k1.run())
