@@ -56,6 +56,14 @@ def require_device(backend: str, device: str, precision: str | None = None) -> N
         pytest.skip(f"{backend}/{device}/{precision}: {why}")
 
 
+def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The parity suite first (a stable sort, the rest in their order): its worker processes run
+    each backend's cells that the backend's own tests share, in one process per backend, device
+    and precision, and those tests then find them run (run_cases), under xdist too (one
+    xdist_group per backend: the order within a group is this one)."""
+    items.sort(key=lambda item: item.path.name != "test_parity.py")
+
+
 def pytest_runtest_setup(item):
     adversarial.start()
 
@@ -139,32 +147,49 @@ def run_cell(backend: str, scenario: str, precision: str, params: dict, device: 
 
 
 Case = tuple[str, str, str, dict, str, str]     # backend, scenario, precision, params, device, variant
-_SHARED: dict[str, dict[str, tuple[dict, dict]]] = {}
+# every cell run_cases ran in this test process, by case: the parity suite's cells and the ones a
+# backend's own tests share (shared_cell) are the same cells where the cases are, and tests of one
+# backend carry xdist_group(f"{backend}-cells") (tests/backends/test_parity.py), so under xdist too
+# each runs once
+_CELLS: dict[str, tuple[Any, dict]] = {}
 
 
 def _case_key(case: Case) -> str:
     return json.dumps(case, sort_keys=True)
 
 
+def run_cases(cases: list[Case], timeout: float = 900) -> None:
+    """Run each of ``cases`` not yet run in this process whose device is available, through the
+    worker path: one worker process per backend, device, precision and variant (engine.run_cells,
+    share_process), so a framework starts, and compiles what the cells share, once rather than
+    once per cell. Correctness only, as run_cell; read a case's (Record, outputs) with ``ran``."""
+    # each distinct case once (a group may list one twice: Taichi's FRAMES cell is a SMALL one)
+    todo = list({_case_key(c): c for c in cases if _case_key(c) not in _CELLS
+                 and not availability(c[0]).get(c[4], "unknown device")}.values())
+    if not todo:
+        return
+    specs = [{"scenario": s, "backend": b, "device": d, "precision": p, "params": o, "quick": True,
+              "repeat": 1, "min_time": 0.0, "variant": v, **CORRECTNESS} for b, s, p, o, d, v in todo]
+    results = engine.run_cells([Cell.from_dict(s) for s in specs], timeout=timeout, share_process=True,
+                               probes={c[0]: probe(c[0]) for c in todo})
+    _CELLS.update({_case_key(c): (r, o) for c, (r, o) in zip(todo, results)})
+
+
+def ran(case: Case) -> tuple[Any, dict]:
+    """The (Record, outputs) run_cases gave ``case``."""
+    return _CELLS[_case_key(case)]
+
+
 def shared_cell(name: str, cases: list[Case], backend: str, scenario: str, precision: str,
                 params: dict, device: str = "cpu", variant: str = "default") -> tuple[dict, dict]:
-    """One of ``cases``, as run_cell gives it. On first use every case of ``name`` whose device is
-    available runs through the worker path, one worker process per backend, device, precision and
-    variant (engine.run_cells, share_process): a framework starts, and compiles what the cells
-    share, once rather than once per cell. Tests reading one ``name`` carry xdist_group(name), so
-    under xdist they share one run."""
+    """One of ``cases``, as run_cell gives it. On first use every case of ``name`` runs
+    (run_cases: those already run in this process, by the parity suite or another group, are
+    not run again). Tests reading one ``name`` carry xdist_group(name), so under xdist they share
+    one run."""
     require_device(backend, device)
-    if name not in _SHARED:
-        # each distinct case once (a group may list one twice: Taichi's FRAMES cell is a SMALL one)
-        runnable = list({_case_key(c): c for c in cases if not availability(c[0]).get(c[4], "unknown device")}.values())
-        specs = [{"scenario": s, "backend": b, "device": d, "precision": p, "params": o, "quick": True,
-                  "repeat": 1, "min_time": 0.0, "variant": v, **CORRECTNESS}
-                 for b, s, p, o, d, v in runnable]
-        results = engine.run_cells([Cell.from_dict(s) for s in specs], timeout=900, share_process=True,
-                                   probes={c[0]: probe(c[0]) for c in runnable})
-        # the record as the worker path's JSON object (what cells.run gives a test)
-        _SHARED[name] = {_case_key(c): (r.to_json(), o) for c, (r, o) in zip(runnable, results)}
-    record, outputs = _SHARED[name][_case_key((backend, scenario, precision, params, device, variant))]
+    run_cases(cases)
+    record, outputs = ran((backend, scenario, precision, params, device, variant))
+    record = record.to_json()           # the record as the worker path's JSON object (what cells.run gives a test)
     assert record["status"] in ("ok", "mismatch"), \
         f"{record.get('reason')}\n{record.get('traceback', '')}"
     return record, outputs

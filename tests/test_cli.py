@@ -62,9 +62,10 @@ def test_bad_usage_exits_2_with_one_line(args, needle, tmp_path, monkeypatch):
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
-    # warm kernel caches: the records' contract, not their first calls (a cold first call
-    # compiles every cell's Warp module, ~2 s each: test_host_profile_sample_check_and_variant_skips)
-    p = compare("all", "--quick", "--backends", "warp", "--devices", "cpu", "--repeat", "2",
+    # warm kernel caches and no minimum time: the records' contract, not their first calls (a cold
+    # first call compiles every cell's Warp module, ~2 s each: test_host_profile_sample_check_and_variant_skips)
+    # nor the timings' precision
+    p = compare("all", "--quick", "--backends", "warp", "--devices", "cpu", "--repeat", "2", "--min-time", "0",
                 "--cache", "warm", "--out", str(out), "--save-arrays")
     return p, out
 
@@ -199,7 +200,7 @@ def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, stat
     monkeypatch.setenv("COMPARE_BACKENDS_EXTRA", str(FAULTY))
     monkeypatch.setenv("COMPARE_FAULT", f"saxpy:{fault}")
     p = compare("run", "saxpy", "sdf", "--quick", "--backends", "faulty", "--devices", "cpu", "--precision",
-                "float32", "--repeat", "1", "--timeout", "8", "--out", str(tmp_path), "--no-plots")
+                "float32", "--repeat", "1", "--min-time", "0", "--timeout", "8", "--out", str(tmp_path), "--no-plots")
     assert p.returncode == 1, p.stderr
     recs = json.loads((tmp_path / "results.json").read_text())["records"]
     bad = [r for r in recs if r["scenario"] == "saxpy"]
@@ -210,7 +211,7 @@ def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, stat
 
 def test_resume_runs_only_missing_cells(tmp_path):
     args = ("--backends", "numpy", "--devices", "cpu", "--precision", "float32", "--quick",
-            "--repeat", "1", "--out", str(tmp_path), "--no-plots", "--save-arrays")
+            "--repeat", "1", "--min-time", "0", "--out", str(tmp_path), "--no-plots", "--save-arrays")
     assert compare("saxpy", *args).returncode == 0
     first = json.loads((tmp_path / "results.json").read_text())["records"]
     p = compare("all", "--resume", *args)

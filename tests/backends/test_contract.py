@@ -211,7 +211,7 @@ def test_extra_backend_folders_are_discovered_and_their_problems_listed(tmp_path
 @pytest.mark.xdist_group("repo")
 def test_liar_vague_and_twin_are_caught(repo, tmp_path):
     p = compare(repo, "run", "saxpy", "particles", "--quick", "--backends", "liar,vague,twin",
-                "--repeat", "1", "--out", str(tmp_path), "--no-plots")
+                "--repeat", "1", "--min-time", "0", "--out", str(tmp_path), "--no-plots")
     assert p.returncode == 1 and "Traceback" not in p.stderr, p.stderr
     recs = {(r["backend"], r["scenario"], r["device"], r["precision"]): r for r in records(tmp_path / "results.json")}
     liar = recs[("liar", "saxpy", "cpu", "float32")]

@@ -75,7 +75,7 @@ F32_VS_WARP = [("saxpy", {}), ("saxpy", {"n": 257, "inputs": "random", "seed": 3
 MAX_ULP = 2
 
 
-@pytest.mark.xdist_group("numba-vs-warp")        # its cells run together (conftest.shared_cell)
+@pytest.mark.xdist_group("numba-cells")        # with the parity suite's numba cells (conftest.run_cases)
 @pytest.mark.parametrize("scenario,overrides", F32_VS_WARP,
                          ids=[f"{s}-{o}" for s, o in F32_VS_WARP])
 def test_float32_agrees_with_warp(scenario: str, overrides: dict) -> None:
@@ -90,7 +90,7 @@ def test_float32_agrees_with_warp(scenario: str, overrides: dict) -> None:
     every = [(b, s, "float32", o, "cpu", "default") for b in ("numba", backends.reference())
              for s, o in F32_VS_WARP]
     for name in ("numba", backends.reference()):
-        record, outs[name] = shared_cell("numba-vs-warp", every, name, scenario, "float32", overrides)
+        record, outs[name] = shared_cell("numba-cells", every, name, scenario, "float32", overrides)
         assert record["status"] == "ok", record.get("reason")
     ours, ref = outs["numba"], outs[backends.reference()]
     keys = ("loss", "grad") if scenario == "projectile" else ref.keys()

@@ -79,7 +79,7 @@ F32_VS_WARP = [("saxpy", {"n": 4097, "inputs": "random", "seed": 3}),
                ("projectile", {"contact": "none"}), ("projectile", {"contact": "hard", "batch": 5})]
 
 
-@pytest.mark.xdist_group("numpy-vs-warp")        # its cells run together (conftest.shared_cell)
+@pytest.mark.xdist_group("numpy-cells")        # with the parity suite's numpy cells (conftest.run_cases)
 @pytest.mark.parametrize("scenario,overrides", F32_VS_WARP, ids=[f"{s}-{o}" for s, o in F32_VS_WARP])
 def test_float32_is_warps_float32_bit_for_bit(scenario: str, overrides: dict) -> None:
     """Same operations in the same order in float32: identical bits to Warp on the CPU (only the
@@ -90,7 +90,7 @@ def test_float32_is_warps_float32_bit_for_bit(scenario: str, overrides: dict) ->
     every = [(b, s, "float32", o, "cpu", "default") for b in ("numpy", backends.reference())
              for s, o in F32_VS_WARP]
     for name in ("numpy", backends.reference()):
-        record, outs[name] = shared_cell("numpy-vs-warp", every, name, scenario, "float32", overrides)
+        record, outs[name] = shared_cell("numpy-cells", every, name, scenario, "float32", overrides)
         assert record["status"] == "ok", record.get("reason")
     ours, ref = outs["numpy"], outs[backends.reference()]
     assert ours.keys() == ref.keys()

@@ -13,9 +13,7 @@ import math
 import pytest
 
 import backends
-from compare.running import engine
-from compare.spec import Cell
-from conftest import probe, require_device
+from conftest import ran, require_device, run_cases
 
 CASES = [
     ("saxpy", {}),                                       # quick: n = 100_003
@@ -41,32 +39,22 @@ BATCH_ROW0 = {c: (("projectile", {"contact": c, "batch": 37}), ("projectile", {"
 # algorithm, so they may differ only by float64 rounding, e.g. FMA contraction.
 TIGHT_VS_WARP = {"saxpy": 1e-15, "sdf": 1e-13, "particles": 1e-12, "projectile": 1e-12}
 
-_runs: dict = {}
-
 
 def _params(case):
-    # one xdist group per worker process of cells (run_case's cache), so it runs once
-    return [pytest.param(b, d, p, s, o, marks=[getattr(pytest.mark, b), pytest.mark.xdist_group(f"parity-{b}-{d}-{p}")],
+    # one xdist group per backend, its own tests' shared cells' (conftest.run_cases): the cells
+    # they have in common run once
+    return [pytest.param(b, d, p, s, o, marks=[getattr(pytest.mark, b), pytest.mark.xdist_group(f"{b}-cells")],
                          id=f"{b}-{d}-{p}-{s}-" + ",".join(f"{k}={v}" for k, v in o.items()))
             for b in backends.BACKENDS for d in backends.DEVICES for p in ("float64", "float32")
             for s, o in case]
 
 
-def _spec(backend, device, precision, scenario, overrides):
-    return {"scenario": scenario, "backend": backend, "device": device, "precision": precision,
-            "params": overrides, "quick": True, "repeat": 1, "min_time": 0.0,
-            "cache": "warm", "throughput": False}   # correctness only: reuse compiled kernels (timing runs start cold)
-
-
 def run_case(backend, device, precision, scenario, overrides):
     """Every case of one backend, device and precision runs in one worker process (the first
-    test of the group runs them all): the framework starts once, not once per case."""
-    group = (backend, device, precision)
-    if group not in _runs:
-        results = engine.run_cells([Cell.from_dict(_spec(*group, s, o)) for s, o in CASES], timeout=900, share_process=True,
-                                   probes={backend: probe(backend)})
-        _runs[group] = {(s, tuple(sorted(o.items()))): r for (s, o), r in zip(CASES, results)}
-    return _runs[group][(scenario, tuple(sorted(overrides.items())))]
+    test of the group runs them all): the framework starts once, not once per case. Correctness
+    only: warm kernel caches, no throughput regime (conftest.CORRECTNESS; timing runs start cold)."""
+    run_cases([(backend, s, precision, o, device, "default") for s, o in CASES])
+    return ran((backend, scenario, precision, overrides, device, "default"))
 
 
 @pytest.mark.parametrize("backend,device,precision,scenario,overrides", _params(CASES))

@@ -31,8 +31,9 @@ def run_sweep(*args):
 def quick_sweep(tmp_path_factory):
     require_device("warp", "cpu")
     out = tmp_path_factory.mktemp("sweep")
+    # warm caches and no minimum time: the suite's plan, records, page and plots, not its timings
     p = run_sweep("all", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
-                  "float32", "--cache", "warm", "--out", str(out))
+                  "float32", "--cache", "warm", "--min-time", "0", "--out", str(out))
     return p, out
 
 
@@ -93,7 +94,7 @@ def test_every_sweep_record_names_its_run(tmp_path):
     from compare.results.store import Store
     require_device("numpy", "cpu")
     p = run_sweep("bandwidth", "--quick", "--backends", "numpy", "--devices", "cpu", "--out", str(tmp_path / "a"),
-                  "--no-plots")
+                  "--min-time", "0", "--no-plots")
     assert p.returncode == 0, p.stderr[-3000:]
     store = Store.read(tmp_path / "a" / "sweep.json", "sweep")
     assert store.records and unstamped(store.records, store.runs) == []
