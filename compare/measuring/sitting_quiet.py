@@ -1,7 +1,7 @@
 """The quiet sittings of a machine kind, learned from the stored runs (``compare.measuring.sitting``).
 
 Every run entry of a store (``runs`` of DIR/results.json, sweep.json, stress.json, and a merged
-entry's ``environments``) keeps its same-run yardstick (``hardware``); the runs of one machine
+entry's ``environments``; the stores of DIR/sittings/<label>/ too) keeps its same-run yardstick (``hardware``); the runs of one machine
 kind (the same GPU name on CUDA; on the CPU the same model, family/model/stepping and core count:
 one model name, "AMD EPYC", stands for hosts whose copies differ by 2x, and the multi-threaded copy
 scales with the cores) are its sittings. The quiet ones are the best quartile
@@ -39,20 +39,33 @@ def _runs(env: Mapping[str, Any]) -> Iterator[Mapping[str, Any]]:
 
 
 def stored_runs(folders: Iterable[Path]) -> list[Mapping[str, Any]]:
-    """Every run entry of the stores in ``folders`` (each store file once; an unreadable one skipped)."""
-    seen, out = set(), []
+    """Every run entry of the stores in ``folders`` and of their later sittings
+    (``FOLDER/sittings/<label>/``: runs of the same machine kind, kept apart from the report's rows);
+    each store file once, each run once (a run kept in two stores counts once); an unreadable one
+    skipped."""
+    seen: set[Path] = set()
+    runs_seen: set[tuple[str, str]] = set()
+    out: list[Mapping[str, Any]] = []
     for folder in folders:
-        for name in FILES:
-            f = Path(folder) / name
-            try:
-                key = f.resolve()
-                if key in seen or not f.is_file():
+        subs = sorted(d for d in (Path(folder) / "sittings").glob("*") if d.is_dir() and not d.is_symlink())
+        for where in (Path(folder), *subs):
+            for name in FILES:
+                f = where / name
+                try:
+                    key = f.resolve()
+                    if key in seen or not f.is_file():
+                        continue
+                    seen.add(key)
+                    runs = json.loads(f.read_text()).get("runs") or []
+                except (OSError, ValueError, AttributeError):
                     continue
-                seen.add(key)
-                runs = json.loads(f.read_text()).get("runs") or []
-            except (OSError, ValueError, AttributeError):
-                continue
-            out += [r for env in runs if isinstance(env, Mapping) for r in _runs(env)]
+                for env in runs:
+                    for r in (_runs(env) if isinstance(env, Mapping) else ()):
+                        ident = (str(r.get("created")), str(r.get("hostname")))
+                        if r.get("created") and ident in runs_seen:
+                            continue
+                        runs_seen.add(ident)
+                        out.append(r)
     return out
 
 

@@ -12,7 +12,7 @@ H100 = "NVIDIA H100 80GB HBM3"
 
 
 def gpu_run(lat_us: float, pipe_us: float, gpu: str = H100, **more) -> dict:
-    return {"created": "t", "gpus": [{"name": gpu, "driver": "1", "memory": "1 MiB"}], **more,
+    return {"created": f"t{lat_us}-{pipe_us}-{gpu}-{sorted(more)}", "gpus": [{"name": gpu, "driver": "1", "memory": "1 MiB"}], **more,
             "hardware": {"cuda": {"copy_bytes_per_s": 3e12, "launch_latency_s": lat_us * 1e-6,
                                   "launch_pipelined_s": pipe_us * 1e-6, "gpu": gpu}}}
 
@@ -28,6 +28,17 @@ def test_the_best_quartile_of_the_kind_is_quiet(tmp_path):
     assert got.launch_latency_s == pytest.approx(10e-6) and got.launch_pipelined_s == pytest.approx(5e-6)
     assert got.copy_bytes_per_s == pytest.approx(3e12)
     assert sq.quiet(sq.stored_runs([tmp_path]), "cuda", "NVIDIA H200") is None        # fewer than MIN_RUNS
+
+
+def test_later_sittings_are_runs_of_the_kind_and_a_run_kept_twice_counts_once(tmp_path):
+    runs = [gpu_run(x, x / 2) for x in (9.0, 10.0, 11.0, 12.0)]
+    (tmp_path / "results.json").write_text(json.dumps({"runs": runs[:2]}))
+    later = tmp_path / "sittings" / "2026-12-06-later"
+    later.mkdir(parents=True)
+    (later / "results.json").write_text(json.dumps({"runs": runs[1:]}))              # runs[1] in both
+    got = sq.quiet(sq.stored_runs([tmp_path]), "cuda", H100)
+    assert got is not None and got.runs == 4
+    assert got.launch_latency_s == pytest.approx(9.75e-6)
 
 
 def test_a_merged_entry_counts_its_runs_and_the_cpu_kind_names_the_processor():
