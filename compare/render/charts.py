@@ -13,14 +13,12 @@ unless ``data=False``, its numbers are written beside it as ``<name>.csv`` (``wr
         to the best), a dashed line at the best or at ``reference=(value, label)`` (the bars grow
         from it: a speed-up's baseline); log=None: a log axis where values span over 20x
     bar_panels(path, title, xlabel, panels, *, ...same keywords)    one panel per group
+    (bar_panels and curves drawn once per process for equal arguments: chart_memo)
     Series(label, framework, xs, ys, lo=None, hi=None, dashed=False)
     curves(path, title, xlabel, ylabel, series, *, logx=True, logy=True, note="", data=True)
         lines with markers; lo/hi as a shaded band
-    pareto(path, title, xlabel, ylabel, points, *, front=True, logx=True, logy=True, note="",
-           data=True)
-        points = (framework, label, x, y), both axes lower-is-better; the front is the step line
-    helpers: write_csv (floats to 6 digits, None as ""), front_of, colors, hatch, tidy_log (1-2-5
-    labels on log axes), pyplot (Agg), save (atomic, deterministic, layout checked), RC (rcParams)
+    helpers: write_csv (floats to 6 digits, None as ""), colors, hatch, tidy_log (1-2-5 labels
+    on log axes), pyplot (Agg), save (atomic, deterministic, layout checked), RC (rcParams)
 
 Colours: a registered backend keeps ``compare.render.colors.backend_color``; any other framework a spare
 colour chosen from its name, moved on only when taken. Variants are hatched or marked, never coloured.
@@ -36,6 +34,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence, cast
 
 from compare.render import figure_check
+from compare.render.chart_memo import memo
 from compare.render.colors import backend_color
 from compare.files import atomic_write, save_figure
 
@@ -270,6 +269,7 @@ def bars(path: Path, title: str, xlabel: str, bars: list[Bar], *, log: bool | No
                fmt=fmt, reference=reference, ratios=ratios, data=data)
 
 
+@memo
 def bar_panels(path: Path, title: str, xlabel: str, panels: list[Panel], *, log: bool | None = False,
                better: str = "lower", note: str = "", fmt: Callable[[float], str] | None = None,
                reference: tuple[float, str] | None = None, ratios: bool = False,
@@ -332,6 +332,7 @@ def _finish(fig: Any, ax: Any, path: Path, title: str, xlabel: str, ylabel: str,
     save(fig, Path(path))
 
 
+@memo
 def curves(path: Path, title: str, xlabel: str, ylabel: str, series: list[Series], *,
            logx: bool = True, logy: bool = True, note: str = "", data: bool = True) -> None:
     """Lines against x, one colour per framework, a marker per series of the same framework,
@@ -354,47 +355,3 @@ def curves(path: Path, title: str, xlabel: str, ylabel: str, series: list[Series
         write_csv(Path(path).with_suffix(".csv"), ("series", "framework", "x", "y", "lo", "hi"),
                   [(s.label, s.framework, x, y, s.lo[i] if s.lo else None, s.hi[i] if s.hi else None)
                    for s in series for i, (x, y) in enumerate(zip(s.xs, s.ys))])
-
-
-def front_of(points: Sequence[tuple[str, str, float, float]]) -> list[tuple[str, str, float, float]]:
-    """The Pareto front (no other point is at least as good in x and y and better in one),
-    sorted by x; lower is better on both axes."""
-    out: list[tuple[str, str, float, float]] = []
-    for p in sorted(points, key=lambda p: (p[2], p[3], p[0], p[1])):
-        if not out or p[3] < out[-1][3]:
-            out.append(p)
-    return out
-
-
-def pareto(path: Path, title: str, xlabel: str, ylabel: str, points: list[tuple[str, str, float, float]],
-           *, front: bool = True, logx: bool = True, logy: bool = True, note: str = "",
-           data: bool = True) -> None:
-    """Scatter of (framework, label, x, y): colour per framework, marker per label, the front
-    as a grey step line with its points named."""
-    import matplotlib
-    from matplotlib.lines import Line2D
-    pts = [p for p in points if math.isfinite(p[2]) and math.isfinite(p[3])]
-    cmap = colors(p[0] for p in pts)
-    labels = sorted({p[1] for p in pts})
-    marker = {lab: MARKERS[i % len(MARKERS)] for i, lab in enumerate(labels)}
-    best = front_of(pts) if front else []
-    with matplotlib.rc_context(RC):
-        fig, ax = _one_axes(len(cmap) + len(labels) + bool(best), 5.6)
-        for fw, lab, x, y in sorted(pts, key=lambda p: (_order(p[0]), p[1], p[2], p[3])):
-            ax.scatter(x, y, color=cmap[fw], marker=marker[lab], s=36, edgecolors="k", linewidths=0.4,
-                       zorder=3)
-        if best:
-            ax.step([p[2] for p in best], [p[3] for p in best], where="post", color="0.3", lw=3,
-                    alpha=0.35, zorder=2)
-            for fw, lab, x, y in best:
-                ax.annotate(f"{fw} {lab}", (x, y), fontsize=7, color="0.2", xytext=(4, 4),
-                            textcoords="offset points")
-        handles = _fw_handles(cmap, False)
-        handles += [Line2D([], [], color="k", marker=marker[lab], ls="", mfc="none", label=lab) for lab in labels]
-        if best:
-            handles.append(Line2D([], [], color="0.3", lw=3, alpha=0.35, label="Pareto front (lower-left is better)"))
-        _finish(fig, ax, path, title, xlabel, ylabel, note, logx, logy, handles)
-    if data:
-        on = set(best)
-        write_csv(Path(path).with_suffix(".csv"), ("framework", "label", "x", "y", "on_front"),
-                  [(p[0], p[1], p[2], p[3], int(p in on)) for p in pts])

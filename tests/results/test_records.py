@@ -358,7 +358,7 @@ _FUZZ = dict(deadline=None, derandomize=True, database=None,
 @pytest.mark.early
 # a sample of the property (each example builds a site, ~0.8 s); its breadth, 200 examples of the
 # same strategy, is the long tier's test_property_many_mutated_files
-@settings(max_examples=10, **_FUZZ)
+@settings(max_examples=5, **_FUZZ)
 @given(case=mutated())
 def test_property_a_mutated_file_loads_and_builds_a_site_or_is_refused(tmp_path_factory: Any,
                                                                        case: tuple[str, bytes]) -> None:

@@ -1,0 +1,57 @@
+"""compare.render.chart_memo: a chart asked for again with equal arguments is written from memory,
+bit for bit; any argument that differs (a value by one ulp, a formatter's captured value) draws it."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from compare.render import chart_memo, charts, report
+from test_charts import synthetic_bars
+
+
+def test_a_chart_asked_for_again_is_written_from_memory_and_a_changed_one_is_drawn(tmp_path, monkeypatch):
+    chart_memo.forget()
+    drawn: list[Path] = []
+    real = charts.save
+    monkeypatch.setattr(charts, "save", lambda fig, path: (drawn.append(Path(path)), real(fig, path)))
+    bs = synthetic_bars()
+    first, again, other = tmp_path / "a.png", tmp_path / "b.png", tmp_path / "c.png"
+    charts.bars(first, "t", "x", bs, fmt=report.fmt_time)
+    charts.bars(again, "t", "x", list(bs), fmt=report.fmt_time)          # equal arguments: not drawn
+    assert drawn == [first]
+    assert again.read_bytes() == first.read_bytes()
+    assert again.with_suffix(".csv").read_text() == first.with_suffix(".csv").read_text()
+    moved = [bs[0].__class__(bs[0].framework, bs[0].variant, bs[0].value * (1 + 2**-52))] + bs[1:]
+    charts.bars(other, "t", "x", moved, fmt=report.fmt_time)            # one value one ulp away: drawn
+    scale = 2.0
+
+    def scaled(v: float) -> str:
+        return f"{v * scale:g}"
+    charts.bars(tmp_path / "d.png", "t", "x", bs, fmt=scaled)
+    scale = 3.0                    # the same function, another captured value: drawn again
+    charts.bars(tmp_path / "e.png", "t", "x", bs, fmt=scaled)
+    assert drawn == [first, other, tmp_path / "d.png", tmp_path / "e.png"]
+
+
+def test_canonical_forms_tell_equal_from_different_arguments():
+    c = chart_memo.canon
+    assert c([1.0, "a", None]) == c((1.0, "a", None)) and c(1.0) != c(1.0 + 2**-52)
+    assert c(np.arange(4.0)) == c(np.arange(4.0)) and c(np.arange(4.0)) != c(np.arange(4.0) + 1)
+    assert c(np.arange(10**5.0)) != c(np.arange(10**5.0) * (1 + 2**-40))   # not a truncated repr
+    assert c({"b": 1, "a": 2}) == c({"a": 2, "b": 1})
+    assert chart_memo.canon(lambda v: v) != chart_memo.canon(lambda v: v + 1)
+
+
+def test_an_argument_without_a_canonical_form_is_drawn_every_time(tmp_path, monkeypatch):
+    chart_memo.forget()
+    drawn: list[Path] = []
+    real = charts.save
+    monkeypatch.setattr(charts, "save", lambda fig, path: (drawn.append(Path(path)), real(fig, path)))
+
+    class Opaque:
+        def __call__(self, v: float) -> str:
+            return f"{v:g}"
+    for name in ("a.png", "b.png"):
+        charts.bars(tmp_path / name, "t", "x", synthetic_bars(), fmt=Opaque())
+    assert drawn == [tmp_path / "a.png", tmp_path / "b.png"]
