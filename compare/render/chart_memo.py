@@ -6,24 +6,27 @@ test suite builds from one fixture) need not lay out and render it again: ``memo
 function's call by a canonical form of every argument but the path (dataclasses, floats by their
 bits, arrays by their bytes, formatting functions by their code and captured values) and the
 registry it colours and orders by, and writes the remembered bytes atomically where the first
-call drew them. An argument it cannot put in canonical form makes the call draw as usual.
+call drew them; ``remembered`` does the same for a plot that saves itself (the sweep and stress
+plots, inside their layout check). An argument it cannot put in canonical form makes the call draw
+as usual.
 """
 from __future__ import annotations
 
 import dataclasses
 import functools
 import hashlib
-import marshal
 import types
 from collections import OrderedDict
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 from compare.files import atomic_write
 
 KEPT = 96                       # charts remembered per process (a PNG is tens of kB)
-_CHARTS: OrderedDict[str, tuple[bytes, bytes | None]] = OrderedDict()
+_CHARTS: OrderedDict[str, tuple[Any, list[bytes | None]]] = OrderedDict()
 F = TypeVar("F", bound=Callable[..., None])
+T = TypeVar("T")
 
 
 class Unkeyable(Exception):
@@ -32,7 +35,7 @@ class Unkeyable(Exception):
 
 def canon(v: Any) -> Any:
     """A hashable, repr-stable form of ``v`` that equal arguments share and different ones do not."""
-    if v is None or isinstance(v, (bool, int, str)):
+    if v is None or v is Ellipsis or isinstance(v, (bool, int, str)):
         return v
     if isinstance(v, float):
         return ("f", v.hex())
@@ -42,7 +45,7 @@ def canon(v: Any) -> Any:
         return ("seq", tuple(canon(x) for x in v))
     if isinstance(v, (set, frozenset)):
         return ("set", tuple(sorted(repr(canon(x)) for x in v)))
-    if isinstance(v, dict):
+    if isinstance(v, Mapping):
         return ("map", tuple(sorted((repr(canon(k)), canon(x)) for k, x in v.items())))
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
         return (type(v).__qualname__, tuple((f.name, canon(getattr(v, f.name))) for f in dataclasses.fields(v)))
@@ -54,11 +57,20 @@ def canon(v: Any) -> Any:
         return ("partial", canon(v.func), canon(v.args), canon(v.keywords))
     if isinstance(v, types.FunctionType):
         cells = tuple(canon(c.cell_contents) for c in v.__closure__ or ())
-        return ("fn", v.__module__, v.__qualname__, hashlib.sha256(marshal.dumps(v.__code__)).hexdigest(),
-                canon(v.__defaults__), canon(v.__kwdefaults__), cells)
+        return ("fn", v.__module__, v.__qualname__, _code(v.__code__), canon(v.__defaults__),
+                canon(v.__kwdefaults__), cells)
+    if isinstance(v, bytes):
+        return ("bytes", hashlib.sha256(v).hexdigest())
     if isinstance(v, types.BuiltinFunctionType):
         return ("builtin", v.__module__, v.__qualname__)
     raise Unkeyable(type(v).__qualname__)
+
+
+def _code(c: types.CodeType) -> Any:
+    """A code object by its instructions, constants and names (marshal's bytes are not stable:
+    its back-reference flags follow reference counts)."""
+    return ("code", c.co_code.hex(), tuple(_code(x) if isinstance(x, types.CodeType) else canon(x)
+                                           for x in c.co_consts), c.co_names, c.co_varnames, c.co_freevars)
 
 
 def _registry() -> Any:
@@ -68,30 +80,47 @@ def _registry() -> Any:
     return tuple((n, b.display_order, backend_color(n)) for n, b in backends.BACKENDS.items())
 
 
+def _stamp(f: Path) -> tuple[int, int] | None:
+    try:
+        st = f.stat()
+    except OSError:
+        return None
+    return (st.st_mtime_ns, st.st_size)
+
+
+def remembered(key: Any, files: list[Path], draw: Callable[[], T]) -> T:
+    """``draw()``, which writes ``files`` (any it leaves absent stay absent), remembered by ``key``
+    (its arguments but the paths, and the function that draws): equal keys write the remembered
+    bytes atomically and give the remembered result, without drawing."""
+    try:
+        k = hashlib.sha256(repr((canon(key), [f.suffix for f in files], _registry())).encode()).hexdigest()
+    except (Unkeyable, RecursionError, ValueError):
+        return draw()
+    kept = _CHARTS.get(k)
+    if kept is not None:
+        _CHARTS.move_to_end(k)
+        for f, raw in zip(files, kept[1]):
+            if raw is not None:
+                atomic_write(f, raw)
+        return kept[0]
+    before = [_stamp(f) for f in files]
+    result = draw()
+    # only what this draw wrote (a file it left as it was is not its picture)
+    _CHARTS[k] = (result, [f.read_bytes() if f.is_file() and _stamp(f) != was else None
+                           for f, was in zip(files, before)])
+    while len(_CHARTS) > KEPT:
+        _CHARTS.popitem(last=False)
+    return result
+
+
 def memo(draw: F) -> F:
     """``draw(path, *args, data=True, **kw)`` remembered by its arguments (not ``path``): the PNG at
     ``path`` and, with ``data``, the CSV beside it."""
     @functools.wraps(draw)
     def wrapper(path: Path, *args: Any, **kw: Any) -> None:
         path = Path(path)
-        try:
-            key = hashlib.sha256(repr((draw.__qualname__, path.suffix, canon(args), canon(kw),
-                                       _registry())).encode()).hexdigest()
-        except (Unkeyable, RecursionError, ValueError):
-            draw(path, *args, **kw)
-            return
-        csv = path.with_suffix(".csv") if kw.get("data", True) else None
-        kept = _CHARTS.get(key)
-        if kept is not None:
-            _CHARTS.move_to_end(key)
-            atomic_write(path, kept[0])
-            if csv is not None and kept[1] is not None:
-                atomic_write(csv, kept[1])
-            return
-        draw(path, *args, **kw)
-        _CHARTS[key] = (path.read_bytes(), csv.read_bytes() if csv is not None else None)
-        while len(_CHARTS) > KEPT:
-            _CHARTS.popitem(last=False)
+        files = [path] + ([path.with_suffix(".csv")] if kw.get("data", True) else [])
+        remembered((draw, args, kw), files, lambda: draw(path, *args, **kw))
     return wrapper  # type: ignore[return-value]
 
 
@@ -100,4 +129,4 @@ def forget() -> None:
     _CHARTS.clear()
 
 
-__all__ = ["KEPT", "Unkeyable", "canon", "forget", "memo"]
+__all__ = ["KEPT", "Unkeyable", "canon", "forget", "memo", "remembered"]
