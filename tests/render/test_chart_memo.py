@@ -59,7 +59,7 @@ def test_an_argument_without_a_canonical_form_is_drawn_every_time(tmp_path, monk
 
 def test_a_plot_that_saves_itself_is_remembered_with_its_result_and_only_what_it_wrote(tmp_path):
     chart_memo.forget()
-    calls: list[Path] = []
+    calls: list[Path] = []      # (a function capturing this list would key on its contents)
 
     def plot(records: list[dict], path: Path) -> bool:
         calls.append(path)
@@ -68,12 +68,12 @@ def test_a_plot_that_saves_itself_is_remembered_with_its_result_and_only_what_it
         return bool(records)
     recs = [{"backend": "warp", "value": 1.5}]
     a, b = tmp_path / "a.png", tmp_path / "b.png"
-    assert chart_memo.remembered((plot, recs), [a], lambda: plot(recs, a)) is True
-    assert chart_memo.remembered((plot, [dict(r) for r in recs]), [b], lambda: plot(recs, b)) is True
+    assert chart_memo.remembered(("plot", recs), [a], lambda: plot(recs, a)) is True
+    assert chart_memo.remembered(("plot", [dict(r) for r in recs]), [b], lambda: plot(recs, b)) is True
     assert calls == [a] and b.read_bytes() == a.read_bytes()
     stale = tmp_path / "stale.png"
     stale.write_bytes(b"an older picture")                  # there before; the plot draws nothing
-    assert chart_memo.remembered((plot, []), [stale], lambda: plot([], stale)) is False
+    assert chart_memo.remembered(("plot", []), [stale], lambda: plot([], stale)) is False
     fresh = tmp_path / "fresh.png"
-    assert chart_memo.remembered((plot, []), [fresh], lambda: plot([], fresh)) is False
+    assert chart_memo.remembered(("plot", []), [fresh], lambda: plot([], fresh)) is False
     assert not fresh.exists()                                  # the older picture was not remembered
