@@ -173,6 +173,8 @@ def remove_pictures(plots: Path) -> None:
 
 Job = tuple[Callable[..., Any], tuple[Any, ...]]
 _jobs: list[Job] = []       # a forked drawing process's jobs, inherited: records do not pickle
+# modules that start threads of their own on import or first use (not threading's): loaded, no fork
+NATIVE_THREADS = ("jax", "torch", "taichi", "warp", "numba", "drjit", "mlx", "quadrants", "cupy", "triton")
 
 
 def plot_jobs(records: list[Record], outputs: dict[int, dict[str, np.ndarray]],
@@ -215,9 +217,12 @@ def write_plots(records: list[Record], outputs: dict[int, dict[str, np.ndarray]]
     import multiprocessing
     import sys
     import threading
-    # a fork copies no other thread (nor the locks one holds): only a driver with none forks, and
-    # only on Linux (macOS's system libraries are not safe to use after a fork)
-    if min(workers, len(jobs)) <= 1 or threading.active_count() > 1 or not sys.platform.startswith("linux"):
+    # a fork copies no other thread (nor the locks one holds): only a driver with none forks (no
+    # Python thread, and no framework loaded whose native threads Python cannot see: the driver
+    # imports none, a test process may), and only on Linux (macOS's libraries are not fork-safe)
+    native = any(m in sys.modules for m in NATIVE_THREADS)
+    if (min(workers, len(jobs)) <= 1 or threading.active_count() > 1 or native
+            or not sys.platform.startswith("linux")):
         for fn, args in jobs:
             fn(*args)
         return

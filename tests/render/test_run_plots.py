@@ -107,13 +107,48 @@ def test_remove_pictures_follows_no_symlink(tmp_path):
     assert (real / "speed_saxpy.png").exists()
 
 
+FORKED = """
+import concurrent.futures, sys
+from pathlib import Path
+sys.path.insert(0, "tests/render")
+from test_run_plots import synthetic_records
+from compare.render import chart_memo, run_plots
+pools = []
+class Pool(concurrent.futures.ProcessPoolExecutor):
+    def __init__(self, *a, **k):
+        pools.append(a)
+        super().__init__(*a, **k)
+concurrent.futures.ProcessPoolExecutor = Pool
+out = Path(sys.argv[1])
+recs = synthetic_records()
+run_plots.write_plots(recs, {}, out / "turn", workers=1)
+chart_memo.forget()                  # the side-by-side pictures drawn, not written from memory
+run_plots.write_plots(recs, {}, out / "side", workers=2)
+assert pools and not run_plots._jobs, (pools, run_plots._jobs)     # forked; nothing left for a later fork
+print("RESULT", sorted(k for k in run_plots.NATIVE_THREADS if k in sys.modules))
+"""
+
+
 def test_pictures_drawn_side_by_side_are_the_ones_drawn_in_turn(tmp_path):
     """write_plots' forked drawing processes write the same files, byte for byte, as one
-    process drawing them in turn (each job its own files)."""
-    recs = synthetic_records()
-    run_plots.write_plots(recs, {}, tmp_path / "turn", workers=1)
-    run_plots.write_plots(recs, {}, tmp_path / "side", workers=2)
-    turn = {p.name: p.read_bytes() for p in (tmp_path / "turn").iterdir()}
+    process drawing them in turn (each job its own files): in a fresh interpreter, as the
+    driver's, which loads no framework (a test process may have, and then draws in turn)."""
+    import subprocess
+    import sys
+    p = subprocess.run([sys.executable, "-c", FORKED, str(tmp_path)], cwd=Path(__file__).parents[2],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and "RESULT []" in p.stdout, p.stdout + p.stderr[-3000:]
+    turn = {f.name: f.read_bytes() for f in (tmp_path / "turn").iterdir()}
     assert {"speed_saxpy.png", "speed_sdf.png", "speedup_vs_numpy_cpu.png", "time_vs_error.png"} <= set(turn)
-    assert turn == {p.name: p.read_bytes() for p in (tmp_path / "side").iterdir()}
-    assert not run_plots._jobs          # nothing left for a later fork
+    assert turn == {f.name: f.read_bytes() for f in (tmp_path / "side").iterdir()}
+
+
+def test_a_process_with_a_framework_loaded_draws_in_turn(tmp_path, monkeypatch):
+    """A framework's own native threads are invisible to threading: where one is loaded, no fork."""
+    import concurrent.futures
+    import sys
+    monkeypatch.setitem(sys.modules, "jax", sys.modules.get("jax") or object())
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor",
+                        lambda *a, **k: pytest.fail("forked with a framework loaded"))
+    run_plots.write_plots(synthetic_records(), {}, tmp_path / "turn", workers=2)
+    assert (tmp_path / "turn" / "speed_saxpy.png").exists()
