@@ -1,10 +1,10 @@
 """The quiet sittings of a machine kind, learned from the stored runs (``compare.measuring.sitting``).
 
 Every run entry of a store (``runs`` of DIR/results.json, sweep.json, stress.json, and a merged
-entry's ``environments``; the stores of DIR/sittings/<label>/ too) keeps its same-run yardstick (``hardware``); the runs of one machine
-kind (the same GPU name on CUDA; on the CPU the same model, family/model/stepping and core count:
-one model name, "AMD EPYC", stands for hosts whose copies differ by 2x, and the multi-threaded copy
-scales with the cores) are its sittings. The quiet ones are the best quartile
+entry's ``environments``; the stores of DIR/sittings/<label>/ too) keeps its same-run yardstick
+(``hardware``); the runs of one machine kind (the same GPU name on CUDA; on the CPU the same
+model, family/model/stepping and core count: one model name, "AMD EPYC", stands for hosts whose
+copies differ by 2x, and the multi-threaded copy scales with the cores) are its sittings. The quiet ones are the best quartile
 (``QUIET_QUANTILE``) of each figure: the lowest launch floors, the highest copy. A kind with
 fewer than ``MIN_RUNS`` stored yardsticks has no quiet reference (only the absolute checks apply).
 Runs stamped ``noisy_sitting`` are left out.

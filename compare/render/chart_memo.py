@@ -21,6 +21,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Callable, TypeVar
 
+import numpy as np
+
 from compare.files import atomic_write
 
 KEPT = 96                       # charts remembered per process (a PNG is tens of kB)
@@ -49,8 +51,7 @@ def canon(v: Any) -> Any:
         return ("map", tuple(sorted((repr(canon(k)), canon(x)) for k, x in v.items())))
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
         return (type(v).__qualname__, tuple((f.name, canon(getattr(v, f.name))) for f in dataclasses.fields(v)))
-    if type(v).__module__ == "numpy":
-        import numpy as np
+    if isinstance(v, (np.ndarray, np.generic)):
         a = np.asarray(v)
         return ("nd", str(a.dtype), a.shape, hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest())
     if isinstance(v, functools.partial):

@@ -264,10 +264,15 @@ def save_checked(fig: Any, png: bytes) -> bytes:
     return stamp(png, report(fig)) if png.startswith(_PNG) else png
 
 
-def checked(draw: Callable[[], T], png: Path) -> T:
+def checked(draw: Callable[[], T], png: Path, key: Any = None) -> T:
     """Run ``draw`` (a plot function that saves and closes its own figure into ``png``), catch
     the figure it saves on the way out, and stamp ``png`` with that figure's layout verdict: the
-    sweep and stress plots save themselves, so their figures are checked here, not changed."""
+    sweep and stress plots save themselves, so their figures are checked here, not changed.
+    ``key``: what the picture is drawn from (the function and its arguments but the path): an equal
+    key drawn before in this process is written from memory, stamped (``chart_memo.remembered``)."""
+    if key is not None:
+        from compare.render import chart_memo
+        return chart_memo.remembered(key, [Path(png)], lambda: checked(draw, png))
     from matplotlib.figure import Figure
 
     from compare.files import atomic_write

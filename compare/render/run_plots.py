@@ -173,8 +173,19 @@ def remove_pictures(plots: Path) -> None:
 
 Job = tuple[Callable[..., Any], tuple[Any, ...]]
 _jobs: list[Job] = []       # a forked drawing process's jobs, inherited: records do not pickle
-# modules that start threads of their own on import or first use (not threading's): loaded, no fork
-NATIVE_THREADS = ("jax", "torch", "taichi", "warp", "numba", "drjit", "mlx", "quadrants", "cupy", "triton")
+
+
+def frameworks_loaded() -> list[str]:
+    """The modules of a backend's distributions (``Backend.package``, ``related_packages``; the CPU
+    baseline's left out: the driver itself computes with it) that this process has imported:
+    frameworks start threads of their own, which ``threading`` cannot see."""
+    import importlib.metadata
+    import sys
+    import backends
+    dists = {d for b in backends.BACKENDS.values() if not b.is_cpu_baseline
+             for d in (b.package, *b.related_packages)}
+    return sorted(m for m, ds in importlib.metadata.packages_distributions().items()
+                  if m in sys.modules and dists & set(ds))
 
 
 def plot_jobs(records: list[Record], outputs: dict[int, dict[str, np.ndarray]],
@@ -220,9 +231,8 @@ def write_plots(records: list[Record], outputs: dict[int, dict[str, np.ndarray]]
     # a fork copies no other thread (nor the locks one holds): only a driver with none forks (no
     # Python thread, and no framework loaded whose native threads Python cannot see: the driver
     # imports none, a test process may), and only on Linux (macOS's libraries are not fork-safe)
-    native = any(m in sys.modules for m in NATIVE_THREADS)
-    if (min(workers, len(jobs)) <= 1 or threading.active_count() > 1 or native
-            or not sys.platform.startswith("linux")):
+    if (min(workers, len(jobs)) <= 1 or threading.active_count() > 1
+            or not sys.platform.startswith("linux") or frameworks_loaded()):
         for fn, args in jobs:
             fn(*args)
         return

@@ -23,9 +23,9 @@ or a cell that beats a plain copy (fewer writes than it counts).
 from __future__ import annotations
 
 import ctypes
-import os
 import json
 import math
+import os
 import subprocess
 import sys
 import time

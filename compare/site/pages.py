@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import backends
-from compare.render import chart_memo, charts, colors, figure_check
+from compare.render import charts, colors, figure_check
 from compare.measuring import noise
 from compare.site import data, fmt, glossary, matrix, pages_why, questions, ranking, shared_host
 from compare.site import accuracy_why, untimed
@@ -220,8 +220,8 @@ def accuracy(c: qp.Ctx) -> list[Any]:
         from compare.sweep import plots as sweep_plots
         from compare.sweep.metrics import error_points
         png, rel, csv = c.fig("accuracy-time-vs-error")
-        if chart_memo.remembered((sweep_plots.plot_time_vs_error, list(swept), c.device), [png], lambda:
-                                 figure_check.checked(lambda: sweep_plots.plot_time_vs_error(list(swept), c.device, png), png)):
+        if figure_check.checked(lambda: sweep_plots.plot_time_vs_error(list(swept), c.device, png), png,
+                                key=(sweep_plots.plot_time_vs_error, list(swept), c.device)):
             # the plotted points and their coordinates: the wall clock (time.wall; time.median_s
             # is the CUDA events' where a framework has them) and the error against the
             # converged reference (converged.error, unfloored)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from compare.render import chart_memo, charts, figure_check
+from compare.render import charts, figure_check
 from compare.results.analysis import Finding, RunInfo
 from compare.site import questions_pages as qp
 from compare.site import stability_outcomes as so
@@ -109,8 +109,7 @@ def detail(c: qp.Ctx, exp: Experiment, rows: list[Finding], got: dict[tuple[str,
     series = (c.m.stress.analysis.get("series") or {}).get(name) if c.m.stress else None
     if series and exp.plot is not None:
         from compare.stress import plots
-        chart_memo.remembered((plots.draw, exp, series), [csv_png],
-                              lambda: figure_check.checked(lambda: plots.draw(exp, series, csv_png), csv_png))
+        figure_check.checked(lambda: plots.draw(exp, series, csv_png), csv_png, key=(plots.draw, exp, series))
         if csv_png.exists():
             blocks.append(Figure(csv_rel, exp.look or exp.title, c.cmd(f"stress --only {name}", timed=False),
                                  csv_rel[:-4] + ".csv"))

@@ -125,7 +125,7 @@ run_plots.write_plots(recs, {}, out / "turn", workers=1)
 chart_memo.forget()                  # the side-by-side pictures drawn, not written from memory
 run_plots.write_plots(recs, {}, out / "side", workers=2)
 assert pools and not run_plots._jobs, (pools, run_plots._jobs)     # forked; nothing left for a later fork
-print("RESULT", sorted(k for k in run_plots.NATIVE_THREADS if k in sys.modules))
+print("RESULT", run_plots.frameworks_loaded())
 """
 
 
@@ -146,8 +146,13 @@ def test_pictures_drawn_side_by_side_are_the_ones_drawn_in_turn(tmp_path):
 def test_a_process_with_a_framework_loaded_draws_in_turn(tmp_path, monkeypatch):
     """A framework's own native threads are invisible to threading: where one is loaded, no fork."""
     import concurrent.futures
+    import importlib.metadata
     import sys
-    monkeypatch.setitem(sys.modules, "jax", sys.modules.get("jax") or object())
+    import backends
+    dists = {b.package for b in backends.BACKENDS.values() if not b.is_cpu_baseline}
+    installed = sorted(m for m, ds in importlib.metadata.packages_distributions().items() if dists & set(ds))
+    assert installed, "no framework's distribution installed (the base install has several)"
+    monkeypatch.setitem(sys.modules, installed[0], sys.modules.get(installed[0]) or object())
     monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor",
                         lambda *a, **k: pytest.fail("forked with a framework loaded"))
     run_plots.write_plots(synthetic_records(), {}, tmp_path / "turn", workers=2)

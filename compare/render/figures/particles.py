@@ -11,7 +11,7 @@ from compare.render.figures.runs import Runs, pick_runs, run_label
 from scenarios.base import Precision
 from scenarios.particles import Particles
 
-# this module draws the scenario it is named after (the registry's "particles" is a Particles)
+# this module draws the scenario it is named after (the registry's entry of that name is a Particles)
 SC = cast(Particles, scenarios.get(__name__.rpartition(".")[2]))
 
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import functools
 
-from compare.render import chart_memo, charts, figure_check
+from compare.render import charts, figure_check
 from compare.results.record import Record
 from compare.site import data, matrix, memory_design
 from compare.site.matrix import Reference, Rule, largest_of, rate
@@ -89,9 +89,9 @@ def page(c: Ctx) -> Page:
         for part, name in (("memory", "gradients-horizon"), ("time", "gradients-horizon-time"),
                            ("quality", "gradients-horizon-quality")):
             png, rel, csv = c.fig(name)
-            draw = functools.partial(sweep_plots.plot_horizon, list(hz), c.device, png, SCENARIO, part)
-            if chart_memo.remembered((sweep_plots.plot_horizon, list(hz), c.device, SCENARIO, part), [png],
-                                     lambda: figure_check.checked(draw, png)):
+            if figure_check.checked(functools.partial(sweep_plots.plot_horizon, list(hz), c.device, png,
+                                                      SCENARIO, part), png,
+                                    key=(sweep_plots.plot_horizon, list(hz), c.device, SCENARIO, part)):
                 figs.append(Figure(rel, LOOK[part], "" if figs else cmd, csv))
                 charts.write_csv(png.with_suffix(".csv"), ("framework", "variant", "precision", "contact", "steps",
                                                            "device bytes", "time per call s", "gradient fd agreement",
