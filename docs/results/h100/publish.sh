@@ -12,8 +12,12 @@
 #   (a later machine: unpack the last publish.tgz into .pubstate/ and carry it in that call)
 #   next calls:        bash docs/results/h100/publish.sh wait     (until it says "publish ended")
 #
-# Each "BACKENDS:PARTS" argument is one `compare publish` run into the same --out, in order; with no
-# argument: all backends, parts all and large. Then, here: merge $OUT's results.json / sweep.json /
+# Each "BACKENDS:PARTS[:FLAGS]" argument is one `compare publish` run into the same --out, in order
+# (FLAGS: more publish options, e.g. --allow-noisy-sitting); with no argument: all backends, parts all
+# and large. A "chains:P,P|P,P|..." argument runs those parts' own commands (as `publish --list` prints
+# them), each chain in order, the chains side by side, and waits for all: only for parts that rank no
+# time (the stress experiments: verdicts, not timings), so they carry no sitting check, and publish's
+# part stress-merge, named after them, merges what they wrote (issue 57, session 34). Then, here: merge $OUT's results.json / sweep.json /
 # stress.json into docs/results/h100 (a later record of a cell replaces the earlier one) and keep
 # publish.json beside them.
 set -u
@@ -33,7 +37,16 @@ if [ "${1:-wait}" = start ]; then
   [ "$#" -gt 0 ] || set -- "all:all,large"
   script="cd /root/tree; "
   for run in "$@"; do
-    script+="python -m compare publish --out $W --devices cuda --backends ${run%%:*} --part ${run#*:}; "
+    case $run in
+      chains:*) script+="python -m compare publish --out $W --devices cuda --list > $W/parts.txt; "
+                IFS='|' read -ra chains <<< "${run#chains:}"
+                for c in "${chains[@]}"; do
+                  script+="( for p in ${c//,/ }; do grep -A1 \"^  \$p: \" $W/parts.txt | tail -1 | bash; done ) & "
+                done
+                script+="wait; " ;;
+      *) IFS=: read -r b parts flags <<< "$run"
+         script+="python -m compare publish --out $W --devices cuda --backends $b --part $parts ${flags:-}; " ;;
+    esac
   done
   setsid nohup bash -c "$script echo ALL-DONE" > "$W/publish.log" 2>&1 &
   echo $! > "$W/pid"
