@@ -70,13 +70,14 @@ def test_no_stability_page_is_longer_than_a_screenful_of_detail(h100):
 
 
 def test_a_caught_race_never_reads_as_zero_differing_elements_detected(h100):
-    """The H100 store keeps the racy control's row as the suite first wrote it: 0 elements differ
-    between the two runs, verdict 'RACE DETECTED (outside the oracle's bound)': both runs wrong
-    alike. The pages say which evidence caught it."""
+    """A racy control is caught by two runs that differ or by both runs outside the oracle's bound
+    (an earlier H100 sitting: 0 elements differing, both runs wrong alike; session 34's: 32 differ,
+    and both outside the bound). Where a page shows 0 differing elements beside RACE DETECTED, it
+    says which evidence caught it (the zero case itself: tests/stress/test_generic.py)."""
     rows = [r for r in stored_rows() if so.control(r) and str(r["verdict"]).startswith("RACE DETECTED")]
     assert rows, "the H100 store has a caught racy control"
     for r in rows:
-        assert r["value"] == 0 and "outside the oracle's bound" in r["verdict"]     # the store as it is
+        assert "outside the oracle's bound" in r["verdict"] or r["value"] > 0
     shown = "\n".join(h100.values())
     assert "= 0 (RACE DETECTED (outside the oracle's bound))" not in shown
     for line in shown.splitlines():
