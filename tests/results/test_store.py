@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -115,6 +116,23 @@ def test_the_cpu_stores_sweeps_and_stress_name_clean_commits(path: Path) -> None
     parts = [e for v in prov.values() for e in (v if isinstance(v, list) else [v])]
     entries = [*s.runs, *parts]
     assert entries and not_clean(entries) == []
+
+
+def test_measurement_md_counts_the_h100_sweep_and_stress_runs_as_the_stores_do() -> None:
+    """docs/measurement.md's counts of the H100 sweep and stress stores' run entries that are not
+    of a checked clean commit, held against the stores as they are measured again."""
+    text = re.sub(r"\s+", " ", (ROOT / "docs" / "measurement.md").read_text(encoding="utf-8"))
+    h100 = ROOT / "docs" / "results" / "h100"
+    sweep, stress = Store.read(h100 / "sweep.json"), Store.read(h100 / "stress.json")
+    prov = stress.analysis.get("provenance") or {}
+    entries = [*stress.runs, *(e for v in prov.values() for e in (v if isinstance(v, list) else [v]))]
+    dirty = sum(e.get("git_dirty") is True for e in sweep.runs)
+    unknown = len(not_clean(sweep.runs)) - dirty
+    assert f"dirty or unknown ({dirty} and {unknown} of its {len(sweep.runs)} run entries)" in text
+    unknown = len(not_clean(entries))
+    assert f"stress store's {len(entries)} run entries" in text
+    assert f"are of unknown tree state and {len(entries) - unknown} of a checked clean commit" in text
+    assert f", {unknown} (the older" in text
 
 
 def test_a_saved_store_reads_back_and_saves_to_the_same_bytes(tmp_path: Path) -> None:
