@@ -2,7 +2,6 @@
 ``runs``, publish's handed check and the noisy-sitting stamp (fast tier; CUDA: the lead's run)."""
 from __future__ import annotations
 
-import time
 
 from compare.measuring import environment
 from compare.running import sitting_run
@@ -72,8 +71,12 @@ def test_a_quiet_start_stamps_nothing_and_bad_handed_text_is_ignored(monkeypatch
     assert sitting_run.device_of(["cpu", "cuda"]) == "cuda" and sitting_run.device_of({"cpu": {}}) == "cpu"
 
 
-def test_the_cpu_check_measures_its_copy_fast():
-    t0 = time.perf_counter()
+def test_the_cpu_check_measures_only_its_main_copy():
+    """The CPU check costs two 128 MiB copies of ten repeats (about a second on 2 cores), not the
+    yardstick's curve of eleven smaller sizes: what keeps it cheap is asserted, not its speed on a
+    loaded test machine."""
+    y = sitting_run.measure_yardstick("cpu")
+    assert "error" not in y and [size for size, _ in y["copy_curve"]] == [y["copy_bytes"]] == [128 << 20]
     c = sitting_run.check_sitting("cpu")
-    assert time.perf_counter() - t0 < 2.0
     assert c.device == "cpu" and c.copy_bytes_per_s > 0 and c.others_cores is not None and c.notes == ()
+    assert c.seconds is not None and c.seconds > 0          # what the check took, recorded
