@@ -36,6 +36,7 @@ class Between:
     sitting: str                  # the other sitting's label (its folder's name)
     other: float
     processes: int                # the other sitting's processes for this figure
+    exact: bool = False           # a deterministic figure (bytes, error shares): no interval, no processes
 
     @property
     def spread(self) -> float:
@@ -79,7 +80,7 @@ def compare(rows: list[Row], sittings: list[tuple[str, Machine]]) -> list[Betwee
                         or o.variant != c.variant):
                     continue
                 out.append(Between(row.rule.key, row.rule.question, fw, c.variant, row.rule.unit, c.value, c.ci,
-                                   label, o.value, o.processes))
+                                   label, o.value, o.processes, row.rule.exact))
     return out
 
 
@@ -89,7 +90,9 @@ def load_all(inputs: Iterable[Path]) -> list[tuple[str, Machine]]:
 
 
 def _inside_words(b: Between) -> str:
-    return "no interval" if b.inside is None else ("inside" if b.inside else "**outside**")
+    if b.inside is None:
+        return "exact figure" if b.exact else "no interval"
+    return "inside" if b.inside else "**outside**"
 
 
 def _interval(b: Between) -> str:
@@ -110,7 +113,7 @@ def row_blocks(rows: list[Row], between: list[Between]) -> list[Any]:
             Table(("row", "framework", "variant", "this report", "95 % interval", "other sitting", "its figure",
                    "range across sittings", "inside the interval"), tuple(
                 (b.question, b.framework, b.variant or "default", fmt.value(b.first, b.unit), _interval(b), b.sitting,
-                 fmt.value(b.other, b.unit) + ("" if b.processes > 1 else " (1 process)"),
+                 fmt.value(b.other, b.unit) + ("" if b.exact or b.processes > 1 else " (1 process)"),
                  f"{b.spread:.3g}×", _inside_words(b))
                 for b in sorted(mine, key=lambda x: (x.question, x.sitting, x.framework))))]
 
@@ -128,6 +131,10 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
         by_row.setdefault(b.question, []).append(b)
     with_ci = [b for b in between if b.inside is not None]
     inside = sum(1 for b in with_ci if b.inside)
+    exact = sum(1 for b in between if b.inside is None and b.exact)
+    few = len(between) - len(with_ci) - exact
+    none = "; ".join([*([f"{few} timed in fewer than 6 processes"] if few else []),
+                      *([f"{exact} exact figures, which need none"] if exact else [])])
     spreads = sorted(b.spread for b in between)
     mid = spreads[len(spreads) // 2]
     order = {r.question: i for i, r in enumerate(questions.RULES)}     # the matrix's row order
@@ -136,9 +143,8 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
               f"row{'s' if len(by_row) != 1 else ''} measured again in {len(labels)} later "
               f"sitting{'s' if len(labels) != 1 else ''} ({', '.join(labels)}): "
               + (f"**{inside} of {len(with_ci)}** with an interval fall inside the report's stated "
-                 f"95 % interval ({len(between) - len(with_ci)} have none: fewer than 6 processes)"
-                 if with_ci else "none has a 95 % interval in the report to hold it to (fewer than 6 "
-                 "processes)")
+                 f"95 % interval (without one: {none})"
+                 if with_ci else f"none has a 95 % interval in the report to hold it to ({none})")
               + f"; the sittings differ by {mid:.3g}× in the median figure, {spreads[-1]:.3g}× at most. "
               "Each row's page lists its figures; the machine's sittings, quiet or noisy, are above."),
             Table(("row", "figures", "inside the interval", "no interval", "median range", "largest range"), tuple(

@@ -115,3 +115,20 @@ def test_a_figure_moved_past_its_interval_is_counted_outside(tmp_path):
     assert f"**{len(got) - 1} of {len(got)}** with an interval fall inside" in text
     table = sittings.row_blocks(rows, got)[-1]
     assert [r[-1] for r in table.rows if r[1] == "warp"] == ["**outside**"]
+
+
+def test_an_exact_figure_is_neither_one_process_nor_short_of_an_interval(tmp_path, rows):
+    """A deterministic figure (an error share, a byte count) needs no interval and has no processes:
+    the row page says "exact figure", never "(1 process)", and the machine page counts it apart
+    from timed figures that lack an interval."""
+    got = sittings.compare(rows, sittings.load_all([_sitting(tmp_path, lambda r: r)]))
+    exact = [b for b in got if b.exact]
+    timed = [b for b in got if not b.exact and b.inside is None]
+    assert exact and timed and {b.row for b in exact} <= {r.rule.key for r in rows if r.rule.exact}
+    table = sittings.row_blocks(rows, got)[-1]
+    for r in table.rows:
+        exact_row = next(x.rule.exact for x in rows if x.rule.question == r[0])
+        assert (r[-1] == "exact figure") is exact_row, r
+        assert not (exact_row and "(1 process)" in r[6]), r
+    text = " ".join(getattr(x, "text", "") for x in sittings.summary(got, ["later"]))
+    assert f"{len(timed)} timed in fewer than 6 processes; {len(exact)} exact figures, which need none" in text
