@@ -149,11 +149,11 @@ def add_timing(p: argparse.ArgumentParser, repeat: int | None = 10, min_time: fl
     p.add_argument("--min-time", type=nonnegative_seconds, default=min_time,
                    help="minimum timed seconds per cell")
     p.add_argument("--timeout", type=seconds, default=timeout, help="seconds before a cell is killed")
-    p.add_argument("--overlap", type=overlap_count, default=0, metavar="N",
+    p.add_argument("--overlap", type=overlap_count, default=None, metavar="N",
                    help="N more workers set up side by side with the next cell's, each timed alone (beside a GPU "
                    "cell's window on 8 or more cores), in every round of --processes too (auto: half the cores less "
-                   "one; default 0, one cell at a time: "
-                   "docs/measurement.md, 'Overlapped set-ups')")
+                   "one; default: auto on fewer than 8 cores, where every window is alone, without --busy; else 0, "
+                   "one cell at a time: docs/measurement.md, 'Overlapped set-ups')")
 
 
 def add_processes(p: argparse.ArgumentParser) -> None:

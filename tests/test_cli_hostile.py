@@ -235,7 +235,8 @@ def test_timeout_covers_a_worker_that_saved_its_record_but_never_exits(work: Pat
     err = io.StringIO()
     t0 = time.monotonic()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        rc = cli.main(["saxpy", *NUMPY, *FAST, "--timeout", "5", "--out", "out"])
+        # warm: a cold cell's worker skips its exit handlers (compare/running/caches.py, leave)
+        rc = cli.main(["saxpy", *NUMPY, *FAST, "--cache", "warm", "--timeout", "5", "--out", "out"])
     took = time.monotonic() - t0
     assert rc == 0, err.getvalue()
     assert "did not exit within --timeout 5 s" in err.getvalue() and "Traceback" not in err.getvalue()

@@ -45,18 +45,24 @@ from compare.spec import Cell
 Result = cells.Result
 
 
+BESIDE_CORES = 8    # fewer: the set-ups would share the timed worker's cores, so every window is alone
+
+
 def ahead(args: Any = None) -> int:
     """Workers that set up beside the next one: ``--overlap`` (``auto``: half the cores less
-    one, at least one: 7 on 16 cores); 0 by default, the protocol the published figures used."""
+    one, at least one: 7 on 16 cores). Not given: ``auto`` where every window is alone anyway
+    (fewer than ``BESIDE_CORES`` usable cores; local workers; no ``--busy``, whose spinners run
+    through a worker's set-up), so only set-ups and exits move, never a clock; else 0 (on larger
+    hosts ``auto`` would also let host work run beside GPU windows)."""
     given = getattr(args, "overlap", None)
-    if given in (None, 0):
+    if given is None:
+        alone = environment.usable_cores() < BESIDE_CORES and not getattr(args, "busy", 0)
+        given = "auto" if args is not None and alone and not getattr(args, "scheduler", None) else 0
+    if given == 0:
         return 0
     if given == "auto":
         return max(1, environment.usable_cores() // 2 - 1)
     return int(given)
-
-
-BESIDE_CORES = 8    # fewer: the set-ups would share the timed worker's cores, so every window is alone
 
 
 def beside(ahead: int) -> bool:

@@ -29,8 +29,7 @@ import backends
 import scenarios
 from backends.base import OWN_TIMER_S, Backend, Device
 from compare.measuring import noise, phases, timing
-from compare.running import scaleout
-from compare.running import caches, cell_floor, reuse
+from compare.running import caches, cell_floor, reuse, scaleout
 from compare.running.gate import Gate
 from compare.measuring.memory_sampler import Sampler, memory_pass
 from compare.measuring.nvml import open_nvml
@@ -202,8 +201,7 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     meter = noise.HostMeter()
     t = timing.steady_state(kernel.run, sync, warmup=cell.warmup, repeat=cell.repeat, min_time=cell.min_time,
                             max_time=cell.max_time, timer=timer)
-    # why no events: kept beside the latency
-    events_error = {"events_error": clock} if timer is None and clock != timing.CLOCK else {}
+    events_error = {"events_error": clock} if timer is None and clock != timing.CLOCK else {}   # why no events
     laps.lap("steady")
     sampler.milestone()
     latency = Regime.of(**{k: t["wall"][k] for k in ("median_s", "iqr_s", "min_s")}, repeats=t.repeats)
@@ -387,14 +385,16 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver'
     gate.park()
 
 
-def main(argv: list[str]) -> int:
-    """argv: CELLS.json (a list of ``Cell.to_dict``) and OUT_DIR; cell i writes OUT_DIR/cell-i/."""
+def main(argv: list[str], leave: bool = False) -> int:
+    """argv: CELLS.json (a list of ``Cell.to_dict``) and OUT_DIR; cell i writes OUT_DIR/cell-i/.
+    ``leave`` (the worker process, never an importer): exit at once where ``caches.leave`` may."""
     scaleout.apply_cpu_set()          # a Dask worker's core set, before any framework starts
-    specs = json.loads(Path(argv[0]).read_text())
-    for i, raw in enumerate(specs if isinstance(specs, list) else [specs]):
+    got = json.loads(Path(argv[0]).read_text())
+    for i, raw in enumerate(specs := got if isinstance(got, list) else [got]):
         run_one(raw, Path(argv[1]) / f"cell-{i}")
+    caches.leave(specs if leave else [])    # cold caches, deleted with the cell: no teardown to wait for
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(main(sys.argv[1:], leave=True))

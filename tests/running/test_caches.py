@@ -60,3 +60,14 @@ def test_warm_caches_under_the_temporary_directory_outlive_the_worker(tmp_path, 
     assert os.environ["TMPDIR"] == str(tmp_path / "worker")
     env = lifeline.child_environment({}, tmp_path / "batch")
     assert env[lifeline.ROOT_ENV] == str(lifeline.temp_root()) and env["TMPDIR"] == str(tmp_path / "batch")
+
+
+def test_a_worker_leaves_at_once_only_when_every_cache_it_used_is_thrown_away():
+    """Cold caches live in the cell's directory, deleted with it; warm and kept ones outlive the
+    process, so their worker's teardown (an offline cache written at exit) runs."""
+    cold, warm = {"cache": "cold", "cache_dir": ""}, {"cache": "warm", "cache_dir": ""}
+    assert caches.nothing_to_keep([cold]) and caches.nothing_to_keep([cold, cold])
+    assert not caches.nothing_to_keep([warm]) and not caches.nothing_to_keep([cold, warm])
+    assert not caches.nothing_to_keep([{"cache": "cold", "cache_dir": "/kept/cell-3"}])
+    assert not caches.nothing_to_keep([]) and not caches.nothing_to_keep(["not a cell"])
+    caches.leave([warm])            # returns: this process goes on

@@ -272,3 +272,19 @@ def test_miniatures_run_one_at_a_time():
     refuse = calibrate.time_refusal(plan, 10.0, run=run)
     assert most[0] == 1 and seen == [65536 // calibrate.FACTOR] * 3
     assert all(refuse(c)[0] == "skipped" for c in plan)      # 64 s a call, over 10 s
+
+
+def test_the_default_overlaps_set_ups_only_where_every_window_is_alone(monkeypatch):
+    """No --overlap: auto on fewer than BESIDE_CORES usable cores (every window alone there),
+    never with --busy (its spinners run through a worker's set-up) or --scheduler (no local
+    workers to overlap); 0 on larger hosts; a given count always wins."""
+    from argparse import Namespace
+    from compare.measuring import environment
+    for cores, want in ((2, 1), (6, 2), (overlap.BESIDE_CORES, 0), (16, 0)):
+        monkeypatch.setattr(environment, "usable_cores", lambda: cores)
+        assert overlap.ahead(Namespace(overlap=None)) == want, cores
+        assert overlap.ahead(Namespace(overlap=None, busy=2)) == 0
+        assert overlap.ahead(Namespace(overlap=None, scheduler="tcp://x:8786")) == 0
+        assert overlap.ahead(Namespace(overlap=0)) == 0 and overlap.ahead(Namespace(overlap=3)) == 3
+        assert not overlap.beside(overlap.ahead(Namespace(overlap=None)))
+    assert overlap.ahead() == 0

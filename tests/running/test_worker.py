@@ -61,6 +61,21 @@ def test_main_runs_every_cell_of_the_file_into_its_own_folder(tmp_path):
     assert [record_in(tmp_path / "out" / f"cell-{i}")["status"] for i in (0, 1)] == ["ok", "ok"]
 
 
+@pytest.mark.parametrize("cache", ["cold", "warm"])
+def test_the_worker_process_skips_its_teardown_only_with_cold_caches(tmp_path, cache):
+    """compare/running/caches.py ``leave``: a cold cell's worker exits once its record is written,
+    its exit handlers never run; a warm one's run (a framework writes its offline cache there)."""
+    import subprocess
+    import sys
+    (tmp_path / "cells.json").write_text(json.dumps([quick(cache=cache).to_dict()]))
+    code = (f"import atexit, runpy, sys; atexit.register(open, {str(tmp_path / 'teardown')!r}, 'w'); "
+            f"sys.argv = ['worker', {str(tmp_path / 'cells.json')!r}, {str(tmp_path / 'out')!r}]; "
+            "runpy.run_module('compare.running.worker', run_name='__main__')")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120, cwd=os.path.dirname(scenarios.__path__[0]))
+    assert record_in(tmp_path / "out" / "cell-0")["status"] == "ok"
+    assert (tmp_path / "teardown").exists() == (cache == "warm")
+
+
 def test_contract_violations_are_named():
     sc = scenarios.get("saxpy")
     p = sc.params({"n": 8})
