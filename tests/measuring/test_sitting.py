@@ -30,7 +30,7 @@ def test_a_quiet_sitting_has_no_reason():
     ("launch_latency_s", 12.4e-6, 12.6e-6, "launch + synchronise 12.6 us, 1.26x the quiet 10 us"),
     ("launch_pipelined_s", 6.2e-6, 6.3e-6, "pipelined launch 6.3 us, 1.26x the quiet 5 us"),
     ("copy_bytes_per_s", 2.41e12, 2.39e12, "copy 2.39 TB/s, 1/1.26 of the quiet 3 TB/s"),
-    ("null_spread", 0.099, 0.101, "empty-launch spread 10 % of the median"),
+    ("null_spread", 0.099, 0.101, "empty-launch spread 10 % of the quiet floor 10 us"),
     ("others_cores", 3.99, 4.01, "host busy: other processes used 4.01 of 16 cores (limit 4.00)"),
     ("gpu_processes", (), (4242,), "1 other process(es) running on the GPU (pid 4242)"),
     ("throttle_reasons", ("gpu_idle", "sw_power_cap"), ("gpu_idle", "hw_thermal_slowdown"),
@@ -40,6 +40,21 @@ def test_each_limit_both_ways(field, under, over, needle):
     assert judge(gpu_check(**{field: under}), QUIET) == ()
     (why,) = judge(gpu_check(**{field: over}), QUIET)
     assert why.startswith(needle), why
+
+
+def test_the_spread_is_judged_against_the_quiet_floor_not_a_fast_sittings_own():
+    """The empty launches' IQR is about 1 us whatever the floor (stored H100 sittings: 0.9-1.15 us):
+    session 34's fast sitting (9.55 us, IQR 10.6 % of it) is not noisy against the quiet 10.4 us,
+    while the same IQR share of a slow floor is; without a reference the share of its own median."""
+    quiet = Quiet(kind="NVIDIA H100 80GB HBM3", runs=24, launch_latency_s=10.4e-6, launch_pipelined_s=5.05e-6,
+                  copy_bytes_per_s=3e12)
+    fast = gpu_check(launch_latency_s=9.55e-6, launch_pipelined_s=4.63e-6, null_spread=0.106)
+    assert judge(fast, quiet) == ()
+    (why,) = judge(fast, None)
+    assert why.startswith("empty-launch spread 11 % of the median")
+    wide = gpu_check(launch_latency_s=12e-6, launch_pipelined_s=5.5e-6, null_spread=0.095)    # IQR 1.14 us
+    (why,) = judge(wide, quiet)
+    assert why.startswith("empty-launch spread 11 % of the quiet floor 10.4 us"), why
 
 
 def test_without_a_quiet_reference_only_the_absolute_limits_apply():
