@@ -182,11 +182,10 @@ print("PROBE" + json.dumps(out))
 def probe(name: str, timeout: float = 180.0) -> Probe:
     """Which devices a backend can use (and why not), checked in its own process; where
     ``reuse.PROBE_ENV`` names a folder (the tests'), the answer of a probe that ran in the same
-    environment is read back (one that timed out or printed no answer is never kept). A process
-    whose writes fail on purpose (COMPARE_FAULT_DISK: ``compare.files``) keeps none: each write counts."""
+    environment is read back (one that timed out or printed no answer is never kept)."""
     from compare.running import reuse
     folder = os.environ.get(reuse.PROBE_ENV, "")
-    if not folder or os.environ.get("COMPARE_FAULT_DISK"):
+    if not folder:
         return _probe(name, timeout)[0]
     return reuse.kept(folder, reuse.probe_key(name, worker_env(name), ROOT), lambda: _probe(name, timeout),
                       lambda got: json.dumps(got[0]).encode() if got[1] else None,

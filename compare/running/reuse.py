@@ -47,7 +47,10 @@ def kept(folder: str, name: str | None, compute: Callable[[], T], encode: Callab
          decode: Callable[[bytes], T]) -> T:
     """``compute()``, or, where ``folder`` is given, the answer kept there as ``name`` by the first
     process that computed it (``encode``: its bytes, None to keep nothing; ``decode``: back). The
-    file is written whole or not at all (``atomic_write``); one that cannot be read is computed again."""
+    file is written whole or not at all (``atomic_write``); one that cannot be read is computed again.
+    A process whose writes fail on purpose (COMPARE_FAULT_DISK, ``compare.files``) keeps nothing:
+    it counts the run's own writes, and whether another test kept this answer first must not
+    change which of them fails."""
     if not folder or name is None:
         return compute()
     path = Path(folder) / name
@@ -56,7 +59,7 @@ def kept(folder: str, name: str | None, compute: Callable[[], T], encode: Callab
     except (OSError, ValueError):
         pass
     got = compute()
-    raw = encode(got)
+    raw = None if os.environ.get("COMPARE_FAULT_DISK") else encode(got)
     if raw is not None:
         try:
             atomic_write(path, raw)
