@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 from compare.measuring import environment
 from compare.running import sitting_run
 from compare.measuring.sitting import Quiet, SittingCheck, judge
