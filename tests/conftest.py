@@ -220,14 +220,16 @@ def shared_yardstick_and_oracle(tmp_path_factory: pytest.TempPathFactory) -> Non
     yardstick per device, the first run's (compare.running.hardware.for_run): each run measured
     its own, seconds each; and their workers share the oracle's outputs of a question already
     asked (compare.running.reuse): the same cases ran the projectile's Python oracle once
-    per backend. xdist's workers share the folders under the run's temporary root. Set
-    COMPARE_YARDSTICK_REUSE or COMPARE_ORACLE_REUSE empty to compute each anew;
+    per backend; and every process shares each backend's availability probe in one environment
+    (a second each, ~140 of them per run). xdist's workers share the folders under the run's
+    temporary root. Set COMPARE_YARDSTICK_REUSE, COMPARE_ORACLE_REUSE or COMPARE_PROBE_REUSE
+    empty to compute each anew;
     tests/running/test_hardware.py and the yardstick's fault tests call ``hardware.measure``,
     which always measures."""
     from compare.running import hardware, reuse
     base = tmp_path_factory.getbasetemp()
     root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base   # a worker's is <root>/<id>
-    for env, name in ((hardware.REUSE_ENV, "yardstick"), (reuse.ENV, "oracle")):
+    for env, name in ((hardware.REUSE_ENV, "yardstick"), (reuse.ENV, "oracle"), (reuse.PROBE_ENV, "probes")):
         if env not in os.environ:
             (root / name).mkdir(exist_ok=True)
             os.environ[env] = str(root / name)

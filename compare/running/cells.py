@@ -180,16 +180,29 @@ print("PROBE" + json.dumps(out))
 
 
 def probe(name: str, timeout: float = 180.0) -> Probe:
-    """Which devices a backend can use (and why not), checked in its own process."""
+    """Which devices a backend can use (and why not), checked in its own process; where
+    ``reuse.PROBE_ENV`` names a folder (the tests'), the answer of a probe that ran in the same
+    environment is read back (one that timed out or printed no answer is never kept)."""
+    from compare.running import reuse
+    folder = os.environ.get(reuse.PROBE_ENV, "")
+    if not folder:
+        return _probe(name, timeout)[0]
+    return reuse.kept(folder, reuse.probe_key(name, worker_env(name), ROOT), lambda: _probe(name, timeout),
+                      lambda got: json.dumps(got[0]).encode() if got[1] else None,
+                      lambda raw: (json.loads(raw), True))[0]
+
+
+def _probe(name: str, timeout: float) -> tuple[Probe, bool]:
+    """The probe's answer, and whether its process gave one."""
     try:
         proc = subprocess.run(lifeline.command("-c", PROBE, name), cwd=ROOT,
                               env=lifeline.child_environment(worker_env(name)),
                               capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
         why = f"availability probe timed out after {timeout:g} s"
-        return Probe(available={d: why for d in DEVICES}, versions={})
+        return Probe(available={d: why for d in DEVICES}, versions={}), False
     for line in proc.stdout.splitlines():
         if line.startswith("PROBE"):
-            return json.loads(line[5:])[name]
+            return json.loads(line[5:])[name], True
     why = f"availability probe failed (exit {proc.returncode}): {tail(proc.stderr, 2)}"
-    return Probe(available={d: why for d in DEVICES}, versions={})
+    return Probe(available={d: why for d in DEVICES}, versions={}), False

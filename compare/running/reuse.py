@@ -1,5 +1,6 @@
 """Answers the test suite's processes share: the float64 oracle's outputs of a cell (here), the
-run's hardware yardstick (``compare.running.hardware.for_run``), through ``kept``.
+run's hardware yardstick (``compare.running.hardware.for_run``), a backend's availability probe
+(``compare.running.cells.probe``, keyed by ``probe_key``), through ``kept``.
 
 Many of the tests' cells ask the oracle the same question (the parity suite's cases for every
 backend, the variants' runs, the frameworks' own groups): the same scenario, parameters,
@@ -25,6 +26,7 @@ import numpy as np
 from compare.files import atomic_write
 
 ENV = "COMPARE_ORACLE_REUSE"
+PROBE_ENV = "COMPARE_PROBE_REUSE"   # a folder: the tests' processes share each backend's probe
 T = TypeVar("T")
 
 
@@ -45,7 +47,10 @@ def kept(folder: str, name: str | None, compute: Callable[[], T], encode: Callab
          decode: Callable[[bytes], T]) -> T:
     """``compute()``, or, where ``folder`` is given, the answer kept there as ``name`` by the first
     process that computed it (``encode``: its bytes, None to keep nothing; ``decode``: back). The
-    file is written whole or not at all (``atomic_write``); one that cannot be read is computed again."""
+    file is written whole or not at all (``atomic_write``); one that cannot be read is computed again.
+    A process whose writes fail on purpose (COMPARE_FAULT_DISK, ``compare.files``) keeps nothing:
+    it counts the run's own writes, and whether another test kept this answer first must not
+    change which of them fails."""
     if not folder or name is None:
         return compute()
     path = Path(folder) / name
@@ -54,7 +59,7 @@ def kept(folder: str, name: str | None, compute: Callable[[], T], encode: Callab
     except (OSError, ValueError):
         pass
     got = compute()
-    raw = encode(got)
+    raw = None if os.environ.get("COMPARE_FAULT_DISK") else encode(got)
     if raw is not None:
         try:
             atomic_write(path, raw)
@@ -103,3 +108,20 @@ def oracle(sc: Any, params: Any, inputs: Mapping[str, np.ndarray], precision: st
     where = folder()
     key = _key(sc.name, params, inputs, precision) if where else None
     return kept(where, key and f"oracle-{key}.npz", lambda: sc.oracle(params, inputs, precision), _npz, _arrays)
+
+
+def probe_key(name: str, env: Mapping[str, str], root: Path) -> str:
+    """The name under which ``PROBE_ENV``'s folder keeps backend ``name``'s probe: a hash of
+    everything the probe's process sees that can change within a test run, the environment (less
+    pytest's per-test variables), the repository it runs in and the backend's own files (a test
+    may write one)."""
+    h = hashlib.sha256(json.dumps([name, str(root), sorted((k, v) for k, v in env.items()
+                                                            if not k.startswith("PYTEST_"))]).encode())
+    import backends
+    b = backends.BACKENDS.get(name)
+    mod = __import__("sys").modules.get(type(b).__module__) if b is not None else None
+    here = Path(mod.__file__).parent if mod is not None and getattr(mod, "__file__", None) else None
+    for f in sorted(here.glob("*.py")) if here is not None else ():
+        st = f.stat()
+        h.update(f"{f}|{st.st_mtime_ns}|{st.st_size}|".encode())
+    return f"probe-{name}-{h.hexdigest()[:32]}.json"

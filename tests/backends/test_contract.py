@@ -175,9 +175,27 @@ def records(path: Path) -> list[dict]:
     return json.loads(path.read_text())["records"]
 
 
+@pytest.fixture(scope="module")
+def repo_list(repo, tmp_path_factory) -> subprocess.CompletedProcess:
+    """``compare list`` in the copy, with an extra backend folder (COMPARE_BACKENDS_EXTRA, the
+    tests' own backends): the tests below read one listing, which probes every backend (seconds)."""
+    extra = tmp_path_factory.mktemp("extra")
+    shutil.copytree(ROOT / "tests" / "extra_backends" / "faulty", extra / "faulty")
+    (extra / "boom").mkdir()
+    (extra / "boom" / "__init__.py").write_text("raise RuntimeError('no such framework')\n")
+    (extra / "again").mkdir()
+    (extra / "again" / "__init__.py").write_text(
+        "from backends.numpy import NumpyBackend\nBACKEND = NumpyBackend()\n")
+    env = {**os.environ, "PYTHONPATH": str(repo), "COMPARE_BACKENDS_EXTRA": str(extra)}
+    p = subprocess.run([sys.executable, "-m", "compare", "list"], cwd=repo, capture_output=True, text=True,
+                       env=env, timeout=300)
+    p.extra = extra                     # type: ignore[attr-defined]
+    return p
+
+
 @pytest.mark.xdist_group("repo")
-def test_list_names_problems_in_one_line_each(repo):
-    p = compare(repo, "list")
+def test_list_names_problems_in_one_line_each(repo_list):
+    p = repo_list
     assert p.returncode == 0 and "Traceback" not in p.stderr, p.stderr
     problems = p.stdout.split("problems:", 1)[1]
     assert "backends/nameless: BACKEND has no name" in problems
@@ -186,19 +204,11 @@ def test_list_names_problems_in_one_line_each(repo):
     assert "tiny " in p.stdout.split("problems:")[0]        # the first 'tiny' is the one used
 
 
-def test_extra_backend_folders_are_discovered_and_their_problems_listed(tmp_path, compare_list):
+@pytest.mark.xdist_group("repo")
+def test_extra_backend_folders_are_discovered_and_their_problems_listed(repo_list, compare_list):
     """COMPARE_BACKENDS_EXTRA (the tests' own backends): a package there is a backend like any
     other; one that fails to import or takes a taken name is a listed problem, not a crash."""
-    extra = tmp_path / "extra"
-    shutil.copytree(ROOT / "tests" / "extra_backends" / "faulty", extra / "faulty")
-    (extra / "boom").mkdir()
-    (extra / "boom" / "__init__.py").write_text("raise RuntimeError('no such framework')\n")
-    (extra / "again").mkdir()
-    (extra / "again" / "__init__.py").write_text(
-        "from backends.numpy import NumpyBackend\nBACKEND = NumpyBackend()\n")
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "COMPARE_BACKENDS_EXTRA": str(extra)}
-    p = subprocess.run([sys.executable, "-m", "compare", "list"], cwd=ROOT, capture_output=True, text=True,
-                       env=env, timeout=300)
+    p, extra = repo_list, repo_list.extra
     assert p.returncode == 0 and "Traceback" not in p.stderr, p.stderr
     listed, problems = p.stdout.split("problems:", 1)
     assert "\n  faulty " in listed

@@ -80,10 +80,25 @@ def test_a_crash_costs_its_cell_alone_and_the_rest_run_in_a_new_process(faulty) 
     assert not workers()
 
 
-def test_a_probe_says_which_devices_a_backend_can_use() -> None:
+def test_a_probe_says_which_devices_a_backend_can_use(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from compare.running import reuse
+    monkeypatch.delenv(reuse.PROBE_ENV, raising=False)        # its own process, not the tests' kept answer
     got = cells.probe("numpy")
     assert got["available"]["cpu"] is None and isinstance(got["available"]["cuda"], str)
     assert set(got["available"]) == set(cells.DEVICES)
+    # the tests' processes share it (tests/conftest.py): kept once, read back without a process,
+    # asked anew in another environment; an answer its process never gave is never kept
+    monkeypatch.setenv(reuse.PROBE_ENV, str(tmp_path))
+    assert cells.probe("numpy") == got and len(list(tmp_path.glob("probe-numpy-*.json"))) == 1
+    real = cells._probe
+    monkeypatch.setattr(cells, "_probe", lambda *a: pytest.fail("probed again"))
+    assert cells.probe("numpy") == got
+    monkeypatch.setenv("COMPARE_TEST_OTHER", "1")
+    monkeypatch.setattr(cells, "_probe", lambda name, timeout: ({"available": {}, "versions": {}}, False))
+    assert cells.probe("numpy") == {"available": {}, "versions": {}}
+    assert len(list(tmp_path.glob("probe-numpy-*.json"))) == 1
+    monkeypatch.setattr(cells, "_probe", real)
+    assert cells.probe("numpy") == got and len(list(tmp_path.glob("probe-numpy-*.json"))) == 2
 
 
 def test_the_worker_environment_puts_the_repository_first_and_the_users_settings_win(
