@@ -154,18 +154,20 @@ def test_full_disk_mid_run_keeps_every_saved_record_and_resume_finishes(tmp_path
         "--resume" in last, err
     assert "Traceback" not in err
     kept = Store.read(out / "results.json").records
-    assert [r.scenario for r in kept] == ["saxpy", "sdf"] and all(r.status == "ok" for r in kept)
+    # the first two cells to finish (in plan order, or as overlapped set-ups let them finish)
+    assert len(kept) == 2 and all(r.status == "ok" for r in kept)
+    missing = ({"saxpy", "sdf", "projectile"} - {r.scenario for r in kept}).pop()
     assert sorted(p.name for p in out.iterdir()) == ["results.csv", "results.json", "results.md"]
     p = compare_proc(*args, "--resume", "--verbose", env={"CI": "1"})     # --verbose: a line per cell
     _, err = p.communicate(timeout=600)
     assert p.returncode == 0, err
     ran = [ln for ln in err.splitlines() if ln.startswith("  [") and ": ok" in ln]
-    assert len(ran) == 1 and "projectile/numba" in ran[0], err
+    assert len(ran) == 1 and f"{missing}/numba" in ran[0], err
     recs = Store.read(out / "results.json").records
     FIGURES["records_lost"] += sum(1 for r in kept if r.scenario not in {q.scenario for q in recs})
-    assert [r.scenario for r in recs] == ["saxpy", "sdf", "projectile"]
-    assert [{k: getattr(r, k) for k in ("time", "params")} for r in recs[:2]] == \
-        [{k: getattr(r, k) for k in ("time", "params")} for r in kept]
+    assert sorted(r.scenario for r in recs) == ["projectile", "saxpy", "sdf"]
+    same = {r.scenario: {k: getattr(r, k) for k in ("time", "params")} for r in recs}
+    assert [same[r.scenario] for r in kept] == [{k: getattr(r, k) for k in ("time", "params")} for r in kept]
     assert not [q for q in out.rglob(".*.tmp")]
     FIGURES["faults"].append("a full disk mid-run (then --resume)")
 
