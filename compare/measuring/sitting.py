@@ -247,7 +247,8 @@ def _spread(sitting: SittingCheck, q: Quiet | None) -> tuple[float | None, str]:
     if sitting.null_spread is None:
         return None, ""
     if q is not None and q.launch_latency_s and sitting.launch_latency_s:
-        return sitting.null_spread * sitting.launch_latency_s / q.launch_latency_s, f"the quiet floor {_us(q.launch_latency_s)}"
+        iqr = sitting.null_spread * sitting.launch_latency_s
+        return iqr / q.launch_latency_s, f"the quiet floor {_us(q.launch_latency_s)}"
     return sitting.null_spread, "the median"
 
 

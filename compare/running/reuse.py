@@ -18,6 +18,7 @@ import hashlib
 import io
 import json
 import os
+import sys
 from pathlib import Path
 from typing import Any, Callable, Mapping, TypeVar
 
@@ -119,8 +120,8 @@ def probe_key(name: str, env: Mapping[str, str], root: Path) -> str:
                                                             if not k.startswith("PYTEST_"))]).encode())
     import backends
     b = backends.BACKENDS.get(name)
-    mod = __import__("sys").modules.get(type(b).__module__) if b is not None else None
-    here = Path(mod.__file__).parent if mod is not None and getattr(mod, "__file__", None) else None
+    mod = sys.modules.get(type(b).__module__) if b is not None else None
+    here = Path(mod.__file__).parent if mod is not None and mod.__file__ else None
     for f in sorted(here.glob("*.py")) if here is not None else ():
         st = f.stat()
         h.update(f"{f}|{st.st_mtime_ns}|{st.st_size}|".encode())

@@ -147,8 +147,10 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
                  if with_ci else f"none has a 95 % interval in the report to hold it to ({none})")
               + f"; the sittings differ by {mid:.3g}× in the median figure, {spreads[-1]:.3g}× at most. "
               "Each row's page lists its figures; the machine's sittings, quiet or noisy, are above."),
-            Table(("row", "figures", "inside the interval", "no interval", "median range", "largest range"), tuple(
-                (q, str(len(bs)), str(sum(1 for b in bs if b.inside)), str(sum(1 for b in bs if b.inside is None)),
+            Table(("row", "figures", "inside the interval", "no interval", "exact", "median range",
+                   "largest range"), tuple(
+                (q, str(len(bs)), str(sum(1 for b in bs if b.inside)),
+                 str(sum(1 for b in bs if b.inside is None and not b.exact)), str(sum(1 for b in bs if b.exact)),
                  f"{sorted(b.spread for b in bs)[len(bs) // 2]:.3g}×", f"{max(b.spread for b in bs):.3g}×")
                 for q, bs in sorted(by_row.items(), key=lambda kv: order.get(kv[0], len(order)))))]
 

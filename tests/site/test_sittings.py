@@ -132,3 +132,7 @@ def test_an_exact_figure_is_neither_one_process_nor_short_of_an_interval(tmp_pat
         assert not (exact_row and "(1 process)" in r[6]), r
     text = " ".join(getattr(x, "text", "") for x in sittings.summary(got, ["later"]))
     assert f"{len(timed)} timed in fewer than 6 processes; {len(exact)} exact figures, which need none" in text
+    counts = sittings.summary(got, ["later"])[-1]
+    col = {c: i for i, c in enumerate(counts.headers)}
+    assert sum(int(r[col["no interval"]]) for r in counts.rows) == len(timed)
+    assert sum(int(r[col["exact"]]) for r in counts.rows) == len(exact)
