@@ -135,6 +135,11 @@ def latest(recs: list[Record]) -> list[Record]:
     return list(seen.values())
 
 
+def one_run(recs: list[Record]) -> list[Record]:
+    """One record per cell, from one run where one measured every framework (provenance.one_run_of)."""
+    return latest(provenance.one_run_of(recs, exact, data.process_count))
+
+
 def exact(r: Record) -> bool:
     """IEEE arithmetic: not a fast-math variant nor a record its backend says ran fast math
     (Dr.Jit's float32 cells before its exact default): shown on the pages, never ranked."""
@@ -147,9 +152,9 @@ def exact(r: Record) -> bool:
 def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precision.FLOAT32,
           sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling"),
           keep: Callable[[Record], bool] = lambda r: True) -> list[Record]:
-    return latest([r for r in m.records if r.device == device and r.scenario == scenario
-                   and r.precision == precision and data.tag(r, "sweep") in sweep
-                   and (exact(r) or r.variant == "default") and keep(r)])
+    return [r for r in m.records if r.device == device and r.scenario == scenario
+            and r.precision == precision and data.tag(r, "sweep") in sweep
+            and (exact(r) or r.variant == "default") and keep(r)]
 
 
 def _largest(recs: list[Record]) -> list[Record]:
@@ -167,21 +172,21 @@ def _largest(recs: list[Record]) -> list[Record]:
 
 def defaults_of(scenario: str, precision: Precision = Precision.FLOAT32) -> Callable[[Machine, str], list[Record]]:
     def pick(m: Machine, device: str) -> list[Record]:
-        return [r for r in _pool(m, device, scenario, precision, (None,)) if data.at_defaults(r)]
+        return one_run([r for r in _pool(m, device, scenario, precision, (None,)) if data.at_defaults(r)])
     return pick
 
 
 def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth", "scaling"),
                keep: Callable[[Record], bool] = lambda r: True) -> Callable[[Machine, str], list[Record]]:
     def pick(m: Machine, device: str) -> list[Record]:
-        return _largest(_pool(m, device, scenario, Precision.FLOAT32, sweep, keep))
+        return one_run(_largest(_pool(m, device, scenario, Precision.FLOAT32, sweep, keep)))
     return pick
 
 
 def all_defaults(m: Machine, device: str) -> list[Record]:
-    return latest([r for r in m.run if r.device == device and r.precision == "float32"
-                   and r.variant == "default" and data.at_defaults(r) and exact(r)
-                   and data.tag(r, "sweep") is None])
+    return one_run([r for r in m.run if r.device == device and r.precision == "float32"
+                    and r.variant == "default" and data.at_defaults(r) and exact(r)
+                    and data.tag(r, "sweep") is None])
 
 
 # ---- row figures ------------------------------------------------------------------------------
@@ -331,15 +336,6 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
             for fw, c in cells.items()}
 
 
-def _than(ratio: float, rule: Rule) -> str:
-    """A reference cell against the leader in words: ``13.6× faster``, ``2.81× more memory``."""
-    worse = ratio > 1
-    k = ratio if worse else 1 / ratio
-    word = {"s": ("slower", "faster"), "1/s": ("slower", "faster"),
-            "B": ("more memory", "less memory")}.get(rule.unit, ("higher", "lower"))
-    return f"{k:.3g}× {word[0] if worse else word[1]}"
-
-
 def _verdict(rule: Rule, cells: dict[str, Cell], top: str | None, tied: tuple[str, ...],
              fmt: Callable[[float, str], str]) -> str:
     if top is None:
@@ -363,7 +359,7 @@ def _verdict(rule: Rule, cells: dict[str, Cell], top: str | None, tied: tuple[st
     refs = sorted((c for c in cells.values() if c.reference and c.ratio is not None), key=lambda c: c.ratio or 0.0)
     if rule.reference and refs:
         text += (f" {rule.reference.words(all((c.ratio or 1.0) < 1 for c in refs))}: " + "; ".join(
-            f"{c.framework} {_than(c.ratio or 1.0, rule)}" + (f" than {top}" if i == 0 else "")
+            f"{c.framework} {ranking.than(c.ratio or 1.0, rule.unit)}" + (f" than {top}" if i == 0 else "")
             for i, c in enumerate(refs)) + ".")
     failed = [c.framework for c in cells.values() if c.status in ("error", "mismatch")]
     if failed:

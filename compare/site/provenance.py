@@ -9,7 +9,7 @@ not known), shows its figures and names no best.
 from __future__ import annotations
 
 import re
-from typing import Iterable
+from typing import Callable, Iterable
 
 from compare.results.environment import tree_state
 from compare.results.record import Record
@@ -78,3 +78,31 @@ def words(runs: tuple[str, ...]) -> str:
     return (f"Not ranked: this row's figures come from {len(named) or 'an unknown number of'} run(s)"
             f"{' and ' + UNSTAMPED if '' in runs and named else ''}: {'; '.join(parts)}. Ratios are "
             "to the leading figure; no best is named across runs.")
+
+
+def one_run_of(recs: list[Record], exact: Callable[[Record], bool],
+               processes: Callable[[Record], int]) -> list[Record]:
+    """A row's records (all its candidates, before one is kept per cell) read from one run where
+    they span several and one committed run measured every framework that any of them measured ok:
+    the run with the most exact (framework, variant) cells, then the most processes a cell, then
+    the later. Its records, and the other runs' records of frameworks it has none of (a skip, a
+    failure), are the row's; where no run covers every framework, all of them are (and the row
+    names no best: ``words``)."""
+    by_run: dict[str, list[Record]] = {}
+    for r in recs:
+        by_run.setdefault(label(r), []).append(r)
+    if len(by_run) < 2:
+        return recs
+    measured = {r.backend for r in recs if r.status == "ok"}
+
+    def weight(item: tuple[str, list[Record]]) -> tuple[int, int, str]:
+        ok = [r for r in item[1] if r.status == "ok"]
+        return (len({(r.backend, r.variant) for r in ok if exact(r)}),
+                max((processes(r) for r in ok), default=0), str((ok[0].run or {}).get("created", "")) if ok else "")
+    whole = [kv for kv in by_run.items() if one_run((kv[0],))
+             and {r.backend for r in kv[1] if r.status == "ok"} >= measured]
+    if not whole:
+        return recs
+    run, mine = max(whole, key=weight)
+    has = {r.backend for r in mine}
+    return [r for r in recs if label(r) == run or r.backend not in has]

@@ -73,3 +73,38 @@ def test_a_noisy_sitting_is_named_and_the_row_still_ranks():
     assert provenance.one_run(runs) and "(noisy sitting)" in provenance.words(runs)
     dirty = provenance.runs_of([rec({**B, "noisy_sitting": True})])
     assert provenance.uncommitted(dirty) and "(noisy sitting)" in provenance.words(dirty)
+
+
+C = {"created": "2026-12-06T21:43:20+00:00", "commit": "f4d8e09", "dirty": False}
+
+
+def cell(run, backend="numpy", variant="default", status="ok") -> Record:
+    return Record(scenario="saxpy", backend=backend, device="cuda", precision="float32", status=status,
+                  variant=variant, run=run)
+
+
+def pick(recs):
+    return provenance.one_run_of(recs, lambda r: r.variant != "fastmath", lambda r: 1)
+
+
+def test_a_row_of_several_runs_reads_the_one_that_measured_every_framework():
+    # A: both frameworks, one variant each; C: both, and warp's second variant: C is read alone
+    old = [cell(A, "cupy"), cell(A, "warp")]
+    new = [cell(C, "cupy"), cell(C, "warp"), cell(C, "warp", "record_cmd")]
+    chosen = pick(old + new)
+    assert chosen == new and provenance.one_run(provenance.runs_of(chosen))
+    # a fast-math cell is not counted toward a run's coverage: the tie goes to the later run
+    assert pick([cell(A, "cupy"), cell(A, "warp"), cell(A, "warp", "fastmath"), cell(C, "cupy"),
+                 cell(C, "warp")]) == [cell(C, "cupy"), cell(C, "warp")]
+
+
+def test_a_run_missing_a_framework_or_of_a_dirty_tree_is_never_read_alone():
+    partial = [cell(A, "cupy"), cell(A, "warp"), cell(C, "cupy")]
+    assert pick(partial) == partial[:2]               # C lacks warp: A, which has both, is read
+    assert pick([cell(A, "cupy"), cell(C, "warp")]) == [cell(A, "cupy"), cell(C, "warp")]   # none has both
+    assert pick([cell(B, "cupy"), cell(B, "warp"), cell(C, "cupy")]) == \
+        [cell(B, "cupy"), cell(B, "warp"), cell(C, "cupy")]     # B covers both but is dirty: all kept
+    # another run's skip of a framework the chosen run has nothing of stays (its reason shows)
+    skip = cell(A, "numpy", status="skipped")
+    assert pick([skip, cell(A, "cupy"), cell(C, "cupy"), cell(C, "warp", "tile")]) == \
+        [skip, cell(C, "cupy"), cell(C, "warp", "tile")]

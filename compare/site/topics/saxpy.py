@@ -50,7 +50,7 @@ def bandwidth(c: Ctx) -> Page:
     allvar = [r for r in c.m.records if r.device == c.device and r.scenario == SCENARIO
               and r.precision == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
               and data.tag(r, "sweep") in (None, "bandwidth")]
-    allvar = matrix.latest(allvar)
+    allvar = matrix.one_run(allvar)
     if allvar:
         gpu = next((g for r in allvar if (g := datasheet.gpu_of(r, c.m.runs))), None)
         copy = next((v for r in allvar if r.hardware and (v := data.num(r.hardware.copy_bytes_per_s))), None)
