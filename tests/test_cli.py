@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+import backends
 from compare.running.hardware import matched_copy
 from conftest import FAULTY, ROOT
 from reliability_checks import run_main
@@ -59,18 +60,22 @@ def test_bad_usage_exits_2_with_one_line(args, needle, tmp_path, monkeypatch):
     assert "Traceback" not in "\n".join(lines)
 
 
-@pytest.fixture(scope="module")
-def quick_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("run")
+def quick_all(out, backend):
     # warm kernel caches and no minimum time: the records' contract, not their first calls (a cold
     # first call compiles every cell's Warp module, ~2 s each: test_host_profile_sample_check_and_variant_skips)
     # nor the timings' precision
-    p = compare("all", "--quick", "--backends", "warp", "--devices", "cpu", "--repeat", "2", "--min-time", "0",
-                "--cache", "warm", "--out", str(out), "--save-arrays")
-    return p, out
+    return compare("all", "--quick", "--backends", backend, "--devices", "cpu", "--repeat", "2", "--min-time", "0",
+                   "--cache", "warm", "--out", str(out), "--save-arrays")
 
 
-@pytest.mark.early                      # its group is the longest: start it first
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    """NumPy's cells (no kernel to compile: seconds); Warp's are the long tier's
+    (test_warp_all_quick_keeps_the_same_contracts)."""
+    out = tmp_path_factory.mktemp("run")
+    return quick_all(out, "numpy"), out
+
+
 @pytest.mark.xdist_group("quick_run")
 def test_all_quick_is_ok_and_exit_0(quick_run):
     p, out = quick_run
@@ -79,9 +84,22 @@ def test_all_quick_is_ok_and_exit_0(quick_run):
         assert scenario in p.stdout
 
 
+@pytest.mark.slow
+def test_warp_all_quick_keeps_the_same_contracts(tmp_path):
+    """The quick run on Warp, the reference (every cell's kernels compiled): the results and
+    --save-arrays contracts the fast tier checks on NumPy's."""
+    p = quick_all(tmp_path, "warp")
+    assert p.returncode == 0, p.stdout + p.stderr
+    results_json_contract(tmp_path, "warp")
+    save_arrays_contract(tmp_path, "warp")
+
+
 @pytest.mark.xdist_group("quick_run")
 def test_results_json_contract(quick_run):
-    _, out = quick_run
+    results_json_contract(quick_run[1], "numpy")
+
+
+def results_json_contract(out, backend):
     data = json.loads((out / "results.json").read_text())
     assert {"format_version", "suite", "runs", "records"} <= set(data) and data["format_version"] == 2
     for key in ("python", "packages", "cpu", "git_commit", "command"):
@@ -113,7 +131,7 @@ def test_results_json_contract(quick_run):
         assert r["error"]["vs_oracle"] <= r["error"]["tolerance"]
         if r["scenario"] == "projectile":
             assert len(r["gradient"]["value"]) == 2
-            assert r["gradient"]["method"] == "tape"
+            assert r["gradient"]["method"] == backends.get(backend).gradient_method
     # the same-run hardware yardstick, and every bandwidth-bound cell's fraction of it
     hw = data["runs"][0]["hardware"]["cpu"]
     assert hw["copy_bytes_per_s"] > 0, hw
@@ -131,7 +149,8 @@ def test_results_json_contract(quick_run):
         assert (row["scenario"], row["backend"], row["precision"]) == (r["scenario"], r["backend"], r["precision"])
         assert float(row["latency_median_s"]) == r["time"]["latency"]["median_s"]
         assert int(row["throughput_k"]) == r["time"]["throughput"]["k"]
-        assert float(row["throughput_host_s"]) == r["time"]["throughput"]["host_s"]
+        host_s = r["time"]["throughput"]["host_s"]      # None where latency stands for it: '' (empty)
+        assert (row["throughput_host_s"] == "") if host_s is None else (float(row["throughput_host_s"]) == host_s)
         assert float(row["err_vs_oracle"]) == r["error"]["vs_oracle"]
         assert json.loads(row["params"]) == r["params"]
     md = (out / "results.md").read_text()
@@ -140,13 +159,16 @@ def test_results_json_contract(quick_run):
 
 @pytest.mark.xdist_group("quick_run")
 def test_save_arrays_contract(quick_run):
-    _, out = quick_run
+    save_arrays_contract(quick_run[1], "numpy")
+
+
+def save_arrays_contract(out, backend):
     want = {"saxpy": {"a", "x", "y", "out"}, "sdf": {"image"},
             "particles": {"x0", "y0", "vx0", "vy0", "x", "y", "vx", "vy"},
             "projectile": {"loss", "grad"}}
     for scenario, keys in want.items():
         for precision in ("float32", "float64"):
-            with np.load(out / "arrays" / f"{scenario}-warp-cpu-{precision}.npz") as z:
+            with np.load(out / "arrays" / f"{scenario}-{backend}-cpu-{precision}.npz") as z:
                 assert keys <= set(z.files), (scenario, z.files)
                 for k in keys & {"out", "image", "x"}:
                     assert z[k].dtype == np.dtype(precision)
@@ -156,7 +178,7 @@ def test_save_arrays_contract(quick_run):
 def test_every_scenario_draws_its_picture_and_report_redraws_it(quick_run, tmp_path):
     _, out = quick_run
     names = {"saxpy", "sdf", "particles", "projectile", "time_vs_error"}
-    names |= {f"speed_{s}" for s in ("saxpy", "sdf", "particles", "projectile")}   # no NumPy: no speed-up
+    names |= {f"speed_{s}" for s in ("saxpy", "sdf", "particles", "projectile")}   # one framework: no speed-up
     assert {f.stem for f in (out / "plots").glob("*.png")} == names
     p = compare("report", str(out / "results.json"), "--out", str(tmp_path))
     assert p.returncode == 0, p.stderr

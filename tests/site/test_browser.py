@@ -1,9 +1,9 @@
-"""The report site in a real browser: every page of the site built from tests/data/site loaded in
-headless Chromium (tests/browser.py, one browser for all pages): no console error or uncaught
-exception, no failed load, no request to the network, no broken image or link, no figure whose
-layout check (compare/render/figure_check.py, stamped in the PNG where it was saved) found a text outside
-the canvas, two texts overlapping or a legend over data, and the overview's matrix has one
-column per framework of the store. The harness's own tests load
+"""The report site in a real browser: pages of the site built from tests/data/site (a sample; every
+page in the long tier) loaded in headless Chromium (tests/browser.py, one browser for all pages):
+no console error or uncaught exception, no failed load, no request to the network, no broken
+image or link, no figure whose layout check (compare/render/figure_check.py, stamped in the PNG
+where it was saved) found a text outside the canvas, two texts overlapping or a legend over data,
+and the overview's matrix has one column per framework of the store. The harness's own tests load
 hand-written pages, one per fault, and show each fault is caught and a good page passes.
 
 Chromium missing is a skip whose reason is the install command (CI installs it: .ci/run).
@@ -31,16 +31,31 @@ def chromium():
         yield b
 
 
-@pytest.mark.xdist_group("site")
-def test_every_page_loads_clean_in_chromium(chromium: browser.Browser, tmp_path_factory):
-    site = built_site(tmp_path_factory)
-    pages = sorted(site.rglob("*.html"))
-    assert len(pages) > 1
+def assert_loads_clean(chromium: browser.Browser, site: Path, pages: list[Path]) -> None:
     problems = []
     for page in pages:               # about 0.3 s a page on a 2-core machine; each bounded by 30 s
         result = chromium.check(page)
         problems += [f"{page.relative_to(site)}: {p}" for p in result.problems()]
     assert not problems, "\n".join(problems)
+
+
+# the overview (its matrix and the glossary every page carries), a row's page with its figure, the
+# page with the most figures, and the machine page; every page is the long tier's
+SAMPLE = ("index.html", "per-call.html", "gradients.html", "machine.html")
+
+
+@pytest.mark.xdist_group("site")
+def test_representative_pages_load_clean_in_chromium(chromium: browser.Browser, tmp_path_factory):
+    site = built_site(tmp_path_factory)
+    assert_loads_clean(chromium, site, [site / name for name in SAMPLE])
+
+
+@pytest.mark.slow
+def test_every_page_loads_clean_in_chromium(chromium: browser.Browser, tmp_path_factory):
+    site = built_site(tmp_path_factory)
+    pages = sorted(site.rglob("*.html"))
+    assert len(pages) > 1 and {site / name for name in SAMPLE} <= set(pages)
+    assert_loads_clean(chromium, site, pages)
 
 
 @pytest.mark.xdist_group("site")

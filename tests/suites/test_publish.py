@@ -145,36 +145,51 @@ def run_publish(monkeypatch, capsys, out, keep, *extra):
     return code, capsys.readouterr().out
 
 
-@pytest.mark.early
-def test_a_real_publish_logs_skips_done_parts_and_reruns_one(tmp_path, monkeypatch, capsys):
-    out = tmp_path / "m"
-    keep = {"bandwidth", "stress-ulps", "stress-merge", "site"}
-    code, text = run_publish(monkeypatch, capsys, out, keep)
+def publish_logs_skips_and_reruns(monkeypatch, capsys, out, keep, named, stale):
+    """Publish ``keep`` (in plan order): each part logged; a second call skips them all; ``--part
+    named`` reruns it; the next call reruns only the parts it made stale."""
+    code, text = run_publish(monkeypatch, capsys, out, set(keep))
     assert code == 0, text
     for n in keep:
         assert f"] {n}: python -m compare " in text               # each command printed before it runs
     log = json.loads((out / "publish.json").read_text())
-    assert log["format_version"] == 1 and [e["name"] for e in log["parts"]] == \
-        ["bandwidth", "stress-ulps", "stress-merge", "site"]
+    assert log["format_version"] == 1 and [e["name"] for e in log["parts"]] == list(keep)
     for e in log["parts"]:
         assert e["exit_code"] == 0 and e["seconds"] >= 0 and e["interrupted"] is False
         assert datetime.datetime.fromisoformat(e["started"]).utcoffset() == datetime.timedelta(0)
         assert {"hostname", "cores", "gpus"} <= set(e["host"])
-    assert log["parts"][0]["argv"][:2] == ["sweep", "bandwidth"] and "--resume" in log["parts"][0]["argv"]
-    for f in ("sweep.json", "stress.json", "report/index.html"):
+    for f in ("stress.json", "report/index.html"):
         assert (out / f).is_file(), f
     stress = json.loads((out / "stress.json").read_text())
     assert {r["experiment"] for r in stress["analysis"]["rows"]} == {"ulps"}
 
-    code, text = run_publish(monkeypatch, capsys, out, keep)          # all done: nothing runs
-    assert code == 0 and text.count(", skipped") == 4 and "python -m compare" not in text
-    assert len(json.loads((out / "publish.json").read_text())["parts"]) == 4
+    code, text = run_publish(monkeypatch, capsys, out, set(keep))     # all done: nothing runs
+    assert code == 0 and text.count(", skipped") == len(keep) and "python -m compare" not in text
+    assert len(json.loads((out / "publish.json").read_text())["parts"]) == len(keep)
 
-    code, text = run_publish(monkeypatch, capsys, out, keep, "--part", "bandwidth")   # named: reruns
-    assert code == 0 and "] bandwidth: python -m compare sweep bandwidth" in text
-    code, text = run_publish(monkeypatch, capsys, out, keep)          # the site is stale now, only it
-    assert code == 0 and "] site: python -m compare site" in text and text.count("python -m compare") == 1
-    assert [e["name"] for e in json.loads((out / "publish.json").read_text())["parts"]][4:] == ["bandwidth", "site"]
+    code, text = run_publish(monkeypatch, capsys, out, set(keep), "--part", named)   # named: reruns
+    assert code == 0 and f"] {named}: python -m compare " in text
+    code, text = run_publish(monkeypatch, capsys, out, set(keep))     # what it made stale, only that
+    assert code == 0 and text.count("python -m compare") == len(stale), text
+    assert all(f"] {n}: python -m compare " in text for n in stale)
+    assert [e["name"] for e in json.loads((out / "publish.json").read_text())["parts"]][len(keep):] == \
+        [named, *stale]
+    return log
+
+
+def test_a_real_publish_logs_skips_done_parts_and_reruns_one(tmp_path, monkeypatch, capsys):
+    """The cheapest parts (no sweep: stress ulps, the merge, the site): a rerun merge makes the site
+    stale; the long tier's runs a sweep too (test_a_real_publish_with_a_sweep_resumes_it_without_duplicates)."""
+    publish_logs_skips_and_reruns(monkeypatch, capsys, tmp_path / "m", ("stress-ulps", "stress-merge", "site"),
+                                  "stress-merge", ("site",))
+
+
+@pytest.mark.slow
+def test_a_real_publish_with_a_sweep_resumes_it_without_duplicates(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "m"
+    log = publish_logs_skips_and_reruns(monkeypatch, capsys, out, ("bandwidth", "stress-ulps", "stress-merge", "site"),
+                                        "bandwidth", ("site",))
+    assert log["parts"][0]["argv"][:2] == ["sweep", "bandwidth"] and "--resume" in log["parts"][0]["argv"]
     records = json.loads((out / "sweep.json").read_text())["records"]
     assert len(records) == len({json.dumps([r["scenario"], r["params"], r["tags"]]) for r in records})
 

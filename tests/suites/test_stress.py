@@ -1,5 +1,5 @@
 """The stress suite (compare/suites/stress.py) from the command line: bad usage, a quick CPU run of
-two experiments, and merging parts. The experiments' own rules are tested beside their modules
+two experiments (NumPy's; Warp's in the long tier), and merging parts. The experiments' own rules are tested beside their modules
 (tests/stress/: test_projectile_rules, test_generic, test_numerics, test_stress_particles,
 test_host_loop, test_stress_context)."""
 from __future__ import annotations
@@ -57,42 +57,57 @@ def test_bad_usage_exits_2_with_one_line(args, needle, tmp_path, monkeypatch):
     assert len(lines) == 1 and needle in lines[0], lines
 
 
-@pytest.mark.early
-def test_quick_warp_cpu_two_experiments(tmp_path):
-    require_device("warp", "cpu")
-    p = run_stress("--quick", "--backends", "warp", "--devices", "cpu", "--only",
-                   "particles-inf,races", "--out", str(tmp_path), "--jobs", "2")
+def quick_two_experiments(out, backend, first, again):
+    """``first`` (two experiments) in quick mode on one CPU backend; then ``again`` (one of them)
+    alone, which keeps the other's rows; then the parts merged into one report. The rows."""
+    p = run_stress("--quick", "--backends", backend, "--devices", "cpu", "--only", ",".join(first),
+                   "--out", str(out), "--jobs", "2")
     assert p.returncode == 0, p.stderr[-3000:]
-    data = json.loads((tmp_path / "stress.json").read_text())
+    data = json.loads((out / "stress.json").read_text())
     assert data["format_version"] == 2 and data["suite"] == "stress"
-    assert {r["scenario"] for r in data["records"]} >= {"particles"}    # the cells it ran
+    assert data["records"] and {r["backend"] for r in data["records"]} == {backend}   # the cells it ran
     for rec in data["records"]:   # stress figures are not timings: the first call and one more
         assert rec["time"]["warmup"] == 0 and rec["time"]["repeats"] == 1, rec["time"]
     rows = data["analysis"]["rows"]
-    assert {r["experiment"] for r in rows} == {"particles-inf", "races"}
+    assert {r["experiment"] for r in rows} == set(first)
     for r in rows:
         assert set(numerics.COLUMNS) <= set(r) and r["verdict"]
+    assert all(r["verdict"] == "bitwise reproducible" for r in rows
+               if r["experiment"] == "races" and "racy" not in r["setting"])
+    md = (out / "stress.md").read_text()
+    assert all(f"## {e}" in md for e in first)
+    # a second run of one experiment keeps the other's rows
+    p = run_stress("--quick", "--backends", backend, "--devices", "cpu", "--only", again,
+                   "--out", str(out), "--no-plots")
+    assert p.returncode == 0, p.stderr[-3000:]
+    again_rows = json.loads((out / "stress.json").read_text())["analysis"]["rows"]
+    assert {r["experiment"] for r in again_rows} == set(first)
+    # parts run separately (one GPU call each) merge into one report
+    p = run_stress("--merge", str(out / "stress.json"), "--out", str(out / "merged"), "--no-plots")
+    assert p.returncode == 0, p.stderr
+    merged = json.loads((out / "merged" / "stress.json").read_text())["analysis"]["rows"]
+    assert len(merged) == len(again_rows) and (out / "merged" / "stress.md").exists()
+    return rows
+
+
+def test_quick_numpy_cpu_two_experiments(tmp_path):
+    """The suite's command on the cheapest backend (no kernel to compile) and its two cheapest
+    experiments; Warp's, with particles-inf and the racy control kernel, is the long tier's."""
+    require_device("numpy", "cpu")
+    rows = quick_two_experiments(tmp_path, "numpy", ("races", "ulps"), "ulps")
+    assert {r["setting"].split(" (")[0] for r in rows if r["experiment"] == "races"} >= {"saxpy", "particles"}
+
+
+@pytest.mark.slow
+def test_quick_warp_cpu_two_experiments(tmp_path):
+    require_device("warp", "cpu")
+    rows = quick_two_experiments(tmp_path, "warp", ("particles-inf", "races"), "particles-inf")
     inf = [r for r in rows if r["experiment"] == "particles-inf"]
     assert {r["precision"] for r in inf} == {"float32", "float64"}
     for r in inf:   # the overflow step is found and agrees with the NumPy emulation
         assert isinstance(r["value"], int) and "= NumPy emulation" in r["verdict"], r
     racy = [r for r in rows if "racy" in r["setting"]]
     assert len(racy) == 1 and racy[0]["verdict"] == "race not observable on CPU"
-    assert all(r["verdict"] == "bitwise reproducible" for r in rows
-               if r["experiment"] == "races" and "racy" not in r["setting"])
-    md = (tmp_path / "stress.md").read_text()
-    assert "## particles-inf" in md and "## races" in md
-    # a second run of one experiment keeps the other's rows
-    p = run_stress("--quick", "--backends", "warp", "--devices", "cpu", "--only", "particles-inf",
-                   "--out", str(tmp_path), "--no-plots")
-    assert p.returncode == 0, p.stderr[-3000:]
-    again = json.loads((tmp_path / "stress.json").read_text())["analysis"]["rows"]
-    assert {r["experiment"] for r in again} == {"particles-inf", "races"}
-    # parts run separately (one GPU call each) merge into one report
-    p = run_stress("--merge", str(tmp_path / "stress.json"), "--out", str(tmp_path / "merged"), "--no-plots")
-    assert p.returncode == 0, p.stderr
-    merged = json.loads((tmp_path / "merged" / "stress.json").read_text())["analysis"]["rows"]
-    assert len(merged) == len(again) and (tmp_path / "merged" / "stress.md").exists()
 
 
 def test_every_stress_record_names_its_run_and_a_merge_keeps_it(tmp_path):

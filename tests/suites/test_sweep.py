@@ -1,7 +1,7 @@
-"""The sweep suite (issue 6, compare/suites/sweep.py): the sweep command on Warp/CPU in quick
-mode, its plan, record shape, page and plots; its metrics, page, plots, points, converged
-references and stored format are tested beside their modules in tests/sweep/, the measurements
-it is made of in tests/measuring/test_timing.py."""
+"""The sweep suite (issue 6, compare/suites/sweep.py): the sweep command on NumPy/CPU in quick
+mode (on Warp/CPU in the long tier), its plan, record shape, page and plots; its metrics, page,
+plots, points, converged references and stored format are tested beside their modules in
+tests/sweep/, the measurements it is made of in tests/measuring/test_timing.py."""
 from __future__ import annotations
 
 import json
@@ -27,20 +27,22 @@ def run_sweep(*args):
                           capture_output=True, text=True, timeout=1200)
 
 
+def sweep_all(out, backend):
+    """Every sweep in quick mode on one backend (CPU, float32), warm caches and no minimum time:
+    the suite's plan, records, page and plots, not its timings."""
+    return run_sweep("all", "--quick", "--backends", backend, "--devices", "cpu", "--precision",
+                     "float32", "--cache", "warm", "--min-time", "0", "--out", str(out))
+
+
 @pytest.fixture(scope="module")
 def quick_sweep(tmp_path_factory):
-    require_device("warp", "cpu")
+    """NumPy's (no kernel to compile: seconds); Warp's, the reference, is the long tier's."""
+    require_device("numpy", "cpu")
     out = tmp_path_factory.mktemp("sweep")
-    # warm caches and no minimum time: the suite's plan, records, page and plots, not its timings
-    p = run_sweep("all", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
-                  "float32", "--cache", "warm", "--min-time", "0", "--out", str(out))
-    return p, out
+    return sweep_all(out, "numpy"), out
 
 
-@pytest.mark.early                      # its group is the longest: start it first
-@pytest.mark.xdist_group("quick_sweep")
-def test_sweep_quick_runs_everything_ok(quick_sweep):
-    p, out = quick_sweep
+def assert_every_sweep_ok(p, out):
     assert p.returncode == 0, p.stdout + p.stderr
     data = json.loads((out / "sweep.json").read_text())
     recs = data["records"]
@@ -52,8 +54,6 @@ def test_sweep_quick_runs_everything_ok(quick_sweep):
             ("error", "particles", "particles"), ("error", "projectile", "projectile"),
             ("scaling", "particles", "particles"), ("scaling", "projectile", "projectile"),
             ("horizon", "projectile", "projectile")} <= roles
-    assert {r["variant"] for r in recs if r["tags"]["sweep"] == "horizon"} == \
-        {"default", "checkpoint", "unrolled"}                  # tape_zero: an A/B only, not swept
     for r in recs:
         if r["tags"]["sweep"] == "error":
             c = r["converged"]
@@ -65,6 +65,21 @@ def test_sweep_quick_runs_everything_ok(quick_sweep):
         assert (out / name).stat().st_size > 0
     md = (out / "measurement.md").read_text()
     assert "Roofline for this device" in md and "python -m compare sweep all --quick" in md
+    return recs
+
+
+@pytest.mark.xdist_group("quick_sweep")
+def test_sweep_quick_runs_every_sweep_ok(quick_sweep):
+    assert {r["backend"] for r in assert_every_sweep_ok(*quick_sweep)} == {"numpy"}
+
+
+@pytest.mark.slow
+def test_sweep_quick_runs_everything_ok(tmp_path):
+    """The same on Warp, with its own variants (compiling each cell's kernels: the long tier)."""
+    require_device("warp", "cpu")
+    recs = assert_every_sweep_ok(sweep_all(tmp_path, "warp"), tmp_path)
+    assert {r["variant"] for r in recs if r["tags"]["sweep"] == "horizon"} == \
+        {"default", "checkpoint", "unrolled"}                  # tape_zero: an A/B only, not swept
 
 
 @pytest.mark.xdist_group("quick_sweep")
@@ -81,7 +96,7 @@ def test_sweep_report_rebuilds_without_running(quick_sweep, tmp_path):
 @pytest.mark.xdist_group("quick_sweep")
 def test_sweep_resume_skips_ok_cells(quick_sweep):
     _, out = quick_sweep
-    p = run_sweep("scaling", "--quick", "--backends", "warp", "--devices", "cpu", "--precision",
+    p = run_sweep("scaling", "--quick", "--backends", "numpy", "--devices", "cpu", "--precision",
                   "float32", "--out", str(out), "--resume", "--no-plots")
     assert p.returncode == 0, p.stderr
     assert "scaling particles" not in p.stderr          # nothing rerun
