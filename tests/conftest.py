@@ -133,6 +133,17 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
         tr.write_line(f"memory estimate against measured peaks: {figures['memory']}")
 
 
+@functools.cache
+def published_store(path: Path) -> Any:
+    """The store at ``path`` (docs/results' are seconds each to read), read once per test process,
+    for tests that only read it; they carry ``PUBLISHED_STORES`` so that one worker reads each."""
+    from compare.results.store import Store
+    return Store.read(path)
+
+
+PUBLISHED_STORES = pytest.mark.xdist_group("published-stores")
+
+
 def run_cell(backend: str, scenario: str, precision: str, params: dict, device: str = "cpu",
              variant: str = "default") -> tuple[dict, dict]:
     """One cell through the real worker path (its own process), at quick sizes; ok or mismatch.

@@ -84,38 +84,46 @@ def test_a_plot_that_saves_itself_is_remembered_with_its_result_and_only_what_it
     assert not fresh.exists()                                  # the older picture was not remembered
 
 
-DRAW = """
+SERVED = """
 import sys
 from pathlib import Path
 sys.path.insert(0, "tests/render")
 from test_charts import synthetic_bars
 from compare.render import charts, report
-if sys.argv[2] == "served":           # drawing here would fail: the chart must come from the disk
-    charts.save = lambda fig, path: sys.exit("drawn")
-elif sys.argv[2] == "stub":           # a test's stand-in drawing: not kept for the other processes
-    charts.save = lambda fig, path: Path(path).write_bytes(b"png")
+charts.save = lambda fig, path: sys.exit("drawn")     # drawing here fails: the disk must serve it
 charts.bars(Path(sys.argv[1]), "t", "x", synthetic_bars(), fmt=report.fmt_time)
 """
 
 
 def test_a_chart_drawn_in_one_process_is_written_from_disk_in_another(tmp_path, monkeypatch):
-    """COMPARE_CHART_MEMO_DIR (opt-in): a second process with the same folder writes the first's
-    bytes without drawing, the bytes a process without the folder draws; a stand-in drawing and
-    a damaged file are not served."""
+    """COMPARE_CHART_MEMO_DIR (opt-in): another process with the same folder writes the bytes
+    drawn here without drawing; off, the same bytes are drawn; a test's stand-in drawing (a few
+    bytes for a picture) is not kept, and a damaged file is drawn, not served."""
     memo = tmp_path / "memo"
     memo.mkdir()
+    bs = synthetic_bars()
+    monkeypatch.setenv(chart_memo.DISK_ENV, str(memo))
 
-    def draw(name: str, how: str, folder: str = str(memo)) -> subprocess.CompletedProcess:
-        env = {**os.environ, chart_memo.DISK_ENV: folder}
-        return subprocess.run([sys.executable, "-c", DRAW, str(tmp_path / name), how], cwd=ROOT, env=env,
+    def served(name: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", SERVED, str(tmp_path / name)], cwd=ROOT, env=dict(os.environ),
                               capture_output=True, text=True, timeout=300)
-    assert draw("stub.png", "stub").returncode == 0 and list(memo.iterdir()) == []
-    assert draw("a.png", "draw").returncode == 0 and len(list(memo.glob("*.json"))) == 1
-    p = draw("b.png", "served")
+    chart_memo.forget()
+    monkeypatch.setattr(charts, "save", lambda fig, path: Path(path).write_bytes(b"png"))
+    charts.bars(tmp_path / "stub.png", "t", "x", bs, fmt=report.fmt_time)
+    assert list(memo.iterdir()) == []
+    monkeypatch.undo()
+    monkeypatch.setenv(chart_memo.DISK_ENV, str(memo))
+    chart_memo.forget()
+    charts.bars(tmp_path / "a.png", "t", "x", bs, fmt=report.fmt_time)
+    assert len(list(memo.glob("*.json"))) == 1
+    p = served("b.png")
     assert p.returncode == 0, p.stderr[-2000:]
-    assert draw("c.png", "draw", folder="").returncode == 0           # off: drawn, the same bytes
+    monkeypatch.setenv(chart_memo.DISK_ENV, "")
+    chart_memo.forget()
+    charts.bars(tmp_path / "c.png", "t", "x", bs, fmt=report.fmt_time)         # off: drawn
     for ext in (".png", ".csv"):
         a = (tmp_path / "a.png").with_suffix(ext).read_bytes()
         assert a == (tmp_path / "b.png").with_suffix(ext).read_bytes() == (tmp_path / "c.png").with_suffix(ext).read_bytes()
     next(memo.glob("*.json")).write_text('{"result": null, "files": ["not base64!"]}')
-    assert draw("d.png", "served").returncode != 0                    # a damaged file: drawn
+    monkeypatch.setenv(chart_memo.DISK_ENV, str(memo))
+    assert served("d.png").returncode != 0                    # a damaged file: drawn

@@ -5,7 +5,6 @@ another suite, version or shape refused in one line naming the file; every write
 (Hostile paths, symbolic links and record-built array names: tests/results/test_store_paths.py.)"""
 from __future__ import annotations
 
-import functools
 import json
 import math
 import re
@@ -13,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from conftest import PUBLISHED_STORES, published_store
 
 from compare.files import TEMP_MARK, TEMP_SUFFIX
 from compare.results import store as store_mod
@@ -34,9 +35,7 @@ MACHINES = sorted({p.parent for p in PUBLISHED})
 
 
 # the published stores, read once per test process (seconds each: several tests read each one)
-# by tests that only read them; they share one xdist worker
-read_published = functools.cache(Store.read)
-SHARED = pytest.mark.xdist_group("published-stores")
+read_published, SHARED = published_store, PUBLISHED_STORES
 
 
 def ids(paths: list[Path]) -> list[str]:
