@@ -66,6 +66,9 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
 
 def pytest_runtest_setup(item):
     adversarial.start()
+    memo = sys.modules.get("compare.render.chart_memo")
+    if memo is not None:
+        memo.recall_from_disk()         # a test's chart_memo.forget() lasts until it ends
 
 
 def _figures() -> dict | None:
@@ -128,6 +131,17 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     tr.write_line(f"records lost: {figures['records_lost']}")
     if figures.get("memory"):
         tr.write_line(f"memory estimate against measured peaks: {figures['memory']}")
+
+
+@functools.cache
+def published_store(path: Path) -> Any:
+    """The store at ``path`` (docs/results' are seconds each to read), read once per test process,
+    for tests that only read it; they carry ``PUBLISHED_STORES`` so that one worker reads each."""
+    from compare.results.store import Store
+    return Store.read(path)
+
+
+PUBLISHED_STORES = pytest.mark.xdist_group("published-stores")
 
 
 def run_cell(backend: str, scenario: str, precision: str, params: dict, device: str = "cpu",
@@ -221,15 +235,18 @@ def shared_yardstick_and_oracle(tmp_path_factory: pytest.TempPathFactory) -> Non
     its own, seconds each; and their workers share the oracle's outputs of a question already
     asked (compare.running.reuse): the same cases ran the projectile's Python oracle once
     per backend; and every process shares each backend's availability probe in one environment
-    (a second each, ~140 of them per run). xdist's workers share the folders under the run's
-    temporary root. Set COMPARE_YARDSTICK_REUSE, COMPARE_ORACLE_REUSE or COMPARE_PROBE_REUSE
-    empty to compute each anew;
+    (a second each, ~140 of them per run); and the charts one process drew (compare.render.chart_memo:
+    the site of tests/data/site is built in several processes, seconds of drawing each). xdist's
+    workers share the folders under the run's temporary root. Set COMPARE_YARDSTICK_REUSE, COMPARE_ORACLE_REUSE or COMPARE_PROBE_REUSE
+    (or COMPARE_CHART_MEMO_DIR) empty to compute each anew;
     tests/running/test_hardware.py and the yardstick's fault tests call ``hardware.measure``,
     which always measures."""
+    from compare.render import chart_memo
     from compare.running import hardware, reuse
     base = tmp_path_factory.getbasetemp()
     root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base   # a worker's is <root>/<id>
-    for env, name in ((hardware.REUSE_ENV, "yardstick"), (reuse.ENV, "oracle"), (reuse.PROBE_ENV, "probes")):
+    for env, name in ((hardware.REUSE_ENV, "yardstick"), (reuse.ENV, "oracle"), (reuse.PROBE_ENV, "probes"),
+                      (chart_memo.DISK_ENV, "charts")):
         if env not in os.environ:
             (root / name).mkdir(exist_ok=True)
             os.environ[env] = str(root / name)

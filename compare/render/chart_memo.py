@@ -9,12 +9,22 @@ registry it colours and orders by, and writes the remembered bytes atomically wh
 call drew them; ``remembered`` does the same for a plot that saves itself (the sweep and stress
 plots, inside their layout check). An argument it cannot put in canonical form makes the call draw
 as usual.
+
+Opt-in, for a test suite whose processes draw the same charts: ``COMPARE_CHART_MEMO_DIR`` names a
+folder that this process and others setting it (xdist's workers, the command-line processes they
+start) share; a chart missing from memory is read there (one JSON file per key, written
+atomically) before it is drawn. A file that is absent, unreadable or not of this form is drawn
+as usual. Off unless the variable is set; ``forget`` stops reading it until ``recall_from_disk``.
 """
 from __future__ import annotations
 
+import base64
 import dataclasses
 import functools
 import hashlib
+import json
+import os
+import tempfile
 import types
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -26,6 +36,8 @@ import numpy as np
 from compare.files import atomic_write
 
 KEPT = 96                       # charts remembered per process (a PNG is tens of kB)
+DISK_ENV = "COMPARE_CHART_MEMO_DIR"
+_disk_reads = True              # off after forget(): a test that must see its charts drawn
 _CHARTS: OrderedDict[str, tuple[Any, list[bytes | None]]] = OrderedDict()
 F = TypeVar("F", bound=Callable[..., None])
 T = TypeVar("T")
@@ -89,6 +101,59 @@ def _stamp(f: Path) -> tuple[int, int] | None:
     return (st.st_mtime_ns, st.st_size)
 
 
+Kept = tuple[Any, list[bytes | None]]
+
+
+def _disk(k: str) -> Path | None:
+    d = os.environ.get(DISK_ENV)
+    return Path(d) / f"{k}.json" if d else None
+
+
+def _disk_get(k: str, n: int) -> Kept | None:
+    """The chart of key ``k`` (``n`` files) another process kept on disk, or None."""
+    f = _disk(k)
+    if f is None or not _disk_reads:
+        return None
+    try:
+        got = json.loads(f.read_text())
+        raws = [None if r is None else base64.b64decode(r, validate=True) for r in got["files"]]
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
+        return None
+    return (got["result"], raws) if len(raws) == n else None
+
+
+PNG_HEAD, PNG_TAIL = b"\x89PNG\r\n\x1a\n", b"IEND\xaeB`\x82"
+
+
+def _whole(files: list[Path], raws: list[bytes | None]) -> bool:
+    """Every file written, every PNG a whole one: a test that stubs the drawing (a few bytes for a
+    picture, no CSV) keeps its stand-ins out of the other processes."""
+    return all(r is not None and (f.suffix != ".png" or r.startswith(PNG_HEAD) and r.endswith(PNG_TAIL))
+               for f, r in zip(files, raws))
+
+
+def _disk_put(k: str, files: list[Path], kept: Kept) -> None:
+    """Keep ``kept`` on disk for the other processes: only whole files and a plain result (JSON
+    gives it back as it was); written atomically, a failure leaves the next process to draw (not
+    compare.files' writer, which fault tests replace)."""
+    f = _disk(k)
+    if f is None or type(kept[0]) not in (type(None), bool, int, str) or not _whole(files, kept[1]):
+        return
+    try:
+        text = json.dumps({"result": kept[0], "files": [None if r is None else base64.b64encode(r).decode()
+                                                        for r in kept[1]]})
+        fd, tmp = tempfile.mkstemp(dir=f.parent, prefix=f".{k}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w") as out:
+                out.write(text)
+            os.replace(tmp, f)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    except OSError:
+        pass
+
+
 def remembered(key: Any, files: list[Path], draw: Callable[[], T]) -> T:
     """``draw()``, which writes ``files`` (any it leaves absent stay absent), remembered by ``key``
     (its arguments but the paths, and the function that draws): equal keys write the remembered
@@ -97,18 +162,21 @@ def remembered(key: Any, files: list[Path], draw: Callable[[], T]) -> T:
         k = hashlib.sha256(repr((canon(key), [f.suffix for f in files], _registry())).encode()).hexdigest()
     except (Unkeyable, RecursionError, ValueError):
         return draw()
-    kept = _CHARTS.get(k)
+    kept = _CHARTS.get(k) or _disk_get(k, len(files))
     if kept is not None:
+        _CHARTS[k] = kept
         _CHARTS.move_to_end(k)
         for f, raw in zip(files, kept[1]):
             if raw is not None:
                 atomic_write(f, raw)
-        return kept[0]
-    before = [_stamp(f) for f in files]
-    result = draw()
-    # only what this draw wrote (a file it left as it was is not its picture)
-    _CHARTS[k] = (result, [f.read_bytes() if f.is_file() and _stamp(f) != was else None
-                           for f, was in zip(files, before)])
+        result = kept[0]
+    else:
+        before = [_stamp(f) for f in files]
+        result = draw()
+        # only what this draw wrote (a file it left as it was is not its picture)
+        _CHARTS[k] = (result, [f.read_bytes() if f.is_file() and _stamp(f) != was else None
+                               for f, was in zip(files, before)])
+        _disk_put(k, files, _CHARTS[k])
     while len(_CHARTS) > KEPT:
         _CHARTS.popitem(last=False)
     return result
@@ -126,8 +194,16 @@ def memo(draw: F) -> F:
 
 
 def forget() -> None:
-    """Drop every remembered chart (a test that must see a chart drawn)."""
+    """Drop every remembered chart and stop reading the disk's (a test that must see a chart drawn)."""
+    global _disk_reads
     _CHARTS.clear()
+    _disk_reads = False
 
 
-__all__ = ["KEPT", "Unkeyable", "canon", "forget", "memo", "remembered"]
+def recall_from_disk() -> None:
+    """Read the disk's charts again after ``forget`` (tests/conftest.py: after each test)."""
+    global _disk_reads
+    _disk_reads = True
+
+
+__all__ = ["DISK_ENV", "KEPT", "Unkeyable", "canon", "forget", "memo", "recall_from_disk", "remembered"]

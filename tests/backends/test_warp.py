@@ -268,26 +268,35 @@ def test_unrolled_on_cuda_agrees_and_reports_its_registers():
 
 
 PROJECTILE_CASES = [o for s, o in CASES if s == "projectile"]
+ALL = tuple(range(len(PROJECTILE_CASES)))
+# the unrolled variant compiles a kernel per case (seconds each): the fast tier runs a hard-contact
+# case and a soft-contact batch, the long tier every case (test_variant_is_the_default_bit_for_bit
+# holds each contact in both precisions to the default)
+UNROLLED_FAST = tuple(PROJECTILE_CASES.index(o) for o in ({"contact": "hard"}, {"contact": "soft", "batch": 37}))
 _worker_runs: dict = {}
 
 
-def worker_run(variant):
-    """The parity suite's projectile cases, float64, through one worker process per variant."""
-    if variant not in _worker_runs:
+def worker_run(variant, which=ALL):
+    """The parity suite's projectile cases ``which`` (indices), float64, through one worker process
+    per variant."""
+    if (variant, which) not in _worker_runs:
         specs = [Cell.from_dict({"scenario": "projectile", "backend": "warp", "device": "cpu",
-                                 "precision": "float64", "variant": variant, "params": o, "quick": True,
-                                 "repeat": 1, "min_time": 0.0, **CORRECTNESS}) for o in PROJECTILE_CASES]
-        _worker_runs[variant] = engine.run_cells(specs, timeout=900, share_process=True,
-                                                 probes={"warp": probe("warp")})
-    return _worker_runs[variant]
+                                 "precision": "float64", "variant": variant, "params": PROJECTILE_CASES[i],
+                                 "quick": True, "repeat": 1, "min_time": 0.0, **CORRECTNESS}) for i in which]
+        _worker_runs[variant, which] = engine.run_cells(specs, timeout=900, share_process=True,
+                                                        probes={"warp": probe("warp")})
+    return _worker_runs[variant, which]
 
 
 @pytest.mark.xdist_group("warp-variant-parity")
-@pytest.mark.parametrize("variant", ["checkpoint", "tape_zero", "unrolled"])
-def test_variant_passes_the_parity_cases(variant):
-    assert len(PROJECTILE_CASES) == 7
-    for overrides, (rec, out), (ref_rec, ref_out) in zip(PROJECTILE_CASES, worker_run(variant),
-                                                          worker_run("default")):
+@pytest.mark.parametrize("variant,which", [("checkpoint", ALL), ("tape_zero", ALL), ("unrolled", UNROLLED_FAST),
+                                           pytest.param("unrolled", ALL, marks=pytest.mark.slow)],
+                         ids=["checkpoint", "tape_zero", "unrolled-hard-soft", "unrolled"])
+def test_variant_passes_the_parity_cases(variant, which):
+    assert len(PROJECTILE_CASES) == 7 and len(which) >= 2
+    ref = worker_run("default")
+    for i, (rec, out) in zip(which, worker_run(variant, which)):
+        overrides, (ref_rec, ref_out) = PROJECTILE_CASES[i], ref[i]
         assert rec.status == "ok" and ref_rec.status == "ok", (overrides, rec.reason, ref_rec.reason)
         assert rec.variant == variant
         assert rec.error["vs_oracle"] <= rec.error["tolerance"], overrides

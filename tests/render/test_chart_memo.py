@@ -2,12 +2,17 @@
 bit for bit; any argument that differs (a value by one ulp, a formatter's captured value) draws it."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from compare.render import chart_memo, charts, report
 from test_charts import synthetic_bars
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_a_chart_asked_for_again_is_written_from_memory_and_a_changed_one_is_drawn(tmp_path, monkeypatch):
@@ -77,3 +82,48 @@ def test_a_plot_that_saves_itself_is_remembered_with_its_result_and_only_what_it
     fresh = tmp_path / "fresh.png"
     assert chart_memo.remembered(("plot", []), [fresh], lambda: plot([], fresh)) is False
     assert not fresh.exists()                                  # the older picture was not remembered
+
+
+SERVED = """
+import sys
+from pathlib import Path
+sys.path.insert(0, "tests/render")
+from test_charts import synthetic_bars
+from compare.render import charts, report
+charts.save = lambda fig, path: sys.exit("drawn")     # drawing here fails: the disk must serve it
+charts.bars(Path(sys.argv[1]), "t", "x", synthetic_bars(), fmt=report.fmt_time)
+"""
+
+
+def test_a_chart_drawn_in_one_process_is_written_from_disk_in_another(tmp_path, monkeypatch):
+    """COMPARE_CHART_MEMO_DIR (opt-in): another process with the same folder writes the bytes
+    drawn here without drawing; off, the same bytes are drawn; a test's stand-in drawing (a few
+    bytes for a picture) is not kept, and a damaged file is drawn, not served."""
+    memo = tmp_path / "memo"
+    memo.mkdir()
+    bs = synthetic_bars()
+    monkeypatch.setenv(chart_memo.DISK_ENV, str(memo))
+
+    def served(name: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", SERVED, str(tmp_path / name)], cwd=ROOT, env=dict(os.environ),
+                              capture_output=True, text=True, timeout=300)
+    chart_memo.forget()
+    monkeypatch.setattr(charts, "save", lambda fig, path: Path(path).write_bytes(b"png"))
+    charts.bars(tmp_path / "stub.png", "t", "x", bs, fmt=report.fmt_time)
+    assert list(memo.iterdir()) == []
+    monkeypatch.undo()
+    monkeypatch.setenv(chart_memo.DISK_ENV, str(memo))
+    chart_memo.forget()
+    charts.bars(tmp_path / "a.png", "t", "x", bs, fmt=report.fmt_time)
+    assert len(list(memo.glob("*.json"))) == 1
+    p = served("b.png")
+    assert p.returncode == 0, p.stderr[-2000:]
+    monkeypatch.setenv(chart_memo.DISK_ENV, "")
+    chart_memo.forget()
+    charts.bars(tmp_path / "c.png", "t", "x", bs, fmt=report.fmt_time)         # off: drawn
+    for ext in (".png", ".csv"):
+        a = (tmp_path / "a.png").with_suffix(ext).read_bytes()
+        assert a == (tmp_path / "b.png").with_suffix(ext).read_bytes() == (tmp_path / "c.png").with_suffix(ext).read_bytes()
+    next(memo.glob("*.json")).write_text('{"result": null, "files": ["not base64!"]}')
+    monkeypatch.setenv(chart_memo.DISK_ENV, str(memo))
+    assert served("d.png").returncode != 0                    # a damaged file: drawn

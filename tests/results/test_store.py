@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import PUBLISHED_STORES, published_store
+
 from compare.files import TEMP_MARK, TEMP_SUFFIX
 from compare.results import store as store_mod
 from compare.results.environment import RunEnvironment, machine, same_machine
@@ -32,6 +34,10 @@ SUITE_FILES = ("results.json", "sweep.json", "stress.json")
 MACHINES = sorted({p.parent for p in PUBLISHED})
 
 
+# the published stores, read once per test process (seconds each: several tests read each one)
+read_published, SHARED = published_store, PUBLISHED_STORES
+
+
 def ids(paths: list[Path]) -> list[str]:
     return [str(p.relative_to(ROOT)) for p in paths]
 
@@ -41,21 +47,23 @@ def small_store(path: Path, n: int = 4, host: str = "a") -> Store:
                                                      for r in SITE_RECORDS[:n]])
 
 
+@SHARED
 @pytest.mark.parametrize("folder", MACHINES, ids=ids(MACHINES))
 def test_a_machine_folder_holds_the_runs_of_one_machine(folder: Path) -> None:
     """A report compares like with like: every run in a machine's stores names one machine (GPU
     models, else the CPU model and, where recorded, its family and model; a run whose environment
     was not kept names none)."""
     envs = [e for f in folder.glob("*.json") if f.name in SUITE_FILES
-            for entry in Store.read(f).runs for e in run_environments(entry) if e.get("cpu") or e.get("gpus")]
+            for entry in read_published(f).runs for e in run_environments(entry) if e.get("cpu") or e.get("gpus")]
     apart = sorted({machine(a) for a in envs for b in envs if not same_machine(a, b)})
     assert not apart, f"{folder.relative_to(ROOT)} mixes machines: {apart}"
 
 
+@SHARED
 @pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))
 def test_a_published_store_saves_to_the_same_bytes(path: Path) -> None:
     """Files the store wrote (docs/results) come back byte for byte after a load and a save."""
-    assert Store.read(path).to_json() == path.read_text()
+    assert read_published(path).to_json() == path.read_text()
 
 
 # Runs stored from here on name a commit whose files they ran (session 21 made that checkable on a
@@ -63,10 +71,11 @@ def test_a_published_store_saves_to_the_same_bytes(path: Path) -> None:
 CLEAN_FROM = "2026-11-27T12:00:00+00:00"
 
 
+@SHARED
 @pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))
 def test_a_published_run_from_an_uncommitted_tree_is_refused(path: Path) -> None:
     """No run entry stored since CLEAN_FROM comes from a dirty tree or one whose state is unknown."""
-    late = [e for entry in Store.read(path).runs for e in run_environments(entry)
+    late = [e for entry in read_published(path).runs for e in run_environments(entry)
             if str(e.get("created", "")) >= CLEAN_FROM]
     assert [e["created"] for e in late if e.get("git_dirty") is not False or not e.get("git_commit")] == []
 
@@ -79,24 +88,26 @@ def not_clean(entries: list) -> list:
     return [e.get("created") for e in entries if e.get("git_dirty") is not False or not e.get("git_commit")]
 
 
+@SHARED
 @pytest.mark.parametrize("path", RESULTS, ids=ids(RESULTS))
 def test_every_published_run_figure_names_a_clean_commit(path: Path) -> None:
     """A results store's figures name a commit someone can check out: every record names its run,
     and every run entry is of a checked clean commit (older records live in evidence/, not here)."""
-    s = Store.read(path)
+    s = read_published(path)
     assert [r.key for r in s.records if not r.run] == []
     assert not_clean(s.runs) == []
     named = {str(r.run["created"]) for r in s.records if r.run}
     assert {str(e.get("created")) for e in s.runs} == named        # no entry that no record names
 
 
+@SHARED
 @pytest.mark.parametrize("path", PUBLISHED, ids=ids(PUBLISHED))
 def test_every_published_record_names_a_run_of_its_store(path: Path) -> None:
     """Every record of every published store (results, sweep, stress) names the run that measured
     it: an entry of the store's runs (a merged entry's environments too), by start and commit; a
     record stored before its suite stamped records, whose run the store's evidence could not tell
     (compare/suites/stamping.py), says so explicitly (its pages: "run unknown")."""
-    s = Store.read(path)
+    s = read_published(path)
     assert unstamped(s.records, s.runs) == []
 
 
@@ -104,13 +115,14 @@ CLEAN = [p for m in ("cpu", "xeon") for p in sorted(ROOT.glob(f"docs/results/{m}
          if p.name in ("sweep.json", "stress.json")]
 
 
+@SHARED
 @pytest.mark.parametrize("path", CLEAN, ids=ids(CLEAN))
 def test_the_cpu_stores_sweeps_and_stress_name_clean_commits(path: Path) -> None:
     """The two CPU stores' sweep and stress files were measured again from clean commits: every
     sweep record names its run (a stress row names its experiment, whose run the merge keeps), and
     every run (a stress file: every part its merge names) is of a checked clean commit. The
     H100's keep older runs until measured again (docs/measurement.md)."""
-    s = Store.read(path)
+    s = read_published(path)
     assert s.suite == "stress" or [r.key for r in s.records if not r.run] == []
     prov = s.analysis.get("provenance") or {}
     parts = [e for v in prov.values() for e in (v if isinstance(v, list) else [v])]
@@ -118,12 +130,13 @@ def test_the_cpu_stores_sweeps_and_stress_name_clean_commits(path: Path) -> None
     assert entries and not_clean(entries) == []
 
 
+@SHARED
 def test_measurement_md_counts_the_h100_sweep_and_stress_runs_as_the_stores_do() -> None:
     """docs/measurement.md's counts of the H100 sweep and stress stores' run entries that are not
     of a checked clean commit, held against the stores as they are measured again."""
     text = re.sub(r"\s+", " ", (ROOT / "docs" / "measurement.md").read_text(encoding="utf-8"))
     h100 = ROOT / "docs" / "results" / "h100"
-    sweep, stress = Store.read(h100 / "sweep.json"), Store.read(h100 / "stress.json")
+    sweep, stress = read_published(h100 / "sweep.json"), read_published(h100 / "stress.json")
     prov = stress.analysis.get("provenance") or {}
     entries = [*stress.runs, *(e for v in prov.values() for e in (v if isinstance(v, list) else [v]))]
     dirty = sum(e.get("git_dirty") is True for e in sweep.runs)

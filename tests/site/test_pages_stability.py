@@ -34,6 +34,10 @@ def pages_of(store: Path, tmp: Path, monkeypatch) -> dict[str, str]:
     return out
 
 
+# one xdist worker: the H100's pages, built once (seconds) for every test of the module, not once per worker
+pytestmark = pytest.mark.xdist_group("pages-stability")
+
+
 @pytest.fixture(scope="module")
 def h100(tmp_path_factory) -> dict[str, str]:
     mp = pytest.MonkeyPatch()

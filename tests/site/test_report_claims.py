@@ -22,6 +22,10 @@ NEWEST = {"drjit": "Dr.Jit", "triton": "Triton", "mlx": "MLX"}
 RULES = {r.key: r for r in questions.RULES}
 
 
+# one xdist worker: the three machines' stores, loaded once (seconds) for every test of the module, not once per worker
+pytestmark = pytest.mark.xdist_group("report-claims")
+
+
 @pytest.fixture(scope="module")
 def stores() -> dict[str, data.Machine]:
     from compare.suites import formats
