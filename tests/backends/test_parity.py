@@ -50,12 +50,10 @@ def _params(case):
 
 
 def run_case(backend, device, precision, scenario, overrides):
-    """Every case of one backend and device, both precisions, runs when the group's first test
-    asks (in one worker process per precision, or one for both): the framework starts once, not
-    once per case. Correctness
+    """Every case of one backend, device and precision runs in one worker process (the first
+    test of the group runs them all): the framework starts once, not once per case. Correctness
     only: warm kernel caches, no throughput regime (conftest.CORRECTNESS; timing runs start cold)."""
-    # one worker for both where the backend sets up either in one (Backend.precisions_share_a_process)
-    run_cases([(backend, s, p, o, device, "default") for p in ("float64", "float32") for s, o in CASES])
+    run_cases([(backend, s, precision, o, device, "default") for s, o in CASES])
     return ran((backend, scenario, precision, overrides, device, "default"))
 
 
