@@ -139,13 +139,6 @@ class Backend:
         skipped with this reason, or None. Decided without importing the framework."""
         return None
 
-    def precisions_share_a_process(self) -> bool:
-        """Whether untimed cells of both precisions may run one after another in one worker
-        (``setup`` called again with the other precision: compare.running.engine's shared
-        processes, for correctness suites only). Default: no, a process per precision, as timed
-        cells always have (their set-up and first call are their own)."""
-        return False
-
     def ensure_context(self, device: str) -> None:
         """Create the framework's device context now (not lazily inside the first kernel), so the
         device-memory baseline taken after it leaves the context out. Default: ``setup`` did."""

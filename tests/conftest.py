@@ -174,9 +174,9 @@ def _case_key(case: Case) -> str:
 
 def run_cases(cases: list[Case], timeout: float = 900) -> None:
     """Run each of ``cases`` not yet run in this process whose device is available, through the
-    worker path: one worker process per backend, device, precision (both, where the backend
-    allows) and variant (engine.run_cells, share_process), so a framework starts, and compiles
-    what the cells share, once rather than once per cell. Correctness only, as run_cell; read a case's (Record, outputs) with ``ran``."""
+    worker path: one worker process per backend, device, precision and variant (engine.run_cells,
+    share_process), so a framework starts, and compiles what the cells share, once rather than
+    once per cell. Correctness only, as run_cell; read a case's (Record, outputs) with ``ran``."""
     # each distinct case once (a group may list one twice: Taichi's FRAMES cell is a SMALL one)
     todo = list({_case_key(c): c for c in cases if _case_key(c) not in _CELLS
                  and not availability(c[0]).get(c[4], "unknown device")}.values())

@@ -149,9 +149,6 @@ class JaxBackend(Backend):
         import jaxlib
         return {"jax": jax.__version__, "jaxlib": jaxlib.__version__}
 
-    def precisions_share_a_process(self) -> bool:
-        return True     # setup sets jax_enable_x64 before the cell's arrays (tests/backends/test_jax.py)
-
     def setup(self, device: str, precision: str, variant: str) -> None:
         import os
         if variant == "graph" and GRAPH_FLAGS not in os.environ.get("XLA_FLAGS", ""):
@@ -160,8 +157,8 @@ class JaxBackend(Backend):
             raise RuntimeError(f"the graph variant needs XLA_FLAGS to contain {GRAPH_FLAGS!r}; "
                                f"it is {os.environ.get('XLA_FLAGS', '')!r}")
         import jax
-        # Per cell and before its arrays are created (arrays made under the other setting keep
-        # their dtype): a timed cell is its own worker; untimed ones may share one.
+        # Per process (each cell is its own worker) and before any array is created: arrays made
+        # under the other setting would keep their dtype.
         jax.config.update("jax_enable_x64", precision == Precision.FLOAT64)
         jax.config.update("jax_default_device", jax_device(device))
 

@@ -154,9 +154,6 @@ class NumbaBackend(Backend):
                 pass
         return out
 
-    def precisions_share_a_process(self) -> bool:
-        return True     # a kernel's dtype picks its compiled signature; nothing global
-
     def setup(self, device: str, precision: str, variant: str) -> None:
         if device == "cuda":   # a small projectile batch (B = 1 is one thread) launches fewer blocks than SMs: no low-occupancy warnings
             from numba import config

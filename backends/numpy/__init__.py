@@ -53,9 +53,6 @@ class NumpyBackend(Backend):
             import numpy as np
             return {"numpy": np.__version__}
 
-    def precisions_share_a_process(self) -> bool:
-        return True     # no set-up: each array carries its dtype
-
     def synchronize(self, device: str, result: Any) -> None:
         """Nothing to wait for: every ufunc has finished when it returns."""
 

@@ -124,9 +124,6 @@ class TaichiBackend(Backend):
         import taichi as ti
         return {"taichi": ".".join(map(str, ti.__version__))}
 
-    def precisions_share_a_process(self) -> bool:
-        return True     # setup's ti.init starts a new runtime with the cell's default_fp
-
     def setup(self, device: str, precision: Precision, variant: str) -> None:
         known = self.variants + tuple(v for vs in self.scenario_variants.values() for v in vs)
         if variant not in known:

@@ -90,9 +90,6 @@ class WarpBackend(Backend):
         import warp as wp
         return {"warp": wp.config.version}
 
-    def precisions_share_a_process(self) -> bool:
-        return True     # kernels are typed per dtype; wp.init once per process
-
     def setup(self, device: str, precision: str, variant: str) -> None:
         import warp as wp
         wp.config.quiet = True

@@ -73,9 +73,8 @@ def run_batch(specs: Sequence[Cell], timeout: float | None = 600.0,
               on_result: Callable[[int, Result], None] | None = None) -> list[Result]:
     """Run cells one after another in ONE fresh interpreter; returns (record, outputs) per spec.
 
-    Only for cells that may share a process: same backend, device, precision (unless the backend
-    sets up either precision again in one process: ``Backend.precisions_share_a_process``) and
-    variant (the framework's process-global set-up) and warm kernel caches (a cold first call needs its own
+    Only for cells that may share a process: same backend, device, precision and variant (the
+    framework's process-global set-up) and warm kernel caches (a cold first call needs its own
     process). ``timeout`` applies to each cell: the worker writes each record as it finishes,
     and a cell that takes longer is killed with its process; the cells after it run again in a
     new process, so one crash or hang costs one record, never the batch. ``on_result(i, result)``

@@ -128,8 +128,7 @@ def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
     A record always carries the cell's identity (scenario, backend, device, precision, variant,
     resolved params, tags). A cell that must not start (``not_runnable``) gets its record without
     a process. ``jobs`` > 1 overlaps cells, and ``share_process`` lets warm-cache cells of one
-    backend, device, precision (both, where ``Backend.precisions_share_a_process``) and variant
-    share one worker (``cells.run_batch``): both only for
+    backend, device, precision and variant share one worker (``cells.run_batch``): both only for
     suites whose figures are not timings. ``runner`` replaces the local worker (e.g. a Dask
     client). With a ``store``, every record is put and saved as it arrives (a killed run keeps
     what finished), and with ``resume`` a cell the store holds as ok/mismatch/skipped is not run
@@ -193,8 +192,7 @@ def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
             deferred = True
             continue
         shared = share_process and runner is None and cell.cache == "warm"
-        one = shared and backends.get(cell.backend).precisions_share_a_process()
-        group = (cell.backend, cell.device, "" if one else cell.precision, cell.variant) if shared else ("solo", i)
+        group = (cell.backend, cell.device, cell.precision, cell.variant) if shared else ("solo", i)
         groups.setdefault(group, []).append(i)
 
     if store is not None and deferred:

@@ -1,12 +1,13 @@
 """One cell, in its own process: ``python -m compare.running.worker SPEC.json OUT_DIR``.
 
 Process-global framework state (ti.init's precision, JAX's x64 flag, CUDA contexts) lives and dies
-with this process (an untimed batch sets it up again where the precision changes, if the backend
-allows), and a crash here is an ``error`` record in the parent, not a lost run. Writes each
-``compare.spec.Cell``'s OUT_DIR/record.json and OUT_DIR/outputs.npz.
+with this process, and a crash here becomes an ``error`` record in the parent, not a lost run.
+Decodes each ``compare.spec.Cell`` (``Cell.from_dict``); writes OUT_DIR/record.json and
+OUT_DIR/outputs.npz.
 
-The kernel is not trusted: its outputs must be the scenario's declared ones (``Scenario.output_shapes``)
-in the cell's precision, or the cell is an ``error`` naming the violation (float64 in a float32 cell).
+The kernel is not trusted: its outputs must be exactly the scenario's declared outputs
+(``Scenario.output_shapes``: names and shapes) with the cell's precision as dtype, or the cell is
+an ``error`` naming the violation; a float32 cell that computed in float64 is caught here.
 """
 from __future__ import annotations
 
@@ -331,7 +332,7 @@ class ContractError(RuntimeError):
     """A kernel's outputs break the scenario's declared contract."""
 
 
-_SET_UP: list[tuple[str, str, str, str]] = []      # the set-ups of this process's cells, in order
+_SET_UP: set[tuple[str, str, str, str]] = set()
 _SPIN = "import time\nt = time.time() + 3600\nwhile time.time() < t: pass\n"
 
 
@@ -366,12 +367,11 @@ def run_one(raw: dict[str, Any], cell_dir: Path) -> None:     # raw: the driver'
                 raise ValueError("only warm-cache cells may share a worker process")
             cache_note = "warm: shares a worker process with earlier cells of the same set-up"
         ident = (cell.backend, str(cell.device), str(cell.precision), cell.variant)
-        if _SET_UP and not any(i == ident or (be.precisions_share_a_process() and i[:2] + i[3:] == ident[:2] + ident[3:])
-                               for i in _SET_UP):      # setup() runs again where the precision changes
+        if _SET_UP and ident not in _SET_UP:
             raise ValueError(f"cells sharing a worker must share backend, device, precision and variant; got {ident}")
         with busy_cores(int((cell.tags or {}).get(BUSY_TAG) or 0)):
-            record = run_cell(cell, cell_dir, cache_note, set_up=_SET_UP[-1:] == [ident], laps=laps, gate=gate)
-        _SET_UP.append(ident)
+            record = run_cell(cell, cell_dir, cache_note, set_up=ident in _SET_UP, laps=laps, gate=gate)
+        _SET_UP.add(ident)
         text = json.dumps(jsonable(record.to_json()))     # the record crosses to the driver once, as JSON
     except ContractError as exc:  # the port broke the contract: say how, no traceback needed
         text = json.dumps({"status": "error", "reason": str(exc)})

@@ -128,8 +128,7 @@ class Ctx:
     def run_cells(self, specs: list[Cell], fresh_process: bool = False
                   ) -> list[tuple[Record, Outputs | None]]:
         """(record, outputs) per spec, in order. Stress figures are not timings, so cells of one
-        backend, device, precision (both, where the backend allows) and variant share a worker
-        process (the framework starts once),
+        backend, device, precision and variant share a worker process (the framework starts once),
         unless ``fresh_process`` (run-to-run comparisons want two separate processes). Every
         record also goes into the suite's store."""
         return engine.run_cells(specs, timeout=self.timeout, jobs=self.jobs, probes=self.probes,

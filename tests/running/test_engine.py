@@ -182,28 +182,3 @@ def test_cells_run_in_worker_processes_sharing_one_when_warm(tmp_path: Path) -> 
         assert out is not None and out["out"].shape == (n,)
     assert results[1][1] is None
     assert {r.key for r in Store.read(store.path).records} == {c.key() for c in plan}
-
-
-def test_untimed_cells_of_both_precisions_share_a_process_where_the_backend_says_so(monkeypatch) -> None:
-    """share_process groups warm cells by backend, device and variant, and by precision too unless
-    the backend sets up either precision again in one process (Backend.precisions_share_a_process);
-    cold cells (timed suites) never share."""
-    batches: list[list[str]] = []
-
-    def fake_batch(specs, timeout, on_result=None):
-        batches.append([c.precision for c in specs])
-        for k, c in enumerate(specs):
-            on_result(k, ({"status": "skipped", "reason": f"ran {c.precision}"}, None))
-    monkeypatch.setattr(engine.cells, "run_batch", fake_batch)
-    warm = {"cache": "warm", "throughput": False, "repeat": 1, "min_time": 0.0}
-    plan = [saxpy(precision=p, n=n, **warm) for p in ("float32", "float64") for n in (64, 128)]
-    for shares, want in ((True, [["float32", "float32", "float64", "float64"]]),
-                         (False, [["float32", "float32"], ["float64", "float64"]])):
-        batches.clear()
-        monkeypatch.setattr(type(backends.get("numpy")), "precisions_share_a_process", lambda self, s=shares: s)
-        results = engine.run_cells(plan, timeout=60, probes=PROBES, share_process=True)
-        assert sorted(batches) == want and [r.reason for r, _ in results] == [f"ran {c.precision}" for c in plan]
-    batches.clear()
-    cold = [saxpy(precision=p) for p in ("float32", "float64")]      # a timed suite's cells
-    engine.run_cells(cold, timeout=60, probes=PROBES, share_process=True)
-    assert sorted(batches) == [["float32"], ["float64"]]

@@ -8,7 +8,6 @@ import os
 import numpy as np
 import pytest
 
-import backends
 import scenarios
 from compare.running import worker
 from compare.spec import Cell
@@ -24,7 +23,7 @@ def quick(**settings) -> Cell:
 @pytest.fixture(autouse=True)
 def fresh_process(monkeypatch):
     """Each test is a worker's first cell."""
-    monkeypatch.setattr(worker, "_SET_UP", [])
+    monkeypatch.setattr(worker, "_SET_UP", set())
 
 
 def record_in(cell_dir) -> dict:
@@ -47,30 +46,12 @@ def test_a_failing_cell_leaves_an_error_record_with_its_traceback(tmp_path):
 
 
 def test_cells_sharing_a_worker_must_be_warm_and_of_one_set_up(tmp_path):
-    worker._SET_UP.append(("numpy", "cpu", "float32", "default"))
+    worker._SET_UP.add(("numpy", "cpu", "float32", "default"))
     worker.run_one(quick(cache="cold").to_dict(), tmp_path / "cold")
     assert record_in(tmp_path / "cold")["reason"] == "ValueError: only warm-cache cells may share a worker process"
-    worker.run_one(Cell.make("saxpy", "numpy", "cuda", "float32", params={"n": 10}, cache="warm").to_dict(),
+    worker.run_one(Cell.make("saxpy", "numpy", "cpu", "float64", params={"n": 10}, cache="warm").to_dict(),
                    tmp_path / "other")
     assert "must share backend, device, precision and variant" in record_in(tmp_path / "other")["reason"]
-
-
-def test_a_backend_that_sets_up_either_precision_again_shares_a_worker_across_them(tmp_path, monkeypatch):
-    """Backend.precisions_share_a_process: a float64 cell after a float32 one in the same worker is
-    set up again (float64 outputs, within the float64 bound); where the backend says no, refused."""
-    calls: list[str] = []
-    be = backends.get("numpy")
-    monkeypatch.setattr(type(be), "setup", lambda self, d, p, v: calls.append(str(p)), raising=False)
-    cell = lambda p: Cell.make("saxpy", "numpy", "cpu", p, params={"n": 64}, cache="warm").to_dict()  # noqa: E731
-    for i, p in enumerate(("float32", "float32", "float64", "float32")):
-        worker.run_one(cell(p), tmp_path / f"c{i}")
-        rec = record_in(tmp_path / f"c{i}")
-        assert rec["status"] == "ok" and rec["precision"] == p, rec.get("reason")
-    assert calls == ["float32", "float64", "float32"]      # once per change of precision
-    monkeypatch.setattr(type(be), "precisions_share_a_process", lambda self: False)
-    monkeypatch.setattr(worker, "_SET_UP", [("numpy", "cpu", "float32", "default")])
-    worker.run_one(cell("float64"), tmp_path / "refused")
-    assert "must share backend, device, precision and variant" in record_in(tmp_path / "refused")["reason"]
 
 
 def test_main_runs_every_cell_of_the_file_into_its_own_folder(tmp_path):
