@@ -26,10 +26,11 @@ def _disk_fault(f: Any, data: bytes) -> None:
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
-def atomic_write(path: Path, data: str | bytes) -> None:
+def atomic_write(path: Path, data: str | bytes, counted: bool = True) -> None:
     """Write via a temporary file in the same directory and rename, so a reader never sees half
     a file and a failed write (a full disk) leaves neither a partial file nor the temporary; the
-    file keeps its previous content. An OSError names ``path``, not the temporary."""
+    file keeps its previous content. An OSError names ``path``, not the temporary. ``counted``:
+    the write counts toward the COMPARE_FAULT_DISK test hook (not a cache's own bookkeeping)."""
     path = Path(path)
     raw = data.encode() if isinstance(data, str) else data
     try:
@@ -39,7 +40,8 @@ def atomic_write(path: Path, data: str | bytes) -> None:
         raise OSError(exc.errno, exc.strerror, str(path)) from None
     try:
         with os.fdopen(fd, "wb") as f:
-            _disk_fault(f, raw)
+            if counted:
+                _disk_fault(f, raw)
             f.write(raw)
         os.chmod(tmp, 0o644)          # mkstemp creates 0600; results are meant to be shared
         os.replace(tmp, path)

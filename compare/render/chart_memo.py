@@ -24,7 +24,6 @@ import functools
 import hashlib
 import json
 import os
-import tempfile
 import types
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -134,22 +133,14 @@ def _whole(files: list[Path], raws: list[bytes | None]) -> bool:
 
 def _disk_put(k: str, files: list[Path], kept: Kept) -> None:
     """Keep ``kept`` on disk for the other processes: only whole files and a plain result (JSON
-    gives it back as it was); written atomically, a failure leaves the next process to draw (not
-    compare.files' writer, which fault tests replace)."""
+    gives it back as it was); written atomically and not counted by the full-disk test hook (a
+    cache, not an output); a failure leaves the next process to draw."""
     f = _disk(k)
     if f is None or type(kept[0]) not in (type(None), bool, int, str) or not _whole(files, kept[1]):
         return
     try:
-        text = json.dumps({"result": kept[0], "files": [None if r is None else base64.b64encode(r).decode()
-                                                        for r in kept[1]]})
-        fd, tmp = tempfile.mkstemp(dir=f.parent, prefix=f".{k}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w") as out:
-                out.write(text)
-            os.replace(tmp, f)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        atomic_write(f, json.dumps({"result": kept[0], "files": [None if r is None else base64.b64encode(r).decode()
+                                                                 for r in kept[1]]}), counted=False)
     except OSError:
         pass
 

@@ -2,7 +2,6 @@
 ``runs``, publish's handed check and the noisy-sitting stamp (fast tier; CUDA: the lead's run)."""
 from __future__ import annotations
 
-
 from compare.measuring import environment
 from compare.running import sitting_run
 from compare.measuring.sitting import Quiet, SittingCheck, judge
