@@ -65,8 +65,10 @@ def compare(rows: list[Row], sittings: list[tuple[str, Machine]]) -> list[Betwee
     row picked the same variant in both (a sitting that timed fewer variants may pick another)."""
     out = []
     for label, other in sittings:
+        # a sitting of the busy row alone holds only busy records, which devices() does not read
+        have = set(other.devices()) | {r.device for r in other.busy if r.status == "ok" and r.time}
         for row in rows:
-            if row.rule.device and row.rule.device not in other.devices():
+            if row.rule.device and row.rule.device not in have:
                 continue
             theirs = matrix.evaluate(row.rule, other, fmt.value)
             # the same cells only: the same sizes read (a row that picks the largest size would

@@ -136,3 +136,28 @@ def test_an_exact_figure_is_neither_one_process_nor_short_of_an_interval(tmp_pat
     col = {c: i for i, c in enumerate(counts.headers)}
     assert sum(int(r[col["no interval"]]) for r in counts.rows) == len(timed)
     assert sum(int(r[col["exact"]]) for r in counts.rows) == len(exact)
+
+
+def test_a_sitting_of_the_busy_row_alone_is_compared_on_that_row():
+    """A later sitting that re-measured only the shared-host experiment holds busy records and no
+    other timed record: its busy row is still set beside the report's (its devices are the busy
+    records' own), each framework's time under load with its interval."""
+    from test_shared_host import cell, machine
+    from compare.site import matrix
+
+    def recs(k: float) -> list:
+        out = []
+        for sc in matrix.IN_ALL:
+            out += [cell("numpy", sc, 1e-3, ci=(0.9e-3, 1.1e-3)),
+                    cell("numpy", sc, 1.1e-3 * k, busy=1, ci=(1.0e-3 * k, 1.2e-3 * k)),
+                    cell("numba", sc, 1e-4, ci=(0.9e-4, 1.1e-4)),
+                    cell("numba", sc, 3e-4, busy=1, ci=(2.8e-4, 3.2e-4))]
+        return out
+    report, later = machine(recs(1.0)), machine(recs(1.5))
+    assert later.devices() == [] and later.busy              # only busy records
+    busy_rows = [r for r in pages.evaluate(report)[0] if r.rule.key == "busy"]
+    got = sittings.compare(busy_rows, [("later", later)])
+    by = {b.framework: b for b in got}
+    assert set(by) == {"numpy", "numba"} and {b.row for b in got} == {"busy"}
+    assert by["numba"].inside and by["numba"].spread == pytest.approx(1.0)
+    assert by["numpy"].spread == pytest.approx(1.5) and by["numpy"].inside is False
