@@ -108,3 +108,25 @@ def test_every_run_of_the_results_stores_is_of_a_checked_clean_commit() -> None:
         for r in runs:
             assert re.fullmatch(r"[0-9a-f]{7,40}", str(r.get("git_commit"))) and r.get("git_dirty") is False, (
                 key, r.get("created"))
+
+
+def test_measurement_md_names_the_rows_without_a_second_sitting(stores) -> None:
+    """measurement.md lists, per machine, the rows no later sitting has re-measured: the rows the
+    site's sittings comparison (compare/site/sittings.py) finds no figure for."""
+    from compare.site import sittings
+    text = " ".join((DOCS / "measurement.md").read_text(encoding="utf-8").split())
+    said = re.search(r"Rows without a second sitting yet: (.*?) Each machine page", text)
+    assert said, "measurement.md: the sentence naming rows without a second sitting"
+    for key, label in MACHINES.items():
+        rows = pages.evaluate(stores[key])[0]
+        have = {b.row for b in sittings.compare(rows, sittings.load_all([DOCS / "results" / key]))}
+        without = [r.rule.question for r in rows if r.rule.key not in have]
+        part = re.search(rf"{re.escape(label)}[^:]*: (.*?)\.", said.group(1))
+        assert part, label
+        words = part.group(1)
+        if not without:
+            assert words == "none", (label, words)
+        elif len(without) == len(rows):
+            assert words.startswith("every row"), (label, words)
+        else:
+            assert words.split("; ") == without, (label, words)
