@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import functools
 import typing
 from collections.abc import Mapping
 from typing import Any, ClassVar
@@ -175,6 +176,13 @@ def _coerce(name: str, value: Any, typ: Any) -> Any:
     raise ParamError(f"{name} must be {kind}, got {value!r}")
 
 
+
+@functools.cache
+def _hints(params_type: type) -> dict[str, Any]:
+    """A Params dataclass's resolved field types, once per class (every stored record's
+    parameters pass ``Scenario.params`` when read)."""
+    return typing.get_type_hints(params_type)
+
 class Scenario:
     """Base class of the four scenarios. Subclasses set the class attributes and the methods."""
 
@@ -193,7 +201,7 @@ class Scenario:
     def params(self, overrides: Mapping[str, Any] | None = None, quick: bool = False):
         """Defaults, then quick overrides, then user overrides; coerced and validated."""
         fields = {f.name: f for f in dataclasses.fields(self.Params)}
-        hints = typing.get_type_hints(self.Params)
+        hints = _hints(self.Params)
         values: dict[str, Any] = {}
         merged = dict(self.quick) if quick else {}
         merged.update(overrides or {})

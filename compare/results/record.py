@@ -41,7 +41,8 @@ from __future__ import annotations
 
 import dataclasses
 import types
-from typing import Any, Callable, Mapping
+from collections.abc import Callable, Mapping   # not typing's: isinstance through its alias is slow
+from typing import Any
 
 from compare.results import records
 from compare.results.record_floor import CellFloor
@@ -59,9 +60,14 @@ class RecordError(ValueError):
     """A record no reader could use: one line naming the first field that is wrong."""
 
 
+_SCALARS = frozenset({str, float, int, bool, type(None)})
+
+
 def _freeze(v: Any, field: str, depth: int = 1) -> Any:
     """``v`` read-only; a block nested past ``records.MAX_DEPTH`` is refused here, where the
     recursion would otherwise end in a RecursionError (this and every later reader recurse)."""
+    if type(v) in _SCALARS:         # most of a record: no isinstance walk for them
+        return v
     if isinstance(v, (Mapping, list, tuple)) and depth > records.MAX_DEPTH:
         raise RecordError(f"{field} is nested more than {records.MAX_DEPTH} levels deep")
     if isinstance(v, Mapping):

@@ -14,11 +14,17 @@ import dataclasses
 import functools
 import math
 import types
-from typing import Any, ClassVar, Iterator, Mapping, Self
+from collections.abc import Iterator, Mapping   # not typing's: isinstance through its alias is slow
+from typing import Any, ClassVar, Self
+
+
+_SCALARS = frozenset({str, float, int, bool, type(None)})     # returned as they are, first
 
 
 def frozen(v: Any) -> Any:
     """``v`` read-only: objects as mappings, lists as tuples (other values as they are)."""
+    if type(v) in _SCALARS:
+        return v
     if isinstance(v, Part):
         return v
     if isinstance(v, Mapping):

@@ -20,9 +20,11 @@ the memory available, or the arrays are not used.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
-from typing import Any, Callable, Mapping
+from collections.abc import Callable, Mapping
+from typing import Any
 
 from compare.spec import STATUSES
 
@@ -81,6 +83,7 @@ def show(v: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
+@functools.lru_cache(maxsize=4096)      # a store repeats its few keys in every record
 def show_key(k: str) -> str:
     """A JSON object's key in a refusal (quoted where it is not a plain name)."""
     return k if re.fullmatch(r"[A-Za-z0-9_]{1,40}", k) else repr(k)[:40]
@@ -105,12 +108,16 @@ def too_deep(v: Any, limit: int = MAX_DEPTH) -> bool:
 
 def problem(node: Any, v: Any, where: str) -> str | None:
     """The first way ``v`` (found at ``where``) does not fit ``node``, or None."""
+    if type(node) is Leaf:          # most nodes: skip the isinstance chain
+        return None if node.ok(v) else f"{where} must be {node.what}, got {show(v)}"
     if isinstance(node, Leaf):
         return None if node.ok(v) else f"{where} must be {node.what}, got {show(v)}"
     if isinstance(node, Either):
-        found = [problem(o, v, where) for o in node.options]
-        if None in found:
-            return None
+        found = []
+        for o in node.options:         # the first option that fits ends it, no refusal worded
+            if (p := problem(o, v, where)) is None:
+                return None
+            found.append(p)
         # a list or an object of the right kind: its own first problem says more
         same = [p for o, p in zip(node.options, found) if isinstance(o, Seq if isinstance(v, list) else Obj)]
         return same[0] if same and isinstance(v, (list, dict)) else f"{where} must be {node.what}, got {show(v)}"

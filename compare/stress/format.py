@@ -17,16 +17,32 @@ def rows_problem(data: dict[str, Any]) -> str | None:     # data: a stress.json 
         return None
     from compare.stress.registry import experiments     # the experiments load their scenarios
     registry = experiments()
+    by_exp: dict[Any, list[tuple[int, Any]]] = {}
     for i, r in enumerate(rows):
-        exp = registry.get(r["experiment"])
-        for hook in (exp.extra_markdown, exp.table_rows) if exp is not None else ():
-            try:
-                if hook is not None:
+        by_exp.setdefault(r["experiment"], []).append((i, r))
+    first: list[tuple[int, str]] = []
+    for name, mine in by_exp.items():
+        exp = registry.get(name)
+        hooks = [h for h in ((exp.extra_markdown, exp.table_rows) if exp is not None else ()) if h is not None]
+        try:                # an experiment's rows at once; row by row only to name a failing one
+            for hook in hooks:
+                hook([r for _, r in mine])
+            continue
+        except Exception:
+            pass
+        for i, r in mine:
+            for hook in hooks:
+                try:
                     hook([r])
-            except Exception as exc:    # the hook is the experiment's: any failure is this row's
-                why = f"{type(exc).__name__}: {show(str(exc))}"
-                return f"analysis.rows[{i}]: the {show(r['experiment'])} page cannot read this finding ({why})"
-    return None
+                except Exception as exc:    # the hook is the experiment's: any failure is this row's
+                    why = f"{type(exc).__name__}: {show(str(exc))}"
+                    first.append((i, f"analysis.rows[{i}]: the {show(r['experiment'])} page cannot read "
+                                      f"this finding ({why})"))
+                    break
+            else:
+                continue
+            break
+    return min(first)[1] if first else None
 
 
 FORMAT = Format("stress", "stress.json", store_problem=rows_problem)
