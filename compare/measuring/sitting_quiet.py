@@ -11,6 +11,7 @@ Runs stamped ``noisy_sitting`` are left out.
 """
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Mapping
@@ -38,6 +39,13 @@ def _runs(env: Mapping[str, Any]) -> Iterator[Mapping[str, Any]]:
             yield from _runs(e)
 
 
+@functools.lru_cache(maxsize=64)
+def _file_runs(path: Path, mtime_ns: int, size: int) -> tuple[Any, ...]:
+    """A store file's run entries, parsed once per version of the file (its time and size): the
+    stores are read whole for a few entries, and one process may check several sittings."""
+    return tuple(json.loads(path.read_text()).get("runs") or [])
+
+
 def stored_runs(folders: Iterable[Path]) -> list[Mapping[str, Any]]:
     """Every run entry of the stores in ``folders`` and of their later sittings
     (``FOLDER/sittings/<label>/``: runs of the same machine kind, kept apart from the report's rows);
@@ -56,7 +64,8 @@ def stored_runs(folders: Iterable[Path]) -> list[Mapping[str, Any]]:
                     if key in seen or not f.is_file():
                         continue
                     seen.add(key)
-                    runs = json.loads(f.read_text()).get("runs") or []
+                    st = f.stat()
+                    runs = _file_runs(key, st.st_mtime_ns, st.st_size)
                 except (OSError, ValueError, AttributeError):
                     continue
                 for env in runs:
