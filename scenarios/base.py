@@ -176,12 +176,12 @@ def _coerce(name: str, value: Any, typ: Any) -> Any:
     raise ParamError(f"{name} must be {kind}, got {value!r}")
 
 
-
 @functools.cache
 def _hints(params_type: type) -> dict[str, Any]:
     """A Params dataclass's resolved field types, once per class (every stored record's
     parameters pass ``Scenario.params`` when read)."""
     return typing.get_type_hints(params_type)
+
 
 class Scenario:
     """Base class of the four scenarios. Subclasses set the class attributes and the methods."""

@@ -46,8 +46,8 @@ from typing import Any
 
 from compare.results import records
 from compare.results.record_floor import CellFloor
-from compare.results.record_parts import (PARTS, Check, Converged, Gradient, Hardware, Memory, Part, Regime, Throughput,
-                                          Timing, plain)
+from compare.results.record_parts import (PARTS, SCALARS, Check, Converged, Gradient, Hardware, Memory, Part, Regime,
+                                          Throughput, Timing, plain)
 from compare.spec import Identity, key as cell_key
 from scenarios.base import Precision
 
@@ -60,13 +60,10 @@ class RecordError(ValueError):
     """A record no reader could use: one line naming the first field that is wrong."""
 
 
-_SCALARS = frozenset({str, float, int, bool, type(None)})
-
-
 def _freeze(v: Any, field: str, depth: int = 1) -> Any:
     """``v`` read-only; a block nested past ``records.MAX_DEPTH`` is refused here, where the
     recursion would otherwise end in a RecursionError (this and every later reader recurse)."""
-    if type(v) in _SCALARS:         # most of a record: no isinstance walk for them
+    if type(v) in SCALARS:          # most of a record: no isinstance walk for them
         return v
     if isinstance(v, (Mapping, list, tuple)) and depth > records.MAX_DEPTH:
         raise RecordError(f"{field} is nested more than {records.MAX_DEPTH} levels deep")

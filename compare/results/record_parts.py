@@ -18,12 +18,12 @@ from collections.abc import Iterator, Mapping   # not typing's: isinstance throu
 from typing import Any, ClassVar, Self
 
 
-_SCALARS = frozenset({str, float, int, bool, type(None)})     # returned as they are, first
+SCALARS = frozenset({str, float, int, bool, type(None)})     # JSON's scalars: returned as they are, first
 
 
 def frozen(v: Any) -> Any:
     """``v`` read-only: objects as mappings, lists as tuples (other values as they are)."""
-    if type(v) in _SCALARS:
+    if type(v) in SCALARS:
         return v
     if isinstance(v, Part):
         return v

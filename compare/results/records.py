@@ -108,8 +108,6 @@ def too_deep(v: Any, limit: int = MAX_DEPTH) -> bool:
 
 def problem(node: Any, v: Any, where: str) -> str | None:
     """The first way ``v`` (found at ``where``) does not fit ``node``, or None."""
-    if type(node) is Leaf:          # most nodes: skip the isinstance chain
-        return None if node.ok(v) else f"{where} must be {node.what}, got {show(v)}"
     if isinstance(node, Leaf):
         return None if node.ok(v) else f"{where} must be {node.what}, got {show(v)}"
     if isinstance(node, Either):
