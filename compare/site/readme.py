@@ -3,8 +3,9 @@
 README.md holds ``<!-- BEGIN generated: SOURCE -->`` ... ``<!-- END generated -->`` blocks. A
 SOURCE that is a path names a generated file (a report's matrix.md) whose links are rewritten
 relative to README; ``answers REPORT...`` is the table of which framework for which job, derived
-from the stores each report's site.json names (compare/site/answers.py). The test suite fails
-when a block differs from its source; ``python -m compare.site.readme`` rewrites them.
+from the stores each report's site.json names (compare/site/answers.py); ``sitting``, in a later
+sitting's README, is what that sitting shows (compare/site/sitting_readme.py). The test suite fails
+when a block differs from its source; ``python -m compare.site.readme`` rewrites them all.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ BLOCK = re.compile(r"(<!-- BEGIN generated: (.+?) -->\n)(.*?)(<!-- END generated
 LINK = re.compile(r"\]\((?!https?://|#|/)([^)]+)\)")
 ANCHOR = re.compile(r"\]\(#([^)]+)\)")
 ANSWERS = "answers"        # a block's source: `answers REPORT...`
+SITTING = "sitting"        # a block's source: the sitting whose folder holds the file
 
 
 def content(path: Path, readme: Path) -> str:
@@ -34,6 +36,9 @@ def content(path: Path, readme: Path) -> str:
 def source(spec: str, readme: Path) -> str:
     """A block's text from its source: a generated file, or the answers of the named reports."""
     words = spec.split()
+    if words == [SITTING]:
+        from compare.site import sitting_readme
+        return sitting_readme.block(readme.parent)
     if words[0] == ANSWERS:
         from compare.site import answers
         return answers.table([readme.parent / w for w in words[1:]], readme)
@@ -54,14 +59,20 @@ def main(argv: list[str]) -> int:
     from compare.stress.format import FORMAT as STRESS      # the answers read the stores' sweep
     from compare.sweep.format import FORMAT as SWEEP        # and stress records
     formats.register(SWEEP, STRESS)
-    readme = ROOT / "README.md"
-    new = expected(readme)
+    from compare.site import sitting_readme
+    stale = []
+    for readme in [ROOT / "README.md", *sitting_readme.readmes(ROOT / "docs" / "results")]:
+        new = expected(readme)
+        if new == readme.read_text(encoding="utf-8"):
+            continue
+        stale.append(readme)
+        if "--check" not in argv:
+            readme.write_text(new, encoding="utf-8")
+            print(f"rewrote {len(blocks(readme))} generated blocks in {readme.relative_to(ROOT)}")
     if "--check" in argv:
-        same = new == readme.read_text(encoding="utf-8")
-        print("README's generated blocks are current" if same else "README's generated blocks differ")
-        return 0 if same else 1
-    readme.write_text(new, encoding="utf-8")
-    print(f"rewrote {len(blocks(readme))} generated blocks in {readme}")
+        print("generated blocks differ in " + ", ".join(str(p.relative_to(ROOT)) for p in stale) if stale
+              else "every README's generated blocks are current")
+        return 1 if stale else 0
     return 0
 
 

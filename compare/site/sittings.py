@@ -145,7 +145,7 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
               f"row{'s' if len(by_row) != 1 else ''} measured again in {len(labels)} later "
               f"sitting{'s' if len(labels) != 1 else ''} ({', '.join(labels)}): "
               + (f"**{inside} of {len(with_ci)}** with an interval fall inside the report's stated "
-                 f"95 % interval (without one: {none})"
+                 "95 % interval" + (f" (without one: {none})" if none else "")
                  if with_ci else f"none has a 95 % interval in the report to hold it to ({none})")
               + f"; the sittings differ by {mid:.3g}× in the median figure, {spreads[-1]:.3g}× at most. "
               "Each row's page lists its figures; the machine's sittings, quiet or noisy, are above."),
