@@ -244,3 +244,27 @@ def test_the_largest_cpu_tape_slope(doc: str) -> None:
     name, figure = said(doc, r"the largest slope between horizons in the CPU store's horizon sweep is ([\w.]+)'s, "
                              r"(\d+) B per trajectory-step")
     assert (NAMES[name], figure) == (fw, f"{top:.0f}")
+
+
+# ---- the code's constants it quotes --------------------------------------------------------------
+def test_the_constants_and_coverages_it_quotes(doc: str) -> None:
+    """Not store figures, but as apt to drift: the thresholds named in the doc and the coverage of
+    the order-statistics interval at the process counts it names (compare.running.repeats)."""
+    from compare.running import repeats, worker
+    from compare.site import ranking
+    code = {"SEPARATED_GAP": ranking.SEPARATED_GAP, "ONE_PROCESS_GAP": ranking.ONE_PROCESS_GAP,
+            "PROFILE_S": worker.PROFILE_S, "COLD": repeats.COLD}
+    quoted = dict(re.findall(r"`([A-Z_]+)` = ([\d.]+)", doc))
+    assert quoted.keys() == code.keys() and all(float(quoted[k]) == v for k, v in code.items()), quoted
+    assert said(doc, r"above ([\d.]+)× the quiet floor \(`FLOOR_RATIO`\)")[0] == f"{sitting.FLOOR_RATIO:g}"
+    assert said(doc, r"below the quiet copy / ([\d.]+) \(`COPY_RATIO`\)")[0] == f"{sitting.COPY_RATIO:g}"
+    spread = said(doc, r"IQR above (\d+) % of the quiet floor with a synchronise \(`NULL_SPREAD`")[0]
+    assert spread == f"{100 * sitting.NULL_SPREAD:g}"
+
+    def cover(n: int) -> str:
+        return f"{100 * repeats.interval(list(range(n)))[2]:.3g}"
+    six, ten, three = said(doc, r"with 6 processes that is the range, ([\d.]+) %; with 10, the 2nd and 9th values, "
+                                r"([\d.]+) %\).*?\(3 processes: (\d+) %\)")
+    assert (six, ten, three) == (cover(6), cover(10), cover(3))
+    two, five = said(doc, r"less than 95 %: 2 processes (\d+) %, 5 processes (\d+) %\)")
+    assert (two, five) == (f"{float(cover(2)):.0f}", f"{float(cover(5)):.0f}")
