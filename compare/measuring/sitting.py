@@ -242,7 +242,7 @@ def _rate(bps: float) -> str:
 
 def _spread(sitting: SittingCheck, q: Quiet | None) -> tuple[float | None, str]:
     """The empty launches' IQR as a share of the quiet floor where there is one, else of their own
-    median. Their IQR is about 1 us in every stored H100 sitting (0.9-1.15 us), whatever the floor:
+    median. Their IQR is about the same in every stored H100 sitting, whatever the floor:
     over its own median it would call the fastest sittings the noisiest (docs/measurement.md)."""
     if sitting.null_spread is None:
         return None, ""

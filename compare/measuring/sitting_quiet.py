@@ -25,11 +25,14 @@ MIN_RUNS = 4              # fewer stored yardsticks of the kind: no quiet refere
 FILES = ("results.json", "sweep.json", "stress.json")
 
 
+UNRECORDED = "processor not recorded"
+
+
 def kind_of(device: str, gpu: object, cpu: object, cpu_id: object, cores: object) -> str:
     """The machine kind a sitting is compared within: the GPU's name on CUDA, else the CPU model,
-    its family/model/stepping (runs before 2026-12-02 did not record it: another kind) and its
-    usable cores."""
-    return str(gpu) if device == "cuda" else f"{cpu} ({cpu_id or 'processor not recorded'}; {cores} cores)"
+    its family/model/stepping (runs before 2026-12-02 did not record it: a kind of their own,
+    which gets no quiet reference) and its usable cores."""
+    return str(gpu) if device == "cuda" else f"{cpu} ({cpu_id or UNRECORDED}; {cores} cores)"
 
 
 def _runs(env: Mapping[str, Any]) -> Iterator[Mapping[str, Any]]:
@@ -83,7 +86,11 @@ def _num(v: object) -> float | None:
 
 
 def quiet(runs: Iterable[Mapping[str, Any]], device: str, kind: str) -> Quiet | None:
-    """The quiet sittings of ``kind`` on ``device`` among ``runs`` (None: fewer than ``MIN_RUNS``)."""
+    """The quiet sittings of ``kind`` on ``device`` among ``runs`` (None: fewer than ``MIN_RUNS``,
+    or CPU runs that did not record their processor: one CPU name spans hosts whose copies differ
+    widely, so no quiet sitting of theirs describes the next)."""
+    if device != "cuda" and f"({UNRECORDED};" in kind:
+        return None
     figs: dict[str, list[float]] = {"launch_latency_s": [], "launch_pipelined_s": [], "copy_bytes_per_s": []}
     count = 0
     for env in runs:
@@ -119,4 +126,4 @@ def quiet_for(check: SittingCheck, folders: Iterable[Path]) -> Quiet | None:
     return quiet(stored_runs(folders), check.device, kind_of(check.device, check.gpu, check.cpu, check.cpu_id, check.cores))
 
 
-__all__ = ["MIN_RUNS", "QUIET_QUANTILE", "kind_of", "quiet", "quiet_for", "repository_stores", "stored_runs"]
+__all__ = ["MIN_RUNS", "QUIET_QUANTILE", "UNRECORDED", "kind_of", "quiet", "quiet_for", "repository_stores", "stored_runs"]

@@ -50,6 +50,8 @@ def test_a_merged_entry_counts_its_runs_and_the_cpu_kind_names_the_processor():
     got = sq.quiet(flat, "cpu", kind)
     assert got is not None and got.runs == 4 and got.copy_bytes_per_s == 3e10 and got.launch_latency_s is None
     assert sq.quiet(flat, "cpu", sq.kind_of("cpu", None, "AMD EPYC", "", 2)) is None   # another processor
+    unrecorded = [{**cpu, "cpu_id": None}] * 4        # enough runs, but no processor recorded: no reference
+    assert sq.quiet(unrecorded, "cpu", sq.kind_of("cpu", None, "AMD EPYC", None, 2)) is None
 
 
 def test_the_h100_store_refuses_its_slow_sittings_and_keeps_its_quiet_ones():

@@ -128,6 +128,8 @@ def test_the_cpu_kinds_and_their_quiet_reference(doc: str) -> None:
               and ((e.get("hardware") or {}).get("cpu") or {}).get("copy_bytes_per_s")]
     assert said(doc, r'stands for hosts whose copies are ([\d.]+) to ([\d.]+) GB/s') == (
         f"{min(copies) / 1e9:.3g}", f"{max(copies) / 1e9:.3g}")
+    assert "That kind gets no quiet reference" in doc
+    assert sq.quiet(sq.stored_runs(sq.repository_stores()), "cpu", sq.kind_of("cpu", None, "AMD EPYC", None, 2)) is None
     day, fam, copy, n = said(doc, r"The AMD runs since ([\d-]+) are (family \d+, model \d+), another kind, with a quiet "
                                   r"reference of its own \(quiet copy ([\d.]+) GB/s, from its (\d+) runs not stamped noisy\)")
     ids = {e.get("cpu_id") for e in runs if str(e.get("created")) >= day}
