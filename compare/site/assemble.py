@@ -276,7 +276,7 @@ def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, aga
     written: list[Path] = []
     site = {"index": (title, pages.index(c, title, empty))}
     later = second.load_all(inputs)       # the rows measured again in later sittings (issue 57)
-    between = second.compare(rows, later)
+    between = second.compare(rows, later, m)
     for key, label in questions.PAGES.items():
         more = (second.summary(between, [n for n, _ in later]) if key == "machine"
                 else second.row_blocks(c.rows_of(key), between))

@@ -15,7 +15,6 @@ from pathlib import Path
 from compare.site import assemble, pages
 from compare.site import sittings as second
 from compare.site.data import load
-from compare.site.matrix import Row
 from compare.site.render import Block, P, Table, block_md
 
 
@@ -26,23 +25,29 @@ def readmes(results: Path) -> list[Path]:
 
 
 @functools.lru_cache(maxsize=None)
-def _report(machine: Path) -> tuple[Path, tuple[Row, ...]]:
-    """A machine folder's report (its site.json names the stores) and the report's rows."""
+def _report(machine: Path) -> tuple[Path, tuple[second.Between, ...], tuple[second.Landed, ...]]:
+    """A machine folder's report (its site.json names the stores), every later sitting's figures
+    against its rows, and where each sitting's figures land against the earlier ones."""
     report = machine / "report"
     inputs = json.loads((report / "site.json").read_text(encoding="utf-8"))["inputs"]
     root = machine.parents[2]                    # site.json's paths are from the repository root
-    rows, _ = pages.evaluate(load([root / p for p in inputs]))
-    return report, tuple(rows)
+    m = load([root / p for p in inputs])
+    rows, _ = pages.evaluate(m)
+    later = second.load_all([machine])
+    between = second.compare(rows, later, m)
+    return report, tuple(between), tuple(second.landed(between, [label for label, _ in later]))
 
 
 def block(folder: Path) -> str:
     """The generated block of the sitting in ``folder``: its runs' sitting checks, then its figures
-    against the report's, by row (the machine page's table, for this sitting alone)."""
-    report, rows = _report(folder.parent.parent)
+    against the report's, by row (the machine page's table, for this sitting alone), and where
+    they land in launch floors against the report's and the earlier sittings' range."""
+    report, every, landed = _report(folder.parent.parent)
     mine = load([folder])
-    between = second.compare(list(rows), [(folder.name, mine)])
+    between = [b for b in every if b.sitting == folder.name]
     checks = assemble.sittings(list(mine.runs), report)[2:]       # the table, without the page's heading and words
-    figures = [*second.summary(between, [folder.name])[1:], *_orders(between)]
+    figures = [*second.summary(between, [folder.name])[1:], *_orders(between),
+               *second.landing([x for x in landed if x.sitting == folder.name])]
     words = [P("Its runs' sitting checks (compare/measuring/sitting.py; quiet or noisy against the kind's "
                "quiet sittings):"), *checks] if checks else [P("Its runs took no sitting check.")]
     return "\n\n".join(block_md(b) for b in [*words, *figures]) + "\n"

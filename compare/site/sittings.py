@@ -16,11 +16,14 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from compare.site.render import H, P, Table
-from compare.site import fmt, matrix, questions
+from compare.site import data, fmt, matrix, questions
 from compare.site.data import Machine, load
 from compare.site.matrix import Row
 
 FOLDER = "sittings"
+# Rows whose figures travel between sittings in launch floors (docs/measurement.md, "Per-call
+# figures in launch floors"): the regime each divides by its cell's own floor, else its run's.
+TRAVEL = {"latency": "latency", "pipelined": "throughput", "particles-small": "throughput"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +40,10 @@ class Between:
     other: float
     processes: int                # the other sitting's processes for this figure
     exact: bool = False           # a deterministic figure (bytes, error shares): no interval, no processes
+    # the two figures in the unit that travels between sittings (launch floors, ``TRAVEL``); None
+    # where the row has none or a record no floor
+    first_floors: float | None = None
+    other_floors: float | None = None
 
     @property
     def spread(self) -> float:
@@ -60,9 +67,10 @@ def folders(inputs: Iterable[Path]) -> list[tuple[str, Path]]:
     return out
 
 
-def compare(rows: list[Row], sittings: list[tuple[str, Machine]]) -> list[Between]:
-    """Every figure a row of the report and the same row of another sitting both have, where the
-    row picked the same variant in both (a sitting that timed fewer variants may pick another)."""
+def compare(rows: list[Row], sittings: list[tuple[str, Machine]], report: Machine | None = None) -> list[Between]:
+    """Every figure a row of the report (``report``'s stores: for the figures in floors) and the
+    same row of another sitting both have, where the row picked the same variant in both (a
+    sitting that timed fewer variants may pick another)."""
     out = []
     for label, other in sittings:
         # a sitting of the busy row alone holds only busy records, which devices() does not read
@@ -82,7 +90,60 @@ def compare(rows: list[Row], sittings: list[tuple[str, Machine]]) -> list[Betwee
                         or o.variant != c.variant):
                     continue
                 out.append(Between(row.rule.key, row.rule.question, fw, c.variant, row.rule.unit, c.value, c.ci,
-                                   label, o.value, o.processes, row.rule.exact))
+                                   label, o.value, o.processes, row.rule.exact,
+                                   _floors(row, report, fw, c), _floors(row, other, fw, o)))
+    return out
+
+
+def _floors(row: Row, m: Machine | None, framework: str, cell: matrix.Cell) -> float | None:
+    """A cell's figure in launch floors (``data.floors``) where its row travels in them: the
+    record the row read for it (its framework and variant, its figure)."""
+    regime = TRAVEL.get(row.rule.key)
+    if regime is None or m is None:
+        return None
+    for r in row.rule.pick(m, row.device):
+        t = data.per_call(r, regime) if r.backend == framework and r.variant == cell.variant and r.status == "ok" else None
+        if t is not None and t.median == cell.value:
+            return data.floors(r, regime, t)
+    return None
+
+
+@dataclasses.dataclass(frozen=True)
+class Landed:
+    """How one sitting's figures of the rows that travel in floors land against the range of the
+    report's and the earlier sittings' figures: in launch floors and, beside, in seconds."""
+    sitting: str
+    figures: int                  # its figures with a floor on both sides
+    inside_floors: int            # inside the earlier range in floors
+    inside_seconds: int           # inside the earlier range in seconds (the same figures)
+    median_floors: float          # its median ratio to the report's figure (larger over smaller), in floors
+    median_seconds: float         # ... and in seconds
+
+
+def landed(between: list[Between], labels: list[str]) -> list[Landed]:
+    """Each sitting after the first (``labels`` in order) against the range the report and the
+    sittings before it give each figure of the rows in ``TRAVEL``: whether the figure lands inside
+    that range in launch floors and in seconds (issue 57: a unit that travels lands inside)."""
+    def spread(a: float, b: float) -> float:
+        return max(a, b) / min(a, b)
+    out = []
+    known: dict[tuple[str, str, str], list[tuple[float, float]]] = {}
+    for label in labels:
+        mine = [b for b in between if b.sitting == label and b.first_floors and b.other_floors]
+        inside = [0, 0]
+        for b in mine:
+            past = [(b.first, b.first_floors or 0.0), *known.get((b.row, b.framework, b.variant), [])]
+            if len(past) > 1:           # the report and an earlier sitting: a range to land in
+                inside[0] += min(f for _, f in past) <= (b.other_floors or 0) <= max(f for _, f in past)
+                inside[1] += min(v for v, _ in past) <= b.other <= max(v for v, _ in past)
+        ranged = [b for b in mine if len(known.get((b.row, b.framework, b.variant), [])) > 0]
+        if ranged:
+            mid = len(ranged) // 2
+            out.append(Landed(label, len(ranged), inside[0], inside[1],
+                              sorted(spread(b.first_floors or 1, b.other_floors or 1) for b in ranged)[mid],
+                              sorted(spread(b.first, b.other) for b in ranged)[mid]))
+        for b in mine:
+            known.setdefault((b.row, b.framework, b.variant), []).append((b.other, b.other_floors or 0.0))
     return out
 
 
@@ -154,7 +215,27 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
                 (q, str(len(bs)), str(sum(1 for b in bs if b.inside)),
                  str(sum(1 for b in bs if b.inside is None and not b.exact)), str(sum(1 for b in bs if b.exact)),
                  f"{sorted(b.spread for b in bs)[len(bs) // 2]:.3g}×", f"{max(b.spread for b in bs):.3g}×")
-                for q, bs in sorted(by_row.items(), key=lambda kv: order.get(kv[0], len(order)))))]
+                for q, bs in sorted(by_row.items(), key=lambda kv: order.get(kv[0], len(order))))),
+            *landing(landed(between, labels))]
 
 
-__all__ = ["FOLDER", "Between", "compare", "folders", "load_all", "row_blocks", "summary"]
+def landing(got: list[Landed]) -> list[Any]:
+    """Where each later sitting's per-call figures land against the range the report and the
+    sittings before it give, in launch floors and in seconds (nothing where none has a range)."""
+    if not got:
+        return []
+    rows = [r.question for r in questions.RULES if r.key in TRAVEL]
+    named = ", ".join(f"“{q}”" for q in rows[:-1]) + f" and “{rows[-1]}”" if len(rows) > 1 else f"“{rows[0]}”"
+    return [P(f"**Units that travel.** The rows {named} are also compared in launch "
+              "floors (each figure over its cell's own empty-kernel launch, else its run's: "
+              "docs/measurement.md). A sitting's figure *lands* where it lies inside the range that "
+              "the report and the sittings before it give the same figure; the same figures in "
+              "seconds beside. Issue 57's target: 90 % of a fresh sitting's figures land, in floors."),
+            Table(("sitting", "figures with an earlier range", "land in floors", "land in seconds",
+                   "median range to the report, floors", "... seconds"), tuple(
+                (x.sitting, str(x.figures), f"{x.inside_floors} ({100 * x.inside_floors / x.figures:.0f} %)",
+                 f"{x.inside_seconds} ({100 * x.inside_seconds / x.figures:.0f} %)",
+                 f"{x.median_floors:.3g}×", f"{x.median_seconds:.3g}×") for x in got))]
+
+
+__all__ = ["FOLDER", "TRAVEL", "Between", "Landed", "compare", "folders", "landed", "landing", "load_all", "row_blocks", "summary"]

@@ -161,3 +161,36 @@ def test_a_sitting_of_the_busy_row_alone_is_compared_on_that_row():
     assert set(by) == {"numpy", "numba"} and {b.row for b in got} == {"busy"}
     assert by["numba"].inside and by["numba"].spread == pytest.approx(1.0)
     assert by["numpy"].spread == pytest.approx(1.5) and by["numpy"].inside is False
+
+
+def _landing(sitting: str, fw: str, first: float, other: float, floors: tuple[float, float] | None) -> sittings.Between:
+    f = floors or (None, None)
+    return sittings.Between("latency", "Small kernel: one synchronised call", fw, "default", "s", first, None,
+                            sitting, other, 3, False, f[0], f[1])
+
+
+def test_a_later_sitting_lands_inside_the_range_of_the_report_and_the_earlier_ones_in_floors_and_seconds():
+    """The first later sitting has only the report's figure (no range); the second lands where its
+    figure lies between the report's and the first's, in floors and, separately, in seconds."""
+    between = [_landing("a", "warp", 10e-6, 14e-6, (1.0, 1.2)), _landing("a", "jax", 20e-6, 20e-6, (2.0, 2.0)),
+               _landing("b", "warp", 10e-6, 16e-6, (1.0, 1.1)),      # seconds outside, floors inside
+               _landing("b", "jax", 20e-6, 20e-6, (2.0, 2.5)),       # seconds inside (a point), floors outside
+               _landing("b", "torch", 5e-6, 5e-6, None)]             # no floor: not counted
+    got = sittings.landed(between, ["a", "b"])
+    assert [x.sitting for x in got] == ["b"]
+    assert (got[0].figures, got[0].inside_floors, got[0].inside_seconds) == (2, 1, 1)
+    text = " ".join(str(b) for b in sittings.landing(got))
+    assert "1 (50 %)" in text and "90 %" in text
+    assert sittings.landing([]) == []
+
+
+def test_a_travelling_rows_figures_carry_their_floors_on_both_sides(tmp_path, rows):
+    """compare() with the report's stores gives a figure of a travelling row in launch floors where
+    its record keeps its run's yardstick (the same records on both sides here: the same floors),
+    none for a row that does not travel, and none without the report's stores."""
+    report = _sitting(tmp_path, lambda r: r)
+    got = sittings.compare(rows, sittings.load_all([report]), data.load([STORE]))
+    floored = [b for b in got if b.first_floors is not None]
+    assert floored and {b.row for b in floored} <= set(sittings.TRAVEL)
+    assert all(b.other_floors == b.first_floors for b in floored)
+    assert all(b.first_floors is None for b in sittings.compare(rows, sittings.load_all([report])))
