@@ -168,17 +168,28 @@ def row_blocks(rows: list[Row], between: list[Between]) -> list[Any]:
     mine = [b for b in between if b.row in keys]
     if not mine:
         return []
+    floored = any(b.first_floors for b in mine)
     return [H("The same rows in another sitting"),
             P("Each figure of these rows beside the same figure measured in another sitting (another "
               "machine of the kind, or another day: the folder `sittings/` beside the report's records). "
               "The 95 % interval is the report's, across its processes; the range across sittings is "
-              "how far the machine's sessions move the figure, which no single run's interval shows."),
+              "how far the machine's sessions move the figure, which no single run's interval shows."
+              + (" A per-call figure is also given in launch floors (the report's → the sitting's): "
+                 "the unit meant to travel between sittings." if floored else "")),
             Table(("row", "framework", "variant", "this report", "95 % interval", "other sitting", "its figure",
-                   "range across sittings", "inside the interval"), tuple(
+                   "range across sittings", "inside the interval", *(["in launch floors"] if floored else [])), tuple(
                 (b.question, b.framework, b.variant or "default", fmt.value(b.first, b.unit), _interval(b), b.sitting,
                  fmt.value(b.other, b.unit) + ("" if b.exact or b.processes > 1 else " (1 process)"),
-                 f"{b.spread:.3g}×", _inside_words(b))
+                 f"{b.spread:.3g}×", _inside_words(b), *([_in_floors(b)] if floored else []))
                 for b in sorted(mine, key=lambda x: (x.question, x.sitting, x.framework))))]
+
+
+def _in_floors(b: Between) -> str:
+    """The two figures in launch floors and how far apart, where both have a floor."""
+    if not (b.first_floors and b.other_floors):
+        return "-"
+    lo, hi = sorted((b.first_floors, b.other_floors))
+    return f"{b.first_floors:.3g} → {b.other_floors:.3g} ({hi / lo:.3g}×)"
 
 
 def summary(between: list[Between], labels: list[str]) -> list[Any]:

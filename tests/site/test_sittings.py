@@ -194,3 +194,11 @@ def test_a_travelling_rows_figures_carry_their_floors_on_both_sides(tmp_path, ro
     assert floored and {b.row for b in floored} <= set(sittings.TRAVEL)
     assert all(b.other_floors == b.first_floors for b in floored)
     assert all(b.first_floors is None for b in sittings.compare(rows, sittings.load_all([report])))
+
+
+def test_a_row_page_gives_a_travelling_figure_in_floors_beside_its_seconds(rows):
+    latency = [r for r in rows if r.rule.key == "latency"]
+    table = sittings.row_blocks(latency, [_landing("a", "warp", 10e-6, 12e-6, (1.0, 1.5))])[-1]
+    assert table.headers[-1] == "in launch floors" and table.rows[0][-1] == "1 → 1.5 (1.5×)"
+    table = sittings.row_blocks(latency, [_landing("a", "warp", 10e-6, 12e-6, None)])[-1]
+    assert "in launch floors" not in table.headers
