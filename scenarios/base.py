@@ -221,7 +221,7 @@ class Scenario:
     def param_rules(self) -> list[tuple[str, Any, str]]:
         """(name, default, what a value must be) per parameter, for ``--help``. The rule is the
         validation's own words, found by offering values it refuses (no second copy to drift)."""
-        hints = typing.get_type_hints(self.Params)
+        hints = _hints(self.Params)
         out = []
         for f in dataclasses.fields(self.Params):
             kind = {int: "an integer", float: "a number", bool: "a boolean", str: "a string"}.get(hints[f.name], "")

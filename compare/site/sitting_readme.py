@@ -14,7 +14,7 @@ from pathlib import Path
 
 from compare.site import assemble, pages
 from compare.site import sittings as second
-from compare.site.data import load
+from compare.site.data import Machine, load
 from compare.site.render import Block, P, Table, block_md
 
 
@@ -25,9 +25,10 @@ def readmes(results: Path) -> list[Path]:
 
 
 @functools.lru_cache(maxsize=None)
-def _report(machine: Path) -> tuple[Path, tuple[second.Between, ...], tuple[second.Landed, ...]]:
-    """A machine folder's report (its site.json names the stores), every later sitting's figures
-    against its rows, and where each sitting's figures land against the earlier ones."""
+def _report(machine: Path) -> tuple[Path, dict[str, Machine], tuple[second.Between, ...], tuple[second.Landed, ...]]:
+    """A machine folder's report (its site.json names the stores), its later sittings' stores by
+    label, their figures against its rows, and where each sitting's figures land against the
+    earlier ones."""
     report = machine / "report"
     inputs = json.loads((report / "site.json").read_text(encoding="utf-8"))["inputs"]
     root = machine.parents[2]                    # site.json's paths are from the repository root
@@ -35,15 +36,15 @@ def _report(machine: Path) -> tuple[Path, tuple[second.Between, ...], tuple[seco
     rows, _ = pages.evaluate(m)
     later = second.load_all([machine])
     between = second.compare(rows, later, m)
-    return report, tuple(between), tuple(second.landed(between, [label for label, _ in later]))
+    return report, dict(later), tuple(between), tuple(second.landed(between, [label for label, _ in later]))
 
 
 def block(folder: Path) -> str:
     """The generated block of the sitting in ``folder``: its runs' sitting checks, then its figures
     against the report's, by row (the machine page's table, for this sitting alone), and where
     they land in launch floors against the report's and the earlier sittings' range."""
-    report, every, landed = _report(folder.parent.parent)
-    mine = load([folder])
+    report, stores, every, landed = _report(folder.parent.parent)
+    mine = stores[folder.name]
     between = [b for b in every if b.sitting == folder.name]
     checks = assemble.sittings(list(mine.runs), report)[2:]       # the table, without the page's heading and words
     figures = [*second.summary(between, [folder.name])[1:], *_orders(between),

@@ -48,13 +48,22 @@ class Between:
     @property
     def spread(self) -> float:
         """The larger figure over the smaller: how far the sittings disagree."""
-        lo, hi = sorted((self.first, self.other))
-        return hi / lo if lo > 0 else float("inf")
+        return _apart(self.first, self.other)
+
+    @property
+    def floors_spread(self) -> float | None:
+        """The same in launch floors (None without a floor on both sides)."""
+        return _apart(self.first_floors, self.other_floors) if self.first_floors and self.other_floors else None
 
     @property
     def inside(self) -> bool | None:
         """Whether the other sitting's figure lies inside the report's interval (None: no interval)."""
         return None if self.ci is None else self.ci[0] <= self.other <= self.ci[1]
+
+
+def _apart(a: float, b: float) -> float:
+    lo, hi = sorted((a, b))
+    return hi / lo if lo > 0 else float("inf")
 
 
 def folders(inputs: Iterable[Path]) -> list[tuple[str, Path]]:
@@ -84,6 +93,7 @@ def compare(rows: list[Row], sittings: list[tuple[str, Machine]], report: Machin
             # scenarios, every one of them
             if theirs.device != row.device or theirs.scope != row.scope:
                 continue
+            mine, yours = _floors(row, report), _floors(row, other)
             for fw, c in row.cells.items():
                 o = theirs.cells.get(fw)
                 if (c.value is None or o is None or o.value is None or c.reference != o.reference
@@ -91,21 +101,22 @@ def compare(rows: list[Row], sittings: list[tuple[str, Machine]], report: Machin
                     continue
                 out.append(Between(row.rule.key, row.rule.question, fw, c.variant, row.rule.unit, c.value, c.ci,
                                    label, o.value, o.processes, row.rule.exact,
-                                   _floors(row, report, fw, c), _floors(row, other, fw, o)))
+                                   mine.get((fw, c.variant, c.value)), yours.get((fw, o.variant, o.value))))
     return out
 
 
-def _floors(row: Row, m: Machine | None, framework: str, cell: matrix.Cell) -> float | None:
-    """A cell's figure in launch floors (``data.floors``) where its row travels in them: the
-    record the row read for it (its framework and variant, its figure)."""
+def _floors(row: Row, m: Machine | None) -> dict[tuple[str, str, float], float]:
+    """The figures in launch floors (``data.floors``) of the records ``row`` reads in ``m``, by
+    (framework, variant, figure), where the row travels in floors (empty where it does not)."""
     regime = TRAVEL.get(row.rule.key)
     if regime is None or m is None:
-        return None
+        return {}
+    out = {}
     for r in row.rule.pick(m, row.device):
-        t = data.per_call(r, regime) if r.backend == framework and r.variant == cell.variant and r.status == "ok" else None
-        if t is not None and t.median == cell.value:
-            return data.floors(r, regime, t)
-    return None
+        t = data.per_call(r, regime) if r.status == "ok" else None
+        if t is not None and (f := data.floors(r, regime, t)) is not None:
+            out[(r.backend, r.variant, t.median)] = f
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,30 +131,31 @@ class Landed:
     median_seconds: float         # ... and in seconds
 
 
+def _within(x: float | None, xs: list[float | None]) -> bool:
+    """``x`` inside the range of ``xs`` (every one a figure: the callers keep only those with floors)."""
+    got = [v for v in xs if v is not None]
+    return x is not None and bool(got) and min(got) <= x <= max(got)
+
+
 def landed(between: list[Between], labels: list[str]) -> list[Landed]:
     """Each sitting after the first (``labels`` in order) against the range the report and the
     sittings before it give each figure of the rows in ``TRAVEL``: whether the figure lands inside
     that range in launch floors and in seconds (issue 57: a unit that travels lands inside)."""
-    def spread(a: float, b: float) -> float:
-        return max(a, b) / min(a, b)
     out = []
-    known: dict[tuple[str, str, str], list[tuple[float, float]]] = {}
+    earlier: dict[tuple[str, str, str], list[Between]] = {}      # the figure's earlier sittings
     for label in labels:
-        mine = [b for b in between if b.sitting == label and b.first_floors and b.other_floors]
-        inside = [0, 0]
-        for b in mine:
-            past = [(b.first, b.first_floors or 0.0), *known.get((b.row, b.framework, b.variant), [])]
-            if len(past) > 1:           # the report and an earlier sitting: a range to land in
-                inside[0] += min(f for _, f in past) <= (b.other_floors or 0) <= max(f for _, f in past)
-                inside[1] += min(v for v, _ in past) <= b.other <= max(v for v, _ in past)
-        ranged = [b for b in mine if len(known.get((b.row, b.framework, b.variant), [])) > 0]
+        mine = [b for b in between if b.sitting == label and b.floors_spread is not None]
+        ranged = [(b, earlier[b.row, b.framework, b.variant]) for b in mine if (b.row, b.framework, b.variant) in earlier]
         if ranged:
             mid = len(ranged) // 2
-            out.append(Landed(label, len(ranged), inside[0], inside[1],
-                              sorted(spread(b.first_floors or 1, b.other_floors or 1) for b in ranged)[mid],
-                              sorted(spread(b.first, b.other) for b in ranged)[mid]))
+            out.append(Landed(label, len(ranged),
+                              sum(_within(b.other_floors, [b.first_floors, *(p.other_floors for p in past)])
+                                  for b, past in ranged),
+                              sum(_within(b.other, [b.first, *(p.other for p in past)]) for b, past in ranged),
+                              sorted(b.floors_spread or 1.0 for b, _ in ranged)[mid],
+                              sorted(b.spread for b, _ in ranged)[mid]))
         for b in mine:
-            known.setdefault((b.row, b.framework, b.variant), []).append((b.other, b.other_floors or 0.0))
+            earlier.setdefault((b.row, b.framework, b.variant), []).append(b)
     return out
 
 
@@ -186,10 +198,9 @@ def row_blocks(rows: list[Row], between: list[Between]) -> list[Any]:
 
 def _in_floors(b: Between) -> str:
     """The two figures in launch floors and how far apart, where both have a floor."""
-    if not (b.first_floors and b.other_floors):
+    if b.floors_spread is None:
         return "-"
-    lo, hi = sorted((b.first_floors, b.other_floors))
-    return f"{b.first_floors:.3g} → {b.other_floors:.3g} ({hi / lo:.3g}×)"
+    return f"{b.first_floors:.3g} → {b.other_floors:.3g} ({b.floors_spread:.3g}×)"
 
 
 def summary(between: list[Between], labels: list[str]) -> list[Any]:
