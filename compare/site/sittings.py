@@ -122,13 +122,43 @@ def _floors(row: Row, m: Machine | None) -> dict[tuple[str, str, float], float]:
 @dataclasses.dataclass(frozen=True)
 class Landed:
     """How one sitting's figures of the rows that travel in floors land against the range of the
-    report's and the earlier sittings' figures: in launch floors and, beside, in seconds."""
+    report's and the earlier sittings' figures, and against their row's band (``Band``): in launch
+    floors and, beside, in seconds."""
     sitting: str
-    figures: int                  # its figures with a floor on both sides
+    figures: int                  # its figures with a floor on both sides and an earlier range
     inside_floors: int            # inside the earlier range in floors
     inside_seconds: int           # inside the earlier range in seconds (the same figures)
     median_floors: float          # its median ratio to the report's figure (larger over smaller), in floors
     median_seconds: float         # ... and in seconds
+    banded: int = 0               # its figures whose row had a band before it
+    band_floors: int = 0          # inside the row's band, in floors
+    band_seconds: int = 0         # ... in seconds (the same figures)
+
+
+@dataclasses.dataclass(frozen=True)
+class Band:
+    """How far a row's figures moved between sittings: every later sitting's figure of the row
+    over the report's, pooled across frameworks (the report's own, 1, included), in launch floors
+    and in seconds. A figure's own range rests on two or three sittings; a fresh figure lies inside
+    the range of ``n`` exchangeable earlier ones with probability (n - 1) / (n + 1), so one needs
+    about 19 ratios for 90 %, which only a row's pool gives."""
+    row: str                      # the rule's key
+    floors: tuple[float, ...]     # the ratios in floors, 1 (the report) first
+    seconds: tuple[float, ...]
+
+    @property
+    def n(self) -> int:
+        return len(self.floors)
+
+    @property
+    def coverage(self) -> float:
+        """The chance a fresh exchangeable ratio lies inside the band's range."""
+        return (self.n - 1) / (self.n + 1)
+
+    def holds(self, b: Between) -> tuple[bool, bool]:
+        """Whether ``b``'s figure lies inside the band, in floors and in seconds."""
+        return (_within((b.other_floors or 0) / (b.first_floors or 1), list(self.floors)),
+                _within(b.other / b.first, list(self.seconds)))
 
 
 def _within(x: float | None, xs: list[float | None]) -> bool:
@@ -137,15 +167,33 @@ def _within(x: float | None, xs: list[float | None]) -> bool:
     return x is not None and bool(got) and min(got) <= x <= max(got)
 
 
+def _floored(between: list[Between], label: str) -> list[Between]:
+    return [b for b in between if b.sitting == label and b.floors_spread is not None and b.first > 0]
+
+
+def bands(between: list[Between], labels: list[str]) -> dict[str, Band]:
+    """Each row's band from the sittings ``labels`` (rows in ``TRAVEL`` with a floor on both sides)."""
+    got: dict[str, tuple[list[float], list[float]]] = {}
+    for label in labels:
+        for b in _floored(between, label):
+            f, s = got.setdefault(b.row, ([1.0], [1.0]))
+            f.append((b.other_floors or 0) / (b.first_floors or 1))
+            s.append(b.other / b.first)
+    return {row: Band(row, tuple(f), tuple(s)) for row, (f, s) in got.items()}
+
+
 def landed(between: list[Between], labels: list[str]) -> list[Landed]:
     """Each sitting after the first (``labels`` in order) against the range the report and the
-    sittings before it give each figure of the rows in ``TRAVEL``: whether the figure lands inside
-    that range in launch floors and in seconds (issue 57: a unit that travels lands inside)."""
+    sittings before it give each figure of the rows in ``TRAVEL``, and against each row's band
+    from the sittings before it: whether the figure lands inside, in launch floors and in seconds
+    (issue 57: a unit that travels lands inside)."""
     out = []
     earlier: dict[tuple[str, str, str], list[Between]] = {}      # the figure's earlier sittings
-    for label in labels:
-        mine = [b for b in between if b.sitting == label and b.floors_spread is not None]
+    for i, label in enumerate(labels):
+        mine = _floored(between, label)
         ranged = [(b, earlier[b.row, b.framework, b.variant]) for b in mine if (b.row, b.framework, b.variant) in earlier]
+        before = bands(between, labels[:i])
+        held = [before[b.row].holds(b) for b in mine if b.row in before]
         if ranged:
             mid = len(ranged) // 2
             out.append(Landed(label, len(ranged),
@@ -153,7 +201,8 @@ def landed(between: list[Between], labels: list[str]) -> list[Landed]:
                                   for b, past in ranged),
                               sum(_within(b.other, [b.first, *(p.other for p in past)]) for b, past in ranged),
                               sorted(b.floors_spread or 1.0 for b, _ in ranged)[mid],
-                              sorted(b.spread for b, _ in ranged)[mid]))
+                              sorted(b.spread for b, _ in ranged)[mid],
+                              len(held), sum(f for f, _ in held), sum(s for _, s in held)))
         for b in mine:
             earlier.setdefault((b.row, b.framework, b.variant), []).append(b)
     return out
@@ -238,26 +287,49 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
                  str(sum(1 for b in bs if b.inside is None and not b.exact)), str(sum(1 for b in bs if b.exact)),
                  f"{sorted(b.spread for b in bs)[len(bs) // 2]:.3g}×", f"{max(b.spread for b in bs):.3g}×")
                 for q, bs in sorted(by_row.items(), key=lambda kv: order.get(kv[0], len(order))))),
-            *landing(landed(between, labels))]
+            *landing(landed(between, labels), bands(between, labels))]
 
 
-def landing(got: list[Landed]) -> list[Any]:
+def landing(got: list[Landed], current: dict[str, Band] | None = None) -> list[Any]:
     """Where each later sitting's per-call figures land against the range the report and the
-    sittings before it give, in launch floors and in seconds (nothing where none has a range)."""
+    sittings before it give, and against each row's band, in launch floors and in seconds
+    (nothing where none has a range); with ``current``, the bands a next sitting is held to."""
     if not got:
         return []
-    rows = [r.question for r in questions.RULES if r.key in TRAVEL]
-    named = ", ".join(f"“{q}”" for q in rows[:-1]) + f" and “{rows[-1]}”" if len(rows) > 1 else f"“{rows[0]}”"
-    return [P(f"**Units that travel.** The rows {named} are also compared in launch "
-              "floors (each figure over its cell's own empty-kernel launch, else its run's: "
-              "docs/measurement.md). A sitting's figure *lands* where it lies inside the range that "
-              "the report and the sittings before it give the same figure; the same figures in "
-              "seconds beside. Issue 57's target: 90 % of a fresh sitting's figures land, in floors."),
-            Table(("sitting", "figures with an earlier range", "land in floors", "land in seconds",
-                   "median range to the report, floors", "... seconds"), tuple(
-                (x.sitting, str(x.figures), f"{x.inside_floors} ({100 * x.inside_floors / x.figures:.0f} %)",
-                 f"{x.inside_seconds} ({100 * x.inside_seconds / x.figures:.0f} %)",
-                 f"{x.median_floors:.3g}×", f"{x.median_seconds:.3g}×") for x in got))]
+    rows = {r.key: r.question for r in questions.RULES if r.key in TRAVEL}
+    named = ", ".join(f"“{q}”" for q in list(rows.values())[:-1]) + f" and “{list(rows.values())[-1]}”"
+    out: list[Any] = [
+        P(f"**Units that travel.** The rows {named} are also compared in launch "
+          "floors (each figure over its cell's own empty-kernel launch, else its run's: "
+          "docs/measurement.md). A sitting's figure *lands* where it lies inside the range that "
+          "the report and the sittings before it give the same figure; the same figures in "
+          "seconds beside. That range rests on two or three sittings, and a fresh figure lies "
+          "inside the range of k alike earlier ones with probability (k − 1)/(k + 1) at best (a "
+          "third for two), so each figure is also held to its row's *band*: every earlier "
+          "sitting's figure of the row over the report's, pooled across frameworks (n ratios, the "
+          "report's own 1 among them: (n − 1)/(n + 1) where the sittings are alike). Issue 57's "
+          "target: 90 % of a fresh sitting's figures land, in floors."),
+        Table(("sitting", "figures with an earlier range", "land in floors", "land in seconds",
+               "median range to the report, floors", "... seconds", "in the row's band, floors",
+               "... seconds"), tuple(
+            (x.sitting, str(x.figures), _share(x.inside_floors, x.figures), _share(x.inside_seconds, x.figures),
+             f"{x.median_floors:.3g}×", f"{x.median_seconds:.3g}×",
+             _share(x.band_floors, x.banded), _share(x.band_seconds, x.banded)) for x in got))]
+    if current:
+        out += [P("The bands a next sitting is held to (every stored sitting's ratios): a figure of the "
+                  "row should lie within these multiples of the report's figure."),
+                Table(("row", "ratios", "band in floors", "band in seconds", "expected inside"), tuple(
+                    (rows[k], str(b.n), _range(b.floors), _range(b.seconds), f"{100 * b.coverage:.0f} %")
+                    for k, b in current.items() if k in rows))]
+    return out
 
 
-__all__ = ["FOLDER", "TRAVEL", "Between", "Landed", "compare", "folders", "landed", "landing", "load_all", "row_blocks", "summary"]
+def _share(k: int, n: int) -> str:
+    return f"{k} ({100 * k / n:.0f} %)" if n else "-"
+
+
+def _range(xs: tuple[float, ...]) -> str:
+    return f"{min(xs):.2f}–{max(xs):.2f}×"
+
+
+__all__ = ["FOLDER", "TRAVEL", "Band", "Between", "Landed", "bands", "compare", "folders", "landed", "landing", "load_all", "row_blocks", "summary"]

@@ -272,3 +272,35 @@ def test_the_constants_and_coverages_it_quotes(doc: str) -> None:
     assert (six, ten, three) == (cover(6), cover(10), cover(3))
     two, five = said(doc, r"less than 95 %: 2 processes (\d+) %, 5 processes (\d+) %\)")
     assert (two, five) == (f"{float(cover(2)):.0f}", f"{float(cover(5)):.0f}")
+
+
+# ---- units that travel ---------------------------------------------------------------------------
+def test_where_the_fresh_per_call_sitting_lands(doc: str) -> None:
+    """Session 38's fresh per-call sitting against the report: its median distance in floors and
+    seconds, how many of its figures land in their own range and in their row's band, the bands'
+    sizes and widths, session 36's share and the one figure outside (compare/site/sittings.py)."""
+    from compare.site import sitting_readme, sittings
+    _, later, between, landed = sitting_readme._report(RESULTS / "h100")
+    labels = list(later)
+    fresh = "2026-12-07-session38-percall"
+    x = {s.sitting: s for s in landed}[fresh]
+    assert said(doc, r"lies ([\d.]+)× from the report in floors in the median, against ([\d.]+)× in seconds") == \
+        (f"{x.median_floors:.2f}", f"{x.median_seconds:.2f}")
+    assert said(doc, r"(\d+) of its (\d+) figures land in floors \((\d+) in seconds\)") == \
+        (str(x.inside_floors), str(x.figures), str(x.inside_seconds))
+    before = sittings.bands(list(between), labels[:labels.index(fresh)])
+    assert said(doc, r"\((\d+-\d+) ratios a row before session 38") == (span(b.n for b in before.values()),)
+    got = said(doc, r"(\d+) of its (\d+) figures land in floors \((\d+) %\), (\d+) in seconds \((\d+) %\)")
+    assert got == (str(x.band_floors), str(x.banded), f"{100 * x.band_floors / x.banded:.0f}", str(x.band_seconds),
+                   f"{100 * x.band_seconds / x.banded:.0f}")
+    now = sittings.bands(list(between), labels)
+    assert said(doc, r"the bands are wide \(([\d.]+)-([\d.]+)× in floors\)") == \
+        (f"{min(min(b.floors) for b in now.values()):.2f}", f"{max(max(b.floors) for b in now.values()):.2f}")
+    s36 = {s.sitting: s for s in landed}["2026-12-07-session36"]
+    assert said(doc, r"session 36's one-process run lands (\d+) % of its figures in its bands in floors") == \
+        (f"{100 * s36.band_floors / s36.banded:.0f}",)
+    out = [b for b in between if b.sitting == fresh and b.row in before and b.floors_spread is not None
+           and not before[b.row].holds(b)[0]]
+    assert [(b.framework, b.row) for b in out] == [("mlx", "pipelined")]
+    assert said(doc, r"The one figure outside is MLX's pipelined call \(([\d.]+)× the report in floors, ([\d.]+)×") == \
+        (f"{out[0].floors_spread:.2f}", f"{out[0].spread:.1f}")

@@ -184,6 +184,27 @@ def test_a_later_sitting_lands_inside_the_range_of_the_report_and_the_earlier_on
     assert sittings.landing([]) == []
 
 
+def test_a_later_sitting_is_held_to_its_rows_band_from_the_sittings_before_it():
+    """A row's band pools every earlier sitting's ratio to the report (the report's 1 among them),
+    across frameworks: a figure with no earlier range of its own is held to it too, and the bands
+    of every sitting are what the machine page states for the next one."""
+    between = [_landing("a", "warp", 10e-6, 14e-6, (1.0, 1.2)), _landing("a", "jax", 20e-6, 16e-6, (2.0, 1.8)),
+               _landing("b", "torch", 10e-6, 11e-6, (1.0, 1.1)),     # band: floors 0.9-1.2, seconds 0.8-1.4
+               _landing("b", "warp", 10e-6, 13e-6, (1.0, 1.3)),      # seconds inside, floors outside
+               _landing("b", "cupy", 10e-6, 7e-6, (1.0, 0.95))]      # floors inside, seconds outside
+    before = sittings.bands(between, ["a"])["latency"]
+    assert before.n == 3 and before.coverage == pytest.approx(0.5)
+    assert (min(before.floors), max(before.floors)) == pytest.approx((0.9, 1.2))
+    assert (min(before.seconds), max(before.seconds)) == pytest.approx((0.8, 1.4))
+    got = sittings.landed(between, ["a", "b"])
+    assert [x.sitting for x in got] == ["b"] and got[0].figures == 1          # warp alone has its own range
+    assert (got[0].banded, got[0].band_floors, got[0].band_seconds) == (3, 2, 2)
+    assert sittings.bands(between, ["a", "b"])["latency"].n == 6
+    text = " ".join(str(b) for b in sittings.landing(got, sittings.bands(between, ["a", "b"])))
+    assert "2 (67 %)" in text and "0.90–1.30×" in text and "71 %" in text
+    assert sittings.bands(between, []) == {}
+
+
 def test_a_travelling_rows_figures_carry_their_floors_on_both_sides(tmp_path, rows):
     """compare() with the report's stores gives a figure of a travelling row in launch floors where
     its record keeps its run's yardstick (the same records on both sides here: the same floors),
