@@ -55,12 +55,17 @@ def test_outputs_have_the_cells_precision(scenario, precision):
     assert {k: v.dtype for k, v in outputs.items()} == {k: np.dtype(precision) for k in outputs}
 
 
-def test_back_to_back_cells_keep_their_own_precision():
+# a worker per cell is three JAX start-ups: the long tier; the fast tier reads the shared cells
+@pytest.mark.xdist_group("jax-cells")
+@pytest.mark.parametrize("shared", [True, pytest.param(False, marks=pytest.mark.slow)],
+                         ids=["shared-workers", "a-worker-each"])
+def test_back_to_back_cells_keep_their_own_precision(shared):
     """The x64 flag is process-global in JAX; each cell must get exactly the one it asked for,
-    float64 after a float32 cell and float32 after a float64 one."""
+    float64 after a float32 cell and float32 after a float64 one: a worker each (float32,
+    float64, float32), or the shared cells' worker per precision, one after the other."""
     results = []
     for precision in ("float32", "float64", "float32"):
-        _, out = _run("saxpy", precision, SMALL["saxpy"])
+        _, out = (_shared if shared else _run)("saxpy", precision, SMALL["saxpy"])
         results.append((precision, out["out"]))
     for precision, out in results:
         assert out.dtype == np.dtype(precision)
@@ -130,11 +135,12 @@ import json, sys
 import numpy as np
 import backends, scenarios
 from backends.jax.projectile import Kernel, checkpoint_segment
+from compare.running import reuse
 b = backends.get("jax"); b.setup("cpu", "float64", "default")
 sc = scenarios.get("projectile")
 p = sc.params({"contact": "soft", "batch": 37}, quick=True)
 i = sc.inputs(p, "float64")
-ref = sc.oracle(p, i, "float64")
+ref = reuse.oracle(sc, p, i, "float64")     # the parity suite's cell asked it already
 res = {"segment": checkpoint_segment(p.steps)}
 kernels = {}
 for variant in ("default", "checkpoint"):
@@ -246,7 +252,10 @@ def test_checkpoint_variant_through_the_worker():
     assert outputs["loss_history"].shape == (21, 37) and outputs["grad"].dtype == np.float32
 
 
-def test_the_design_bytes_are_the_compiled_programs_plan_and_the_checkpoint_keeps_less():
+# soft contact's programs: the long tier; the fast tier keeps hard contact's, where checkpointing
+# keeps less too
+@pytest.mark.parametrize("contact", ["hard", pytest.param("soft", marks=pytest.mark.slow)])
+def test_the_design_bytes_are_the_compiled_programs_plan_and_the_checkpoint_keeps_less(contact):
     """info()["design_bytes"] (the gradients page's prediction) is XLA's plan of the compiled program:
     the donated outputs alias the inputs, and the reverse pass keeps what the transposed step needs
     (hard contact: about one predicate byte per step and trajectory, far below a tape of four
@@ -255,16 +264,17 @@ def test_the_design_bytes_are_the_compiled_programs_plan_and_the_checkpoint_keep
     from backends.jax.projectile import Kernel
     sc = scenarios.get("projectile")
     got = {}
-    for contact in ("hard", "soft"):
-        p = sc.params({"batch": 4096, "iters": 3, "steps": 180, "contact": contact})
-        for v in ("default", "checkpoint"):
-            k = Kernel(p, sc.inputs(p, "float32"), "cpu", "float32", v)
-            assert k.info()["design_bytes"] == {}
-            k.run()
-            got[contact, v] = k.info()["design_bytes"]
+    p = sc.params({"batch": 4096, "iters": 3, "steps": 180, "contact": contact})
+    for v in ("default", "checkpoint"):
+        k = Kernel(p, sc.inputs(p, "float32"), "cpu", "float32", v)
+        assert k.info()["design_bytes"] == {}
+        k.run()
+        got[v] = k.info()["design_bytes"]
     col = 4096 * 4
     for d in got.values():
         assert set(d) == {"inputs", "outputs", "xla_temporaries"} and 9 * col <= d["outputs"] < 9 * col + 256
-    assert 180 * 4096 <= got["hard", "default"]["xla_temporaries"] < 180 * 4 * col / 4     # >= a byte a step
-    assert got["hard", "checkpoint"]["xla_temporaries"] < got["hard", "default"]["xla_temporaries"]
-    assert got["soft", "checkpoint"]["xla_temporaries"] < got["soft", "default"]["xla_temporaries"] / 2
+    if contact == "hard":
+        assert 180 * 4096 <= got["default"]["xla_temporaries"] < 180 * 4 * col / 4     # >= a byte a step
+        assert got["checkpoint"]["xla_temporaries"] < got["default"]["xla_temporaries"]
+    else:
+        assert got["checkpoint"]["xla_temporaries"] < got["default"]["xla_temporaries"] / 2

@@ -29,12 +29,12 @@ import pytest
 
 import backends
 import scenarios
-from compare.running import engine
-from compare.spec import Cell
-from conftest import CORRECTNESS, probe, require_device
+from conftest import ran, require_device, run_cases
 from test_parity import CASES
 
-pytestmark = pytest.mark.warp
+# the tests that build kernels in this process share one xdist worker: Warp starts once, and each
+# unrolled kernel compiles once (a test's own xdist_group mark, the closer, places it elsewhere)
+pytestmark = [pytest.mark.warp, pytest.mark.xdist_group("warp-in-process")]
 pytest.importorskip("warp")
 
 BACKEND = backends.get("warp")
@@ -91,9 +91,17 @@ def test_checkpoint_without_recompute_is_wrong():
     assert "grad" in same_bits(good.outputs(), bad.outputs())
 
 
-@pytest.mark.parametrize("precision", ["float64", "float32"])
-@pytest.mark.parametrize("contact", ["none", "hard", "soft"])
-@pytest.mark.parametrize("variant,unroll_max", [("tape_zero", None), ("unrolled", None), ("unrolled", 16)])
+# float32's segmented unrolled kernels (UNROLL_MAX 16) of no or soft contact compile for this test
+# alone: the long tier runs them; the fast tier keeps float64's of each contact (segments are cut
+# alike in both precisions) and hard contact's float32 ones (test_design_bytes_are_the_arrays_allocated
+# compiles them)
+VARIANT_CASES = [pytest.param(v, m, c, p, id=f"{v}-{m}-{c}-{p}",
+                              marks=[pytest.mark.slow] if (m, p) == (16, "float32") and c != "hard" else [])
+                 for p in ("float64", "float32") for c in ("none", "hard", "soft")
+                 for v, m in (("tape_zero", None), ("unrolled", None), ("unrolled", 16))]
+
+
+@pytest.mark.parametrize("variant,unroll_max,contact,precision", VARIANT_CASES)
 def test_variant_is_the_default_bit_for_bit(variant, unroll_max, contact, precision, monkeypatch):
     from backends.warp import projectile
     if unroll_max:      # 50 steps in segments of at most 16: 13, 13, 13, 11 (two kernels)
@@ -269,29 +277,25 @@ def test_unrolled_on_cuda_agrees_and_reports_its_registers():
 
 PROJECTILE_CASES = [o for s, o in CASES if s == "projectile"]
 ALL = tuple(range(len(PROJECTILE_CASES)))
-# the unrolled variant compiles a kernel per case (seconds each): the fast tier runs a hard-contact
-# case and a soft-contact batch, the long tier every case (test_variant_is_the_default_bit_for_bit
-# holds each contact in both precisions to the default)
-UNROLLED_FAST = tuple(PROJECTILE_CASES.index(o) for o in ({"contact": "hard"}, {"contact": "soft", "batch": 37}))
-_worker_runs: dict = {}
+# the unrolled variant compiles a kernel per case, in seconds that grow with its steps: the fast
+# tier runs the 7-step case and a batch without contact, the long tier every case
+# (test_variant_is_the_default_bit_for_bit holds each contact in both precisions to the default)
+UNROLLED_FAST = tuple(PROJECTILE_CASES.index(o) for o in ({"steps": 7, "iters": 0}, {"contact": "none", "batch": 37}))
 
 
 def worker_run(variant, which=ALL):
     """The parity suite's projectile cases ``which`` (indices), float64, through one worker process
-    per variant."""
-    if (variant, which) not in _worker_runs:
-        specs = [Cell.from_dict({"scenario": "projectile", "backend": "warp", "device": "cpu",
-                                 "precision": "float64", "variant": variant, "params": PROJECTILE_CASES[i],
-                                 "quick": True, "repeat": 1, "min_time": 0.0, **CORRECTNESS}) for i in which]
-        _worker_runs[variant, which] = engine.run_cells(specs, timeout=900, share_process=True,
-                                                        probes={"warp": probe("warp")})
-    return _worker_runs[variant, which]
+    per variant (conftest.run_cases); the default's are the parity suite's own cells, which this
+    xdist group has run already."""
+    cases = [("warp", "projectile", "float64", PROJECTILE_CASES[i], "cpu", variant) for i in which]
+    run_cases(cases)
+    return [ran(c) for c in cases]
 
 
-@pytest.mark.xdist_group("warp-variant-parity")
+@pytest.mark.xdist_group("warp-cells")         # with the parity suite's warp cells
 @pytest.mark.parametrize("variant,which", [("checkpoint", ALL), ("tape_zero", ALL), ("unrolled", UNROLLED_FAST),
                                            pytest.param("unrolled", ALL, marks=pytest.mark.slow)],
-                         ids=["checkpoint", "tape_zero", "unrolled-hard-soft", "unrolled"])
+                         ids=["checkpoint", "tape_zero", "unrolled-short-and-batch", "unrolled"])
 def test_variant_passes_the_parity_cases(variant, which):
     assert len(PROJECTILE_CASES) == 7 and len(which) >= 2
     ref = worker_run("default")

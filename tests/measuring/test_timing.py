@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 import backends
-from compare.running import cells
+from compare.running import cells, hardware
 from compare.spec import Cell
 from compare.measuring import timing
+from compare.results.environment import Yardstick
 from compare.results.record import Timing
 from conftest import require_device
 
@@ -158,12 +159,18 @@ def test_event_timer_choice():
 
 
 # ---- the CPU copy yardstick ------------------------------------------------------------------
-def test_cpu_yardstick_is_the_faster_of_one_thread_and_one_per_core():
+@pytest.fixture(scope="module")
+def cpu_yardstick() -> Yardstick:
+    """One measurement for the tests below to read (one xdist group: one process measures it)."""
+    return hardware.measure_cpu()
+
+
+@pytest.mark.xdist_group("cpu-yardstick")
+def test_cpu_yardstick_is_the_faster_of_one_thread_and_one_per_core(cpu_yardstick):
     """The CPU copy yardstick must not fall below one thread's copy nor below what the
     multi-threaded ports' copies reach; it says which it took, and the sliced copy copies all."""
     from concurrent.futures import ThreadPoolExecutor
-    from compare.running import hardware
-    hw = hardware.measure_cpu()
+    hw = cpu_yardstick
     assert hw["copy_bytes_per_s"] >= hw["copy_one_thread_bytes_per_s"] > 0
     assert f"in {hw['copy_threads']} thread" in hw["copy_how"]
     assert hw["copy_bytes_per_s"] == pytest.approx(2 * hw["copy_bytes"] / hw["copy_median_s"])
@@ -175,12 +182,12 @@ def test_cpu_yardstick_is_the_faster_of_one_thread_and_one_per_core():
         assert np.array_equal(dst, src), parts
 
 
-def test_cpu_cells_are_judged_against_a_copy_of_their_own_size():
+@pytest.mark.xdist_group("cpu-yardstick")
+def test_cpu_cells_are_judged_against_a_copy_of_their_own_size(cpu_yardstick):
     """The CPU yardstick has a copy at every power of two from 64 KiB to 128 MiB; a cell's
     bandwidth floor uses the one nearest its traffic, so a cache-resident SAXPY is not compared
     with DRAM (a hardware fraction of 4 at n = 1e6 was the symptom) and its floor says so."""
-    from compare.running import hardware
-    hw = hardware.measure_cpu()
+    hw = cpu_yardstick
     sizes = [p[0] for p in hw["copy_curve"]]
     assert sizes == sorted(sizes) and sizes[0] == 1 << 16 and sizes[-1] == hw["copy_bytes"]
     assert all(bw > 0 for _, bw in hw["copy_curve"])
