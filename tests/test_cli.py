@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import subprocess
 import sys
 
@@ -13,6 +14,7 @@ import backends
 from compare.running.hardware import matched_copy
 from conftest import FAULTY, ROOT
 from reliability_checks import run_main
+from shared_runs import QUICK_RUN, numpy_quick_run, quick_all, quick_argv
 
 pytestmark = pytest.mark.cli
 
@@ -60,23 +62,14 @@ def test_bad_usage_exits_2_with_one_line(args, needle, tmp_path, monkeypatch):
     assert "Traceback" not in "\n".join(lines)
 
 
-def quick_all(out, backend):
-    # warm kernel caches and no minimum time: the records' contract, not their first calls (a cold
-    # first call compiles every cell's Warp module, ~2 s each: test_host_profile_sample_check_and_variant_skips)
-    # nor the timings' precision
-    return compare("all", "--quick", "--backends", backend, "--devices", "cpu", "--repeat", "2", "--min-time", "0",
-                   "--cache", "warm", "--out", str(out), "--save-arrays")
-
-
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
-    """NumPy's cells (no kernel to compile: seconds); Warp's are the long tier's
-    (test_warp_all_quick_keeps_the_same_contracts)."""
-    out = tmp_path_factory.mktemp("run")
-    return quick_all(out, "numpy"), out
+    """NumPy's cells, a run other files read too (tests/shared_runs.py); Warp's are the long
+    tier's (test_warp_all_quick_keeps_the_same_contracts)."""
+    return numpy_quick_run(tmp_path_factory)
 
 
-@pytest.mark.xdist_group("quick_run")
+@QUICK_RUN
 def test_all_quick_is_ok_and_exit_0(quick_run):
     p, out = quick_run
     assert p.returncode == 0, p.stdout + p.stderr
@@ -94,7 +87,7 @@ def test_warp_all_quick_keeps_the_same_contracts(tmp_path):
     save_arrays_contract(tmp_path, "warp")
 
 
-@pytest.mark.xdist_group("quick_run")
+@QUICK_RUN
 def test_results_json_contract(quick_run):
     results_json_contract(quick_run[1], "numpy")
 
@@ -157,7 +150,7 @@ def results_json_contract(out, backend):
     assert "| backend" in md and "projectile" in md
 
 
-@pytest.mark.xdist_group("quick_run")
+@QUICK_RUN
 def test_save_arrays_contract(quick_run):
     save_arrays_contract(quick_run[1], "numpy")
 
@@ -174,36 +167,41 @@ def save_arrays_contract(out, backend):
                     assert z[k].dtype == np.dtype(precision)
 
 
-@pytest.mark.xdist_group("quick_run")
-def test_every_scenario_draws_its_picture_and_report_redraws_it(quick_run, tmp_path):
-    _, out = quick_run
-    names = {"saxpy", "sdf", "particles", "projectile", "time_vs_error"}
-    names |= {f"speed_{s}" for s in ("saxpy", "sdf", "particles", "projectile")}   # one framework: no speed-up
-    assert {f.stem for f in (out / "plots").glob("*.png")} == names
-    p = compare("report", str(out / "results.json"), "--out", str(tmp_path))
-    assert p.returncode == 0, p.stderr
-    assert {f.stem for f in (tmp_path / "plots").glob("*.png")} == names   # from the saved arrays
+PICTURES = {"saxpy", "sdf", "particles", "projectile", "time_vs_error"} | \
+    {f"speed_{s}" for s in ("saxpy", "sdf", "particles", "projectile")}     # one framework: no speed-up
 
 
-@pytest.mark.xdist_group("quick_run")
-def test_report_page_links_tables_and_pictures_and_leaves_the_source(quick_run, tmp_path):
-    _, out = quick_run
-    src = (out / "results.json").read_text()
+@QUICK_RUN
+def test_every_scenario_draws_its_picture(quick_run):
+    out = quick_run[1]
+    assert {f.stem for f in (out / "plots").glob("*.png")} == PICTURES
+
+
+@QUICK_RUN
+def test_report_redraws_every_picture_and_its_page_links_them_and_leaves_the_source(quick_run, tmp_path):
+    """One ``report --page`` into the run's own folder (a copy without its pictures): every picture
+    redrawn from the saved arrays, the page linking them, results.json untouched."""
+    run = tmp_path / "run"
+    shutil.copytree(quick_run[1], run, ignore=shutil.ignore_patterns("plots"))
+    src = (run / "results.json").read_text()
     notes = tmp_path / "notes.md"
     notes.write_text("Hand-written notes.")
     page = tmp_path / "page.md"
-    p = compare("report", str(out / "results.json"), "--out", str(out), "--page", str(page),
-                "--title", "Quick page", "--notes", str(notes))
-    assert p.returncode == 0, p.stderr
+    # compare.cli.main in this process (no interpreter to start); the entry point in a real
+    # process: tests/test_options.py::test_entry_point_sample
+    rc, lines = run_main(["report", str(run / "results.json"), "--out", str(run), "--page", str(page),
+                          "--title", "Quick page", "--notes", str(notes)])
+    assert rc == 0, lines
+    assert {f.stem for f in (run / "plots").glob("*.png")} == PICTURES     # from the saved arrays
     text = page.read_text()
     assert text.startswith("# Quick page") and "Hand-written notes." in text and "git commit" in text
     for s in ("saxpy", "sdf", "particles", "projectile", "time_vs_error"):
         link = next(line for line in text.splitlines() if line.startswith("![") and f"plots/{s}.png" in line)
         assert (page.parent / link[link.index("(") + 1:-1]).exists(), link
-    assert (out / "results.json").read_text() == src
-    p = compare("report", str(out / "results.json"), "--out", str(out), "--page", str(page),
-                "--notes", str(tmp_path / "missing.md"))
-    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--notes" in p.stderr
+    assert (run / "results.json").read_text() == src
+    rc, lines = run_main(["report", str(run / "results.json"), "--out", str(run), "--page", str(page),
+                          "--notes", str(tmp_path / "missing.md")])
+    assert rc == 2 and len(lines) == 1 and "--notes" in lines[0], lines
 
 
 @pytest.mark.parametrize("fault,status,needle", [
@@ -214,7 +212,9 @@ def test_report_page_links_tables_and_pictures_and_leaves_the_source(quick_run, 
     # kills a hung worker at its timeout with the reason "timed out after N s" (3 s, not this
     # command's 8 s), and the cases here record any failing cell and exit 1 the same way
     pytest.param("hang", "error", "timed out", marks=pytest.mark.slow),
-    ("oom", "error", "MemoryError"),
+    # the long tier's: a worker out of memory raises MemoryError, recorded as any exception of the
+    # worker is ('raise' above: compare/ treats no exception type apart)
+    pytest.param("oom", "error", "MemoryError", marks=pytest.mark.slow),
 ])
 def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, status, needle):
     # the driver's handling is the same for every backend: the tests' faulty backend (NumPy's
@@ -231,33 +231,43 @@ def test_failing_cell_is_recorded_and_exits_1(tmp_path, monkeypatch, fault, stat
     assert all(r["status"] == "ok" for r in recs if r["scenario"] != "saxpy")
 
 
-def test_resume_runs_only_missing_cells(tmp_path):
-    args = ("--backends", "numpy", "--devices", "cpu", "--precision", "float32", "--quick",
-            "--repeat", "1", "--min-time", "0", "--out", str(tmp_path), "--no-plots", "--save-arrays")
-    assert compare("saxpy", *args).returncode == 0
-    first = json.loads((tmp_path / "results.json").read_text())["records"]
-    p = compare("all", "--resume", *args)
-    assert p.returncode == 0, p.stderr
-    assert "saxpy/numpy" not in p.stderr         # not rerun
-    recs = json.loads((tmp_path / "results.json").read_text())["records"]
-    assert recs[0] == first[0]
+@QUICK_RUN
+def test_resume_runs_only_missing_cells(quick_run, tmp_path):
+    """The quick run cut off before its sdf cells (a copy of it without their records and
+    arrays): --resume runs those and keeps every other record as it was."""
+    out = tmp_path / "run"
+    shutil.copytree(quick_run[1], out)
+    data = json.loads((out / "results.json").read_text())
+    first = [r for r in data["records"] if r["scenario"] != "sdf"]
+    (out / "results.json").write_text(json.dumps({**data, "records": first}))
+    for f in (out / "arrays").glob("sdf-*.npz"):
+        f.unlink()
+    rc, lines = run_main([*quick_argv(out, "numpy"), "--resume", "--no-plots"])     # compare.cli.main here
+    assert rc == 0, lines
+    assert not any(f"{s}/numpy" in ln for ln in lines for s in ("saxpy", "particles", "projectile"))
+    recs = json.loads((out / "results.json").read_text())["records"]
+    assert [r for r in recs if r["scenario"] != "sdf"] == first         # not rerun
+    assert sorted(r["precision"] for r in recs if r["scenario"] == "sdf" and r["status"] == "ok") == \
+        ["float32", "float64"]
     assert {r["scenario"] for r in recs} == {"saxpy", "sdf", "particles", "projectile"}
 
 
 def test_host_profile_sample_check_and_variant_skips(tmp_path):
     """--host-profile keeps where the host's time per call goes; --check-sample checks that many
-    items; a variant the device lacks (JAX's graph variant on a CPU) is a skip with the reason."""
-    p = compare("run", "particles", "--backends", "warp,jax", "--devices", "cpu", "--precision",
+    items; a variant the device lacks (JAX's graph variant on a CPU) is a skip with the reason.
+    NumPy beside JAX: a second framework without a kernel to compile cold; no minimum time: the
+    profile keeps its own count of calls."""
+    p = compare("run", "particles", "--backends", "numpy,jax", "--devices", "cpu", "--precision",
                 "float32", "--variants", "default,graph", "--set", "n=600", "--set", "steps=20",
-                "--check-sample", "50", "--host-profile", "5", "--repeat", "2",
+                "--check-sample", "50", "--host-profile", "5", "--repeat", "2", "--min-time", "0",
                 "--out", str(tmp_path), "--no-plots")
     assert p.returncode == 0, p.stdout + p.stderr
     recs = json.loads((tmp_path / "results.json").read_text())["records"]
     by = {(r["backend"], r["variant"]): r for r in recs}
-    assert set(by) == {("warp", "default"), ("jax", "default"), ("jax", "graph")}
+    assert set(by) == {("numpy", "default"), ("jax", "default"), ("jax", "graph")}
     skip = by["jax", "graph"]
     assert skip["status"] == "skipped" and "CUDA only" in skip["reason"]
-    for key in (("warp", "default"), ("jax", "default")):
+    for key in (("numpy", "default"), ("jax", "default")):
         r = by[key]
         assert r["status"] == "ok", r["reason"]
         assert r["error"]["checked_items"].startswith("50 of 600"), r["error"]

@@ -6,9 +6,13 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import shutil
 from pathlib import Path
 
+import pytest
+
 from compare import cli
+from shared_runs import QUICK_RUN, numpy_quick_run
 
 RUN = ["saxpy", "--backends", "numpy", "--devices", "cpu", "--precision", "float32", "--quick",
        "--repeat", "2", "--min-time", "0"]
@@ -21,11 +25,25 @@ def main(argv: list[str]) -> tuple[int, str]:
     return rc, err.getvalue()
 
 
-def test_an_earlier_run_is_kept_or_replaced_only_when_told(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def earlier_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An earlier run's --out: the quick run of tests/shared_runs.py (each test works on its own copy)."""
+    p, out = numpy_quick_run(tmp_path_factory)
+    assert p.returncode == 0, p.stdout + p.stderr
+    return out
+
+
+def copy_of(run: Path, tmp_path: Path) -> Path:
     out = tmp_path / "results"
-    assert main([*RUN, "--out", str(out)])[0] == 0
+    shutil.copytree(run, out)
+    return out
+
+
+@QUICK_RUN
+def test_an_earlier_run_is_kept_or_replaced_only_when_told(earlier_run: Path, tmp_path: Path) -> None:
+    out = copy_of(earlier_run, tmp_path)
     first = (out / "results.json").read_bytes()
-    stale = out / "plots" / "sdf.png"             # a picture only an earlier run drew
+    stale = out / "plots" / "sdf.png"             # a picture only the earlier run drew
     stale.write_bytes(b"old")
     (out / "plots" / "mine.png").write_bytes(b"the user's")
 
@@ -48,14 +66,16 @@ def test_an_earlier_run_is_kept_or_replaced_only_when_told(tmp_path: Path) -> No
     assert "{'" not in head and max(len(line) for line in head.splitlines()) < 600, head
 
 
-def test_report_never_rewrites_its_input(tmp_path: Path) -> None:
-    out = tmp_path / "results"
-    assert main([*RUN, "--out", str(out)])[0] == 0
+@QUICK_RUN
+def test_report_never_rewrites_its_input(earlier_run: Path, tmp_path: Path) -> None:
+    out = copy_of(earlier_run, tmp_path)
     before = (out / "results.json").read_bytes()
     rc, err = main(["report", str(out / "results.json"), "--out", str(out)])
     assert rc == 2 and "rewrite its input" in err, err
     assert (out / "results.json").read_bytes() == before
-    assert main(["report", str(out / "results.json"), "--out", str(tmp_path / "merged")])[0] == 0
+    # --no-plots: where it writes is the subject; a report drawing its pictures is
+    # tests/test_cli.py::test_report_redraws_every_picture_and_its_page_links_them_and_leaves_the_source
+    assert main(["report", str(out / "results.json"), "--out", str(tmp_path / "merged"), "--no-plots"])[0] == 0
 
 
 def test_a_merged_report_names_its_inputs_and_each_run_in_its_header(tmp_path: Path) -> None:
@@ -66,7 +86,7 @@ def test_a_merged_report_names_its_inputs_and_each_run_in_its_header(tmp_path: P
     heads = []
     for src, out in ((store, tmp_path / "one"), (tmp_path / "one" / "results.json", tmp_path / "two")):
         # --no-plots: the header is the subject; a report drawing its pictures is
-        # tests/test_cli.py::test_every_scenario_draws_its_picture_and_report_redraws_it
+        # tests/test_cli.py::test_report_redraws_every_picture_and_its_page_links_them_and_leaves_the_source
         assert main(["report", str(src), "--out", str(out), "--no-plots"])[0] == 0
         head = (out / "results.md").read_text().split("\n## ")[0]
         assert f"- merged from: `{src}`" in head and "None" not in head, head

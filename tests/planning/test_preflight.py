@@ -65,7 +65,8 @@ def test_cells_over_the_available_memory_are_skipped_and_the_rest_run(work, monk
     monkeypatch.setattr(psutil, "virtual_memory", lambda: Mem())
     out = work / "out"
     code = cli.main(["saxpy", "--set", "n=65536", "--backends", "numpy", "--devices", "cpu",
-                     "--precision", "float32,float64", "--repeat", "3", "--out", str(out), "--no-plots"])
+                     "--precision", "float32,float64", "--repeat", "3", "--min-time", "0", "--out", str(out),
+                     "--no-plots"])
     assert code == 0, capsys.readouterr()
     recs = {r["precision"]: r for r in json.loads((out / "results.json").read_text())["records"]}
     assert recs["float32"]["status"] == "ok"
@@ -142,7 +143,7 @@ def test_a_miniature_that_failed_leaves_the_model_bound_to_decide(monkeypatch):
 
 # a big cell (B >= 2^16) that runs in a second: the preflight judges it, the real cell runs
 CHEAP_BIG = ["projectile", "--set", "batch=65536", "--set", "steps=4", "--set", "iters=1", "--devices", "cpu",
-             "--precision", "float32", "--repeat", "3", "--no-plots"]
+             "--precision", "float32", "--repeat", "3", "--min-time", "0", "--no-plots"]
 
 
 def test_the_cells_that_fit_run_and_the_others_are_skipped_with_their_estimate(work, monkeypatch, capsys):

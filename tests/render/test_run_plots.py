@@ -14,6 +14,9 @@ from compare.suites import run as run_suite
 pytestmark = pytest.mark.cli
 
 FRAMEWORKS = ["warp", "taichi", "jax", "numba", "cupy", "torch", "quadrants", "numpy"]
+# the tests that draw synthetic_records' pictures, on one worker in file order: the first draws
+# them, the later ones' drawings in turn are the chart memo's (tests/conftest.py)
+DRAWN = pytest.mark.xdist_group("run-plots-drawn")
 
 
 def record(scenario: str, backend: str, device: str, precision: str, t: float | None,
@@ -44,6 +47,7 @@ def synthetic_records() -> list[Record]:
     return recs
 
 
+@DRAWN
 def test_run_writes_speed_pictures_and_the_cpu_speedup(tmp_path):
     recs = synthetic_records()
     run_suite.render(tmp_path, {"command": "test"}, recs, {}, plots=True)
@@ -129,6 +133,7 @@ print("RESULT", run_plots.frameworks_loaded())
 """
 
 
+@DRAWN
 def test_pictures_drawn_side_by_side_are_the_ones_drawn_in_turn(tmp_path):
     """write_plots' forked drawing processes write the same files, byte for byte, as one
     process drawing them in turn (each job its own files): in a fresh interpreter, as the
@@ -143,6 +148,7 @@ def test_pictures_drawn_side_by_side_are_the_ones_drawn_in_turn(tmp_path):
     assert turn == {f.name: f.read_bytes() for f in (tmp_path / "side").iterdir()}
 
 
+@DRAWN
 def test_a_process_with_a_framework_loaded_draws_in_turn(tmp_path, monkeypatch):
     """A framework's own native threads are invisible to threading: where one is loaded, no fork."""
     import concurrent.futures

@@ -126,7 +126,8 @@ def test_sigkilled_driver_leaves_no_worker_no_temp_dir_and_a_stale_lock(tmp_path
     assert not worker_pids(str(tmp)), "a worker outlived its driver"
     assert not list(tmp.iterdir()), f"temporary files left: {list(tmp.iterdir())}"
     assert (out / ".compare.running.lock").read_text().strip() == str(driver.pid)       # stale
-    again = compare_proc(*args, "--resume", env=env)
+    # the cell on NumPy's kernels (none to compile): the dead driver's lock taken over is the subject
+    again = compare_proc(*args, "--resume", env={k: v for k, v in env.items() if k != "COMPARE_FAULTY_WRAPS"})
     _, err = again.communicate(timeout=300)
     assert again.returncode == 0, err
     assert [r.status for r in Store.read(out / "results.json").records] == ["ok"]

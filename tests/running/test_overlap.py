@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -16,8 +14,8 @@ from compare.running import overlap
 from compare.measuring import timing
 from compare.results.record_parts import Regime
 from compare.spec import Cell
-
-ROOT = Path(__file__).resolve().parents[2]
+from reliability_checks import run_main
+from shared_runs import QUICK_RUN, numpy_quick_run
 
 
 _READ_ENDS: list[int] = []
@@ -204,16 +202,15 @@ def test_a_call_that_fills_the_batch_is_its_own_throughput_regime():
     assert "same_as" not in fast and fast["k"] > 1
 
 
-def test_an_overlapped_run_times_each_cell_alone(tmp_path):
-    out = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-m", "compare", "run", "saxpy", "sdf", "--backends", "numpy", "--devices",
-                        "cpu", "--repeat", "2", "--overlap", "2", "--no-plots", "--out", str(out)],
-                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+@QUICK_RUN
+def test_an_overlapped_run_times_each_cell_alone(tmp_path_factory):
+    """The quick run of tests/shared_runs.py (--overlap 2), which tests/test_cli.py reads too."""
+    p, out = numpy_quick_run(tmp_path_factory)
     assert p.returncode == 0, p.stderr[-2000:]
     data = json.loads((out / "results.json").read_text())
     assert data["runs"][-1]["overlap"] == 2
     recs = [r for r in data["records"] if r["status"] == "ok"]
-    assert len(recs) == 4
+    assert len(recs) == 8
     spans = []
     for r in recs:
         t, ph = r["time"], r["time"]["phases"]
@@ -245,10 +242,10 @@ def test_protocol_calls_follow_the_timing_rules():
 
 def test_a_big_cell_predicted_past_the_timeout_is_skipped_with_the_prediction(tmp_path):
     out = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-m", "compare", "projectile", "--set", "batch=65536", "--backends",
-                        "numpy", "--devices", "cpu", "--precision", "float32", "--timeout", "2",
-                        "--no-plots", "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=600)
-    assert p.returncode == 0, p.stderr[-2000:]
+    # compare.cli.main in this process (no interpreter to start); the miniature in its own, as ever
+    rc, lines = run_main(["projectile", "--set", "batch=65536", "--backends", "numpy", "--devices", "cpu",
+                          "--precision", "float32", "--timeout", "2", "--no-plots", "--out", str(out)])
+    assert rc == 0, lines
     (rec,) = [r for r in json.loads((out / "results.json").read_text())["records"] if r["backend"] == "numpy"]
     assert rec["status"] == "skipped", rec
     assert "predicted to take about" in rec["reason"] and "over --timeout 2 s; --timeout" in rec["reason"]

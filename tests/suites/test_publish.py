@@ -4,6 +4,7 @@ from __future__ import annotations
 import datetime
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -11,6 +12,7 @@ import time
 import pytest
 
 from conftest import ROOT
+from shared_runs import QUICK_RUN, numpy_quick_run
 from compare import cli, options
 from compare.measuring import environment
 from compare.suites import publish
@@ -31,6 +33,7 @@ def names(parts):
 
 
 def test_list_prints_every_part_and_its_command_and_writes_nothing(tmp_path):
+    # a real process (the other tests call compare.cli.main: the parts still run as subprocesses)
     out = tmp_path / "m"
     p = compare("publish", "--out", str(out), "--list", *NUMPY)
     assert p.returncode == 0, p.stderr
@@ -194,25 +197,34 @@ def test_a_real_publish_with_a_sweep_resumes_it_without_duplicates(tmp_path, mon
     assert len(records) == len({json.dumps([r["scenario"], r["params"], r["tags"]]) for r in records})
 
 
-def test_budget_interrupts_the_running_part_and_the_next_call_resumes_it(tmp_path):
+def test_budget_interrupts_the_running_part_and_the_next_call_resumes_it(tmp_path, capsys):
     out = tmp_path / "m"
-    p = compare("publish", "--out", str(out), *NUMPY, "--part", "all", "--budget", "1")
-    assert p.returncode == 3, p.stdout + p.stderr
-    assert "--budget spent during all" in p.stderr
+    code = cli.main(["publish", "--out", str(out), *NUMPY, "--part", "all", "--budget", "1"])
+    got = capsys.readouterr()
+    assert code == 3, got.out + got.err
+    assert "--budget spent during all" in got.err
     (e,) = json.loads((out / "publish.json").read_text())["parts"]
     assert e["name"] == "all" and e["interrupted"] is True
-    listed = compare("publish", "--out", str(out), *NUMPY, "--list", "--part", "all")
-    assert "all: to run (interrupted)" in listed.stdout
+    assert cli.main(["publish", "--out", str(out), *NUMPY, "--list", "--part", "all"]) == 0
+    assert "all: to run (interrupted)" in capsys.readouterr().out
 
 
-def test_large_parts_share_results_json_with_other_sizes(tmp_path):
-    """``run --resume`` with another --set n keeps the records already there (publish relies on it)."""
-    out = tmp_path / "m"
-    p = compare("publish", "--out", str(out), *NUMPY, "--part", "large-cpu-saxpy16,large-cpu-saxpy18")
+@QUICK_RUN
+def test_large_parts_share_results_json_with_other_sizes(tmp_path, tmp_path_factory, capsys):
+    """``run --resume`` with another --set n keeps the records already there (publish relies on it):
+    a large part run into a copy of the quick run of tests/shared_runs.py (cells of its quick sizes)."""
+    p, run = numpy_quick_run(tmp_path_factory)
     assert p.returncode == 0, p.stdout + p.stderr
+    out = tmp_path / "m"
+    shutil.copytree(run, out)
+    before = json.loads((out / "results.json").read_text())["records"]
+    code = cli.main(["publish", "--out", str(out), *NUMPY, "--part", "large-cpu-saxpy16"])
+    assert code == 0, capsys.readouterr()
     records = json.loads((out / "results.json").read_text())["records"]
-    assert sorted(r["params"]["n"] for r in records) == [2**16, 2**18]
-    assert all(r["status"] == "ok" and r["precision"] == "float32" for r in records)
+    assert records[:len(before)] == before                          # kept as they were
+    (large,) = records[len(before):]
+    assert (large["scenario"], large["params"]["n"], large["precision"], large["status"]) == \
+        ("saxpy", 2**16, "float32", "ok")
 
 
 def test_a_noisy_sitting_is_refused_unless_allowed(tmp_path, monkeypatch, capsys):

@@ -59,10 +59,19 @@ def test_bad_usage_exits_2_with_one_line(args, needle, tmp_path, monkeypatch):
 
 def quick_two_experiments(out, backend, first, again):
     """``first`` (two experiments) in quick mode on one CPU backend; then ``again`` (one of them)
-    alone, which keeps the other's rows; then the parts merged into one report. The rows."""
+    alone, which keeps the other's rows; then the parts merged into one report. Each cell record
+    a run stores is stamped with that run (created, commit, dirty), as a results record is, and
+    names an entry of the file's runs; the merge keeps it. The rows."""
+    from compare.results.stamps import flat_runs, unstamped
+    from compare.results.store import Store
     p = run_stress("--quick", "--backends", backend, "--devices", "cpu", "--only", ",".join(first),
                    "--out", str(out), "--jobs", "2")
     assert p.returncode == 0, p.stderr[-3000:]
+    part = Store.read(out / "stress.json", "stress")
+    assert part.records and unstamped(part.records, part.runs) == []
+    env = part.runs[-1]
+    assert {tuple(r.run.items()) for r in part.records} == \
+        {(("created", env["created"]), ("commit", env.get("git_commit") or None), ("dirty", env.get("git_dirty")))}
     data = json.loads((out / "stress.json").read_text())
     assert data["format_version"] == 2 and data["suite"] == "stress"
     assert data["records"] and {r["backend"] for r in data["records"]} == {backend}   # the cells it ran
@@ -76,17 +85,23 @@ def quick_two_experiments(out, backend, first, again):
                if r["experiment"] == "races" and "racy" not in r["setting"])
     md = (out / "stress.md").read_text()
     assert all(f"## {e}" in md for e in first)
-    # a second run of one experiment keeps the other's rows
-    p = run_stress("--quick", "--backends", backend, "--devices", "cpu", "--only", again,
-                   "--out", str(out), "--no-plots")
-    assert p.returncode == 0, p.stderr[-3000:]
+    # a second run of one experiment keeps the other's rows (this one and the merge through
+    # compare.cli.main in this process: no interpreter to start)
+    rc, lines = run_main(["stress", "--quick", "--backends", backend, "--devices", "cpu", "--only", again,
+                          "--out", str(out), "--no-plots"])
+    assert rc == 0, lines
     again_rows = json.loads((out / "stress.json").read_text())["analysis"]["rows"]
     assert {r["experiment"] for r in again_rows} == set(first)
     # parts run separately (one GPU call each) merge into one report
-    p = run_stress("--merge", str(out / "stress.json"), "--out", str(out / "merged"), "--no-plots")
-    assert p.returncode == 0, p.stderr
+    rc, lines = run_main(["stress", "--merge", str(out / "stress.json"), "--out", str(out / "merged"), "--no-plots"])
+    assert rc == 0, lines
     merged = json.loads((out / "merged" / "stress.json").read_text())["analysis"]["rows"]
     assert len(merged) == len(again_rows) and (out / "merged" / "stress.md").exists()
+    kept = Store.read(out / "stress.json", "stress")             # the first run's records and the second's
+    assert unstamped(kept.records, kept.runs) == []
+    both = Store.read(out / "merged" / "stress.json", "stress")
+    assert len(both.records) == len(kept.records) and unstamped(both.records, both.runs) == []
+    assert {env["created"], kept.runs[-1]["created"]} <= {e.get("created") for e in flat_runs(both.runs)}
     return rows
 
 
@@ -108,27 +123,6 @@ def test_quick_warp_cpu_two_experiments(tmp_path):
         assert isinstance(r["value"], int) and "= NumPy emulation" in r["verdict"], r
     racy = [r for r in rows if "racy" in r["setting"]]
     assert len(racy) == 1 and racy[0]["verdict"] == "race not observable on CPU"
-
-
-def test_every_stress_record_names_its_run_and_a_merge_keeps_it(tmp_path):
-    """Each cell record a stress run stores is stamped with that run (created, commit, dirty),
-    as a results record is, and names an entry of the file's runs; a merge of the part keeps it."""
-    from compare.results.stamps import flat_runs, unstamped
-    from compare.results.store import Store
-    require_device("numpy", "cpu")
-    p = run_stress("--quick", "--backends", "numpy", "--devices", "cpu", "--only", "ulps",
-                   "--out", str(tmp_path / "part"), "--no-plots", "--jobs", "1")
-    assert p.returncode == 0, p.stderr[-3000:]
-    part = Store.read(tmp_path / "part" / "stress.json", "stress")
-    assert part.records and unstamped(part.records, part.runs) == []
-    env = part.runs[-1]
-    assert {tuple(r.run.items()) for r in part.records} == \
-        {(("created", env["created"]), ("commit", env.get("git_commit") or None), ("dirty", env.get("git_dirty")))}
-    p = run_stress("--merge", str(tmp_path / "part" / "stress.json"), "--out", str(tmp_path / "merged"), "--no-plots")
-    assert p.returncode == 0, p.stderr
-    merged = Store.read(tmp_path / "merged" / "stress.json", "stress")
-    assert len(merged.records) == len(part.records) and unstamped(merged.records, merged.runs) == []
-    assert env["created"] in {e.get("created") for e in flat_runs(merged.runs)}
 
 
 # ---- host-loop tasks and scheduling -------------------------------------------------------------

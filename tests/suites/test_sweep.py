@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import subprocess
 import sys
 
@@ -83,37 +84,37 @@ def test_sweep_quick_runs_everything_ok(tmp_path):
 
 
 @pytest.mark.xdist_group("quick_sweep")
+def test_every_sweep_record_names_its_run(quick_sweep):
+    """Each record a sweep stores is stamped with its run (created, commit, dirty), an entry of
+    the file's runs, as a results record is."""
+    from compare.results.stamps import unstamped
+    from compare.results.store import Store
+    store = Store.read(quick_sweep[1] / "sweep.json", "sweep")
+    assert store.records and unstamped(store.records, store.runs) == []
+    assert {r.run["created"] for r in store.records} == {store.runs[-1]["created"]}
+
+
+@pytest.mark.xdist_group("quick_sweep")
 def test_sweep_report_rebuilds_without_running(quick_sweep, tmp_path):
     _, out = quick_sweep
     page = tmp_path / "page.md"
-    p = run_sweep("report", str(out / "sweep.json"), "--out", str(tmp_path / "plots"),
-                  "--page", str(page), "--title", "Rebuilt")
-    assert p.returncode == 0, p.stderr
+    # compare.cli.main in this process (no interpreter to start); the entry point in a real
+    # process: tests/test_options.py::test_entry_point_sample
+    rc, lines = run_main(["sweep", "report", str(out / "sweep.json"), "--out", str(tmp_path / "plots"),
+                          "--page", str(page), "--title", "Rebuilt"])
+    assert rc == 0, lines
     text = page.read_text()
     assert text.startswith("# Rebuilt") and "(plots/bandwidth_cpu.png)" in text
 
 
 @pytest.mark.xdist_group("quick_sweep")
-def test_sweep_resume_skips_ok_cells(quick_sweep):
-    _, out = quick_sweep
-    p = run_sweep("scaling", "--quick", "--backends", "numpy", "--devices", "cpu", "--precision",
-                  "float32", "--out", str(out), "--resume", "--no-plots")
-    assert p.returncode == 0, p.stderr
-    assert "scaling particles" not in p.stderr          # nothing rerun
-
-
-def test_every_sweep_record_names_its_run(tmp_path):
-    """Each record a sweep stores is stamped with its run (created, commit, dirty), an entry of
-    the file's runs, as a results record is."""
-    from compare.results.stamps import unstamped
-    from compare.results.store import Store
-    require_device("numpy", "cpu")
-    p = run_sweep("bandwidth", "--quick", "--backends", "numpy", "--devices", "cpu", "--out", str(tmp_path / "a"),
-                  "--min-time", "0", "--no-plots")
-    assert p.returncode == 0, p.stderr[-3000:]
-    store = Store.read(tmp_path / "a" / "sweep.json", "sweep")
-    assert store.records and unstamped(store.records, store.runs) == []
-    assert {r.run["created"] for r in store.records} == {store.runs[-1]["created"]}
+def test_sweep_resume_skips_ok_cells(quick_sweep, tmp_path):
+    out = tmp_path / "sweep"
+    shutil.copytree(quick_sweep[1], out)          # the module's run stays as it ran
+    rc, lines = run_main(["sweep", "scaling", "--quick", "--backends", "numpy", "--devices", "cpu", "--precision",
+                          "float32", "--out", str(out), "--resume", "--no-plots"])
+    assert rc == 0, lines
+    assert not any("scaling particles" in ln for ln in lines)          # nothing rerun
 
 
 @pytest.mark.parametrize("args,needle", [
