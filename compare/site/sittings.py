@@ -320,7 +320,7 @@ def landing(got: list[Landed], current: dict[str, Band] | None = None) -> list[A
                   "row should lie within these multiples of the report's figure."),
                 Table(("row", "ratios", "band in floors", "band in seconds", "expected inside"), tuple(
                     (rows[k], str(b.n), _range(b.floors), _range(b.seconds), f"{100 * b.coverage:.0f} %")
-                    for k, b in current.items() if k in rows))]
+                    for k, b in ((k, current[k]) for k in rows if k in current)))]
     return out
 
 
