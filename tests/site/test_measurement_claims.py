@@ -304,3 +304,17 @@ def test_where_the_fresh_per_call_sitting_lands(doc: str) -> None:
     assert [(b.framework, b.row) for b in out] == [("mlx", "pipelined")]
     assert said(doc, r"The one figure outside is MLX's pipelined call \(([\d.]+)× the report in floors, ([\d.]+)×") == \
         (f"{out[0].floors_spread:.2f}", f"{out[0].spread:.1f}")
+
+
+def test_the_preflights_per_trajectory_slopes(doc: str) -> None:
+    """The memory preflight's margin of two: PyTorch's peak RSS per trajectory between three batch
+    sizes, from the stored runs of evidence/session38-rss-slope."""
+    peak = {}
+    for b in (4096, 16384, 65536):
+        data = json.loads((RESULTS / "cpu" / "evidence" / "session38-rss-slope" / f"b{b}" / "results.json").read_text())
+        (r,) = [r for r in data["records"] if r["backend"] == "torch" and r["status"] == "ok"]
+        assert r["params"]["batch"] == b and r["precision"] == "float32"
+        peak[b] = r["memory"]["peak_host_rss_bytes"]
+    first, second = said(doc, r"([\d.]+) kB per trajectory between B = 4096 and 16384,\s*([\d.]+) kB between 16384 and 65536")
+    assert (first, second) == (f"{(peak[16384] - peak[4096]) / 12288 / 1e3:.1f}",
+                               f"{(peak[65536] - peak[16384]) / 49152 / 1e3:.1f}")
