@@ -56,6 +56,12 @@ class Between:
         return _apart(self.first_floors, self.other_floors) if self.first_floors and self.other_floors else None
 
     @property
+    def ratios(self) -> tuple[float, float]:
+        """The sitting's figure over the report's, in launch floors and in seconds (callers keep
+        the figures with a floor on both sides: ``_floored``)."""
+        return (self.other_floors or 0.0) / (self.first_floors or 1.0), self.other / self.first
+
+    @property
     def inside(self) -> bool | None:
         """Whether the other sitting's figure lies inside the report's interval (None: no interval)."""
         return None if self.ci is None else self.ci[0] <= self.other <= self.ci[1]
@@ -157,8 +163,8 @@ class Band:
 
     def holds(self, b: Between) -> tuple[bool, bool]:
         """Whether ``b``'s figure lies inside the band, in floors and in seconds."""
-        return (_within((b.other_floors or 0) / (b.first_floors or 1), list(self.floors)),
-                _within(b.other / b.first, list(self.seconds)))
+        floors, seconds = b.ratios
+        return _within(floors, list(self.floors)), _within(seconds, list(self.seconds))
 
 
 def _within(x: float | None, xs: list[float | None]) -> bool:
@@ -171,15 +177,24 @@ def _floored(between: list[Between], label: str) -> list[Between]:
     return [b for b in between if b.sitting == label and b.floors_spread is not None and b.first > 0]
 
 
+def _pool(pooled: dict[str, tuple[list[float], list[float]]], figures: list[Between]) -> None:
+    """Add ``figures``' ratios to each row's pool (the report's own 1 first)."""
+    for b in figures:
+        f, s = pooled.setdefault(b.row, ([1.0], [1.0]))
+        f.append(b.ratios[0])
+        s.append(b.ratios[1])
+
+
+def _bands(pooled: dict[str, tuple[list[float], list[float]]]) -> dict[str, Band]:
+    return {row: Band(row, tuple(f), tuple(s)) for row, (f, s) in pooled.items()}
+
+
 def bands(between: list[Between], labels: list[str]) -> dict[str, Band]:
     """Each row's band from the sittings ``labels`` (rows in ``TRAVEL`` with a floor on both sides)."""
-    got: dict[str, tuple[list[float], list[float]]] = {}
+    pooled: dict[str, tuple[list[float], list[float]]] = {}
     for label in labels:
-        for b in _floored(between, label):
-            f, s = got.setdefault(b.row, ([1.0], [1.0]))
-            f.append((b.other_floors or 0) / (b.first_floors or 1))
-            s.append(b.other / b.first)
-    return {row: Band(row, tuple(f), tuple(s)) for row, (f, s) in got.items()}
+        _pool(pooled, _floored(between, label))
+    return _bands(pooled)
 
 
 def landed(between: list[Between], labels: list[str]) -> list[Landed]:
@@ -189,10 +204,11 @@ def landed(between: list[Between], labels: list[str]) -> list[Landed]:
     (issue 57: a unit that travels lands inside)."""
     out = []
     earlier: dict[tuple[str, str, str], list[Between]] = {}      # the figure's earlier sittings
-    for i, label in enumerate(labels):
+    pooled: dict[str, tuple[list[float], list[float]]] = {}      # the rows' ratios so far
+    for label in labels:
         mine = _floored(between, label)
         ranged = [(b, earlier[b.row, b.framework, b.variant]) for b in mine if (b.row, b.framework, b.variant) in earlier]
-        before = bands(between, labels[:i])
+        before = _bands(pooled)
         held = [before[b.row].holds(b) for b in mine if b.row in before]
         if ranged:
             mid = len(ranged) // 2
@@ -203,6 +219,7 @@ def landed(between: list[Between], labels: list[str]) -> list[Landed]:
                               sorted(b.floors_spread or 1.0 for b, _ in ranged)[mid],
                               sorted(b.spread for b, _ in ranged)[mid],
                               len(held), sum(f for f, _ in held), sum(s for _, s in held)))
+        _pool(pooled, mine)
         for b in mine:
             earlier.setdefault((b.row, b.framework, b.variant), []).append(b)
     return out
