@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+import statistics
 from typing import Any, Mapping
 
 import pytest
@@ -294,7 +295,7 @@ def test_where_the_fresh_per_call_sitting_lands(doc: str) -> None:
     assert got == (str(x.band_floors), str(x.banded), f"{100 * x.band_floors / x.banded:.0f}", str(x.band_seconds),
                    f"{100 * x.band_seconds / x.banded:.0f}")
     now = sittings.bands(list(between), labels)
-    assert said(doc, r"the bands are wide \(([\d.]+)-([\d.]+)× in floors\)") == \
+    assert said(doc, r"the bands are wide \(now ([\d.]+)-([\d.]+)× in floors\)") == \
         (f"{min(min(b.floors) for b in now.values()):.2f}", f"{max(max(b.floors) for b in now.values()):.2f}")
     s36 = {s.sitting: s for s in landed}["2026-12-07-session36"]
     assert said(doc, r"session 36's one-process run lands (\d+) % of its figures in its bands in floors") == \
@@ -304,6 +305,66 @@ def test_where_the_fresh_per_call_sitting_lands(doc: str) -> None:
     assert [(b.framework, b.row) for b in out] == [("mlx", "pipelined")]
     assert said(doc, r"The one figure outside is MLX's pipelined call \(([\d.]+)× the report in floors, ([\d.]+)×") == \
         (f"{out[0].floors_spread:.2f}", f"{out[0].spread:.1f}")
+
+
+def test_where_the_matrix_part_sitting_lands(doc: str) -> None:
+    """Session 39's matrix-part sitting (overlapped set-ups): its distance to the report, its band
+    counts, and its cells' own floors against its start check and session 38's (the stores)."""
+    from compare.site import sitting_readme
+    _, _, _, landed = sitting_readme._report(RESULTS / "h100")
+    x = {s.sitting: s for s in landed}["2026-12-07-session39-matrix"]
+    assert said(doc, r"all` cut off by the lease after three processes a cell, set-ups overlapped;[^)]*\)\): "
+                     r"([\d.]+)× from the report\s+in floors in the median, ([\d.]+)× in seconds") == \
+        (f"{x.median_floors:.2f}", f"{x.median_seconds:.2f}")
+    got = said(doc, r"(\d+) of its (\d+) figures in their row's band in floors\s+\((\d+) %\), (\d+) in seconds \((\d+) %\)")
+    assert got == (str(x.band_floors), str(x.banded), f"{100 * x.band_floors / x.banded:.0f}", str(x.band_seconds),
+                   f"{100 * x.band_seconds / x.banded:.0f}")
+
+    def floors(label: str) -> tuple[str, str]:
+        data = json.loads((RESULTS / "h100" / "sittings" / label / "results.json").read_text())
+        before = [r["cell_floor"]["before"] for r in data["records"] if (r.get("cell_floor") or {}).get("before")]
+        return (f"{statistics.median(b['latency_s'] for b in before) * 1e6:.2f}",
+                f"{statistics.median(b['pipelined_s'] for b in before if b.get('pipelined_s')) * 1e6:.2f}")
+
+    mine = floors("2026-12-07-session39-matrix")
+    assert said(doc, r"read ([\d.]+) µs with a synchronise and ([\d.]+) µs\s+pipelined in the median") == mine
+    data = json.loads((RESULTS / "h100" / "sittings" / "2026-12-07-session39-matrix" / "results.json").read_text())
+    (start,) = [r["sitting"]["start"] for r in data["runs"]]
+    ratios = (f"{float(mine[0]) / (start['launch_latency_s'] * 1e6):.2f}",
+              f"{float(mine[1]) / (start['launch_pipelined_s'] * 1e6):.2f}",
+              f"{start['launch_latency_s'] * 1e6:.1f}", f"{start['launch_pipelined_s'] * 1e6:.2f}")
+    assert said(doc, r"([\d.]+)× and ([\d.]+)× its quiet start check \(([\d.]+) and ([\d.]+) µs\)") == ratios
+    assert said(doc, r"session 38's,\s+with nothing set up beside, read ([\d.]+) and ([\d.]+) µs") == \
+        floors("2026-12-07-session38-percall")
+
+
+def test_the_matrix_parts_cold_rounds(doc: str) -> None:
+    """Session 39's matrix part: its first calls and windows against the report's run, cell by cell,
+    and what its three cold processes spent on set-up + first call, by variant kind (the stores)."""
+    mine = json.loads((RESULTS / "h100" / "sittings" / "2026-12-07-session39-matrix" / "results.json").read_text())
+    report = json.loads((RESULTS / "h100" / "results.json").read_text())
+
+    def key(r: Mapping[str, Any]) -> tuple[Any, ...]:
+        return r["scenario"], r["backend"], r["device"], r["precision"], r["variant"], json.dumps(r["params"], sort_keys=True)
+
+    ok = [r for r in mine["records"] if r["status"] == "ok"]
+    theirs = {key(r): r for r in report["records"] if r["status"] == "ok"}
+    pairs = [(r["time"], theirs[key(r)]["time"]) for r in ok if key(r) in theirs]
+    assert len(pairs) == len(ok) == 85
+    first = statistics.median(a["first_call_s"] / b["first_call_s"] for a, b in pairs)
+    window = statistics.median((a["window"][1] - a["window"][0]) / (b["window"][1] - b["window"][0]) for a, b in pairs)
+    assert said(doc, r"first calls ([\d.]+)×, whole windows ([\d.]+)× the\s+report's run") == (f"{first:.2f}", f"{window:.2f}")
+    assert said(doc, r"over (\d+) cells, (\d+) more than in session 26") == ("85", "14")
+
+    def spent(rs: list[Mapping[str, Any]]) -> float:
+        return sum(sum(r["time"]["processes"]["first_result"]["values"]) for r in rs)
+
+    other = [r for r in ok if r["variant"] != "default"]
+    by = {b: spent([r for r in other if r["backend"] == b]) for b in ("torch", "mlx")}
+    got = said(doc, r"took (\d+) s\n?\s*\((\d+) s a cold round; PyTorch's variants (\d+) s of it, mostly `compile`, MLX's (\d+) s\), "
+                    r"the defaults' (\d+) s")
+    assert got == (f"{spent(other):.0f}", f"{spent(other) / 3:.0f}", f"{by['torch']:.0f}", f"{by['mlx']:.0f}",
+                   f"{spent([r for r in ok if r['variant'] == 'default']):.0f}")
 
 
 def test_the_preflights_per_trajectory_slopes(doc: str) -> None:
