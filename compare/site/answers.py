@@ -71,7 +71,7 @@ def _answer(row: Row) -> str:
     lead = row.cells[row.top]
     runner = next((c for c in ranked if c.framework != row.top), None)
     noisy = " ~noisy" if lead.noisy else ""
-    if not row.tied:          # figures of several runs, unstamped or of an uncommitted tree
+    if not row.tied:          # figures of several runs, unstamped, of an uncommitted tree or not repeated
         why = row.best_text().removeprefix("— (").removesuffix(")")
         ahead = "" if runner is None else (f", level with {runner.framework}" if _x(runner.ratio) == "1×"
                                            else f", {_x(runner.ratio)} ahead of {runner.framework}")

@@ -92,6 +92,7 @@ class Rule:
     exact: bool = False           # deterministic figures (bytes, error shares): no interval needed
     reference: Reference | None = None    # cells shown beside the ranking, never in it
     cells: Callable[[Machine, str], dict[str, "Cell"]] | None = None   # a row's own cell builder
+    repeated: str = ""            # ranks only figures with a 95 % interval: the command that repeats them
 
 
 @dataclasses.dataclass(frozen=True)
@@ -114,7 +115,9 @@ class Row:
         """The matrix's last column: the best, ``tie: a, b, c`` (``tie: a, b +4``) or ``—``."""
         if self.top is None:
             return "—"
-        if not self.tied:       # figures from several runs, unstamped ones or an uncommitted tree: never ranked
+        if not self.tied:       # figures from several runs, unstamped ones, an uncommitted tree: never ranked
+            if provenance.one_run(self.runs):       # ... nor one run's figures that a rule needs repeated
+                return f"— ({ranking.bare([c for c in self.cells.values() if not c.reference])})"
             if provenance.uncommitted(self.runs):
                 return "— (not a commit)"
             return "— (not one run)" if "" in self.runs else f"— ({len(self.runs)} runs)"
@@ -381,16 +384,17 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
 
         def to_top(v: float | None) -> float | None:
             return (v / b if rule.better == "lower" else b / v) if v is not None and v > 0 else None
-        cells = {f: dataclasses.replace(c, ratio=to_top(c.value), default_ratio=to_top(c.default_value))
-                 for f, c in cells.items()}
+        cells = {f: dataclasses.replace(c, ratio=to_top(c.value), default_ratio=to_top(c.default_value)) for f, c in cells.items()}
         ranked = sorted((cells[f] for f in values), key=lambda c: (c.ratio, c.framework != top))
         tied = ranking.tie(ranked, rule.exact)
         cells = {f: dataclasses.replace(c, tied=f in tied) for f, c in cells.items()}
     recs = rule.pick(m, device) if rule.key != "cpu" else all_defaults(m, device)
     runs = provenance.runs_of(r for r in recs if r.status == "ok")
     verdict = _verdict(rule, cells, top, tied, fmt)
-    if top is not None and not provenance.one_run(runs):     # never ranked across runs
+    unranked = provenance.words(runs) if not provenance.one_run(runs) else \
+        ranking.unrepeated([c for c in cells.values() if not c.reference], rule.repeated)
+    if unranked and top is not None:     # never ranked across runs, nor unrepeated where the rule needs repeats
         tied, cells = (), {f: dataclasses.replace(c, tied=False) for f, c in cells.items()}
-        verdict = f"{provenance.words(runs)} Leading figure: {top} ({fmt(values[top], rule.unit)})."
+        verdict = f"{unranked} Leading figure: {top} ({fmt(values[top], rule.unit)})."
     return Row(rule, device, cells, top, tied, verdict, data.scope(recs), runs)
 

@@ -49,8 +49,10 @@ RULES: tuple[Rule, ...] = topics.RULES + (
          "busy latency divided by the fastest framework's busy latency on that scenario (1 = fastest "
          "under load everywhere; a framework missing a scenario is not comparable). Its slowdown, "
          "busy over idle latency, is shown beside it on the page, not ranked; a busy figure faster "
-         "than its idle one is marked as noise unless the records explain it.",
-         shared_host.pick, lambda r: None, device="cpu", cells=shared_host.cells),
+         "than its idle one is marked as noise unless the records explain it. A best is named only "
+         "where every figure has a 95 % interval across processes (`--processes 6`); from one "
+         "process a cell the row shows its ratios and ranks nothing.",
+         shared_host.pick, lambda r: None, device="cpu", cells=shared_host.cells, repeated=shared_host.REPEAT),
 )
 
 PAGES = {**{k: label for k, (label, _) in topics.PAGES.items()},

@@ -7,12 +7,15 @@ and the medians are at least SEPARATED_GAP apart; a figure from one process has 
 (between processes such figures disagree by up to 1.6x on the machines measured here, with 1 %
 spread inside each), so it is separated only at ONE_PROCESS_GAP. Deterministic figures (bytes,
 error shares) need SEPARATED_GAP alone; exactly equal ones are always a tie. Everyone not
-separated from the best shares the top of the row.
+separated from the best shares the top of the row. A row may rank only figures repeated across
+processes (the busy row: ``unrepeated``): from one process a cell it shows its ratios and ranks nothing.
 """
 from __future__ import annotations
 
 import dataclasses
 from typing import Protocol, Sequence
+
+from compare.running.repeats import AUTO_MIN
 
 SEPARATED_GAP = 1.05       # medians at least 5 % apart (timings with intervals; deterministic figures)
 ONE_PROCESS_GAP = 1.6      # a figure without an interval: the spread seen between processes
@@ -27,6 +30,12 @@ class Figure(Protocol):
     def value(self) -> float | None: ...
     @property
     def ci(self) -> tuple[float, float] | None: ...
+
+
+class Repeated(Figure, Protocol):
+    """A figure with the number of worker processes behind it."""
+    @property
+    def processes(self) -> int: ...
 
 
 def gap(a: float, b: float) -> float:
@@ -119,3 +128,27 @@ def than(ratio: float, unit: str) -> str:
     word = {"s": ("slower", "faster"), "1/s": ("slower", "faster"),
             "B": ("more memory", "less memory")}.get(unit, ("higher", "lower"))
     return f"{k:.3g}× {word[0] if worse else word[1]}"
+
+
+def bare(figs: Sequence[Repeated]) -> str:
+    """A row's figures without a 95 % interval, for its best column: 'one process' where none was
+    repeated, else 'under 6 processes' (too few for the interval); '' where every figure has one."""
+    no = [f for f in figs if f.value is not None and f.ci is None]
+    if not no:
+        return ""
+    return "one process" if all(f.processes == 1 for f in no) else f"under {AUTO_MIN} processes"
+
+
+def unrepeated(figs: Sequence[Repeated], command: str) -> str:
+    """The verdict of a row that ranks only figures repeated across processes where some are not
+    ('' where every figure has a 95 % interval, or no ``command``: the row ranks any figure): a
+    one-process figure says little of the next process (up to ONE_PROCESS_GAP apart), so such a
+    row shows its ratios and names no best."""
+    why = bare(figs)
+    if not why or not command:
+        return ""
+    no = [f.framework for f in figs if f.value is not None and f.ci is None]
+    who = ("every figure here is from one process a cell" if why == "one process" and len(no) == len(
+        [f for f in figs if f.value is not None]) else f"{', '.join(no)}: no 95 % interval across processes")
+    return (f"Not ranked: {who}; this row ranks only figures repeated across processes, each with a "
+            f"95 % interval (`{command}`). Ratios are to the leading figure; no best is named.")

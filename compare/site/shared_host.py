@@ -9,11 +9,13 @@ busy records: the same scenarios for everyone, a framework missing one is not co
 slowdown, busy over idle latency (geometric mean), stands beside it on the page, never ranked: a
 framework slow when idle may lose little to a busy core and still be slow under load.
 
-Figures from one process per cell are separated by the one-process rule (compare/site/ranking.py).
+The row ranks only figures repeated across processes (the rule's ``repeated``, ranking.unrepeated):
+a busy host is the noisiest place to time, and a one-process figure says little of the next process.
 Where every busy figure of a framework was timed in several processes (``--busy N --processes K``),
 its interval is the geometric mean of the scenarios' interval ends over the same fastest times:
 every framework is divided by the same constants, so intervals compare as the busy times do
-(wider than the mean's own interval, as the compile row's sum of ends).
+(wider than the mean's own interval, as the compile row's sum of ends). From one process a cell
+(no interval) the row shows its ratios and names no best.
 
 A slowdown below 1 (faster under load) is noise unless the records explain it: each such cell is
 shown with its idle and busy medians and spreads, and called WITHIN where the busy median lies
@@ -39,8 +41,8 @@ LARGE = 2.0          # a slowdown the page explains
 PARALLEL = 1.5       # cores used while idle above this: the cell runs a parallel loop
 WITHIN = "within the spread of the idle figure"
 UNEXPLAINED = "faster under load: unexplained by the records"
-INTERVALS = ("`python -m compare all --devices cpu --precision float32 --busy 1 --processes 6` "
-             "times each cell in 6 processes and gives every figure a 95 % interval")
+REPEAT = "python -m compare all --devices cpu --precision float32 --busy 1 --processes 6"
+INTERVALS = f"`{REPEAT}` times each cell in 6 processes and gives every figure a 95 % interval"
 
 Key = tuple[Any, ...]
 
@@ -187,7 +189,7 @@ def section(m: data.Machine) -> list[Any]:
                   "--precision float32 --busy 1`).")]
     n = max(_busy(b) for _, b in got)
     read = _under_load(m, "cpu")[1]
-    one = all(data.process_count(b) == 1 for _, b in read)
+    bare = ranking.bare(list(cells(m, "cpu").values()))
     rows = []
     for idle, busy in sorted(read, key=lambda p: (p[0].scenario, p[0].backend)):
         s = slowdown(idle, busy)
@@ -204,10 +206,13 @@ def section(m: data.Machine) -> list[Any]:
               "fastest busy latency on that scenario (1.00× = fastest under load everywhere). The slowdown, "
               "busy over idle, stands beside it and is not ranked: a framework can lose little to the busy "
               "core and still be slow under load."),
-            P(("Each figure is from one process per cell: a figure without a 95 % interval is separated only "
-               f"{ranking.ONE_PROCESS_GAP:g}× from the next. " if one else
-               "Where every scenario's busy figure has a 95 % interval across processes, so does the framework's. ")
-              + INTERVALS + "."),
+            P(("Not ranked: each figure is from one process per cell (no 95 % interval), and the row names a best "
+               "only where every framework's figure has a 95 % interval across processes: the ratios below are "
+               "to the leading figure. " if bare == "one process" else
+               f"Not ranked: some figures are from {bare} (no 95 % interval), and the row names a best only "
+               "where every framework's figure has one. " if bare else
+               "Where every scenario's busy figure has a 95 % interval across processes, so does the framework's; "
+               "the row names a best only where every framework's has one. ") + INTERVALS + "."),
             Table(("framework", "time under load (× fastest busy)", "in the matrix (÷ the leader)", "95 % interval",
                    "slowdown (busy / idle)",
                    "cells faster under load"), _framework_rows(m, read)),

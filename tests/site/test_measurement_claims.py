@@ -77,14 +77,18 @@ def test_the_cpu_matrix_run_and_session_28s_second_sitting(doc: str) -> None:
 
 @pytest.mark.parametrize("key", ["cpu", "xeon"])
 def test_the_busy_rows_processes(doc: str, key: str) -> None:
-    """The CPU's busy row: 6 processes a cell; the Xeon's: one (so only 1.6x apart ranks)."""
-    counts = {data.process_count(r) for r in machine(key).busy if r.status == "ok"}
+    """The CPU's busy row: 6 processes a cell, ranked; the Xeon's: one, so it names no best."""
+    m = machine(key)
+    counts = {data.process_count(r) for r in m.busy if r.status == "ok"}
+    row = matrix.evaluate(RULES["busy"], m, fmt.value)
     if key == "cpu":
         a, b = said(doc, r"\(`--busy 1 --processes (\d+)`: each figure with a 95 % interval across (\d+) processes")
-        assert counts == {int(a)} == {int(b)}
+        assert counts == {int(a)} == {int(b)} and row.best is not None
     else:
-        said(doc, r'Xeon store its "CPU, one core busy" row \(one process a cell, so a best needs a pair 1.6x apart\)')
-        assert counts == {1}
+        said(doc, r'Xeon store its "CPU, one core busy" row \(one process a cell: its ratios are shown and it names no\s+'
+                  r'best, as the busy row ranks only figures repeated across processes\)')
+        (label,) = said(doc, r"a row from one process a cell \(the Xeon's\)[^`]+`([^`]+)`")
+        assert counts == {1} and row.best is None and row.best_text() == label == "— (one process)"
 
 
 def test_the_amd_store_names_its_processor_from_2026_12_06_on(doc: str) -> None:

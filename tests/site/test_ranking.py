@@ -15,6 +15,7 @@ class F(NamedTuple):
     framework: str
     value: float | None
     ci: tuple[float, float] | None = None
+    processes: int = 1
 
 
 def test_separation_rule_constants():
@@ -80,3 +81,19 @@ def test_why_tied_groups_the_tests():
 def test_shorten_keeps_three_names_else_two_and_a_count():
     assert ranking.shorten(["a", "b", "c"]) == "a, b, c"
     assert ranking.shorten(["a", "b", "c", "d", "e"]) == "a, b +3"
+
+
+def test_a_row_that_ranks_only_repeated_figures_says_why_it_ranks_nothing():
+    """Every figure with an interval: ranked (''); one from one process, or from too few processes
+    for an interval, and the row names no best; without a command the rule ranks any figure."""
+    six = [F("numba", 1.0, (0.9, 1.1), 6), F("jax", 2.0, (1.9, 2.1), 6), F("torch", None)]
+    assert ranking.bare(six) == "" and ranking.unrepeated(six, "CMD") == ""
+    one = [F("numba", 1.0), F("jax", 2.0), F("torch", None)]
+    assert ranking.bare(one) == "one process"
+    assert ranking.unrepeated(one, "CMD") == (
+        "Not ranked: every figure here is from one process a cell; this row ranks only figures repeated "
+        "across processes, each with a 95 % interval (`CMD`). Ratios are to the leading figure; no best is named.")
+    assert ranking.unrepeated(one, "") == ""
+    mixed = [six[0], F("jax", 2.0, None, 3)]
+    assert ranking.bare(mixed) == "under 6 processes"
+    assert ranking.unrepeated(mixed, "CMD").startswith("Not ranked: jax: no 95 % interval across processes;")

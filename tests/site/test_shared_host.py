@@ -1,6 +1,7 @@
 """The CPU on a shared host (compare/site/shared_host.py, ``run --busy N``): busy cells stay out
 of every other row; the row ranks the time under load (busy latency against the fastest busy one
-per scenario), with the slowdown (busy over idle) beside it on the page, never ranked; a busy figure
+per scenario) only from figures repeated across processes (from one process a cell it shows its
+ratios and names no best), with the slowdown (busy over idle) beside it on the page, never ranked; a busy figure
 faster than its idle one is labelled noise unless the records explain it; a large slowdown is
 explained from the cores the cell used while idle."""
 from __future__ import annotations
@@ -16,7 +17,7 @@ import pytest
 
 from compare.results.record import Record
 from compare.running import repeats
-from compare.site import data, fmt, matrix, questions, ranking, render, shared_host
+from compare.site import answers, data, fmt, matrix, pages, questions, ranking, render, shared_host
 from conftest import ROOT
 
 RUN = {"created": "2026-11-27T00:00:00+00:00", "commit": "abc1234", "dirty": False}
@@ -46,13 +47,18 @@ def page(m: data.Machine) -> str:
     return "\n".join(render.block_md(b) for b in shared_host.section(m))
 
 
+def rep(t: float) -> tuple[float, float]:
+    """A 95 % interval 2 % either side: the cell timed in 6 processes."""
+    return 0.98 * t, 1.02 * t
+
+
 def test_the_row_ranks_time_under_load_not_the_slowdown_which_stands_beside_it():
     """numba is 10x faster idle and loses 3x to the busy core; numpy loses only 10 %: the slowdown
     would name numpy, the time a user waits under load names numba, 3.67x ahead."""
     recs = []
     for sc in matrix.IN_ALL:
-        recs += [cell("numpy", sc, 1e-3), cell("numpy", sc, 1.1e-3, busy=1),
-                 cell("numba", sc, 1e-4), cell("numba", sc, 3e-4, busy=1)]
+        recs += [cell("numpy", sc, 1e-3, ci=rep(1e-3)), cell("numpy", sc, 1.1e-3, busy=1, ci=rep(1.1e-3)),
+                 cell("numba", sc, 1e-4, ci=rep(1e-4)), cell("numba", sc, 3e-4, busy=1, ci=rep(3e-4))]
     m = machine(recs)
     row = matrix.evaluate(RULE, m, fmt.value)
     assert row.best == "numba" and row.cells["numba"].value == pytest.approx(1.0)
@@ -74,11 +80,12 @@ def test_the_figure_is_the_geometric_mean_over_the_scenarios_against_the_fastest
     # numba fastest busy on three scenarios; on projectile 7.5 ms against numpy's 1.2 ms
     assert row.cells["numba"].value == pytest.approx((7.5e-3 / 1.2e-3) ** 0.25)
     assert row.cells["numpy"].value == pytest.approx((1.2e-3 / 1.5e-4) ** 0.75)
-    assert row.best == "numba" and row.cells["numba"].processes == 1 and row.cells["numba"].ci is None
+    assert row.cells["numba"].processes == 1 and row.cells["numba"].ci is None
+    assert row.best is None and row.top == "numba"       # one process a cell: shown, not ranked
     [(idle, busy)] = [p for p in shared_host.pairs(m) if p[0].backend == "numba" and p[0].scenario == "projectile"]
     assert "waits for its slowest thread" in shared_host.why(idle, busy)
     assert shared_host.why(*[p for p in shared_host.pairs(m) if p[0].backend == "numpy"][0]) == ""
-    assert "1.6× from the next" in page(m) and "--busy 1 --processes 6" in page(m)
+    assert "Not ranked: each figure is from one process per cell" in page(m) and "--busy 1 --processes 6" in page(m)
 
 
 def test_a_framework_missing_a_scenario_is_not_comparable():
@@ -88,21 +95,59 @@ def test_a_framework_missing_a_scenario_is_not_comparable():
     assert row.cells["numba"].value is None and row.cells["numpy"].value == 1.0
 
 
-def test_one_process_figures_need_the_one_process_gap_and_intervals_separate_sooner():
-    """1.3x apart: from one process a tie; from 6 processes with disjoint intervals, separated."""
-    def recs(ci: bool) -> list[Record]:
-        out = []
-        for sc in matrix.IN_ALL:
-            for fw, t in (("numba", 1e-4), ("numpy", 1.3e-4)):
-                out += [cell(fw, sc, t, ci=(0.98 * t, 1.02 * t) if ci else None),
-                        cell(fw, sc, t, busy=1, ci=(0.98 * t, 1.02 * t) if ci else None)]
-        return out
-    one = matrix.evaluate(RULE, machine(recs(False)), fmt.value)
-    assert one.best is None and set(one.tied) == {"numba", "numpy"}
-    six = matrix.evaluate(RULE, machine(recs(True)), fmt.value)
-    assert six.best == "numba" and six.cells["numpy"].processes == 6
+def apart(gap: float, repeated: dict[str, bool]) -> list[Record]:
+    """numba and numpy ``gap`` apart idle and busy, each timed in 6 processes where ``repeated`` says."""
+    out = []
+    for sc in matrix.IN_ALL:
+        for fw, t in (("numba", 1e-4), ("numpy", gap * 1e-4)):
+            ci = rep(t) if repeated[fw] else None
+            out += [cell(fw, sc, t, ci=ci), cell(fw, sc, t, busy=1, ci=ci)]
+    return out
+
+
+def test_from_repeated_processes_intervals_separate_the_row_and_it_names_a_best():
+    """1.3x apart from 6 processes with disjoint intervals: separated, as every ranked row is."""
+    six = matrix.evaluate(RULE, machine(apart(1.3, {"numba": True, "numpy": True})), fmt.value)
+    assert six.best == "numba" and six.tied == ("numba",) and six.best_text() == "numba"
+    assert six.cells["numpy"].processes == 6 and six.cells["numba"].band == "best"
     assert six.cells["numpy"].ci == pytest.approx((1.3 * 0.98, 1.3 * 1.02))
     assert ranking.separated(six.cells["numba"], six.cells["numpy"]).kind == ranking.INTERVALS
+    assert six.verdict.startswith("Best: numba (1), separated from numpy (1.3×; 95 % intervals apart")
+    assert "the row names a best only where every framework's has one" in page(machine(apart(1.3, {
+        "numba": True, "numpy": True})))
+
+
+def test_from_one_process_a_cell_the_row_shows_its_ratios_and_names_no_best():
+    """2x apart, past the one-process gap another row would rank at: the busy row names no best
+    from one process a cell; its ratios stay, the leader is not coloured, the verdict says why."""
+    m = machine(apart(2.0, {"numba": False, "numpy": False}))
+    row = matrix.evaluate(RULE, m, fmt.value)
+    assert row.best is None and row.tied == () and row.top == "numba"
+    assert row.cells["numpy"].ratio == pytest.approx(2.0) and row.cells["numba"].band != "best"
+    assert row.best_text() == "— (one process)"
+    assert row.verdict == (
+        "Not ranked: every figure here is from one process a cell; this row ranks only figures repeated "
+        f"across processes, each with a 95 % interval (`{shared_host.REPEAT}`). Ratios are to the leading "
+        "figure; no best is named. Leading figure: numba (1).")
+    line = pages.matrix_md([row], ["numba", "numpy"]).splitlines()[2]
+    assert "**" not in line and line.endswith("| — (one process) |") and "2.00×" in line
+    assert answers.answer(row) == "numba leads, 2× ahead of numpy, not ranked (one process)"
+    assert "Not ranked: each figure is from one process per cell" in page(m)
+    assert "separated" not in page(m)
+
+
+def test_one_framework_without_an_interval_leaves_the_row_unranked():
+    mixed = matrix.evaluate(RULE, machine(apart(2.0, {"numba": True, "numpy": False})), fmt.value)
+    assert mixed.best is None and mixed.best_text() == "— (one process)"
+    assert mixed.verdict.startswith("Not ranked: numpy: no 95 % interval across processes; this row ranks only")
+    def three(r: Record) -> Record:      # 3 processes: their range covers the median at 75 %, no interval
+        lat = r.time["processes"]["latency"]
+        return r.replace(time={**r.time, "processes": {"count": 3, "latency": {
+            **lat, "values": lat["values"][:3], "confidence": repeats.interval(range(3))[2]}}})
+    few = [three(r) for r in apart(2.0, {"numba": True, "numpy": True})]
+    short = matrix.evaluate(RULE, machine(few), fmt.value)
+    assert short.best is None and short.best_text() == "— (under 6 processes)" and short.cells["numpy"].processes == 3
+    assert "Not ranked: some figures are from under 6 processes" in page(machine(few))
 
 
 def test_a_busy_figure_faster_than_idle_is_noise_unless_the_records_explain_it():
