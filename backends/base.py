@@ -27,6 +27,7 @@ import numpy as np
 from scenarios.base import Precision
 
 OWN_TIMER_S = 0.1     # one stretch of a framework's own timer (``Backend.own_latency``), seconds
+DEFAULT_VARIANT = "default"   # every backend's first variant: the one the matrix publishes (matrix.all_defaults)
 
 
 class Device(enum.StrEnum):
@@ -84,7 +85,7 @@ class Backend:
     name: ClassVar[str]
     package: ClassVar[str]                     # the pip distribution the backend needs
     gradient_method: ClassVar[str] = "-"       # 'tape', 'ad', 'adjoint'
-    variants: ClassVar[tuple[str, ...]] = ("default",)   # e.g. 'fastmath'
+    variants: ClassVar[tuple[str, ...]] = (DEFAULT_VARIANT,)   # e.g. 'fastmath'
     # Variants that exist for one scenario only (e.g. a checkpointed projectile): scenario -> names.
     scenario_variants: ClassVar[dict[str, tuple[str, ...]]] = {}
     # Variants kept only as the measured alternative of an A/B (a port's former default, e.g.

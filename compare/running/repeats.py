@@ -15,10 +15,14 @@ coverage, below 95 %, is stored). ``auto``: processes are added until every figu
 lies within ``TARGET`` of its median, from ``AUTO_MIN`` to ``AUTO_MAX`` processes.
 
 Time to first result needs cold kernel caches, the other figures do not: a first call that
-compiles for a minute (MLX's) would otherwise fill every repeat process. So the first ``COLD``
-processes of a cell start from empty caches; the ``COLD``-th keeps its caches in a directory
+compiles for a minute (MLX's) would otherwise fill every repeat process. So the first processes of
+a cell start from empty caches, the last of them keeps its caches in a directory
 (``Cell.cache_dir``) that the later processes start from (their ``time.cache`` says ``kept``), and
-the first-result figure is the ``COLD`` cold processes' (it does not keep a round open after them).
+the first-result figure is the cold processes' (it does not keep a round open after them). How
+many are cold is the caller's, per cell (``run_rounds``' ``cold``, default ``COLD``): the driver
+gives the default variant ``COLD``, whose first result the first-call row and the compile page
+publish, and every other variant 1, its first process (no page reads a non-default variant's first
+result, and their cold compiles took 156 s a cold round on the H100 matrix part, 2026-12-07).
 """
 from __future__ import annotations
 
@@ -33,7 +37,7 @@ from compare.results.record_parts import Figure, Processes, Timing
 CONFIDENCE = 0.95
 TARGET = 0.05            # stop when the interval is within +-5 % of the median
 AUTO_MIN, AUTO_MAX = 6, 10
-COLD = 3                 # processes with cold caches: the first-result figure's
+COLD = 3                 # processes with cold caches (a default variant's): the first-result figure's
 FIGURES = Processes.FIGURES
 
 
@@ -118,24 +122,30 @@ def plan(processes: int | str) -> tuple[int, int]:
 def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
                time_round: Callable[[list[int], int], Sequence[Timing | None]],
                on_round: Callable[[dict[int, Processes]], None],
-               fits: Callable[[float], bool] | None = None) -> dict[int, Processes]:
+               fits: Callable[[float], bool] | None = None,
+               cold: Mapping[int, int] | None = None) -> dict[int, Processes]:
     """More processes for the cells in ``first`` (index -> the first process's ``time`` block):
     rounds 2, 3, ..., each over the cells still open in a shuffle seeded by ``seed`` and the round.
     ``time_round(order, round)`` runs each cell of ``order`` once more, in that order (one after
-    another, or with set-ups side by side: ``compare.running.overlap``; from round ``COLD`` on
-    with the cell's kept caches, ``Cell.cache_dir``), and returns their time blocks in that order
+    another, or with set-ups side by side: ``compare.running.overlap``; past the cell's cold
+    processes with its kept caches, ``Cell.cache_dir``), and returns their time blocks in that order
     (None: it failed, counted). ``on_round`` gets ``{i: time.processes}`` of the cells the round
     changed. ``fits(seconds)``: whether a round of that length still fits the run's sitting
     (``--sitting``), asked before each round past the fewest with the last round's length.
-    Returns the same for all."""
+    ``cold``: per cell, how many of its processes start from empty caches (default ``COLD``); its
+    first-result figure is closed after them. Returns the same for all."""
     fewest, most = plan(processes)
     last_s = 0.0
     times: dict[int, list[Timing]] = {i: [t] for i, t in first.items()}
     failed: dict[int, int] = {i: 0 for i in first}
     blocks: dict[int, Processes] = {}
+    colds = {i: (cold or {}).get(i, COLD) for i in first}
+
+    def still_open(i: int, rnd: int) -> bool:
+        closed = ("first_result",) if rnd > colds[i] else ()     # a later process is not cold
+        return rnd <= fewest or not settled(summary(times[i]), closed=closed)
     for rnd in range(2, most + 1):
-        closed = ("first_result",) if rnd > COLD else ()     # a later process is not cold
-        open_ = [i for i in times if rnd <= fewest or not settled(summary(times[i]), closed=closed)]
+        open_ = [i for i in times if still_open(i, rnd)]
         if not open_ or (rnd > fewest and fits is not None and not fits(last_s)):
             break
         random.Random(seed * 1000 + rnd).shuffle(open_)

@@ -16,6 +16,7 @@ from typing import Any, Callable, cast
 
 import backends
 import scenarios
+from backends.base import DEFAULT_VARIANT
 from compare.render import colors
 from compare.results.record import Record
 from compare.site import data, provenance, ranking
@@ -188,7 +189,7 @@ def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth"
 
 def all_defaults(m: Machine, device: str) -> list[Record]:
     return one_run([r for r in m.run if r.device == device and r.precision == "float32"
-                    and r.variant == "default" and data.at_defaults(r) and exact(r)
+                    and r.variant == DEFAULT_VARIANT and data.at_defaults(r) and exact(r)
                     and data.tag(r, "sweep") is None])
 
 

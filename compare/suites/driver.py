@@ -13,6 +13,7 @@ processes (--processes) of every timed suite, and render. ``publish`` runs no ce
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import sys
 import time
@@ -21,6 +22,7 @@ from typing import Any, Callable, ClassVar, Generic, NamedTuple, Protocol, TypeV
 
 import numpy as np
 
+from backends.base import DEFAULT_VARIANT
 from compare.running import cells as cells_, engine, lifeline, overlap, repeats, scaleout
 from compare import options
 from compare.planning import outdir, preflight
@@ -253,17 +255,36 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
     seed = suite.seed()
     # the cells --resume keeps run in no process, the first or a repeat one
     kept = {i for i, c in enumerate(cells) if store is not None and resume and store.done(key(c.identity()))}
-    results = engine.run_cells(cells, timeout=args.timeout, probes=run.probes, runner=runner,
-                               store=store, resume=resume,
-                               on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
-                               footprint=lambda c: preflight.cell_bytes(c)[0])
-    if repeats.plan(processes)[1] > 1:
-        ran = [i for i in range(len(cells)) if i not in kept]
-        sitting = getattr(args, "sitting", None)
-        more_processes(cells, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat,
-                       ahead=run.ahead, footprint=lambda c: preflight.cell_bytes(c)[0],
-                       fits=None if sitting is None else within(run.began + sitting, sitting))
+    many = repeats.plan(processes)[1] > 1
+    # the kernel caches a cell's processes keep (Cell.cache_dir); none on a Dask worker: another host
+    keeps = lifeline.temp_dir("kept-caches-") if many and runner is None else contextlib.nullcontext(None)
+    with keeps as where:
+        first = cold_once(cells, Path(where) if where is not None else None)
+        results = engine.run_cells(first, timeout=args.timeout, probes=run.probes, runner=runner,
+                                   store=store, resume=resume,
+                                   on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
+                                   footprint=lambda c: preflight.cell_bytes(c)[0])
+        if many:
+            ran = [i for i in range(len(cells)) if i not in kept]
+            sitting = getattr(args, "sitting", None)
+            more_processes(first, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat,
+                           ahead=run.ahead, footprint=lambda c: preflight.cell_bytes(c)[0],
+                           fits=None if sitting is None else within(run.began + sitting, sitting),
+                           caches=Path(where) if where is not None else None)
     return results
+
+
+def cold_once(cells: list[Cell], where: Path | None) -> list[Cell]:
+    """The cells as their first process runs them (--processes): a non-default variant's first
+    process fills a directory of ``where`` (``Cell.cache_dir``) that its later processes start from,
+    so it is cold once and its first result is that process's alone; the default variant's first
+    ``repeats.COLD`` processes are cold (``more_processes``). Why: only the default's first result
+    is published (the first-call row, the compile page: ``matrix.all_defaults``), and the other
+    variants' cold compiles took 156 s a cold round on the H100 matrix part (2026-12-07).
+    ``where`` None (one process, a Dask worker): every cell as planned."""
+    return [dataclasses.replace(c, cache_dir=str(where / f"cell-{i}"))
+            if where is not None and c.cache == "cold" and c.variant != DEFAULT_VARIANT else c
+            for i, c in enumerate(cells)]
 
 
 def within(ends: float, sitting: float) -> Callable[[float], bool]:
@@ -283,20 +304,25 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
                    seed: int, timeout: float, runner: Callable[[Cell], cells_.Result] | None = None,
                    store: Store | None = None, on_repeat: Callable[[Timing], None] | None = None,
                    ahead: int = 0, footprint: Callable[[Cell], float] | None = None,
-                   fits: Callable[[float], bool] | None = None) -> None:
+                   fits: Callable[[float], bool] | None = None, caches: Path | None = None) -> None:
     """The repeat processes of every cell of ``ran`` whose first process finished ok, in seeded
     rounds (``compare.running.repeats.run_rounds``): each round's ``time.processes`` replaces the
     record's in ``done`` and in the store, saved once a round. ``on_repeat`` sees each repeat
     process's ``time`` block (its parts, for the run's summary). ``ahead`` > 0 (--overlap, local
     workers): a round's workers set up side by side, in the round's order, each timed alone
-    (``compare.running.overlap``), as the first round's were."""
+    (``compare.running.overlap``), as the first round's were. A cell of ``plan`` with a
+    ``cache_dir`` (``cold_once``) kept its first process's caches there: its later processes start
+    from them; the others' ``repeats.COLD``-th process keeps its caches in ``caches`` (None: a
+    temporary directory of its own), for the processes after it."""
     first = {i: got[0].time for i in ran if (got := done[i])[0].status == "ok" and got[0].time is not None}
-    caches = lifeline.temp_dir("kept-caches-")      # repeats.COLD: where a cell's processes keep caches
+    own = lifeline.temp_dir("kept-caches-") if caches is None else contextlib.nullcontext(str(caches))
+    cold = {i: 1 if plan[i].cache_dir else repeats.COLD for i in first}     # processes with cold caches
 
     def again(i: int, rnd: int) -> Cell:      # a repeat process: no check, no files, only the figures
-        keep = rnd >= repeats.COLD and runner is None and plan[i].cache == "cold"   # a Dask worker: another host
+        keep = rnd >= cold[i] and runner is None and plan[i].cache == "cold"   # a Dask worker: another host
+        where = plan[i].cache_dir or str(Path(root) / f"cell-{i}")
         return dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False,
-                                   cache_dir=str(Path(caches.name) / f"cell-{i}") if keep else "")
+                                   cache_dir=where if keep else "")
 
     def figures_of(rec: dict[str, Any]) -> Timing | None:       # the worker's record JSON
         t = Timing.from_json(rec["time"]) if rec.get("time") else None
@@ -330,5 +356,5 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
                 store.put(done[i][0])
         if store is not None:
             store.save()
-    with caches:
-        repeats.run_rounds(first, processes, seed, time_round, on_round, fits=fits)
+    with own as root:
+        repeats.run_rounds(first, processes, seed, time_round, on_round, fits=fits, cold=cold)

@@ -90,6 +90,42 @@ def test_time_to_first_result_is_the_cold_processes_and_keeps_no_round_open():
     assert "first_result" not in repeats.figures(proc(repeats.COLD + 1))
 
 
+KEPT = "kept: X as an earlier process of this cell left it"
+
+
+def test_a_cell_cold_once_closes_its_first_result_after_its_first_process(monkeypatch):
+    """``cold``: per cell, its cold processes (the driver: 1 for a non-default variant, ``COLD``
+    for the default). A cell cold once has one first-result value, its first process's, and the
+    figure is closed from round 2; one cold 3 times has three. Both stop at the fewest where the
+    other figures settled."""
+    def proc(i: int, rnd: int) -> Timing:
+        t = _t(1e-5, first=float(rnd))           # cold first calls scatter widely
+        return Timing.of(**t, cache=KEPT) if rnd > (1 if i == 0 else repeats.COLD) else t
+    first = {0: _t(1e-5, first=1.0), 1: _t(1e-5, first=1.0)}
+    out = repeats.run_rounds(first, "auto", 0, lambda order, rnd: [proc(i, rnd) for i in order], lambda b: None,
+                             cold={0: 1})
+    once, thrice = out[0], out[1]
+    assert once.count == thrice.count == repeats.AUTO_MIN
+    assert once.first_result is not None and once.first_result.each == (1.5,)
+    assert thrice.first_result is not None and thrice.first_result.each == (1.5, 2.5, 3.5)
+    assert once.latency is not None and len(once.latency.each) == repeats.AUTO_MIN
+    # the closing itself shows where a cell's only figure is its first result: with 2 processes
+    # the fewest, the cell cold once stops there, the one cold 3 times after its 3rd process
+    monkeypatch.setattr(repeats, "AUTO_MIN", 2)
+
+    def only_first(i: int, rnd: int) -> Timing:
+        t = Timing.of(first_call_s=float(rnd), setup_s=0.5)
+        return Timing.of(**t, cache=KEPT) if rnd > (1 if i == 0 else repeats.COLD) else t
+    bare = {i: Timing.of(first_call_s=1.0, setup_s=0.5) for i in (0, 1)}
+    rounds: list[list[int]] = []
+    out = repeats.run_rounds(bare, "auto", 0, lambda order, rnd: [only_first(i, rnd) for i in order],
+                             lambda b: rounds.append(sorted(b)), cold={0: 1})
+    assert (out[0].count, out[1].count) == (2, 3) and rounds == [[0, 1], [1]]
+    default = repeats.run_rounds(bare, "auto", 0, lambda order, rnd: [only_first(i, rnd) for i in order],
+                                 lambda b: None)
+    assert default[0].count == 3             # without ``cold`` every cell is cold ``COLD`` times
+
+
 def test_a_failed_repeat_is_counted_not_hidden():
     out = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda order, rnd: [None] * len(order), lambda b: None)
     assert out[0]["count"] == 1 and out[0]["failed"] == 2

@@ -126,9 +126,9 @@ def test_the_driver_runs_the_repeat_processes_in_rounds(tmp_path: Path, monkeypa
     rounds: list[tuple[int, str | int, int]] = []
     real = repeats.run_rounds
 
-    def spy(first: Any, processes: Any, seed: int, time_one: Any, on_round: Any, fits: Any = None) -> Any:
+    def spy(first: Any, processes: Any, seed: int, time_one: Any, on_round: Any, **kw: Any) -> Any:
         rounds.append((len(first), processes, seed))
-        return real(first, processes, seed, time_one, on_round, fits=fits)
+        return real(first, processes, seed, time_one, on_round, **kw)
     monkeypatch.setattr(repeats, "run_rounds", spy)
     once: list[Any] = []
     real_cells = engine.run_cells
@@ -210,3 +210,35 @@ def test_the_sitting_says_why_it_stops(capsys):
     fits = driver.within(time.perf_counter() + 100.0, 1500.0)
     assert fits(10.0) and not fits(1000.0)
     assert "no more processes: a round takes about 1000 s" in capsys.readouterr().err
+
+
+def test_a_non_default_variant_is_cold_in_its_first_process_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """--processes: a non-default variant's first process fills a kept-caches directory
+    (``Cell.cache_dir``) that its later processes start from, so its first result is one value;
+    the default variant's first ``repeats.COLD`` processes are cold, the 3rd keeps its caches. The
+    engine and the workers are fakes that fill a directory the first time a process names it."""
+    from compare.running import cells as cells_, engine, repeats
+    from compare.spec import Cell
+    filled: set[str] = set()
+    seen: dict[str, list[str]] = {"default": [], "compile": []}     # each process's cache_dir, in order
+
+    def worker(c: Cell) -> dict[str, Any]:
+        seen[c.variant].append(c.cache_dir)
+        state = "kept" if c.cache_dir in filled else "cold"
+        filled.update({c.cache_dir} - {""})
+        return {**c.identity(), "status": "ok", "reason": "", "error": {"vs_oracle": 0.0, "tolerance": 1.0},
+                "time": {"first_call_s": 1.0 + len(seen[c.variant]), "setup_s": 0.5, "median_s": 1e-5,
+                         "iqr_s": 0.0, "min_s": 1e-5, "repeats": 3, "cache": f"{state}: FAKE"}}
+    monkeypatch.setattr(engine, "run_cells", lambda plan, **k: [(Record.from_json(worker(c)), None) for c in plan])
+    monkeypatch.setattr(cells_, "run", lambda c, timeout: (worker(c), None))
+    cell = Cell.make(scenario="saxpy", backend="torch", device="cpu", precision="float32", quick=True)
+    plan = [cell, dataclasses.replace(cell, variant="compile")]
+    run = driver.Run(argparse.Namespace(timeout=300, processes=4), ["x"], [driver.Planned(c, None) for c in plan])
+    [(default, _), (compiled, _)] = driver.run_cells(OneSaxpy(), run)
+    once, kept = seen["compile"], seen["default"]
+    assert once[0] != "" and once == [once[0]] * 4                  # from process 1 on, one directory
+    assert kept[:2] == ["", ""] and kept[2] != "" and kept[2:] == [kept[2]] * 2 and kept[2] != once[0]
+    assert len(compiled.time["processes"]["first_result"]["values"]) == 1
+    assert len(default.time["processes"]["first_result"]["values"]) == repeats.COLD
+    assert compiled.time["processes"]["count"] == default.time["processes"]["count"] == 4
+    assert driver.cold_once(plan, None) == plan            # one process, or a Dask worker: as planned
