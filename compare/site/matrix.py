@@ -16,7 +16,6 @@ from typing import Any, Callable, cast
 
 import backends
 import scenarios
-from backends.base import DEFAULT_VARIANT
 from compare.render import colors
 from compare.results.record import Record
 from compare.site import data, provenance, ranking
@@ -119,9 +118,7 @@ class Row:
         if not self.tied:       # figures from several runs, unstamped ones, an uncommitted tree: never ranked
             if provenance.one_run(self.runs):       # ... nor one run's figures that a rule needs repeated
                 return f"— ({ranking.bare([c for c in self.cells.values() if not c.reference])})"
-            if provenance.uncommitted(self.runs):
-                return "— (not a commit)"
-            return "— (not one run)" if "" in self.runs else f"— ({len(self.runs)} runs)"
+            return f"— ({provenance.mark(self.runs)})"
         return self.tied[0] if len(self.tied) == 1 else f"tie: {ranking.shorten(self.tied)}"
 
 
@@ -189,7 +186,7 @@ def largest_of(scenario: str, sweep: tuple[str | None, ...] = (None, "bandwidth"
 
 def all_defaults(m: Machine, device: str) -> list[Record]:
     return one_run([r for r in m.run if r.device == device and r.precision == "float32"
-                    and r.variant == DEFAULT_VARIANT and data.at_defaults(r) and exact(r)
+                    and r.variant == backends.base.DEFAULT_VARIANT and data.at_defaults(r) and exact(r)
                     and data.tag(r, "sweep") is None])
 
 
@@ -385,7 +382,8 @@ def evaluate(rule: Rule, m: Machine, fmt: Callable[[float, str], str]) -> Row:
 
         def to_top(v: float | None) -> float | None:
             return (v / b if rule.better == "lower" else b / v) if v is not None and v > 0 else None
-        cells = {f: dataclasses.replace(c, ratio=to_top(c.value), default_ratio=to_top(c.default_value)) for f, c in cells.items()}
+        cells = {f: dataclasses.replace(c, ratio=to_top(c.value), default_ratio=to_top(c.default_value))
+                 for f, c in cells.items()}
         ranked = sorted((cells[f] for f in values), key=lambda c: (c.ratio, c.framework != top))
         tied = ranking.tie(ranked, rule.exact)
         cells = {f: dataclasses.replace(c, tied=f in tied) for f, c in cells.items()}

@@ -63,6 +63,11 @@ def uncommitted(runs: tuple[str, ...]) -> bool:
     return len(runs) == 1 and runs[0] not in ("", RUN_UNKNOWN) and not one_run(runs)
 
 
+def mark(runs: tuple[str, ...]) -> str:
+    """The matrix's best column where ``runs`` are not one committed run: why it names no best."""
+    return "not a commit" if uncommitted(runs) else "not one run" if "" in runs else f"{len(runs)} runs"
+
+
 def words(runs: tuple[str, ...]) -> str:
     """The provenance sentence a row's page prints."""
     if not runs:

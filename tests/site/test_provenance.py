@@ -47,6 +47,12 @@ def test_one_run_of_an_uncommitted_tree_or_an_unknown_one_is_not_ranked():
     assert not any(provenance.uncommitted(provenance.runs_of(x)) for x in ([rec(A)], [rec(A), rec(B)], [rec()]))
 
 
+def test_the_best_column_says_why_runs_name_no_best():
+    assert provenance.mark(provenance.runs_of([rec(A), rec(B)])) == "2 runs"
+    assert provenance.mark(provenance.runs_of([rec(A), rec()])) == "not one run"
+    assert provenance.mark(provenance.runs_of([rec(B), rec(B)])) == "not a commit"
+
+
 def test_a_full_commit_hash_is_shortened_on_pages_and_anything_else_kept():
     from compare.site import provenance
     assert provenance.short("0ffd82b02e538da2c427e5697a9f567f429b5845") == "0ffd82b"
