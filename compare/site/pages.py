@@ -146,7 +146,8 @@ LEGEND = ("Each cell is the framework's figure divided by the leading framework'
           f"(no interval), at least {ranking.ONE_PROCESS_GAP:g}× apart; deterministic figures "
           f"(memory, error shares) at least {100 * (ranking.SEPARATED_GAP - 1):.0f} % apart. "
           "Otherwise the row is a tie, and everyone not separated from the leader shares it "
-          "(`tie: …`). Colours: " + "; ".join(f"{b.emoji} {colors.band_words(b)}" for b in colors.BANDS) +
+          "(`tie: …`); `— (why)` where it names none (figures from several runs, not from a commit, or "
+          "from one process on a row that ranks only repeated figures). Colours: " + "; ".join(f"{b.emoji} {colors.band_words(b)}" for b in colors.BANDS) +
           f". `~` marks a noisy figure (quartile spread above {100 * noise.SPREAD:.0f} % of the "
           f"median, under {noise.MIN_REPEATS} repeats, other processes busy on the host while it was "
           "timed, or pipelined calls slower than one synchronised call); `✗` a cell that failed its check or crashed; `skipped` a framework or "
