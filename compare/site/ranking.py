@@ -147,8 +147,10 @@ def unrepeated(figs: Sequence[Repeated], command: str) -> str:
     why = bare(figs)
     if not why or not command:
         return ""
-    no = [f.framework for f in figs if f.value is not None and f.ci is None]
-    who = ("every figure here is from one process a cell" if why == "one process" and len(no) == len(
-        [f for f in figs if f.value is not None]) else f"{', '.join(no)}: no 95 % interval across processes")
+    shown = [f for f in figs if f.value is not None]
+    no = [f.framework for f in shown if f.ci is None]
+    every = why == "one process" and len(no) == len(shown)
+    who = ("every figure here is from one process a cell" if every
+           else f"{', '.join(no)}: no 95 % interval across processes")
     return (f"Not ranked: {who}; this row ranks only figures repeated across processes, each with a "
             f"95 % interval (`{command}`). Ratios are to the leading figure; no best is named.")
