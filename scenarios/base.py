@@ -196,6 +196,9 @@ class Scenario:
     item: ClassVar[str] = ""               # what one item is, for a sampled check's record
     # its error.ulps counts the roundings of one fusable operation (1: once, as an FMA; above: twice)
     ulps_count_roundings: ClassVar[bool] = False
+    # the devices where a published row ranks its timings at its default parameters (None: every
+    # one); elsewhere a cell at its defaults is timed only for its first result and its error
+    timings_ranked_on: ClassVar[tuple[str, ...] | None] = None
 
     # ---- parameters -------------------------------------------------------------------------
     def params(self, overrides: Mapping[str, Any] | None = None, quick: bool = False):
@@ -214,6 +217,12 @@ class Scenario:
         p = self.Params(**values)
         p.validate()
         return p
+
+    def timings_ranked(self, params, device: str) -> bool:
+        """Whether a published row may rank the timings of a cell of ``params`` on ``device``:
+        every size but the defaults, and the defaults on ``timings_ranked_on``."""
+        on = self.timings_ranked_on
+        return on is None or str(device) in on or params != self.params()
 
     def describe_params(self) -> str:
         return ", ".join(f"{f.name}={f.default!r}" for f in dataclasses.fields(self.Params))

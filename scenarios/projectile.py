@@ -115,6 +115,10 @@ class Projectile(Scenario):
     quick = {"iters": 20}
     outputs = ("loss", "grad", "loss_history", "v_final")
     has_gradient = True
+    # on a GPU its ranked timings are the gradient rows', at the scaling sweep's largest batch (2^20
+    # on the H100), never its defaults' one trajectory; the CPU-only and busy rows rank those
+    timings_ranked_on = ("cpu",)
+
     def inputs(self, params: ProjectileParams, precision: str) -> dict[str, np.ndarray]:
         """Shared constants as scalars; ``v0`` and ``target`` per trajectory: shape (2,) for
         batch = 1 (the seed case), (B, 2) for B > 1 (row 0 the seed case, the rest drawn from

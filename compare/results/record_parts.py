@@ -157,7 +157,8 @@ class Figure(Part):
 @dataclasses.dataclass(frozen=True, eq=False)
 class Processes(Part):
     """A ``time.processes`` block: a cell timed in ``count`` worker processes (compare.running.repeats),
-    how they were ordered, and each figure over them (``FIGURES``); ``failed`` repeat processes counted."""
+    how they were ordered, and each figure over them (``FIGURES``); ``failed`` repeat processes counted;
+    ``capped``: why it ran in fewer processes than the others."""
     count: int = 0
     order: str | None = None
     interval: str | None = None
@@ -167,6 +168,7 @@ class Processes(Part):
     events: Figure | None = None
     first_result: Figure | None = None
     failed: int | None = None
+    capped: str | None = None     # why the cell stopped before the others (compare.suites.driver.CAPPED)
     FIGURES: ClassVar[tuple[str, ...]] = ("latency", "throughput", "graph", "events", "first_result")
     NESTED: ClassVar[Mapping[str, type[Part]]] = {k: Figure for k in FIGURES}
 

@@ -177,7 +177,7 @@ TIME = Obj({"first_call_s": SECONDS, "median_s": POSITIVE, "iqr_s": SECONDS, "mi
                               "ours_s": OPT_SECONDS, "rounds": OPT_COUNT, "block": OPT_COUNT,
                               "ours_call_s": OPT_SECONDS, "ratio": OPT_POSITIVE}),
             # the cell's figures over several worker processes (compare.running.repeats)
-            "processes": Obj({"count": COUNT, "order": TEXT, "interval": TEXT, "failed": COUNT},
+            "processes": Obj({"count": COUNT, "order": TEXT, "interval": TEXT, "failed": COUNT, "capped": TEXT},
                              rest=Obj({"values": Seq(POSITIVE, null=False), "median_s": POSITIVE,
                                        "ci_lo_s": POSITIVE, "ci_hi_s": POSITIVE, "confidence": SECONDS},
                                       ("values", "median_s", "ci_lo_s", "ci_hi_s", "confidence"))),

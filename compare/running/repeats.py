@@ -23,6 +23,10 @@ many are cold is the caller's, per cell (``run_rounds``' ``cold``, default ``COL
 gives the default variant ``COLD``, whose first result the first-call row and the compile page
 publish, and every other variant 1, its first process (no page reads a non-default variant's first
 result, and their cold compiles took 156 s a cold round on the H100 matrix part, 2026-12-07).
+
+A cell may stop before the others (``run_rounds``' ``most``, per cell): the driver stops a cell
+whose timings no row ranks on its device after the processes its first result needs; its block
+says so (``capped``), one with a single process carries no figures (its record's own are it).
 """
 from __future__ import annotations
 
@@ -78,9 +82,10 @@ def kept(t: Timing) -> bool:
     return str(t.get("cache") or "").startswith("kept")
 
 
-def summary(times: Sequence[Timing], failed: int = 0) -> Processes:
+def summary(times: Sequence[Timing], failed: int = 0, capped: str = "") -> Processes:
     """``time.processes`` from the time blocks of every process of a cell (the first included);
-    ``failed``: the repeat processes that failed (counted where any did)."""
+    ``failed``: the repeat processes that failed (counted where any did); ``capped``: why the cell
+    stopped before the others (kept where given)."""
     each = [figures(t) for t in times]
     found: dict[str, Figure] = {}
     for name in FIGURES:
@@ -92,7 +97,7 @@ def summary(times: Sequence[Timing], failed: int = 0) -> Processes:
                                 confidence=round(cover, 4))
     return Processes.of(count=len(times), order="rounds, a seeded shuffle of the open cells in each",
                         interval="order statistics of the median (distribution-free)", **found,
-                        **({"failed": failed} if failed else {}))
+                        **({"failed": failed} if failed else {}), **({"capped": capped} if capped else {}))
 
 
 def settled(block: Processes, target: float = TARGET, confidence: float = CONFIDENCE,
@@ -123,7 +128,8 @@ def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
                time_round: Callable[[list[int], int], Sequence[Timing | None]],
                on_round: Callable[[dict[int, Processes]], None],
                fits: Callable[[float], bool] | None = None,
-               cold: Mapping[int, int] | None = None) -> dict[int, Processes]:
+               cold: Mapping[int, int] | None = None, most: Mapping[int, int] | None = None,
+               capped: str = "") -> dict[int, Processes]:
     """More processes for the cells in ``first`` (index -> the first process's ``time`` block):
     rounds 2, 3, ..., each over the cells still open in a shuffle seeded by ``seed`` and the round.
     ``time_round(order, round)`` runs each cell of ``order`` once more, in that order (one after
@@ -133,18 +139,24 @@ def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
     changed. ``fits(seconds)``: whether a round of that length still fits the run's sitting
     (``--sitting``), asked before each round past the fewest with the last round's length.
     ``cold``: per cell, how many of its processes start from empty caches (default ``COLD``); its
-    first-result figure is closed after them. Returns the same for all."""
-    fewest, most = plan(processes)
+    first-result figure is closed after them. ``most``: per cell, the most processes it runs in
+    (default: the plan's); a cell stopped below the fewest keeps ``capped`` in its block, and one
+    of a single process gets its block (no figures) before round 2. Returns the same for all."""
+    fewest, top = plan(processes)
     last_s = 0.0
     times: dict[int, list[Timing]] = {i: [t] for i, t in first.items()}
     failed: dict[int, int] = {i: 0 for i in first}
-    blocks: dict[int, Processes] = {}
     colds = {i: (cold or {}).get(i, COLD) for i in first}
+    tops = {i: max(1, min(top, (most or {}).get(i, top))) for i in first}
+    why = {i: capped if tops[i] < fewest else "" for i in first}
+    blocks = {i: Processes.of(count=1, **({"capped": why[i]} if why[i] else {})) for i in first if tops[i] == 1}
+    if blocks:
+        on_round(dict(blocks))
 
     def still_open(i: int, rnd: int) -> bool:
         closed = ("first_result",) if rnd > colds[i] else ()     # a later process is not cold
-        return rnd <= fewest or not settled(summary(times[i]), closed=closed)
-    for rnd in range(2, most + 1):
+        return rnd <= tops[i] and (rnd <= fewest or not settled(summary(times[i]), closed=closed))
+    for rnd in range(2, top + 1):
         open_ = [i for i in times if still_open(i, rnd)]
         if not open_ or (rnd > fewest and fits is not None and not fits(last_s)):
             break
@@ -161,6 +173,6 @@ def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
                 times[i].append(t)
         changed = {}
         for i in open_:
-            blocks[i] = changed[i] = summary(times[i], failed[i])
+            blocks[i] = changed[i] = summary(times[i], failed[i], why[i])
         on_round(changed)
     return blocks

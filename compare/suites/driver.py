@@ -22,6 +22,7 @@ from typing import Any, Callable, ClassVar, Generic, NamedTuple, Protocol, TypeV
 
 import numpy as np
 
+import scenarios
 from backends.base import DEFAULT_VARIANT
 from compare.running import cells as cells_, engine, lifeline, overlap, repeats, scaleout
 from compare import options
@@ -287,6 +288,19 @@ def cold_once(cells: list[Cell], where: Path | None) -> list[Cell]:
             for i, c in enumerate(cells)]
 
 
+CAPPED = "no row ranks its timings on this device: the processes its first result needs"
+
+
+def caps(cells: list[Cell]) -> dict[int, int]:
+    """The most processes of each cell whose timings no published row ranks (its scenario at its
+    defaults on a device not in ``Scenario.timings_ranked_on``): those its first result needs,
+    ``repeats.COLD`` for the default variant (the first-call row), 1 for any other (``cold_once``).
+    Why: the projectile's non-default variants at its defaults took 86 s a round beyond their first
+    calls on the H100 matrix part (2026-12-07), and no CUDA row reads them."""
+    return {i: repeats.COLD if c.variant == DEFAULT_VARIANT else 1 for i, c in enumerate(cells)
+            if not scenarios.get(c.scenario).timings_ranked(c.params, c.device)}
+
+
 def within(ends: float, sitting: float) -> Callable[[float], bool]:
     """``--sitting``: whether a round of so many seconds, started now, ends by ``ends``
     (time.perf_counter); says so on stderr when it would not."""
@@ -317,9 +331,13 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
     first = {i: got[0].time for i in ran if (got := done[i])[0].status == "ok" and got[0].time is not None}
     own = lifeline.temp_dir("kept-caches-") if caches is None else contextlib.nullcontext(str(caches))
     cold = {i: 1 if plan[i].cache_dir else repeats.COLD for i in first}     # processes with cold caches
+    most = {i: n for i, n in caps(plan).items() if i in first}
+    if most:
+        print(f"  {len(most)} cells capped ({CAPPED})", file=sys.stderr, flush=True)
 
     def again(i: int, rnd: int) -> Cell:      # a repeat process: no check, no files, only the figures
-        keep = rnd >= cold[i] and runner is None and plan[i].cache == "cold"   # a Dask worker: another host
+        keep = (rnd >= cold[i] and rnd < most.get(i, rnd + 1) and runner is None   # a Dask worker: another host
+                and plan[i].cache == "cold")
         where = plan[i].cache_dir or str(Path(root) / f"cell-{i}")
         return dataclasses.replace(plan[i], check=False, save_outputs=False, save_inputs=False,
                                    cache_dir=where if keep else "")
@@ -345,8 +363,9 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
 
     def on_round(blocks: dict[int, Processes]) -> None:
         count = max((b.count for b in blocks.values()), default=0)
-        print(f"  process {count}: {len(blocks)} cells in {time.monotonic() - started[0]:.0f} s",
-              file=sys.stderr, flush=True)
+        if count > 1:             # a block of one process: a cell capped there (``caps``), no round
+            print(f"  process {count}: {len(blocks)} cells in {time.monotonic() - started[0]:.0f} s",
+                  file=sys.stderr, flush=True)
         started[0] = time.monotonic()
         for i, block in blocks.items():
             rec, out = done[i]
@@ -357,4 +376,5 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
         if store is not None:
             store.save()
     with own as root:
-        repeats.run_rounds(first, processes, seed, time_round, on_round, fits=fits, cold=cold)
+        repeats.run_rounds(first, processes, seed, time_round, on_round, fits=fits, cold=cold,
+                           most=most, capped=CAPPED)

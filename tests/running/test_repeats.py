@@ -126,6 +126,33 @@ def test_a_cell_cold_once_closes_its_first_result_after_its_first_process(monkey
     assert default[0].count == 3             # without ``cold`` every cell is cold ``COLD`` times
 
 
+def test_a_capped_cell_stops_at_its_cap_while_another_goes_on():
+    """``most``: a cell stops after its cap (its block says why), the others go on to the fewest
+    and past it as ever; a cap of 1 runs no repeat process and gets a block without figures."""
+    ran: dict[int, list[int]] = {0: [], 1: [], 2: []}
+    values = iter([1e-5, 2e-5] * 20)                  # scattered: never settled
+
+    def time_round(order: list[int], rnd: int) -> list[Timing]:
+        for i in order:
+            ran[i].append(rnd)
+        return [_t(next(values)) for _ in order]
+    rounds: list[list[int]] = []
+    out = repeats.run_rounds({i: _t(1e-5) for i in ran}, "auto", 0, time_round, lambda b: rounds.append(sorted(b)),
+                             most={0: repeats.COLD, 1: 1}, capped="WHY")
+    assert ran == {0: [2, 3], 1: [], 2: list(range(2, repeats.AUTO_MAX + 1))}
+    assert rounds[0] == [1] and rounds[1] == rounds[2] == [0, 2] and rounds[-1] == [2]
+    assert out[0].count == repeats.COLD and out[0].capped == "WHY"
+    assert out[0].first_result is not None and len(out[0].first_result.each) == repeats.COLD
+    assert out[1].count == 1 and out[1].capped == "WHY" and out[1].latency is None and out[1].first_result is None
+    assert out[2].count == repeats.AUTO_MAX and out[2].capped is None and not repeats.settled(out[2])
+    # a cap at or above the fewest cuts nothing the others get: no words
+    same = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda o, r: [_t(1e-5) for _ in o], lambda b: None,
+                              most={0: 3}, capped="WHY")
+    assert same[0].count == 3 and same[0].capped is None
+    j = out[1].to_json()
+    assert Processes.from_json(j).to_json() == j == {"count": 1, "capped": "WHY"}
+
+
 def test_a_failed_repeat_is_counted_not_hidden():
     out = repeats.run_rounds({0: _t(1e-5)}, 3, 0, lambda order, rnd: [None] * len(order), lambda b: None)
     assert out[0]["count"] == 1 and out[0]["failed"] == 2

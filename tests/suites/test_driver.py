@@ -242,3 +242,48 @@ def test_a_non_default_variant_is_cold_in_its_first_process_only(monkeypatch: py
     assert len(default.time["processes"]["first_result"]["values"]) == repeats.COLD
     assert compiled.time["processes"]["count"] == default.time["processes"]["count"] == 4
     assert driver.cold_once(plan, None) == plan            # one process, or a Dask worker: as planned
+
+
+def test_a_cell_whose_timings_no_row_ranks_is_capped_at_its_first_results_processes() -> None:
+    """``caps``: the projectile at its defaults on CUDA (no CUDA row ranks those timings): the
+    default variant ``repeats.COLD`` processes (the first-call row), any other 1; on the CPU, or at
+    another size, or another scenario, no cap."""
+    from compare.running import repeats
+    from compare.spec import Cell
+    cuda = Cell.make(scenario="projectile", backend="torch", device="cuda", precision="float32")
+    plan = [cuda, dataclasses.replace(cuda, variant="compile"),
+            dataclasses.replace(cuda, device="cpu"), dataclasses.replace(cuda, device="cpu", variant="compile"),
+            Cell.make(scenario="projectile", backend="torch", device="cuda", precision="float32", params={"batch": 2}),
+            Cell.make(scenario="projectile", backend="torch", device="cuda", precision="float32", quick=True),
+            Cell.make(scenario="saxpy", backend="torch", device="cuda", precision="float32")]
+    assert driver.caps(plan) == {0: repeats.COLD, 1: 1}
+
+
+def test_the_driver_stops_a_capped_cell_and_says_why(monkeypatch: pytest.MonkeyPatch, capsys: Any) -> None:
+    """--processes 4 over fake workers: the projectile at its defaults on CUDA stops at its cap
+    (default variant: ``repeats.COLD`` processes, its three first results; another variant: its
+    first process alone), its block says why; a SAXPY cell runs all four."""
+    from compare.running import cells as cells_, engine, repeats
+    from compare.spec import Cell
+    count: dict[tuple[str, str], int] = {}
+
+    def worker(c: Cell) -> dict[str, Any]:
+        k = (c.scenario, c.variant)
+        count[k] = count.get(k, 0) + 1
+        return {**c.identity(), "status": "ok", "reason": "", "error": {"vs_oracle": 0.0, "tolerance": 1.0},
+                "time": {"first_call_s": float(count[k]), "setup_s": 0.5, "median_s": 1e-5, "iqr_s": 0.0,
+                         "min_s": 1e-5, "repeats": 3, "cache": "cold: FAKE"}}
+    monkeypatch.setattr(engine, "run_cells", lambda plan, **k: [(Record.from_json(worker(c)), None) for c in plan])
+    monkeypatch.setattr(cells_, "run", lambda c, timeout: (worker(c), None))
+    monkeypatch.setattr(engine, "availability", lambda names: {})
+    proj = Cell.make(scenario="projectile", backend="torch", device="cuda", precision="float32")
+    plan = [proj, dataclasses.replace(proj, variant="compile"),
+            Cell.make(scenario="saxpy", backend="torch", device="cuda", precision="float32")]
+    run = driver.Run(argparse.Namespace(timeout=300, processes=4), ["x"], [driver.Planned(c, None) for c in plan])
+    [(default, _), (other, _), (saxpy, _)] = driver.run_cells(OneSaxpy(), run)
+    assert count == {("projectile", "default"): repeats.COLD, ("projectile", "compile"): 1, ("saxpy", "default"): 4}
+    d, o, s = (r.time["processes"] for r in (default, other, saxpy))
+    assert d["count"] == repeats.COLD and len(d["first_result"]["values"]) == repeats.COLD
+    assert d["capped"] == o["capped"] == driver.CAPPED and "capped" not in s
+    assert o["count"] == 1 and "latency" not in o and s["count"] == 4
+    assert "2 cells capped (no row ranks its timings on this device" in capsys.readouterr().err
