@@ -218,7 +218,7 @@ class Scenario:
         p.validate()
         return p
 
-    def timings_ranked(self, params, device: str) -> bool:
+    def timings_ranked(self, params: Any, device: str) -> bool:
         """Whether a published row may rank the timings of a cell of ``params`` on ``device``:
         every size but the defaults, and the defaults on ``timings_ranked_on``."""
         on = self.timings_ranked_on

@@ -369,6 +369,13 @@ def test_the_matrix_parts_cold_rounds(doc: str) -> None:
     assert got == (f"{spent(other):.0f}", f"{spent(other) / 3:.0f}", f"{by['torch']:.0f}", f"{by['mlx']:.0f}",
                    f"{spent([r for r in ok if r['variant'] == 'default']):.0f}")
 
+    def beyond(r: Mapping[str, Any]) -> float:    # a repeat round's window: no first-process-only phase
+        p, w = r["time"]["phases"], r["time"]["window"]
+        return w[1] - w[0] - sum(p.get(k, 0.0) for k in ("first_call", "host_profile", "own_timer", "memory_pass"))
+
+    (round_s,) = said(doc, r"those variants' windows took about (\d+) s a round\s+beyond their first calls")
+    assert round_s == f"{sum(beyond(r) for r in other if r['scenario'] == 'projectile'):.0f}"
+
 
 def test_the_preflights_per_trajectory_slopes(doc: str) -> None:
     """The memory preflight's margin of two: PyTorch's peak RSS per trajectory between three batch
