@@ -11,6 +11,9 @@
 #   checks the copy's files against the digest TREE, COMPARE_GIT_TREE: commit first, nothing untracked)
 #   (a later machine: unpack the last publish.tgz into .pubstate/ and carry it in that call)
 #   next calls:        bash docs/results/h100/publish.sh wait     (until it says "publish ended")
+#   to cut the running part short (the next in the list then starts): publish.sh stop, then wait
+#   (it interrupts `compare publish`, which records the part as cut off; a pattern that is not
+#   anchored would match the device call's own shell, whose command line names it too)
 #
 # Each "BACKENDS:PARTS[:FLAGS]" argument is one `compare publish` run into the same --out, in order
 # (FLAGS: more publish options, e.g. --allow-noisy-sitting); with no argument: all backends, parts all
@@ -24,6 +27,10 @@ set -u
 W=/root/publish
 WAIT=${WAIT:-540}
 export PYTHONPATH=/tmp/site:/root/tree COMPARE_GIT_COMMIT=${COMMIT:-} COMPARE_GIT_TREE=${TREE:-} PYTHONUNBUFFERED=1
+if [ "${1:-wait}" = stop ]; then
+  pkill -INT -f '^python -m compare publish ' && echo "interrupted the running part" || echo "no part running"
+  shift; set -- wait
+fi
 if [ "${1:-wait}" = start ]; then
   shift
   [ -n "${COMMIT:-}" ] && [ -n "${TREE:-}" ] || { echo "name the commit and its tree: COMMIT=<sha> TREE=<sha> bash $0 start ..."; exit 2; }
