@@ -282,9 +282,11 @@ def cold_once(cells: list[Cell], where: Path | None) -> list[Cell]:
     ``repeats.COLD`` processes are cold (``more_processes``). Why: only the default's first result
     is published (the first-call row, the compile page: ``matrix.all_defaults``), and the other
     variants' cold compiles took 156 s a cold round on the H100 matrix part (2026-12-07).
-    ``where`` None (one process, a Dask worker): every cell as planned."""
+    ``where`` None (one process, a Dask worker): every cell as planned; a cell ``caps`` stops after
+    its first process keeps nothing (no later process would start from it)."""
+    alone = {i for i, n in caps(cells).items() if n == 1}
     return [dataclasses.replace(c, cache_dir=str(where / f"cell-{i}"))
-            if where is not None and c.cache == "cold" and c.variant != DEFAULT_VARIANT else c
+            if where is not None and c.cache == "cold" and c.variant != DEFAULT_VARIANT and i not in alone else c
             for i, c in enumerate(cells)]
 
 

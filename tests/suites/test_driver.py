@@ -266,10 +266,12 @@ def test_the_driver_stops_a_capped_cell_and_says_why(monkeypatch: pytest.MonkeyP
     from compare.running import cells as cells_, engine, repeats
     from compare.spec import Cell
     count: dict[tuple[str, str], int] = {}
+    dirs: dict[tuple[str, str], list[str]] = {}
 
     def worker(c: Cell) -> dict[str, Any]:
         k = (c.scenario, c.variant)
         count[k] = count.get(k, 0) + 1
+        dirs.setdefault(k, []).append(c.cache_dir)
         return {**c.identity(), "status": "ok", "reason": "", "error": {"vs_oracle": 0.0, "tolerance": 1.0},
                 "time": {"first_call_s": float(count[k]), "setup_s": 0.5, "median_s": 1e-5, "iqr_s": 0.0,
                          "min_s": 1e-5, "repeats": 3, "cache": "cold: FAKE"}}
@@ -287,3 +289,4 @@ def test_the_driver_stops_a_capped_cell_and_says_why(monkeypatch: pytest.MonkeyP
     assert d["capped"] == o["capped"] == driver.CAPPED and "capped" not in s
     assert o["count"] == 1 and "latency" not in o and s["count"] == 4
     assert "2 cells capped (no row ranks its timings on this device" in capsys.readouterr().err
+    assert dirs[("projectile", "compile")] == [""]       # its one process keeps no caches: none would read them
