@@ -5,7 +5,9 @@ SOURCE that is a path names a generated file (a report's matrix.md) whose links 
 relative to README; ``answers REPORT...`` is the table of which framework for which job, derived
 from the stores each report's site.json names (compare/site/answers.py); ``sitting``, in a later
 sitting's README, is what that sitting shows (compare/site/sitting_readme.py). The test suite fails
-when a block differs from its source; ``python -m compare.site.readme`` rewrites them all.
+when a block differs from its source; ``python -m compare.site.readme`` rewrites them all, and with
+``--reports`` first rebuilds every committed report from the stores its site.json names (each one,
+not only those a change was meant for: a shared page's wording reaches them all).
 """
 from __future__ import annotations
 
@@ -54,12 +56,25 @@ def blocks(readme: Path = ROOT / "README.md") -> list[str]:
     return [m.group(2) for m in BLOCK.finditer(readme.read_text(encoding="utf-8"))]
 
 
+def rebuild_reports(results: Path = ROOT / "docs" / "results") -> None:
+    """Every committed report rebuilt as its site.json says (inputs and title as first built)."""
+    import json
+    from compare import site
+    for manifest in sorted(results.glob("*/report/site.json")):
+        how = json.loads(manifest.read_text(encoding="utf-8"))
+        site.build([ROOT / p for p in how["inputs"]], manifest.parent, how["title"],
+                   [ROOT / p for p in how["against"]])
+        print(f"rebuilt {manifest.parent.relative_to(ROOT)}")
+
+
 def main(argv: list[str]) -> int:
     from compare.results import formats          # a program's start-up, as compare.cli.main's:
     from compare.stress.format import FORMAT as STRESS      # the answers read the stores' sweep
     from compare.sweep.format import FORMAT as SWEEP        # and stress records
     formats.register(SWEEP, STRESS)
     from compare.site import sitting_readme
+    if "--reports" in argv and "--check" not in argv:
+        rebuild_reports()
     stale = []
     for readme in [ROOT / "README.md", *sitting_readme.readmes(ROOT / "docs" / "results")]:
         new = expected(readme)
