@@ -1,6 +1,6 @@
-"""What the tests of docs/measurement.md's store figures share (tests/site/test_measurement_claims.py,
-test_measurement_launch.py): the published stores, each machine's loaded once per process, the doc
-on one line, and how the doc writes a range and names frameworks."""
+"""What the tests of the docs' store figures share (tests/site/test_measurement_claims.py,
+test_measurement_launch.py, test_doc_claims.py): the published stores, each machine's loaded once
+per process, a doc on one line, and how the doc writes a range and names frameworks."""
 from __future__ import annotations
 
 import functools
@@ -26,15 +26,15 @@ def machine(key: str) -> data.Machine:
     return data.load([RESULTS / key])
 
 
-def doc_text() -> str:
-    """measurement.md on one line, its en dashes as hyphens."""
-    return " ".join((ROOT / "docs" / "measurement.md").read_text(encoding="utf-8").replace("\u2013", "-").split())
+def doc_text(name: str = "docs/measurement.md") -> str:
+    """A doc (measurement.md unless named: README.md, docs/findings.md) on one line, its en dashes as hyphens."""
+    return " ".join((ROOT / name).read_text(encoding="utf-8").replace("\u2013", "-").split())
 
 
 def said(doc: str, pattern: str) -> tuple[str, ...]:
     """The figures of the doc's sentence that ``pattern`` matches (fails where it no longer says so)."""
     m = re.search(pattern, doc)
-    assert m, f"measurement.md no longer says: {pattern}"
+    assert m, f"the doc no longer says: {pattern}"
     return m.groups()
 
 

@@ -1,0 +1,217 @@
+"""More of docs/measurement.md's store figures, computed from the stores with the site's own code
+(issue 57, item 5; the others: test_measurement_claims.py, test_measurement_launch.py; findings.md
+and README: test_findings_claims.py; the code constants the docs quote: test_doc_constants.py).
+Each test reads the sentence and the store, so a change to either fails it. Fast tier."""
+from __future__ import annotations
+
+import statistics
+from collections import Counter
+
+import pytest
+
+from compare.measuring import sitting_quiet as sq
+from compare.results.record import Record
+from compare.site import data, matrix, pages
+from compare.sweep.rows import throughput_s
+from measurement_doc import RESULTS, RULES, doc_text, machine, said, span
+
+pytestmark = pytest.mark.xdist_group("measurement-claims")
+
+COMMIT_39 = "9fb39d8"       # session 39's H100 matrix part: the report's per-call rows since
+
+
+@pytest.fixture(scope="module")
+def doc() -> str:
+    return doc_text()
+
+
+def run_of(r: Record) -> str:
+    return str((r.run or {}).get("commit", ""))
+
+
+# ---- the rows and the runs they read -------------------------------------------------------------
+def test_the_rows_that_read_session_39s_matrix_part(doc: str) -> None:
+    """'Since session 39 the report's accuracy, first-call, per-call and small-particle rows read that
+    session's matrix part (a quiet sitting, three processes a cell, each cell with its own floor,
+    set-ups overlapped)': the H100 rows and that run's records."""
+    said(doc, r"Since session 39 the report's accuracy, first-call, per-call and small-particle rows read that "
+              r"session's matrix part \(`publish --part all`, a quiet sitting, three processes a cell, each cell with "
+              r"its own floor, set-ups overlapped;")
+    m = machine("h100")
+    reads = {r.rule.key for r in pages.evaluate(m)[0] if r.runs and all(COMMIT_39 in w for w in r.runs)}
+    assert reads == {"accuracy", "compile", "latency", "pipelined", "graph", "particles-small"}
+    mine = [r for r in m.run if run_of(r).startswith(COMMIT_39) and r.status == "ok"]
+    assert mine and {data.process_count(r) for r in mine} == {3}
+    assert all(r.cell_floor for r in mine)
+    (entry,) = [e for e in m.runs if str(e.get("git_commit", "")).startswith(COMMIT_39)]
+    assert not entry.get("noisy_sitting") and (entry.get("overlap") or 0) > 0
+
+
+def test_the_cpu_rows_read_one_run_each_but_not_one_host(doc: str) -> None:
+    said(doc, r"Its rows read one run each, but not all the same run, and so not all one host")
+    m = machine("cpu")
+    reads = {r.rule.key: r.runs for r in pages.evaluate(m)[0]}
+    assert all(len(w) == 1 for w in reads.values()), reads
+    assert len({w for w in reads.values()}) > 1
+    hosts = {e.get("cpu_id") for e in m.runs if any(f"commit {str(e.get('git_commit'))[:7]}" in w[0]
+                                                     for w in reads.values())}
+    assert len(hosts) > 1, hosts
+
+
+def test_the_first_sitting_stored_for_the_h100(doc: str) -> None:
+    """The particle row's interrupted round of 2026-12-06 03:54: a quiet sitting, one process a cell."""
+    when, label = said(doc, r"The first one stored for the H100 is the particle row's interrupted round of "
+                            r"([\d-]+ [\d:]+) \(a quiet sitting, one process a cell\).*?\[sittings/([\w-]+)\]")
+    m = machine(f"h100/sittings/{label}")
+    (entry,) = m.runs
+    assert str(entry.get("created"))[:16].replace("T", " ") == when and not entry.get("noisy_sitting")
+    timed = [r for r in m.run if r.status == "ok"]
+    assert timed and {r.scenario for r in m.run} == {"particles"} and {data.process_count(r) for r in timed} == {1}
+
+
+def test_cupy_met_the_launch_target_in_session_31s_run(doc: str) -> None:
+    """'plain launches meet it in all four for no framework (CuPy's did in session 31's run; ...)':
+    session 31's run, now a sitting, and the empty launch the store's bandwidth sweep timed."""
+    said(doc, r"plain launches meet it in all four for no framework \(CuPy's did in session 31's run;")
+    old = machine("h100/sittings/2026-12-06-session31")
+    three = [r for r in old.run if r.backend == "cupy" and r.variant == "default" and r.device == "cuda"
+             and r.precision == "float32" and r.status == "ok" and data.at_defaults(r)
+             and r.scenario in ("saxpy", "sdf", "particles")]
+    launch = [r for r in matrix.latest(list(machine("h100").records)) if r.scenario == "launch" and r.backend == "cupy"
+              and r.variant == "default" and r.device == "cuda" and r.status == "ok" and data.at_defaults(r)]
+    assert {r.scenario for r in three} == {"saxpy", "sdf", "particles"} and len(launch) == 1
+
+    def ratio(r: Record) -> float:
+        t, floor = data.per_call(r, "throughput"), data.num(r.hardware.launch_pipelined_s) if r.hardware else None
+        assert t and floor
+        return t.median / floor
+    assert all(ratio(r) <= 2 for r in [*three, *launch]), [(r.scenario, ratio(r)) for r in [*three, *launch]]
+
+
+# ---- the sittings and their yardsticks ------------------------------------------------------------
+def test_the_narrowest_empty_launch_spreads_are_session_38s(doc: str) -> None:
+    first, second = said(doc, r"The narrowest IQRs are session 38's two quiet runs \(([\d.]+) and ([\d.]+) µs\)")
+    runs = sq.stored_runs([RESULTS / "h100"])
+    iqr = sorted((c["null_spread"] * c["launch_latency_s"], str(e.get("created")), e.get("noisy_sitting"))
+                 for e in runs if (c := (e.get("sitting") or {}).get("start") or {}).get("null_spread"))
+    fresh = {str(e.get("created")) for e in machine("h100/sittings/2026-12-07-session38-percall").runs}
+    assert [f"{x * 1e6:.2f}" for x, _, _ in iqr[:2]] == [first, second]
+    assert {c for _, c, _ in iqr[:2]} == fresh and not any(noisy for _, _, noisy in iqr[:2])
+
+
+def test_the_amd_copies_of_2026_12_01_and_2026_12_02(doc: str) -> None:
+    """'On 2026-12-02 ... its yardstick copied 34.4 GB/s in one thread, against 24.9 GB/s on
+    2026-12-01': session 28's run (a sitting now) and the `compare all` of 2026-12-01."""
+    late, early = said(doc, r"its yardstick copied ([\d.]+) GB/s in one thread, against ([\d.]+) GB/s on 2026-12-01")
+    runs = sq.stored_runs([RESULTS / "cpu"])
+
+    def one_thread(day: str, command: str) -> set[str]:
+        return {f"{e['hardware']['cpu']['copy_one_thread_bytes_per_s'] / 1e9:.1f}" for e in runs
+                if str(e.get("created")).startswith(day) and str(e.get("command", "")).startswith(command)}
+    assert one_thread("2026-12-02", "python -m compare all") == {late}
+    assert one_thread("2026-12-01", "python -m compare all") == {early}
+
+
+# ---- the matrix parts run twice -------------------------------------------------------------------
+def publish_seconds(key: str) -> float:
+    log = machine(key).publish
+    assert log
+    (part,) = log["parts"]
+    return float(part["seconds"])
+
+
+def test_the_rerun_folders_are_the_runs_the_doc_names(doc: str) -> None:
+    """Each store's `rerun/`: the H100's session 26 (its row of the sitting table), the CPU's session
+    22 (62 cells, 46.4 minutes, 60 of them to 10 processes), the Xeon's session 26."""
+    said(doc, r"`docs/results/h100/rerun/` is session 26's run")
+    day, total = said(doc, r"\| session 26, ([\d-]+), `--sitting 1500`.*?\| (\d+) s \(\*\*[\d.]+ min\*\*\) \|")
+    h100 = machine("h100/rerun")
+    assert {str(e.get("created"))[:10] for e in h100.runs} == {day} and f"{publish_seconds('h100/rerun'):.0f}" == total
+    said(doc, r"session 22's run is `docs/results/cpu/rerun/`")
+    cells, minutes, ten = said(doc, r"the same part \((\d+) cells\) took ([\d.]+) minutes in session 22 .*? and (\d+) of "
+                                    r"the \d+ cells ran to 10 processes")
+    ok = [r for r in machine("cpu/rerun").run if r.status == "ok"]
+    assert (int(cells), minutes) == (len(ok), f"{publish_seconds('cpu/rerun') / 60:.1f}")
+    assert int(ten) == sum(data.process_count(r) == 10 for r in ok)
+    others, minutes = said(doc, r"session 26's, on the idle VM \(`others_cores` ([\d.]+), ([\d.]+) minutes, "
+                                r"`docs/results/xeon/rerun/`\)")
+    ok = [r for r in machine("xeon/rerun").run if r.status == "ok"]
+    busy = [r.time.noise.others_cores for r in ok if r.time and r.time.noise and r.time.noise.others_cores is not None]
+    assert (others, minutes) == (f"{statistics.median(busy):.2f}", f"{publish_seconds('xeon/rerun') / 60:.1f}")
+
+
+def test_the_cpu_matrix_part_of_session_39(doc: str) -> None:
+    """Its 71 cells, 23 of them to 10 processes: the sitting it is stored as."""
+    cells, ten = said(doc, r"Session 39's, the first with a non-default variant cold once, took [\d.]+ minutes "
+                           r"\(\d+ s, (\d+) cells, (\d+) of them to 10 processes\)")
+    ok = [r for r in machine("cpu/sittings/2026-12-07-session39-matrix").run if r.status == "ok"]
+    assert (int(cells), int(ten)) == (len(ok), sum(data.process_count(r) == 10 for r in ok))
+
+
+def test_the_records_moved_to_unstamped(doc: str) -> None:
+    """'the records made before runs were stamped (231 on the H100 and the AMD CPU, ...) moved on
+    2026-11-28 to `evidence/unstamped/` beside each store, with their 21 run entries'."""
+    records, runs = said(doc, r"the records made before runs were stamped \((\d+) on the H100 and the AMD CPU.*?"
+                              r"`evidence/unstamped/` beside each store, with their (\d+) run entries")
+    moved = [machine(f"{k}/evidence/unstamped") for k in ("h100", "cpu")]
+    assert (int(records), int(runs)) == (sum(len(m.run) for m in moved), sum(len(m.runs) for m in moved))
+
+
+# ---- memory -------------------------------------------------------------------------------------
+def test_the_cuda_context_the_device_figure_leaves_out(doc: str) -> None:
+    """`memory.context_bytes` of every cell of the H100 store (run and sweep records; the stress
+    suite shares a worker between cells, so its baseline is no context)."""
+    lo, hi = said(doc, r"So the context \((\d+)-(\d+) MiB in the H100 store's cells, mostly the same for every framework\)")
+    by: dict[str, list[float]] = {}
+    for r in machine("h100").records:
+        if r.memory and (c := r.memory.extra.get("context_bytes")):
+            by.setdefault(r.backend, []).append(c / 2**20)
+    assert span((x for xs in by.values() for x in xs)) == f"{lo}-{hi}"
+    assert all(max(xs) < 1.05 * min(xs) for xs in by.values()), by
+
+
+def test_the_traffic_of_warps_tape(doc: str) -> None:
+    """'moves about 255 GB a run at that batch (85 ms at the copy bandwidth)': twice its tape (written
+    forward, read back) over B x steps x evaluations, with the slopes the doc quotes beside it, at
+    the copy yardstick of the scaling sweep's Warp cell at B = 2^20."""
+    gb, ms = said(doc, r"moves about (\d+) GB a run at that batch \((\d+) ms at the copy bandwidth")
+    rows = [r for r in machine("h100").sweep if data.tag(r, "sweep") == "horizon" and r.scenario == "projectile"
+            and r.device == "cuda" and r.backend == "warp" and r.variant == "default"
+            and r.precision == "float32" and (r.params or {}).get("contact") == "hard" and r.status == "ok"]
+    from compare.sweep import horizon
+    slopes = [s for s in horizon.slopes(sorted(rows, key=lambda r: (r.params or {})["steps"])) if s is not None]
+    (cell,) = [r for r in machine("h100").sweep if data.tag(r, "sweep") == "scaling" and r.scenario == "projectile"
+               and r.device == "cuda" and r.backend == "warp" and r.variant == "default" and r.status == "ok"
+               and (r.params or {}).get("batch") == 2**20]
+    p = cell.params or {}
+    moved = [2 * s * p["batch"] * p["steps"] * (p["iters"] + 1) / 1e9 for s in slopes]
+    assert min(moved) <= float(gb) <= max(moved), moved
+    copy = data.num(cell.hardware.copy_bytes_per_s) if cell.hardware else None
+    assert copy and f"{float(gb) * 1e9 / copy * 1e3:.0f}" == ms and (throughput_s(cell) or 0) > float(ms) / 1e3
+
+
+# ---- the horizon sweep's soft contact --------------------------------------------------------------
+def test_every_framework_is_within_the_soft_contact_bound_at_180_steps(doc: str) -> None:
+    said(doc, r"It would also take 11 % of a 256-trajectory batch at the default 180 steps, where every framework "
+              r"is within the bound")
+    cells = [r for r in machine("xeon").sweep if data.tag(r, "sweep") == "horizon" and r.scenario == "projectile"
+             and (r.params or {}).get("contact") == "soft" and (r.params or {}).get("steps") == 180
+             and (r.params or {}).get("batch") == 256]
+    got = Counter(r.status for r in cells)
+    assert got["ok"] >= 10 and set(got) <= {"ok", "skipped"}, got
+
+
+# ---- scale-out ----------------------------------------------------------------------------------
+def test_the_scale_out_over_two_gpus(doc: str) -> None:
+    """The same 27-cell sweep on two H200s and on one: its command, its wall times (wall.txt) and
+    every cell's status and error alike in the two stores."""
+    cells, command, two, one = said(doc, r"the same (\d+)-cell `(sweep bandwidth [^`]+)` took ([\d.]+) s with both GPUs "
+                                         r"and ([\d.]+) s with one")
+    stores = {k: machine(f"h200x2-scaleout/{k}") for k in ("two", "one")}
+    assert all(set(command.split()) <= set(str(e.get("command")).split()) for m in stores.values() for e in m.runs)
+    wall = (RESULTS / "h200x2-scaleout" / "wall.txt").read_text()
+    assert f"wall: two GPUs {two} s, one GPU {one} s" in wall
+    by = {k: {r.key: r for r in m.sweep} for k, m in stores.items()}
+    assert by["two"].keys() == by["one"].keys() and len(by["two"]) == int(cells)
+    assert all(a.status == by["one"][k].status and a.error == by["one"][k].error for k, a in by["two"].items())
+
