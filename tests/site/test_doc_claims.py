@@ -13,7 +13,7 @@ from compare.measuring import sitting_quiet as sq
 from compare.results.record import Record
 from compare.site import data, matrix, pages
 from compare.sweep.rows import throughput_s
-from measurement_doc import RESULTS, RULES, doc_text, machine, said, span
+from measurement_doc import RESULTS, doc_text, machine, said, span
 
 pytestmark = pytest.mark.xdist_group("measurement-claims")
 
@@ -215,3 +215,17 @@ def test_the_scale_out_over_two_gpus(doc: str) -> None:
     assert by["two"].keys() == by["one"].keys() and len(by["two"]) == int(cells)
     assert all(a.status == by["one"][k].status and a.error == by["one"][k].error for k, a in by["two"].items())
 
+
+
+def test_the_cold_compiles_the_caches_section_repeats(doc: str) -> None:
+    """*Caches* repeats the cold rounds of session 39's matrix part: the same figures as the sentence
+    test_measurement_claims.py holds to the store, and the day of that run."""
+    held = said(doc, r"took (\d+) s \((\d+) s a cold round; PyTorch's variants (\d+) s of it, mostly `compile`, MLX's (\d+) "
+                     r"s\), the defaults' (\d+) s")
+    total, per_round, torch, mlx, defaults = held
+    assert said(doc, r"the next lease measures how much of the (\d+) s a round that saves") == (per_round,)
+    got = said(doc, r"their cold compiles cost (\d+) s a cold round on the H100 matrix part \(([\d-]+), (\d+) cells: (\d+) s "
+                    r"over three cold processes, (\d+) s of it PyTorch's, (\d+) s MLX's, against (\d+) s for the defaults\)")
+    (cells,) = said(doc, r"over (\d+) cells, \d+ more than in session 26")
+    assert got == (per_round, *(str(e.get("created"))[:10] for e in machine("h100").runs
+                                 if str(e.get("git_commit", "")).startswith(COMMIT_39)), cells, total, torch, mlx, defaults)
