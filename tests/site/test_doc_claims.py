@@ -229,3 +229,11 @@ def test_the_cold_compiles_the_caches_section_repeats(doc: str) -> None:
     (cells,) = said(doc, r"over (\d+) cells, \d+ more than in session 26")
     assert got == (per_round, *(str(e.get("created"))[:10] for e in machine("h100").runs
                                  if str(e.get("git_commit", "")).startswith(COMMIT_39)), cells, total, torch, mlx, defaults)
+
+
+def test_the_busy_row_is_published_from_its_run_of_2026_12_06(doc: str) -> None:
+    """'(`--busy 1 --processes 6`: ... as the published row since 2026-12-06)': the run the CPU
+    report's busy row reads (its processes: test_measurement_claims.py)."""
+    (day,) = said(doc, r"across 6 processes, as the published\s+row since ([\d-]+)\)")
+    (row,) = [r for r in pages.evaluate(machine("cpu"))[0] if r.rule.key == "busy"]
+    assert len(row.runs) == 1 and row.runs[0].startswith(f"run {day} ")

@@ -135,3 +135,19 @@ def test_readme_says_what_a_best_needs_as_the_ranking_does() -> None:
     assert int(fewest) == repeats.AUTO_MIN and float(gap) == ranking.ONE_PROCESS_GAP
     assert repeats.interval(list(range(repeats.AUTO_MIN)))[2] >= repeats.CONFIDENCE
     assert repeats.interval(list(range(repeats.AUTO_MIN - 1)))[2] < repeats.CONFIDENCE
+
+
+
+def test_readme_run_times_are_the_ones_install_md_dates() -> None:
+    """README's run times are past runs: each end of its ranges is a dated row of docs/install.md's
+    run-time tables, the source README names beside them."""
+    readme, install = doc_text("README.md"), doc_text("docs/install.md")
+    assert "([docs/install.md](docs/install.md): extras, run times, test tiers)" in readme
+    lo, hi, h100 = said(readme, r"The first takes (\d+)-(\d+) s on a 2-core VM .*?, (\d+) minutes on an H100 with every "
+                                r"framework")
+    assert all(re.search(rf"\| 2026-[\d-]+ \| {s}\.\d s", install) for s in (lo, hi)), (lo, hi)
+    assert f"(176 cells) it takes about {h100} minutes" in install
+    fast, slow, before, after = said(readme, r"\(3 min (\d+)-(\d+) s on the same VM at its usual speed, (\d:\d+) to "
+                                             r"(\d:\d+) before its tests shared their runs\)")
+    times = [f"3 min {fast} s", f"3 min {slow} s", *("{} min {} s".format(*x.split(":")) for x in (before, after))]
+    assert all(x in install for x in times), times
