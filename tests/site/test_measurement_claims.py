@@ -2,7 +2,8 @@
 site's own code (issue 57, item 5: docs that cannot drift). Each test reads the sentence from the
 doc and the figure from docs/results/<machine>/, so a change to either fails it. Figures taken
 from an evidence folder (docs/results/*/evidence/) are not held here: the doc names the folder.
-The launch paths and fractions of the copy: test_measurement_launch.py. Fast tier."""
+The launch paths and fractions of the copy: test_measurement_launch.py; more figures:
+test_doc_claims.py; the code constants it quotes: test_doc_constants.py. Fast tier."""
 from __future__ import annotations
 
 import json
