@@ -237,3 +237,18 @@ def test_the_busy_row_is_published_from_its_run_of_2026_12_06(doc: str) -> None:
     (day,) = said(doc, r"across 6 processes, as the published\s+row since ([\d-]+)\)")
     (row,) = [r for r in pages.evaluate(machine("cpu"))[0] if r.rule.key == "busy"]
     assert len(row.runs) == 1 and row.runs[0].startswith(f"run {day} ")
+
+
+def test_how_far_a_cells_processes_disagree(doc: str) -> None:
+    """The one-process gap's reason, dated, beside what the stores' repeated cells show now: the span
+    (largest over smallest) of each cell's processes' latencies, in the median over the cells."""
+    said(doc, r"when the rule was set \(2026-11-26\), a cell's one-process median disagreed between worker processes by up "
+              r"to 1.6×")
+    spread = said(doc, r"their processes' latencies span ([\d.]+)× on the H100, ([\d.]+)× on the AMD CPU and ([\d.]+)× on "
+                       r"the Xeon in the median\)")
+
+    def spans(key: str) -> str:
+        each = [f.each for r in machine(key).run if r.time and r.time.processes
+                and (f := r.time.processes.figure("latency")) and len(f.each) > 1]
+        return f"{statistics.median(max(v) / min(v) for v in each):.2f}"
+    assert (spans("h100"), spans("cpu"), spans("xeon")) == spread
