@@ -252,3 +252,48 @@ def test_how_far_a_cells_processes_disagree(doc: str) -> None:
                 and (f := r.time.processes.figure("latency")) and len(f.each) > 1]
         return f"{statistics.median(max(v) / min(v) for v in each):.2f}"
     assert (spans("h100"), spans("cpu"), spans("xeon")) == spread
+
+
+# ---- floors under --overlap ----------------------------------------------------------------------
+def test_floors_under_overlap_are_inflated_for_every_framework_alike(doc: str) -> None:
+    """'Floors under --overlap do not travel as well ...': the report's run's cell floors (its
+    before probes) against its start check, per framework, and the float64 part's probes (alone)."""
+    lat, pipe, q_lat, q_pipe, r_lat, r_pipe = said(
+        doc, r"probed while other workers set up beside the window, read ([\d.]+) µs with a synchronise and "
+             r"([\d.]+) µs pipelined in the median, [\d.]+× and [\d.]+× its quiet start check \(([\d.]+) and "
+             r"([\d.]+) µs\); session 38's, with nothing set up beside, read ([\d.]+) and ([\d.]+) µs")
+    lo_hi, within, commit, alone, ratio = said(
+        doc, r"per-framework medians read ([\d.]+-[\d.]+) µs with a synchronise \(within ([\d.]+)×\), while the "
+             r"same store's float64 part \(commit (\w+), one cell at a time, each probe before its framework's "
+             r"set-up\) read ([\d.]+) µs, ([\d.]+)× its own start check")
+    m = machine("h100")
+
+    def probes(commit: str) -> list[Record]:
+        return [r for r in m.records if run_of(r).startswith(commit) and r.cell_floor and r.cell_floor.before]
+
+    def entry(commit: str, command: str = "compare all") -> dict:
+        (e,) = [e for e in m.runs if str(e.get("git_commit", "")).startswith(commit) and command in str(e.get("command"))]
+        return dict(e)
+
+    us = "{:.2f}"
+    mine = probes(COMMIT_39)
+    assert mine and all("window" in str(r.cell_floor.before.context) for r in mine if r.cell_floor and r.cell_floor.before)
+    fl = [r.cell_floor.before for r in mine if r.cell_floor and r.cell_floor.before]
+    assert us.format(statistics.median(f.latency_s for f in fl) * 1e6) == lat
+    assert us.format(statistics.median(f.pipelined_s for f in fl if f.pipelined_s) * 1e6) == pipe
+    start = entry(COMMIT_39)["sitting"]["start"]
+    assert f"{start['launch_latency_s'] * 1e6:.1f}" == q_lat and f"{start['launch_pipelined_s'] * 1e6:.2f}" == q_pipe
+    s38 = [r.cell_floor.before for r in machine("h100/sittings/2026-12-07-session38-percall").records
+           if r.cell_floor and r.cell_floor.before]
+    assert us.format(statistics.median(f.latency_s for f in s38) * 1e6) == r_lat
+    assert us.format(statistics.median(f.pipelined_s for f in s38 if f.pipelined_s) * 1e6) == r_pipe
+    per = [statistics.median(f.cell_floor.before.latency_s for f in mine if f.backend == b and f.cell_floor
+                             and f.cell_floor.before) * 1e6 for b in {r.backend for r in mine}]
+    assert span(per, us) == lo_hi and f"{max(per) / min(per):.2f}" == within
+    other = probes(commit)
+    assert other and all("before the framework's set-up" in str(r.cell_floor.before.context)
+                         for r in other if r.cell_floor and r.cell_floor.before)
+    e = entry(commit, "--precision float64")
+    assert not e.get("overlap") and e["sitting"].get("start")
+    o = statistics.median(r.cell_floor.before.latency_s for r in other if r.cell_floor and r.cell_floor.before)
+    assert us.format(o * 1e6) == alone and f"{o / e['sitting']['start']['launch_latency_s']:.2f}" == ratio
