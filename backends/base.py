@@ -28,6 +28,9 @@ from scenarios.base import Precision
 
 OWN_TIMER_S = 0.1     # one stretch of a framework's own timer (``Backend.own_latency``), seconds
 DEFAULT_VARIANT = "default"   # every backend's first variant: the one the matrix publishes (matrix.all_defaults)
+# Variants that change the arithmetic (a shipped fast-math default is one: docs/ports.md): shown on
+# the pages, never ranked (compare.site.matrix), so timed in one process (compare.suites.driver.caps)
+UNRANKED_VARIANTS: tuple[str, ...] = ("fastmath",)
 
 
 class Device(enum.StrEnum):

@@ -22,8 +22,7 @@ from compare.site import data, provenance, ranking
 from compare.site.data import Machine, Timing
 from scenarios.base import Precision
 
-# Variants that change the arithmetic (a shipped fast-math default is one): never ranked, shown.
-NOT_SAME_WORK = ("fastmath",)
+NOT_SAME_WORK = backends.base.UNRANKED_VARIANTS     # change the arithmetic: never ranked, shown
 FAST_REASON = "ran with fast math (its former default): shown on the page, never ranked"
 VARIANT_RULE = ("each framework's fastest variant: IEEE arithmetic only (fast-math variants shown, never ranked); "
                 "every launch path the user writes counts (Warp record_cmd, torch.compile modes, XLA command buffers, "

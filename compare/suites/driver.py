@@ -23,7 +23,7 @@ from typing import Any, Callable, ClassVar, Generic, NamedTuple, Protocol, TypeV
 import numpy as np
 
 import scenarios
-from backends.base import DEFAULT_VARIANT
+from backends.base import DEFAULT_VARIANT, UNRANKED_VARIANTS
 from compare.running import cells as cells_, engine, lifeline, overlap, repeats, scaleout
 from compare import options
 from compare.planning import outdir, preflight
@@ -290,17 +290,24 @@ def cold_once(cells: list[Cell], where: Path | None) -> list[Cell]:
             for i, c in enumerate(cells)]
 
 
-CAPPED = "no row ranks its timings on this device: the processes its first result needs"
+CAPPED = ("no row ranks its timings (a fast-math variant, or its scenario at its defaults on this device): "
+          "the processes its first result needs")
 
 
 def caps(cells: list[Cell]) -> dict[int, int]:
-    """The most processes of each cell whose timings no published row ranks (its scenario at its
-    defaults on a device not in ``Scenario.timings_ranked_on``): those its first result needs,
-    ``repeats.COLD`` for the default variant (the first-call row), 1 for any other (``cold_once``).
-    Why: the projectile's non-default variants at its defaults took 86 s a round beyond their first
-    calls on the H100 matrix part (2026-12-07), and no CUDA row reads them."""
-    return {i: repeats.COLD if c.variant == DEFAULT_VARIANT else 1 for i, c in enumerate(cells)
-            if not scenarios.get(c.scenario).timings_ranked(c.params, c.device)}
+    """The most processes of each cell whose timings no published row ranks: those its first
+    result needs. A fast-math variant (``UNRANKED_VARIANTS``: shown, never ranked) 1, anywhere; a
+    scenario at its defaults on a device not in ``Scenario.timings_ranked_on``: ``repeats.COLD`` for
+    the default variant (the first-call row), 1 for any other (``cold_once``). Why: the projectile's
+    non-default variants at its defaults took 86 s a round beyond their first calls on the H100
+    matrix part (2026-12-07), and no CUDA row reads them; no row reads a fast-math figure's interval."""
+    out = {}
+    for i, c in enumerate(cells):
+        if c.variant in UNRANKED_VARIANTS:
+            out[i] = 1
+        elif not scenarios.get(c.scenario).timings_ranked(c.params, c.device):
+            out[i] = repeats.COLD if c.variant == DEFAULT_VARIANT else 1
+    return out
 
 
 def within(ends: float, sitting: float) -> Callable[[float], bool]:

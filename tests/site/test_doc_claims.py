@@ -297,3 +297,14 @@ def test_floors_under_overlap_are_inflated_for_every_framework_alike(doc: str) -
     assert not e.get("overlap") and e["sitting"].get("start")
     o = statistics.median(r.cell_floor.before.latency_s for r in other if r.cell_floor and r.cell_floor.before)
     assert us.format(o * 1e6) == alone and f"{o / e['sitting']['start']['launch_latency_s']:.2f}" == ratio
+
+
+def test_the_fast_math_cells_of_the_h100_matrix_part(doc: str) -> None:
+    """'runs in one process on every device (...): 16 of the H100 matrix part's 85 cells, 4 of them
+    the projectile's, capped already': the session 39 run's records and the variant list."""
+    from backends.base import UNRANKED_VARIANTS
+    n, total, proj = said(doc, r"`backends.base.UNRANKED_VARIANTS`\): no row reads its interval or its first result "
+                               r"\((\d+) of the H100 matrix part's (\d+) cells, (\d+) of them the projectile's")
+    mine = [r for r in machine("h100").run if run_of(r).startswith(COMMIT_39) and r.status == "ok"]
+    fast = [r for r in mine if r.variant in UNRANKED_VARIANTS]
+    assert (len(fast), len(mine), sum(r.scenario == "projectile" for r in fast)) == (int(n), int(total), int(proj))

@@ -247,7 +247,7 @@ def test_a_non_default_variant_is_cold_in_its_first_process_only(monkeypatch: py
 def test_a_cell_whose_timings_no_row_ranks_is_capped_at_its_first_results_processes() -> None:
     """``caps``: the projectile at its defaults on CUDA (no CUDA row ranks those timings): the
     default variant ``repeats.COLD`` processes (the first-call row), any other 1; on the CPU, or at
-    another size, or another scenario, no cap."""
+    another size, or another scenario, no cap. A fast-math variant (never ranked) 1 anywhere."""
     from compare.running import repeats
     from compare.spec import Cell
     cuda = Cell.make(scenario="projectile", backend="torch", device="cuda", precision="float32")
@@ -255,8 +255,12 @@ def test_a_cell_whose_timings_no_row_ranks_is_capped_at_its_first_results_proces
             dataclasses.replace(cuda, device="cpu"), dataclasses.replace(cuda, device="cpu", variant="compile"),
             Cell.make(scenario="projectile", backend="torch", device="cuda", precision="float32", params={"batch": 2}),
             Cell.make(scenario="projectile", backend="torch", device="cuda", precision="float32", quick=True),
-            Cell.make(scenario="saxpy", backend="torch", device="cuda", precision="float32")]
-    assert driver.caps(plan) == {0: repeats.COLD, 1: 1}
+            Cell.make(scenario="saxpy", backend="torch", device="cuda", precision="float32"),
+            Cell.make(scenario="saxpy", backend="numba", device="cpu", precision="float32", variant="fastmath"),
+            Cell.make(scenario="projectile", backend="taichi", device="cuda", precision="float32", variant="fastmath"),
+            Cell.make(scenario="sdf", backend="drjit", device="cuda", precision="float32", variant="fastmath",
+                      params={"width": 64})]
+    assert driver.caps(plan) == {0: repeats.COLD, 1: 1, 7: 1, 8: 1, 9: 1}
 
 
 def test_the_driver_stops_a_capped_cell_and_says_why(monkeypatch: pytest.MonkeyPatch, capsys: Any) -> None:
@@ -288,5 +292,6 @@ def test_the_driver_stops_a_capped_cell_and_says_why(monkeypatch: pytest.MonkeyP
     assert d["count"] == repeats.COLD and len(d["first_result"]["values"]) == repeats.COLD
     assert d["capped"] == o["capped"] == driver.CAPPED and "capped" not in s
     assert o["count"] == 1 and "latency" not in o and s["count"] == 4
-    assert "2 cells capped (no row ranks its timings on this device" in capsys.readouterr().err
+    assert "2 cells capped (no row ranks its timings (a fast-math variant, or its scenario at its defaults on this device)" \
+        in capsys.readouterr().err
     assert dirs[("projectile", "compile")] == [""]       # its one process keeps no caches: none would read them
