@@ -308,3 +308,15 @@ def test_the_fast_math_cells_of_the_h100_matrix_part(doc: str) -> None:
     mine = [r for r in machine("h100").run if run_of(r).startswith(COMMIT_39) and r.status == "ok"]
     fast = [r for r in mine if r.variant in UNRANKED_VARIANTS]
     assert (len(fast), len(mine), sum(r.scenario == "projectile" for r in fast)) == (int(n), int(total), int(proj))
+
+
+
+def test_the_sdf_and_the_projectile_are_capped_on_cuda(doc: str) -> None:
+    """'on CUDA that is the projectile at its defaults, ... and the SDF at its defaults': the
+    attribute the driver reads (test_timings_ranked.py holds it to the rows)."""
+    import scenarios
+    said(doc, r"\(`Scenario.timings_ranked_on`, `driver.caps`\): on CUDA that is the projectile at its defaults, "
+              r"whose timed rows there are the gradient rows at batch 2\^20, and the SDF at its defaults, which no "
+              r"CUDA row times")
+    assert {n for n, s in scenarios.SCENARIOS.items() if s.timings_ranked_on is not None} == {"sdf", "projectile"}
+    assert all(scenarios.get(s).timings_ranked_on == ("cpu",) for s in ("sdf", "projectile"))

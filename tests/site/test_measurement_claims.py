@@ -374,8 +374,14 @@ def test_the_matrix_parts_cold_rounds(doc: str) -> None:
         p, w = r["time"]["phases"], r["time"]["window"]
         return w[1] - w[0] - sum(p.get(k, 0.0) for k in ("first_call", "host_profile", "own_timer", "memory_pass"))
 
-    (round_s,) = said(doc, r"those variants' windows took about (\d+) s a round\s+beyond their first calls")
+    (round_s,) = said(doc, r"projectile's variants' windows took about (\d+) s a round\s+beyond their first calls")
     assert round_s == f"{sum(beyond(r) for r in other if r['scenario'] == 'projectile'):.0f}"
+    n, total, sdf_s, all_s = said(doc, r"the SDF's\s+cells were (\d+) of the part's (\d+) \(their windows (\d+) s a round "
+                                       r"beyond first calls: a round's time is\s+mostly its workers' set-ups, \d+ cells' "
+                                       r"windows (\d+) s of a 395 s round\)")
+    sdf = [r for r in ok if r["scenario"] == "sdf"]
+    assert (int(n), int(total)) == (len(sdf), len(ok))
+    assert (sdf_s, all_s) == (f"{sum(beyond(r) for r in sdf):.0f}", f"{sum(beyond(r) for r in ok):.0f}")
 
 
 def test_the_preflights_per_trajectory_slopes(doc: str) -> None:
