@@ -1,11 +1,12 @@
 """Repeats across processes: one published figure from several independent worker processes.
 
 Within one process the timed calls agree (that is what ``time.noise`` judges); between processes
-they do not (fresh address space, allocator, clocks, a different physical page layout: up to 1.6x
-on the lent GPUs with 1 % spread inside each, as first seen; the stores' spans: docs/measurement.md). So a cell whose figure is published runs in
-``processes`` worker processes: the first is the ordinary run (checked against the oracle); the
-others time the same cell again without the check (``Cell.check``), in rounds, every round over
-every cell still open in a seeded shuffle, so that drift of the host reaches every framework alike.
+they do not (fresh address space, allocator, clocks, a different physical page layout: up to 1.6x on
+the lent GPUs with 1 % spread inside each, as first seen; the stores' spans: docs/measurement.md).
+So a cell whose figure is published runs in ``processes`` worker processes: the first is the
+ordinary run (checked against the oracle); the others time the same cell again without the check
+(``Cell.check``), in rounds, every round over every cell still open in a seeded shuffle, so that
+drift of the host reaches every framework alike.
 
 Per figure (latency, throughput, graph, device events, time to first result = set-up + first
 call, from the cold processes alone) the record keeps every process's value and the median with its distribution-free interval

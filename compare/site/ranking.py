@@ -1,14 +1,15 @@
 """When a matrix row may name a best: the separation rule (docs/measurement.md, "Ties: when a row
 names a best").
 
-A row ranks only what its figures separate. Two timed figures are separated when both carry a
-95 % interval of the median across independent worker processes, the intervals do not overlap
-and the medians are at least SEPARATED_GAP apart; a figure from one process has no interval
-(between processes such figures disagreed by up to 1.6x on the machines measured when the rule was
-set, with 1 % spread inside each; the stores' spans now: docs/measurement.md, the separation table), so it is separated only at ONE_PROCESS_GAP. Deterministic figures (bytes,
-error shares) need SEPARATED_GAP alone; exactly equal ones are always a tie. Everyone not
-separated from the best shares the top of the row. A row may rank only figures repeated across
-processes (the busy row: ``unrepeated``): from one process a cell it shows its ratios and ranks nothing.
+A row ranks only what its figures separate. Two timed figures are separated when both carry a 95 %
+interval of the median across independent worker processes, the intervals do not overlap and the
+medians are at least SEPARATED_GAP apart; a figure from one process has no interval (between
+processes such figures disagreed by up to 1.6x on the machines measured when the rule was set, with
+1 % spread inside each; the stores' spans now: docs/measurement.md, the separation table), so it is
+separated only at ONE_PROCESS_GAP. Deterministic figures (bytes, error shares) need SEPARATED_GAP
+alone; exactly equal ones are always a tie. Everyone not separated from the best shares the top of
+the row. A row may rank only figures repeated across processes (the busy row: ``unrepeated``): from
+one process a cell it shows its ratios and ranks nothing.
 """
 from __future__ import annotations
 

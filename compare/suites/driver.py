@@ -298,10 +298,8 @@ def caps(cells: list[Cell]) -> dict[int, int]:
     """The most processes of each cell whose timings no published row ranks: those its first
     result needs. A fast-math variant (``UNRANKED_VARIANTS``: shown, never ranked) 1, anywhere; a
     scenario at its defaults on a device not in ``Scenario.timings_ranked_on``: ``repeats.COLD`` for
-    the default variant (the first-call row), 1 for any other (``cold_once``). Why: the projectile's
-    non-default variants at its defaults took 86 s a round beyond their first calls on the H100
-    matrix part (2026-12-07), and no CUDA row reads them (nor the SDF's); no row reads a fast-math
-    figure's interval."""
+    the default variant (the first-call row), 1 for any other (``cold_once``). Why: processes that
+    no figure reads lengthen the matrix part (docs/measurement.md, "The matrix part of publish")."""
     out = {}
     for i, c in enumerate(cells):
         if c.variant in UNRANKED_VARIANTS:
