@@ -147,7 +147,7 @@ def test_readme_run_times_are_the_ones_install_md_dates() -> None:
                                 r"framework")
     assert all(re.search(rf"\| 2026-[\d-]+ \| {s}\.\d s", install) for s in (lo, hi)), (lo, hi)
     assert f"(176 cells) it takes about {h100} minutes" in install
-    fast, slow, before, after = said(readme, r"\(3 min (\d+)-(\d+) s on the same VM at its usual speed, (\d:\d+) to "
+    fast, slow, before, after = said(readme, r"\(3 min (\d+)-(\d+) s on the same idle VM, (\d:\d+) to "
                                              r"(\d:\d+) before its tests shared their runs\)")
     times = [f"3 min {fast} s", f"3 min {slow} s", *("{} min {} s".format(*x.split(":")) for x in (before, after))]
     assert all(x in install for x in times), times
