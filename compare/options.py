@@ -167,8 +167,9 @@ def add_processes(p: argparse.ArgumentParser) -> None:
                         "start from the kernel caches the 3rd kept, so time to first result is the "
                         "3 cold ones' (a non-default variant: processes 2 on start from the 1st's, "
                         "its first result is the 1st's alone); a cell whose timings no row ranks "
-                        "on its device (its scenario at its defaults, Scenario.timings_ranked_on) "
-                        "stops there: 3 processes, a non-default variant 1. Default 1: one "
+                        "stops there: a fast-math variant after 1 process, its scenario at its "
+                        "defaults on a device not in Scenario.timings_ranked_on after 3, a "
+                        "non-default variant 1. Default 1: one "
                         "process per cell, a figure no ranking relies on")
     p.add_argument("--sitting", type=seconds, default=None, metavar="S",
                    help="with --processes auto: a round past the fewest processes (6) starts only "

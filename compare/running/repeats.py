@@ -23,7 +23,7 @@ the first-result figure is the cold processes' (it does not keep a round open af
 many are cold is the caller's, per cell (``run_rounds``' ``cold``, default ``COLD``): the driver
 gives the default variant ``COLD``, whose first result the first-call row and the compile page
 publish, and every other variant 1, its first process (no page reads a non-default variant's first
-result, and their cold compiles took 156 s a cold round on the H100 matrix part, 2026-12-07).
+result; what their cold compiles cost: docs/measurement.md, the matrix part of publish).
 
 A cell may stop before the others (``run_rounds``' ``most``, per cell): the driver stops a cell
 whose timings no row ranks on its device after the processes its first result needs; its block

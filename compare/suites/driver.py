@@ -281,7 +281,7 @@ def cold_once(cells: list[Cell], where: Path | None) -> list[Cell]:
     so it is cold once and its first result is that process's alone; the default variant's first
     ``repeats.COLD`` processes are cold (``more_processes``). Why: only the default's first result
     is published (the first-call row, the compile page: ``matrix.all_defaults``), and the other
-    variants' cold compiles took 156 s a cold round on the H100 matrix part (2026-12-07).
+    variants' cold compiles lengthen every cold round (docs/measurement.md, the matrix part).
     ``where`` None (one process, a Dask worker): every cell as planned; a cell ``caps`` stops after
     its first process keeps nothing (no later process would start from it)."""
     alone = {i for i, n in caps(cells).items() if n == 1}
