@@ -282,7 +282,7 @@ def test_the_constants_and_coverages_it_quotes(doc: str) -> None:
 
 # ---- units that travel ---------------------------------------------------------------------------
 def test_where_the_fresh_per_call_sitting_lands(doc: str) -> None:
-    """Session 38's fresh per-call sitting against the report (session 39's matrix part): its median
+    """Session 38's fresh per-call sitting against the report (session 41's matrix part): its median
     distance in floors and seconds, how many of its figures land in their own range and in their row's
     band, the bands' sizes and widths, and the earlier sittings' shares (compare/site/sittings.py)."""
     from compare.site import sitting_readme, sittings
@@ -310,42 +310,24 @@ def test_where_the_fresh_per_call_sitting_lands(doc: str) -> None:
         (f"{100 * s36.band_floors / s36.banded:.0f}",)
     assert said(doc, r"session 31's\s+two-process run (\d+) of its (\d+) \(its seconds (\d+)\)") == \
         (str(s31.band_floors), str(s31.banded), str(s31.band_seconds))
-    assert not [b for b in between if b.sitting == fresh and b.row in before and b.floors_spread is not None
-                and not before[b.row].holds(b)[0]]
-    assert said(doc, r"session 38 lies further from the report in floors\s+\(([\d.]+)×\) than in seconds \(([\d.]+)×\)") == \
-        (f"{x.median_floors:.2f}", f"{x.median_seconds:.2f}")
+    assert len([b for b in between if b.sitting == fresh and b.row in before and b.floors_spread is not None
+                and not before[b.row].holds(b)[0]]) == x.banded - x.band_floors
+    assert said(doc, r"against session 41's it lies\s+([\d.]+)× and ([\d.]+)×") == (f"{x.median_floors:.2f}", f"{x.median_seconds:.2f}")
+    s39 = by["2026-12-07-session39"]
+    assert said(doc, r"session 39's three-process run (\d+) of its (\d+) \(its seconds (\d+)\)") == \
+        (str(s39.band_floors), str(s39.banded), str(s39.band_seconds))
+    assert said(doc, r"session 39's own figures, a sitting now, lie ([\d.]+)× in floors and ([\d.]+)× in\s+seconds") == \
+        (f"{s39.median_floors:.2f}", f"{s39.median_seconds:.2f}")
 
 
-COMMIT_39 = "9fb39d8"       # session 39's matrix part: the report's per-call rows since
-
-
-def test_cell_floors_under_overlap(doc: str) -> None:
-    """The report's run (session 39's matrix part, overlapped set-ups): its cells' own floors against
-    its start check, and session 38's (no set-up beside a window), from the stores."""
-    def floors(path: str, commit: str = "") -> tuple[str, str]:
-        data = json.loads((RESULTS / "h100" / path).read_text())
-        before = [r["cell_floor"]["before"] for r in data["records"]
-                  if (r.get("cell_floor") or {}).get("before") and r["run"]["commit"].startswith(commit)]
-        return (f"{statistics.median(b['latency_s'] for b in before) * 1e6:.2f}",
-                f"{statistics.median(b['pipelined_s'] for b in before if b.get('pipelined_s')) * 1e6:.2f}")
-
-    mine = floors("results.json", COMMIT_39)
-    assert said(doc, r"read ([\d.]+) µs with a synchronise and ([\d.]+) µs\s+pipelined in the median") == mine
-    data = json.loads((RESULTS / "h100" / "results.json").read_text())
-    (start,) = [r["sitting"]["start"] for r in data["runs"] if r["git_commit"].startswith(COMMIT_39)]
-    ratios = (f"{float(mine[0]) / (start['launch_latency_s'] * 1e6):.2f}",
-              f"{float(mine[1]) / (start['launch_pipelined_s'] * 1e6):.2f}",
-              f"{start['launch_latency_s'] * 1e6:.1f}", f"{start['launch_pipelined_s'] * 1e6:.2f}")
-    assert said(doc, r"([\d.]+)× and ([\d.]+)× its quiet start check \(([\d.]+) and ([\d.]+) µs\)") == ratios
-    assert said(doc, r"session 38's,\s+with nothing set up beside, read ([\d.]+) and ([\d.]+) µs") == \
-        floors("sittings/2026-12-07-session38-percall/results.json")
+COMMIT_39 = "9fb39d8"       # session 39's matrix part: the report's per-call rows until session 41 (a sitting since)
 
 
 def test_the_matrix_parts_cold_rounds(doc: str) -> None:
     """Session 39's matrix part: its first calls and windows against the run it replaced (session 31's,
     now a sitting), cell by cell, and what its three cold processes spent on set-up + first call, by
     variant kind (the stores)."""
-    mine = json.loads((RESULTS / "h100" / "results.json").read_text())
+    mine = json.loads((RESULTS / "h100" / "sittings" / "2026-12-07-session39" / "results.json").read_text())
     before = json.loads((RESULTS / "h100" / "sittings" / "2026-12-06-session31" / "results.json").read_text())
 
     def key(r: Mapping[str, Any]) -> tuple[Any, ...]:
