@@ -19,6 +19,9 @@ MATRIX_PROCESSES = "auto"      # the matrix part: every figure from interleaved 
 MATRIX_OVERLAP = "auto"        # ... whose set-ups run side by side, each cell timed alone (compare.running.overlap)
 SITTING_S = 1500               # ... and rounds past the fewest only while they fit 25 minutes (--sitting)
 PROTOCOL = ("--processes", MATRIX_PROCESSES, "--overlap", MATRIX_OVERLAP, "--sitting", str(SITTING_S))
+# every other part that runs cells (float64, the sweeps) overlaps their set-ups too: one rule for all
+# (docs/measurement.md, "Overlapped set-ups"; on a host of fewer than 8 cores every window is alone)
+SETUPS = ("--overlap", MATRIX_OVERLAP)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,7 +79,7 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     sel = ["--backends", backends_arg]
     tmo = ["--timeout", f"{timeout:g}"] if timeout is not None else []
     tail = ["--resume", "--out", out, "--no-plots", *(["--quick"] if quick else []), *tmo]
-    procs = () if quick else PROTOCOL
+    procs, setups = ((), ()) if quick else (PROTOCOL, SETUPS)
     alone = ("--against", "none")      # a store is a reference itself: no block against another
     # The matrix part and the large parts are what the matrix reads (float32), in repeated
     # processes; float64 cells (parity with the oracle, no row ranks them) run once, in their own
@@ -84,10 +87,10 @@ def plan(out: str, devices: list[str], backends_arg: str, quick: bool = False,
     parts = [Part("all", ("all", "--devices", devs, *sel, "--precision", "float32",
                           "--variants", "all", "--host-profile", str(HOST_PROFILE_TOP), *procs, *alone, *tail)),
              Part("float64", ("all", "--devices", devs, *sel, "--precision", "float64", "--variants", "all",
-                              *alone, *tail))]
+                              *setups, *alone, *tail))]
     large, notes = large_parts(devices, chosen, sel, quick, have if have is not None else memory())
     parts += [dataclasses.replace(p, argv=p.argv + procs + alone + tuple(tail)) for p in large]
-    parts += [Part(k, ("sweep", k, "--devices", devs, *sel, *tail)) for k in SWEEPS]
+    parts += [Part(k, ("sweep", k, "--devices", devs, *sel, *setups, *tail)) for k in SWEEPS]
     from compare.stress import generic
     from compare.stress.registry import experiments
     for exp in experiments():      # ulps and races compare each device with the CPU

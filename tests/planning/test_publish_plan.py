@@ -33,6 +33,9 @@ def test_cuda_plan_measures_what_the_h100_store_holds():
         argv = by[n]
         assert argv[argv.index("--processes") + 1] == "auto" and argv[argv.index("--overlap") + 1] == "auto"
         assert float(argv[argv.index("--sitting") + 1]) == publish_plan.SITTING_S == 1500
+    for n in ("float64", *order[5:9]):  # every other part that runs cells: set-ups overlapped, one process
+        argv = by[n]
+        assert argv[argv.index("--overlap") + 1] == "auto" and "--processes" not in argv and "--sitting" not in argv
     store = json.loads((ROOT / "docs/results/h100/results.json").read_text())
     held = {(r["scenario"], r["params"].get("n"), r["variant"]) for r in store["records"]}
     for n in order[2:5]:
@@ -59,6 +62,7 @@ def test_a_quick_cpu_plan_stages_each_experiment_and_ends_with_the_merge_and_the
     assert order[:2] == ["all", "float64"] and order[-2:] == ["stress-merge", "site"]
     by = {p.name: p for p in parts}
     assert "--quick" in by["all"].argv and "--processes" not in by["all"].argv       # quick: one process
+    assert not [n for n, part in by.items() if "--overlap" in part.argv]          # ... and the host's default
     assert by["all"].argv[-2:] == ("--timeout", "30") and all(p.resumes for p in parts[:2])
     stress = [p for p in parts if p.name.startswith("stress-") and p.name != "stress-merge"]
     for p in stress:

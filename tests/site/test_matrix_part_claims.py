@@ -61,3 +61,31 @@ def test_session_41s_rounds_against_session_39s(doc: str) -> None:
     cold, kept26 = said(doc, r"from\s+session 39's ([\d.]+) s a cold cell and session 26's ([\d.]+) s a kept one")
     s26 = [(c, s) for p, c, s in rounds("session26", "log-m") if p > 3]
     assert (cold, kept26) == (f"{old[0][2] / old[0][1]:.1f}", f"{sum(s for _, s in s26) / sum(c for c, _ in s26):.1f}")
+
+
+def test_the_error_sweeps_pace_one_cell_at_a_time(doc: str) -> None:
+    """Why the sweeps' set-ups overlap: the unfinished H100 error sweep's first run (its part's
+    seconds, its timed cells' windows) and the cells its plan has left (evidence/error-partial)."""
+    import argparse
+
+    from compare.planning import publish_plan
+    from compare.suites import sweep
+    folder = EVIDENCE / "error-partial"
+    records = json.loads((folder / "sweep.json").read_text())["records"]
+    (first, *_) = [p for p in json.loads((folder / "publish.json").read_text())["parts"] if p["name"] == "error"]
+    mine = [r for r in records if r["run"]["created"][:10] == first["started"][:10] and r["status"] == "ok"]
+    windows = sum(r["time"]["window"][1] - r["time"]["window"][0] for r in mine)
+    got = said(doc, r"cut off by its lease\s+at (\d+) s in session 35, timed (\d+) cells whose windows took (\d+) s of it, "
+                    r"([\d.]+) s a cell against ([\d.]+) s\s+of window")
+    seconds = float(first["seconds"])
+    assert got == (f"{seconds:.0f}", str(len(mine)), f"{windows:.0f}", f"{seconds / len(mine):.1f}",
+                   f"{windows / len(mine):.1f}")
+    parser = argparse.ArgumentParser()
+    sweep.add_arguments(parser)
+    planned = sweep.plan(parser.parse_args(["error", "--devices", "cuda", "--backends", "all"]))
+    left, alone, beside = said(doc, r"its other (\d+) cells would take about (\d+) minutes one at a time, more than a lease "
+                                    r"leaves after its\s+wheels and sitting check; with the set-ups beside the windows, "
+                                    r"about the windows' (\d+)")
+    assert int(left) == len(planned) - len(records)
+    assert (alone, beside) == (f"{int(left) * seconds / len(mine) / 60:.0f}", f"{int(left) * windows / len(mine) / 60:.0f}")
+    assert "SETUPS" in said(doc, r"one process a cell, `publish_plan\.(\w+)`") and publish_plan.SETUPS[0] == "--overlap"
