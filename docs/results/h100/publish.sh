@@ -10,6 +10,7 @@
 #   (the device's copy of .git is stale: the records name COMMIT, via COMPARE_GIT_COMMIT, and publish
 #   checks the copy's files against the digest TREE, COMPARE_GIT_TREE: commit first, nothing untracked)
 #   (a later machine: unpack the last publish.tgz into .pubstate/ and carry it in that call)
+#   (the unfinished error sweep's is kept in evidence/error-partial/: cp its sweep.json and publish.json into .pubstate/)
 #   next calls:        bash docs/results/h100/publish.sh wait     (until it says "publish ended")
 #   to cut the running part short (the next in the list then starts): publish.sh stop, then wait
 #   (it interrupts `compare publish`, which records the part as cut off; a pattern that is not
