@@ -50,7 +50,8 @@ def apply(policy: str, backend: Backend, out_dir: Path, kept: str = "") -> str:
         if var in folders:          # a cache directory (not a flag's value)
             Path(value).mkdir(parents=True, exist_ok=True)
         os.environ[var] = value
-    state, word = ("kept", "as an earlier process of this cell left it") if filled else ("cold", "empty")
+    kept_word = "as an earlier process left it (this cell's, or its family's: compare/suites/family_caches.py)"
+    state, word = ("kept", kept_word) if filled else ("cold", "empty")
     return f"{state}: " + (", ".join(f"{k} {word}" if k in folders else f"{k}={v}" if v else f"{k} off"
                                      for k, v in env.items())
                            or "the framework keeps no kernel cache on disk")

@@ -51,6 +51,13 @@ def gpu_lane(cell: Cell) -> Lane:
     return device_lane(cell.backend, str(cell.device))
 
 
+def cell_lane(cell: Cell) -> Lane:
+    """Cells whose workers must not overlap (``overlap.run_overlapped``): those of one backend on
+    one GPU, and those that share a kernel-cache directory (``Cell.cache_dir``: a later one starts
+    from what the earlier one left, so it starts once that one has gone)."""
+    return gpu_lane(cell) or (("caches", cell.cache_dir) if cell.cache_dir else None)
+
+
 def pool_map(fn: Callable[[T], R], items: list[T], *, lane: Callable[[T], Hashable | None],
              jobs: int = 1) -> list[R]:
     """``fn`` over ``items``, ``jobs`` at a time, items of one ``lane`` (not None) one after another;
@@ -210,7 +217,7 @@ def run_cells(specs: Iterable[Cell], *, timeout: float, jobs: int = 1,
     if ahead > 0 and runner is None and jobs <= 1 and len(solo) == len(groups) and len(solo) > 1:
         from compare.running import overlap
         overlap.run_overlapped([plan[i] for i in solo], timeout, lambda k, res: finish(solo[k], *res),
-                               ahead, need=footprint, budget=overlap.memory_budget(), lane=gpu_lane)
+                               ahead, need=footprint, budget=overlap.memory_budget(), lane=cell_lane)
     else:
         pool_map(run_group, list(groups.values()), jobs=jobs, lane=lambda g: gpu_lane(plan[g[0]]))
     return [r for r in done if r is not None]

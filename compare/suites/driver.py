@@ -35,6 +35,7 @@ from compare.results.record_parts import Processes, Timing
 from compare.results.store import Store
 from compare.results.environment import RunEnvironment
 from compare.spec import Cell, key
+from compare.suites import family_caches
 
 X = TypeVar("X")
 Blocked = tuple[str, str] | None
@@ -177,6 +178,11 @@ class Suite(Command):
     def on_repeat(self, block: Timing) -> None:
         """The ``time`` block of every repeat process (--processes)."""
 
+    def shares_caches(self, cell: Cell) -> bool:
+        """Whether ``cell`` may start from the kernel caches an earlier cell of its family kept
+        (``family_caches``): only where no page reads its first call."""
+        return False
+
     # a check of a record's JSON, as the worker wrote it (its process's record.json) or a file keeps it
     @property
     def check(self) -> Callable[[dict[str, Any]], str | None] | None:
@@ -257,10 +263,14 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
     # the cells --resume keeps run in no process, the first or a repeat one
     kept = {i for i, c in enumerate(cells) if store is not None and resume and store.done(key(c.identity()))}
     many = repeats.plan(processes)[1] > 1
-    # the kernel caches a cell's processes keep (Cell.cache_dir); none on a Dask worker: another host
-    keeps = lifeline.temp_dir("kept-caches-") if many and runner is None else contextlib.nullcontext(None)
+    # the kernel caches a cell's processes, or a family's cells, keep (Cell.cache_dir); none on a
+    # Dask worker: another host
+    share = not many and runner is None and any(suite.shares_caches(c) for c in cells)
+    keeps = lifeline.temp_dir("kept-caches-") if (many or share) and runner is None else contextlib.nullcontext(None)
     with keeps as where:
-        first = cold_once(cells, Path(where) if where is not None else None)
+        first = cold_once(cells, Path(where) if where is not None and many else None)
+        if share and where is not None:     # one process a cell: a sweep's curve shares its caches
+            first = family_caches.share(first, Path(where), suite.shares_caches)
         results = engine.run_cells(first, timeout=args.timeout, probes=run.probes, runner=runner,
                                    store=store, resume=resume,
                                    on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
@@ -363,7 +373,7 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
         got: dict[int, Timing | None] = {}
         overlap.run_overlapped([again(i, rnd) for i in order], timeout,
                                lambda k, result: got.__setitem__(k, figures_of(result[0])), ahead,
-                               need=footprint, budget=overlap.memory_budget(), lane=engine.gpu_lane,
+                               need=footprint, budget=overlap.memory_budget(), lane=engine.cell_lane,
                                ordered=True)
         return [got.get(k) for k in range(len(order))]
 

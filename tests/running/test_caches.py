@@ -37,7 +37,7 @@ def test_kept_caches_are_cold_for_the_process_that_fills_them_and_kept_for_the_n
     assert note == "cold: FAKE_CACHE_DIR empty, FAKE_CACHE_OFF off, FAKE_CACHE_FLAG=false"
     assert os.environ["FAKE_CACHE_DIR"] == str(kept / "kernels") and not (tmp_path / "a" / "cache").exists()
     note = caches.apply("cold", Caching(), tmp_path / "b", str(kept))
-    assert note.startswith("kept: FAKE_CACHE_DIR as an earlier process of this cell left it")
+    assert note.startswith("kept: FAKE_CACHE_DIR as an earlier process left it")
 
 
 def test_warm_caches_under_the_temporary_directory_outlive_the_worker(tmp_path, monkeypatch):

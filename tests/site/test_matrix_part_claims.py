@@ -89,3 +89,14 @@ def test_the_error_sweeps_pace_one_cell_at_a_time(doc: str) -> None:
     assert int(left) == len(planned) - len(records)
     assert (alone, beside) == (f"{int(left) * seconds / len(mine) / 60:.0f}", f"{int(left) * windows / len(mine) / 60:.0f}")
     assert "SETUPS" in said(doc, r"one process a cell, `publish_plan\.(\w+)`") and publish_plan.SETUPS[0] == "--overlap"
+
+
+def test_mlxs_first_calls_in_the_scaling_sweep(doc: str) -> None:
+    """'MLX's first calls in the H100 store's scaling sweep took 20-111 s a point, its projectile's
+    54-111 s': why a curve's points share their caches (compare/suites/family_caches.py)."""
+    from measurement_doc import span
+    records = json.loads((RESULTS / "h100" / "sweep.json").read_text())["records"]
+    mine = [r for r in records if r["backend"] == "mlx" and r["tags"].get("sweep") == "scaling" and r["status"] == "ok"]
+    first = {s: [r["time"]["first_call_s"] for r in mine if r["scenario"] == s] for s in ("particles", "projectile")}
+    got = said(doc, r"MLX's first calls in the H100 store's scaling sweep took ([\d-]+) s a point,\s+its projectile's ([\d-]+) s")
+    assert got == (span(first["particles"] + first["projectile"]), span(first["projectile"]))
