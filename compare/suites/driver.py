@@ -266,7 +266,7 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
     # the kernel caches a cell's processes, or a family's cells, keep (Cell.cache_dir); none on a
     # Dask worker: another host
     share = not many and runner is None and any(suite.shares_caches(c) for c in cells)
-    keeps = lifeline.temp_dir("kept-caches-") if (many or share) and runner is None else contextlib.nullcontext(None)
+    keeps = lifeline.temp_dir("kept-caches-") if (many and runner is None) or share else contextlib.nullcontext(None)
     with keeps as where:
         first = cold_once(cells, Path(where) if where is not None and many else None)
         if share and where is not None:     # one process a cell: a sweep's curve shares its caches

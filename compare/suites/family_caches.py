@@ -17,12 +17,12 @@ import dataclasses
 from pathlib import Path
 from typing import Callable
 
-from compare.spec import Cell
+from compare.spec import IDENTITY, Cell
 
 
-def family(cell: Cell) -> tuple[str, str, str, str, str]:
-    """The cells that run the same kernels: all but the parameters."""
-    return cell.backend, cell.scenario, cell.variant, str(cell.device), str(cell.precision)
+def family(cell: Cell) -> tuple[str, ...]:
+    """The cells that run the same kernels: the identity but the parameters."""
+    return tuple(str(getattr(cell, f)) for f in IDENTITY)
 
 
 def share(cells: list[Cell], where: Path, shares: Callable[[Cell], bool]) -> list[Cell]:
