@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ..base import cuda_build_hint, not_installed
+from ..base import DEFAULT_VARIANT, cuda_build_hint, not_installed
 from ..torch import TorchCuda   # Triton takes its tensors and stream from PyTorch
 
 CPU_REASON = ("Triton compiles for GPUs only; its CPU interpreter (TRITON_INTERPRET=1: NumPy, one "
@@ -146,7 +146,7 @@ class TritonBackend(TorchCuda):
         return out
 
     def setup(self, device: str, precision: str, variant: str) -> None:
-        if variant != "default":
+        if variant != DEFAULT_VARIANT:
             raise ValueError(f"Triton has no variant {variant!r}")
         if device == "cuda":
             import torch

@@ -15,6 +15,7 @@ import textwrap
 from collections import Counter
 from typing import Iterable
 
+from backends.base import DEFAULT_VARIANT
 from compare.measuring import noise
 from compare.render import report
 from compare.results.environment import RunEnvironment
@@ -102,7 +103,7 @@ def skip_lines(records: list[Record], gpu_here: bool) -> list[str]:
         lines.append(f"  {dev}: no GPU on this machine ({len(recs)} cells of {len({r.backend for r in recs})} "
                      "frameworks)")
     for (dev, cause, cmd), recs in sorted(other.items(), key=lambda kv: -len(kv[1])):
-        who = _names(r.backend if r.variant == "default" else f"{r.backend}/{r.variant}" for r in recs)
+        who = _names(r.backend if r.variant == DEFAULT_VARIANT else f"{r.backend}/{r.variant}" for r in recs)
         lines.append(_fit(f"  {who} on {dev} ({len(recs)} cell{'' if len(recs) == 1 else 's'}): {cause}",
                           f": {cmd}" if cmd else ""))
     if len(lines) > MAX_CAUSES:

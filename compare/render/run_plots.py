@@ -11,6 +11,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from backends.base import DEFAULT_VARIANT
 from compare.results.record import Record, plain
 from compare.render.report import by_scenario, call_time, fmt_time
 from compare.files import save_figure
@@ -124,7 +125,7 @@ def plot_speedup_vs_baseline(records: list[Record], path: Path, baseline: str) -
     for scenario, recs in by_scenario(r for r in records if r.device == "cpu").items():
         for title, rs in speed_panels(recs).items():
             base = next((r for r in rs if r.backend == baseline and r.status == "ok"
-                         and r.variant == "default" and call_time(r)[0]), None)
+                         and r.variant == DEFAULT_VARIANT and call_time(r)[0]), None)
             bars = [speed_bar(r, base) for r in rs if r is not base]
             if base is not None and bars:
                 panels.append(charts.Panel(f"{scenario}: {title}", bars))

@@ -27,6 +27,7 @@ from typing import Any, Iterable, Mapping, Self
 
 import numpy as np
 
+from backends.base import DEFAULT_VARIANT
 from compare.files import TEMP_MARK, TEMP_SUFFIX, atomic_write
 from compare.results.analysis import Analysis, analysis_of
 from compare.results.environment import RunEnvironment, environment_of
@@ -285,8 +286,8 @@ def array_file(directory: Path, cell: Identity | Mapping[str, Any]) -> Path:   #
     record's ``identity``, or the JSON of one being written); the parts come from a record, so each
     must be a plain name (letters, digits, '_'): no path can leave arrays/."""
     parts: list[Any] = [cell.get(f) for f in ("scenario", "backend", "device", "precision")]   # checked below
-    variant = cell.get("variant", "default")
-    if variant != "default":
+    variant = cell.get("variant", DEFAULT_VARIANT)
+    if variant != DEFAULT_VARIANT:
         parts.append(variant)
     bad = [p for p in parts if not isinstance(p, str) or not _NAME.fullmatch(p)]
     if bad:

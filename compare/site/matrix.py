@@ -15,6 +15,7 @@ import math
 from typing import Any, Callable, cast
 
 import backends
+from backends.base import DEFAULT_VARIANT
 import scenarios
 from compare.render import colors
 from compare.results.record import Record
@@ -154,7 +155,7 @@ def _pool(m: Machine, device: str, scenario: str, precision: Precision = Precisi
           keep: Callable[[Record], bool] = lambda r: True) -> list[Record]:
     return [r for r in m.records if r.device == device and r.scenario == scenario
             and r.precision == precision and data.tag(r, "sweep") in sweep
-            and (exact(r) or r.variant == "default") and keep(r)]
+            and (exact(r) or r.variant == DEFAULT_VARIANT) and keep(r)]
 
 
 def _largest(recs: list[Record]) -> list[Record]:
@@ -319,7 +320,7 @@ def _cells(rule: Rule, m: Machine, device: str) -> dict[str, Cell]:
         fw = r.backend
         fig = rule.figure(r) if r.status == "ok" and exact(r) else None
         val = fig.median if isinstance(fig, Timing) else fig
-        if val is not None and r.variant == "default":
+        if val is not None and r.variant == DEFAULT_VARIANT:
             plain[fw] = val
         if fig is None or val is None:
             if fw not in cells:      # keep why a framework has no figure, unless it has one

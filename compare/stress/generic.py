@@ -11,6 +11,7 @@ from typing import BinaryIO
 import numpy as np
 
 import backends
+from backends.base import DEFAULT_VARIANT
 import scenarios
 from compare.render.figure_check import place_legends
 from compare.spec import Cell
@@ -55,7 +56,7 @@ def exp_ulps(ctx: StressContext) -> Result:
     rows, series = ctx.skip_rows(name, variants=True), {}
     defaults = {}
     for ((scn, prm, _, _), s), (rec, out) in zip(planned, results):     # keyed on the case's overrides
-        if s.variant == "default" and out is not None:
+        if s.variant == DEFAULT_VARIANT and out is not None:
             defaults[(s.backend, str(s.device), scn, json.dumps(prm))] = out
     for ((scn, prm, key, case_setting), s), (rec, out) in zip(planned, results):
         setting = f"{case_setting}, variant={s.variant}"
@@ -75,7 +76,7 @@ def exp_ulps(ctx: StressContext) -> Result:
             srt = np.sort(e[finite])
             idx = np.unique(np.geomspace(1, srt.size, 200).astype(int)) - 1
             series[ctx.label(s)] = {"ulps": srt[idx].tolist(), "frac": ((idx + 1) / srt.size).tolist()}
-        if s.variant != "default":
+        if s.variant != DEFAULT_VARIANT:
             base = defaults.get((s.backend, str(s.device), scn, json.dumps(prm)))
             if base is None:
                 continue
@@ -121,7 +122,7 @@ def exp_races(ctx: StressContext) -> Result:
     for i in range(0, len(specs), 2):
         s = specs[i]
         (ra, oa), (rb, ob) = results[i], results[i + 1]
-        setting = f"{s.scenario} (quick sizes)" + ("" if s.variant == "default" else f", variant={s.variant}")
+        setting = f"{s.scenario} (quick sizes)" + ("" if s.variant == DEFAULT_VARIANT else f", variant={s.variant}")
         if oa is None or ob is None:
             rows.append(ctx.error_row(name, s, setting, ra if oa is None else rb)); continue
         diff = bitwise_differences(oa, ob)

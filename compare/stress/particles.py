@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from backends.base import DEFAULT_VARIANT
 from compare.stress.numerics import (Experiment, Outputs, Overrides, Result, StressContext,
                                      bitwise_differences, check_of)
 from scenarios.base import UNIT_ROUNDOFF, Precision, dtype_of
@@ -200,7 +201,7 @@ def exp_particles_inf(ctx: StressContext) -> Result:
              for prec in ctx.precisions(b, d, both)]
     rows = ctx.skip_rows(name, variants=True, precisions=both)
     for (b, d, var, prec), first, calls, err in ctx.map(search, items):
-        setting = f"bounce=1.05, n={n}" + ("" if var == "default" else f", variant={var}")
+        setting = f"bounce=1.05, n={n}" + ("" if var == DEFAULT_VARIANT else f", variant={var}")
         pred = predicted[prec]
         if err:
             rows.append(ctx.row(name, b, d, prec, setting, "first step with a non-finite state", None, "CRASHED", err))

@@ -21,7 +21,7 @@ import numpy as np
 
 import backends
 import scenarios
-from backends.base import Device
+from backends.base import DEFAULT_VARIANT, Device
 from compare.planning import calibrate, outdir
 from compare.render import console, report, run_plots
 from compare.running import engine, hardware, scaleout
@@ -116,7 +116,7 @@ def fill_vs_reference(records: list[Record], outputs: dict[int, dict[str, np.nda
             continue
         cands = [j for j, q in enumerate(records) if j in outputs and q.backend == ref
                  and q.scenario == r.scenario and q.precision == r.precision
-                 and q.variant == "default" and q.params == r.params]
+                 and q.variant == DEFAULT_VARIANT and q.params == r.params]
         cands.sort(key=lambda j: records[j].device != r.device)
         if not cands:
             continue

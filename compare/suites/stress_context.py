@@ -14,6 +14,7 @@ from typing import Any, Callable, Sequence, TypeVar
 import numpy as np
 
 import backends
+from backends.base import DEFAULT_VARIANT
 from compare.running import engine
 from compare.results.record import Record
 from compare.render.report import fmt_num
@@ -115,7 +116,7 @@ class Ctx:
 
     @staticmethod
     def label(cell: Cell) -> str:
-        return f"{cell.backend}/{cell.device}" + ("" if cell.variant == "default" else f"/{cell.variant}")
+        return f"{cell.backend}/{cell.device}" + ("" if cell.variant == DEFAULT_VARIANT else f"/{cell.variant}")
 
     def error_row(self, experiment: str, cell: Cell, setting: str, rec: Record) -> Row:
         return self.row(experiment, cell.backend, cell.device, cell.precision, setting,

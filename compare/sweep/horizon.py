@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from backends.base import DEFAULT_VARIANT
 from compare.results.record import Record
 from compare.render.report import fmt_bytes, fmt_time
 from compare.render.figure_check import place_legends
@@ -115,7 +116,7 @@ def plot(records: list[Record], device: str, path: Path, scenario: str, colors: 
     for (backend, variant, prec, _), rows in groups.items():
         if any(need(rows[0], "params").get(k) != v for k, v in want.items()):
             continue
-        style = "-" if variant == "default" else ":"
+        style = "-" if variant == DEFAULT_VARIANT else ":"
         mark = "^" if prec == "float32" else "o"
         lab = f"{backend}{'' if variant == 'default' else '/' + variant}{'' if prec == 'float32' else ' f64'}"
         n = [knob_value(r) for r in rows]

@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from backends.base import DEFAULT_VARIANT
 from compare.files import save_figure
 from compare.render.figure_check import place_legends
 from compare.results.record import Record
@@ -59,7 +60,7 @@ def panels(records: list[Record], device: str, path: Path, scenario: str, colors
                 ys = [m / 2**20 if (m := horizon.memory(r)[0]) else math.nan for r in rows]
             else:
                 ys = [throughput_s(r) or wall_s(r) or math.nan for r in rows]
-            ax.plot(n, ys, ("-" if variant == "default" else ":") + ("^" if prec == "float32" else "o"),
+            ax.plot(n, ys, ("-" if variant == DEFAULT_VARIANT else ":") + ("^" if prec == "float32" else "o"),
                     color=colors.get(backend), ms=4, lw=1.2,
                     label=f"{variant}{'' if prec == 'float32' else ' f64'}")
             floor = tape.state_bytes_per_step(prec) if what == "memory" and prec == "float32" else None

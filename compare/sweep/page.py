@@ -18,6 +18,7 @@ from typing import Any, Iterable, NamedTuple
 from tabulate import tabulate
 
 import backends
+from backends.base import DEFAULT_VARIANT
 import scenarios
 from compare.results.environment import RunEnvironment, tree_state
 from compare.results.record import Record
@@ -114,7 +115,7 @@ def size_table(records, device, scenario) -> str:
     """The size sweep (role 'bandwidth') of one scenario: GB/s, roofline and launch shares."""
     rows = []
     mine = sorted(ok(records, sweep="bandwidth", role="bandwidth", device=device, scenario=scenario),
-                  key=lambda r: (r.backend, r.variant != "default",
+                  key=lambda r: (r.backend, r.variant != DEFAULT_VARIANT,
                                  r.variant, r.precision, knob(r).value or 0))
     for r in mine:
         b = bandwidth_row(r, records)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import backends
+from backends.base import DEFAULT_VARIANT
 from compare.render.colors import backend_color
 from compare.render.figure_check import keep_apart
 from compare.results.record import Record
@@ -93,12 +94,12 @@ def plot_bandwidth(records: list[Record], device: str, path: Path, scenario: str
             tag = "" if prec == "float32" else " f64"
             # a scenario's own variants (e.g. vector loads): their wall-clock curve, dashed
             for v in dict.fromkeys(r.variant for r in mine):
-                if v != "default":
+                if v != DEFAULT_VARIANT:
                     vs = [r for r in mine if r.variant == v]
                     ax.plot([need(r, "work")["bytes"] for r in vs],
                             [gbps(need(r, "work")["bytes"], wall_s(r)) for r in vs],
                             "--s", color=c, ms=4, label=f"{backend}{tag} {v} (wall clock)")
-            mine = [r for r in mine if r.variant == "default"]
+            mine = [r for r in mine if r.variant == DEFAULT_VARIANT]
             if not mine:
                 continue
             x = [need(r, "work")["bytes"] for r in mine]
@@ -153,7 +154,7 @@ def plot_time_vs_error(records: list[Record], device: str, path: Path) -> bool:
         for p in pts:
             r = p["rec"]
             c = cmap[r.backend]
-            hollow = r.variant != "default"
+            hollow = r.variant != DEFAULT_VARIANT
             ax.scatter(p["time"], p["error"], marker=MARKERS.get(r.precision, "s"), s=36,
                        color=c, facecolors="none" if hollow else c, linewidths=1.2)
         for backend, c in cmap.items():

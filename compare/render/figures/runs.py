@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from backends.base import DEFAULT_VARIANT
 from compare.results.record import Record
 
 Runs = list[tuple[Record, dict[str, np.ndarray]]]
@@ -10,7 +11,7 @@ Runs = list[tuple[Record, dict[str, np.ndarray]]]
 
 def run_label(record: Record) -> str:
     v = record.variant
-    return f"{record.backend}/{record.device}/{record.precision}" + ("" if v == "default" else f"/{v}")
+    return f"{record.backend}/{record.device}/{record.precision}" + ("" if v == DEFAULT_VARIANT else f"/{v}")
 
 
 def pick_runs(runs: Runs, limit: int) -> Runs:
@@ -18,6 +19,6 @@ def pick_runs(runs: Runs, limit: int) -> Runs:
     seen, out = set(), []
     for rec, o in runs:
         key = (rec.backend, rec.device)
-        if rec.precision == "float32" and rec.variant == "default" and key not in seen:
+        if rec.precision == "float32" and rec.variant == DEFAULT_VARIANT and key not in seen:
             seen.add(key); out.append((rec, o))
     return (out or runs)[:limit]
