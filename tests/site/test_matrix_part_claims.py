@@ -1,5 +1,6 @@
-"""docs/measurement.md's figures for session 41's H100 matrix part (the first with every cut), held to
-its publish log and the store's publish.json (issue 57, items 4 and 5). Fast tier."""
+"""docs/measurement.md's figures for the H100's publish parts with every cut (session 41's matrix
+part, the error sweep of sessions 35 and 42), held to their publish logs, publish.json and records
+(issue 57, items 4 and 5). Fast tier."""
 from __future__ import annotations
 
 import json
@@ -83,11 +84,31 @@ def test_the_error_sweeps_pace_one_cell_at_a_time(doc: str) -> None:
     parser = argparse.ArgumentParser()
     sweep.add_arguments(parser)
     planned = sweep.plan(parser.parse_args(["error", "--devices", "cuda", "--backends", "all"]))
-    left, alone, beside = said(doc, r"its other (\d+) cells would take about (\d+) minutes one at a time, more than a lease "
-                                    r"leaves after its\s+wheels and sitting check; with the set-ups beside the windows, "
-                                    r"about the windows' (\d+)")
-    assert int(left) == len(planned) - len(records)
+    parts = [p for p in json.loads((folder / "publish.json").read_text())["parts"] if p["name"] == "error"]
+    s42 = parts[-1]
+    before = [r for r in records if r["run"]["created"] < s42["started"]]
+    left, alone, beside = said(doc, r"the (\d+) cells it had left after session 41 would take about (\d+) minutes one at a time, "
+                                    r"more than a\s+lease leaves after its wheels and sitting check; with the set-ups beside the "
+                                    r"windows, about the\s+windows' (\d+)")
+    assert int(left) == len(planned) - len(before)
     assert (alone, beside) == (f"{int(left) * seconds / len(mine) / 60:.0f}", f"{int(left) * windows / len(mine) / 60:.0f}")
+    # session 42: the last error part, overlapped, cut off by the lease's end
+    ran = [r for r in records if r["run"]["created"] >= s42["started"]]
+    assert all(r["status"] == "ok" for r in ran) and s42["exit_code"] is None
+    spans = [r["time"]["window"] for r in ran]
+    covered = sum(b - a for a, b in spans)
+    torch = [r for r in ran if r["backend"] == "torch"]
+    compiled = [r["time"]["first_call_s"] for r in torch if r["scenario"] == "particles" and r["variant"].startswith("compile")]
+    got = said(doc, r"Session 42 ran (\d+) of them so and was cut off in turn\*\* \((\d+) s,[^)]*\)\): the set-ups hid beside "
+                    r"the\s+windows, which covered (\d+) s of it, but its cells' windows were ([\d.]+) s each, not ([\d.]+)\. "
+                    r"They were the\s+plan's heavier cells: torch's (\d+) took (\d+) s, its compiled particle rollouts "
+                    r"compiling inside their\s+windows for up to (\d+) s a point, longer as the steps grow\. (\d+) cells are left")
+    assert got == (str(len(ran)), f"{float(s42['seconds']):.0f}", f"{covered:.0f}", f"{covered / len(ran):.1f}",
+                   f"{windows / len(mine):.1f}", str(len(torch)),
+                   f"{sum(r['time']['window'][1] - r['time']['window'][0] for r in torch):.0f}", f"{max(compiled):.0f}",
+                   str(len(planned) - len(records)))
+    # the windows one at a time: the part's seconds are theirs and small gaps
+    assert max(b for _, b in spans) - min(a for a, _ in spans) - covered < 0.05 * covered
     assert "SETUPS" in said(doc, r"one process a cell, `publish_plan\.(\w+)`") and publish_plan.SETUPS[0] == "--overlap"
 
 
@@ -100,3 +121,22 @@ def test_mlxs_first_calls_in_the_scaling_sweep(doc: str) -> None:
     first = {s: [r["time"]["first_call_s"] for r in mine if r["scenario"] == s] for s in ("particles", "projectile")}
     got = said(doc, r"MLX's first calls in the H100 store's scaling sweep took ([\d-]+) s a point,\s+its projectile's ([\d-]+) s")
     assert got == (span(first["particles"] + first["projectile"]), span(first["projectile"]))
+
+
+def test_kept_caches_serve_mlxs_later_points(doc: str) -> None:
+    """'MLX's float32 particles took 23.5 s at a curve's first point and 0.07-0.26 s at the
+    others, its projectile 35.9 s and then 3.2-7.2 s': session 42's error-sweep records."""
+    from measurement_doc import span
+    records = json.loads((EVIDENCE / "error-partial" / "sweep.json").read_text())["records"]
+    mine = [r for r in records if r["run"]["commit"].startswith("2711403") and r["backend"] == "mlx"
+            and r["precision"] == "float32"]
+    got = said(doc, r"MLX's float32\s+particles took ([\d.]+) s at a curve's first point and ([\d.-]+) s at the others, "
+                    r"its projectile\s+([\d.]+) s and then ([\d.-]+) s")
+    want: list[str] = []
+    for scenario in ("particles", "projectile"):
+        rows = [r["time"] for r in mine if r["scenario"] == scenario]
+        (cold,) = [t["first_call_s"] for t in rows if t["cache"].startswith("cold:")]
+        kept = [t["first_call_s"] for t in rows if t["cache"].startswith("kept:")]
+        assert len(kept) == 5
+        want += [f"{cold:.1f}", span(kept, "{:.2f}" if scenario == "particles" else "{:.1f}")]
+    assert got == tuple(want)
