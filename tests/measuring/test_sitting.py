@@ -96,3 +96,33 @@ def test_a_check_from_a_yardstick_reads_the_host():
     assert "copy 15 GB/s" in sitting.summary(c) and "others on" in sitting.summary(c)
     lost = sitting.sitting_from("cpu", {"error": "boom"})       # a yardstick that failed: the notes say why
     assert lost.copy_bytes_per_s is None and lost.notes == ("yardstick: boom",)
+
+
+def cuda_yardstick(lat_us: float, piped_us: float, iqr_us: float = 1.0, copy: float = 3e12) -> dict:
+    return {"launch_latency_s": lat_us * 1e-6, "launch_latency_iqr_s": iqr_us * 1e-6,
+            "launch_pipelined_s": piped_us * 1e-6, "copy_bytes_per_s": copy, "gpu": "NVIDIA H100 80GB HBM3"}
+
+
+def gpu_reasons(c: SittingCheck) -> tuple[str, ...]:
+    """The verdict on the GPU's figures (this test host's own load is not the point here)."""
+    return tuple(w for w in judge(c, QUIET) if not w.startswith("host busy"))
+
+
+def test_a_cuda_check_is_the_best_of_its_processes():
+    """Session 42's start: a check process read pipelined 7.69 us, the run's own yardstick 5.27 us
+    seconds later. The best of the processes stands for the sitting: its lowest floor with that
+    process's own spread, the lowest pipelined launch, the fastest copy; each process is kept."""
+    slow, fast, other = cuda_yardstick(11.5, 7.69, 0.58, 2.99e12), cuda_yardstick(10.5, 5.9, 1.0), cuda_yardstick(10.9, 5.27)
+    c = sitting.sitting_from("cuda", [slow, fast, {"error": "yardstick timed out after 120 s"}, other])
+    assert (c.launch_latency_s, c.launch_pipelined_s, c.copy_bytes_per_s) == pytest.approx((10.5e-6, 5.27e-6, 3e12))
+    assert c.null_spread == pytest.approx(1.0 / 10.5)        # the fastest floor's own IQR over its median
+    assert c.processes == 3 and c.launch_pipelined_each_s == pytest.approx((7.69e-6, 5.9e-6, 5.27e-6))
+    assert c.launch_latency_each_s == pytest.approx((11.5e-6, 10.5e-6, 10.9e-6))
+    assert "yardstick: yardstick timed out after 120 s" in c.notes
+    assert gpu_reasons(c) == () and gpu_reasons(sitting.sitting_from("cuda", slow)) != ()
+    assert "the best of 3 processes (pipelined 5.27-7.69 us)" in sitting.summary(c)
+    # every process at the slower level: the sitting is
+    (why,) = gpu_reasons(sitting.sitting_from("cuda", [slow, cuda_yardstick(11.0, 7.2, 0.6)]))
+    assert why.startswith("pipelined launch 7.2 us, 1.44x the quiet 5 us")
+    lost = sitting.sitting_from("cuda", [{"error": "boom"}, {"error": "boom"}])
+    assert lost.launch_latency_s is None and lost.processes == 0 and lost.notes[0] == "yardstick: boom"

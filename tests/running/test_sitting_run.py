@@ -79,3 +79,23 @@ def test_the_cpu_check_measures_only_its_main_copy():
     c = sitting_run.check_sitting("cpu")
     assert c.device == "cpu" and c.copy_bytes_per_s > 0 and c.others_cores is not None and c.notes == ()
     assert c.seconds is not None and c.seconds > 0          # what the check took, recorded
+
+
+def test_a_cuda_check_measures_its_processes_one_after_another(monkeypatch):
+    """CUDA: ``PROCESSES`` yardsticks, the run's own among them; the CPU: the one given, else one."""
+    made: list[str] = []
+
+    def measure(device):
+        made.append(device)
+        return {"launch_latency_s": 1e-5, "launch_latency_iqr_s": 1e-6, "launch_pipelined_s": 5e-6 + len(made) * 1e-7}
+    monkeypatch.setattr(sitting_run, "measure_yardstick", measure)
+    own = {"launch_latency_s": 1.2e-5, "launch_latency_iqr_s": 1e-6, "launch_pipelined_s": 7.7e-6}
+    c = sitting_run.check_sitting("cuda", yardstick=own)
+    assert made == ["cuda"] * (sitting_run.PROCESSES - 1) and c.processes == sitting_run.PROCESSES
+    assert c.launch_pipelined_each_s[0] == 7.7e-6 and c.launch_pipelined_s == 5.1e-6
+    made.clear()
+    assert sitting_run.check_sitting("cuda").processes == sitting_run.PROCESSES == len(made)
+    made.clear()
+    assert sitting_run.check_sitting("cpu", yardstick={"copy_bytes_per_s": 1e10}).processes is None and made == []
+    sitting_run.check_sitting("cpu")
+    assert made == ["cpu"]
