@@ -88,6 +88,8 @@ class Cell:
     check_sample: int = 0               # check k sampled items of large per-item cells (sample_rows)
     host_profile: int = 0               # >0: cProfile the throughput regime, keep this many functions
     save_outputs: bool = True           # hand the outputs back (cross-backend comparison)
+    own_timer: bool = True              # cross-check our clock with the framework's own timer (False:
+                                        # a suite none of whose pages reads it, the sweeps)
     save_inputs: bool = False           # also the inputs (--save-arrays)
     check: bool = True                  # False: a repeat process of a checked cell, its figures alone
                                         # (no download, oracle, host profile, null call or own timer)

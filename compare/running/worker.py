@@ -243,9 +243,9 @@ def run_cell(cell: Cell, out_dir: Path, cache_note: str = "", set_up: bool = Fal
     if first:
         regimes["null"] = timing.null_call(sync)   # the harness's floor, on the now idle device
         laps.lap("null")
-    # the framework's own clock, to cross-check ours: once per cell (the first process), in the
-    # same stretch of that process; a repeat process (compare.running.repeats) times the figures alone
-    if cell.check and (latency.median_s or 0.0) < OWN_TIMER_BELOW_S:
+    # the framework's own clock, to cross-check ours: once per cell (its first process; a repeat
+    # process times the figures alone, compare.running.repeats), never in a sweep (Cell.own_timer)
+    if cell.check and cell.own_timer and (latency.median_s or 0.0) < OWN_TIMER_BELOW_S:
         if (own := own_latency(be, device, kernel.run, sync)) is not None:
             regimes["own_timer"] = own
         laps.lap("own_timer")

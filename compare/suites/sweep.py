@@ -156,7 +156,8 @@ def plan(args: argparse.Namespace) -> list[Planned[Reference | None]]:
                                 cell = Cell(sc.name, be, Device(dev), Precision(prec), variant, params,
                                             tags={"sweep": kind, "role": role, "knob": knob},
                                             repeat=repeat, min_time=min_time, cache=args.cache,
-                                            check_sample=pt.check_sample, save_outputs=pt.save_outputs)
+                                            check_sample=pt.check_sample, save_outputs=pt.save_outputs,
+                                            own_timer=False)   # the clock's cross-check: the matrix's
                                 out.append(Planned(cell, pt.reference))
     return out
 

@@ -117,6 +117,17 @@ def test_a_repeat_process_times_the_figures_alone(tmp_path):
     assert not (tmp_path / "again" / "outputs.npz").exists()
 
 
+def test_a_sweeps_cell_leaves_out_the_framework_s_own_timer(tmp_path, monkeypatch):
+    """own_timer=False (the sweeps: no sweep page reads the cross-check): the framework's own timer
+    is not run; the matrix's cells (the default) run it once, in their first process."""
+    asked: list[str] = []
+    monkeypatch.setattr(worker, "own_latency", lambda be, device, run, sync: asked.append(device))
+    worker.run_one(quick().to_dict(), tmp_path / "matrix")
+    assert asked == ["cpu"] and "own_timer" in record_in(tmp_path / "matrix")["time"]["phases"]
+    worker.run_one(quick(own_timer=False).to_dict(), tmp_path / "sweep")
+    assert asked == ["cpu"] and "own_timer" not in record_in(tmp_path / "sweep")["time"]["phases"]
+
+
 def test_the_host_profile_is_bounded_by_its_time_budget():
     from compare.results.record_parts import Regime
     assert worker.profile_calls(Regime.of(median_s=1e-5, k=4096)) == 2000      # the batch, at most 2000

@@ -140,3 +140,15 @@ def test_kept_caches_serve_mlxs_later_points(doc: str) -> None:
         assert len(kept) == 5
         want += [f"{cold:.1f}", span(kept, "{:.2f}" if scenario == "particles" else "{:.1f}")]
     assert got == tuple(want)
+
+
+def test_the_own_timer_in_the_error_sweeps_windows(doc: str) -> None:
+    """'never in a sweep's cells (... when it took 342 s of the H100 error sweep's 1541 s of
+    windows, Triton's 4.1 s a cell)': session 42's error-sweep records, their phases."""
+    records = json.loads((EVIDENCE / "error-partial" / "sweep.json").read_text())["records"]
+    mine = [r["time"] for r in records if r["run"]["commit"].startswith("2711403")]
+    triton = [r["time"]["phases"].get("own_timer", 0.0) for r in records
+              if r["run"]["commit"].startswith("2711403") and r["backend"] == "triton"]
+    got = said(doc, r"when it took (\d+) s of the H100 error sweep's (\d+) s of windows, Triton's ([\d.]+) s a cell\)")
+    assert got == (f"{sum(t['phases'].get('own_timer', 0.0) for t in mine):.0f}",
+                   f"{sum(t['window'][1] - t['window'][0] for t in mine):.0f}", f"{sum(triton) / len(triton):.1f}")

@@ -155,6 +155,7 @@ def test_plan_comes_from_the_scenarios_sweeps():
     assert {s.scenario for s in specs if s.tags["role"] == "bandwidth"} == {
         name for name in scenarios.SCENARIOS if sweeps(name).measures == "bandwidth"}
     assert all(s.check_sample for s in specs if s.tags["role"] != "launch")
+    assert not any(s.own_timer for s in specs)        # the clock's cross-check is the matrix's
     # a scenario's own variants join the size sweep of that scenario only (Warp's tiled SAXPY; its
     # recorded launches of SAXPY and of the copy and launch yardsticks), never another's
     own = backends.get("warp").scenario_variants
