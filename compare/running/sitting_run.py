@@ -23,10 +23,10 @@ from compare.results.environment import RunEnvironment, Yardstick
 ENV = "COMPARE_SITTING"       # publish -> its part: {"start", "reasons", "quiet"} as JSON
 
 
-# CUDA yardstick processes a check takes the best of: a process's launch floor sits at a slower
-# level in nearly half the stored H100 ones (docs/measurement.md, "The sitting check"), so one
-# process alone would call a quiet sitting noisy that often; all of PROCESSES at it, rarely
-PROCESSES = 5
+# CUDA yardstick processes a check takes: a process's launch floor sits at one of two levels and
+# the share of a sitting's processes at the slower one varies (docs/measurement.md, "The sitting
+# check"); seven tell a sitting where most are (at least 5: sitting.SLOW_SHARE) from a usual one
+PROCESSES = 7
 
 
 def measure_yardstick(device: str) -> Yardstick:
@@ -42,10 +42,10 @@ def measure_yardstick(device: str) -> Yardstick:
 
 
 def check_sitting(device: str, yardstick: Yardstick | None = None) -> SittingCheck:
-    """The sitting of ``device`` ('cuda' or 'cpu') now: on CUDA the best of ``PROCESSES`` yardstick
-    processes, ``yardstick`` (one this run has just measured) among them, each a process, the
-    driver's start, the copies and launches, one after another; on the CPU ``yardstick``, else one
-    measured here (about a second on 2 cores). The host window on top."""
+    """The sitting of ``device`` ('cuda' or 'cpu') now: on CUDA from ``PROCESSES`` yardstick
+    processes (``sitting.of_processes``), ``yardstick`` (one this run has just measured) among
+    them, each a process, the driver's start, the copies and launches, one after another; on the
+    CPU ``yardstick``, else one measured here (about a second on 2 cores). The host window on top."""
     got = [yardstick] if yardstick is not None else []
     while not got or (device == "cuda" and len(got) < PROCESSES):
         got.append(measure_yardstick(device))

@@ -2,6 +2,8 @@
 ``runs``, publish's handed check and the noisy-sitting stamp (fast tier; CUDA: the lead's run)."""
 from __future__ import annotations
 
+import pytest
+
 from compare.measuring import environment
 from compare.running import sitting_run
 from compare.measuring.sitting import Quiet, SittingCheck, judge
@@ -92,7 +94,7 @@ def test_a_cuda_check_measures_its_processes_one_after_another(monkeypatch):
     own = {"launch_latency_s": 1.2e-5, "launch_latency_iqr_s": 1e-6, "launch_pipelined_s": 7.7e-6}
     c = sitting_run.check_sitting("cuda", yardstick=own)
     assert made == ["cuda"] * (sitting_run.PROCESSES - 1) and c.processes == sitting_run.PROCESSES
-    assert c.launch_pipelined_each_s[0] == 7.7e-6 and c.launch_pipelined_s == 5.1e-6
+    assert c.launch_pipelined_each_s[0] == 7.7e-6 and c.launch_pipelined_s == pytest.approx(5.3e-6)   # the 3rd lowest
     made.clear()
     assert sitting_run.check_sitting("cuda").processes == sitting_run.PROCESSES == len(made)
     made.clear()
