@@ -47,7 +47,8 @@ def check_sitting(device: str, yardstick: Yardstick | None = None) -> SittingChe
     them, each a process, the driver's start, the copies and launches, one after another; on the
     CPU ``yardstick``, else one measured here (about a second on 2 cores). The host window on top."""
     got = [yardstick] if yardstick is not None else []
-    while not got or (device == "cuda" and len(got) < PROCESSES):
+    # a failed process ends the series: the next would fail alike (up to its timeout each)
+    while not got or (device == "cuda" and len(got) < PROCESSES and not got[-1].get("error")):
         got.append(measure_yardstick(device))
     return sitting_from(device, got)
 

@@ -101,3 +101,7 @@ def test_a_cuda_check_measures_its_processes_one_after_another(monkeypatch):
     assert sitting_run.check_sitting("cpu", yardstick={"copy_bytes_per_s": 1e10}).processes is None and made == []
     sitting_run.check_sitting("cpu")
     assert made == ["cpu"]
+    made.clear()
+    monkeypatch.setattr(sitting_run, "measure_yardstick", lambda device: made.append(device) or {"error": "timed out"})
+    lost = sitting_run.check_sitting("cuda")          # a failed process ends the series
+    assert made == ["cuda"] and lost.processes == 0 and lost.notes[0] == "yardstick: timed out"
