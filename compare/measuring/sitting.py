@@ -237,6 +237,8 @@ def summary(c: SittingCheck) -> str:
         words.append(f"{nth} best of {c.processes} processes" + (
             f" (pipelined {min(c.launch_pipelined_each_s) * 1e6:.3g}-{max(c.launch_pipelined_each_s) * 1e6:.3g} us)"
             if c.launch_pipelined_each_s else ""))
+    if c.null_spread is not None and c.device == "cuda":
+        words.append(f"spread {100 * c.null_spread:.0f} %")
     if c.copy_bytes_per_s:
         words.append(f"copy {_rate(c.copy_bytes_per_s)}")
     if c.others_cores is not None:

@@ -56,14 +56,18 @@ def blocks(readme: Path = ROOT / "README.md") -> list[str]:
     return [m.group(2) for m in BLOCK.finditer(readme.read_text(encoding="utf-8"))]
 
 
-def rebuild_reports(results: Path = ROOT / "docs" / "results") -> None:
-    """Every committed report rebuilt as its site.json says (inputs and title as first built)."""
+def rebuild(manifest: Path, out: Path) -> None:
+    """The report a site.json describes (its inputs, title and --against, as first built), into ``out``."""
     import json
     from compare import site
+    how = json.loads(manifest.read_text(encoding="utf-8"))
+    site.build([ROOT / p for p in how["inputs"]], out, how["title"], [ROOT / p for p in how["against"]])
+
+
+def rebuild_reports(results: Path = ROOT / "docs" / "results") -> None:
+    """Every committed report rebuilt as its site.json says, in place."""
     for manifest in sorted(results.glob("*/report/site.json")):
-        how = json.loads(manifest.read_text(encoding="utf-8"))
-        site.build([ROOT / p for p in how["inputs"]], manifest.parent, how["title"],
-                   [ROOT / p for p in how["against"]])
+        rebuild(manifest, manifest.parent)
         print(f"rebuilt {manifest.parent.relative_to(ROOT)}")
 
 
