@@ -233,8 +233,8 @@ def summary(c: SittingCheck) -> str:
         words.append(f"pipelined {_us(c.launch_pipelined_s)}")
     if c.processes and c.processes > 1:
         k = rank(c.processes) + 1
-        nth = f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
-        words.append(f"{nth} best of {c.processes} processes" + (
+        nth = "" if k == 1 else f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')} "
+        words.append(f"{nth}best of {c.processes} processes" + (
             f" (pipelined {min(c.launch_pipelined_each_s) * 1e6:.3g}-{max(c.launch_pipelined_each_s) * 1e6:.3g} us)"
             if c.launch_pipelined_each_s else ""))
     if c.null_spread is not None and c.device == "cuda":

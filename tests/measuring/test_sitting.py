@@ -121,7 +121,9 @@ def test_a_cuda_check_stands_for_its_processes():
     assert c.launch_latency_each_s == pytest.approx((11.5e-6, 10.5e-6, 10.9e-6))
     assert "yardstick: yardstick timed out after 120 s" in c.notes
     assert gpu_reasons(c) == () and gpu_reasons(sitting.sitting_from("cuda", slow)) != ()
-    assert "1st best of 3 processes (pipelined 5.27-7.69 us)" in sitting.summary(c)
+    assert "pipelined 5.27 us, best of 3 processes (pipelined 5.27-7.69 us)" in sitting.summary(c)
+    back = SittingCheck.from_json(json.loads(json.dumps(c.to_json())))     # the processes' figures travel
+    assert back.launch_pipelined_each_s == c.launch_pipelined_each_s and back.to_json() == c.to_json()
     # every process at the slower level: the sitting is
     (why,) = gpu_reasons(sitting.sitting_from("cuda", [slow, cuda_yardstick(11.0, 7.2, 0.6)]))
     assert why.startswith("pipelined launch 7.2 us, 1.44x the quiet 5 us")
