@@ -167,26 +167,21 @@ def rank(count: int) -> int:
     return count - math.ceil(round(SLOW_SHARE * count, 9))
 
 
-def of_processes(yardsticks: Sequence[Yardstick]) -> tuple[Yardstick, list[str]]:
-    """One yardstick from several processes' of one sitting, and a note for each that failed. A
-    process's launch floor sits at one of two levels, and the share of a sitting's processes at the
-    slower one varies between sittings (docs/measurement.md, "The sitting check"), so each launch
-    figure is the one that is over its limit only when at least ``SLOW_SHARE`` of the processes'
-    are (``rank``), the spread that of the process whose floor it is, and the copy likewise from
-    the fast end."""
-    ok = [y for y in yardsticks if not y.get("error")]
-    notes = list(dict.fromkeys(f"yardstick: {y.get('error')}" for y in yardsticks if y.get("error")))
-    if not ok:
-        return Yardstick(error=str(yardsticks[0].get("error")) if yardsticks else "no yardstick measured"), notes
-    timed = sorted((y for y in ok if y.get("launch_latency_s")), key=lambda y: y["launch_latency_s"])
-    out = Yardstick(**(timed[rank(len(timed))] if timed else ok[0]))
-    pipelined = sorted(y["launch_pipelined_s"] for y in ok if y.get("launch_pipelined_s"))
-    copies = sorted((y["copy_bytes_per_s"] for y in ok if y.get("copy_bytes_per_s")), reverse=True)
+def of_processes(yardsticks: Sequence[Yardstick]) -> Yardstick:
+    """One yardstick from several processes' of one sitting (none failed). A process's launch floor
+    sits at one of two levels, and the share of a sitting's processes at the slower one varies
+    between sittings (docs/measurement.md, "The sitting check"), so each launch figure is the one
+    that is over its limit only when at least ``SLOW_SHARE`` of the processes' are (``rank``), the
+    spread that of the process whose floor it is, and the copy likewise from the fast end."""
+    timed = sorted((y for y in yardsticks if y.get("launch_latency_s")), key=lambda y: y["launch_latency_s"])
+    out = Yardstick(**(timed[rank(len(timed))] if timed else yardsticks[0]))
+    pipelined = sorted(y["launch_pipelined_s"] for y in yardsticks if y.get("launch_pipelined_s"))
+    copies = sorted((y["copy_bytes_per_s"] for y in yardsticks if y.get("copy_bytes_per_s")), reverse=True)
     if pipelined:
         out["launch_pipelined_s"] = pipelined[rank(len(pipelined))]
     if copies:
         out["copy_bytes_per_s"] = copies[rank(len(copies))]
-    return out, notes
+    return out
 
 
 def sitting_from(device: str, hw: Yardstick | Sequence[Yardstick], window_s: float = WINDOW_S) -> SittingCheck:
@@ -197,12 +192,13 @@ def sitting_from(device: str, hw: Yardstick | Sequence[Yardstick], window_s: flo
     from compare.measuring import environment
     t0 = time.perf_counter()
     each = [hw] if isinstance(hw, Mapping) else list(hw)
-    hw, notes = of_processes(each)
+    ok = [y for y in each if not y.get("error")]
+    notes = list(dict.fromkeys(f"yardstick: {y.get('error')}" for y in each if y.get("error")))
+    hw = of_processes(ok) if ok else Yardstick()      # every process failed: the notes say why
     fig: dict[str, object] = {}
     fig["copy_bytes_per_s"] = hw.get("copy_bytes_per_s")
     if device == "cuda":
         lat, iqr = hw.get("launch_latency_s"), hw.get("launch_latency_iqr_s")
-        ok = [y for y in each if not y.get("error")]
         fig.update(launch_latency_s=lat, launch_pipelined_s=hw.get("launch_pipelined_s"),
                    null_spread=iqr / lat if lat and iqr is not None else None,
                    null_how="the yardstick's empty-kernel launches with a synchronise (IQR / median)",

@@ -2,8 +2,8 @@
 store's ``runs`` (``compare.measuring.sitting``: the check's figures and the verdict).
 
 ``sitting: {"start": check, "end": check}``. ``compare all`` / ``compare run`` / a sweep measure
-the start once, before any cell, from the yardstick the run has just measured (the host window
-and NVML on top: a quarter of a second on the CPU), and judge it against the published stores'
+the start once, before any cell, from the yardstick the run has just measured (on CUDA with
+``PROCESSES`` - 1 more; the host window and NVML on top: a quarter of a second on the CPU), and judge it against the published stores'
 quiet sittings of the kind: a noisy one is stamped, never refused (only publish refuses). A publish part is handed its start by
 ``publish`` (``ENV``: the check publish judged before starting the part, its reasons and the quiet
 reference) and measures its end after its last cell, judged against the same reference. A run
