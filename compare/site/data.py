@@ -288,9 +288,18 @@ def at_defaults(rec: Record) -> bool:
     return all(p.get(k, v) == v for k, v in d.items())
 
 
+def beyond_defaults(rec: Record) -> bool:
+    """Larger than its scenario's default size: a row about large sizes never reads the default
+    size (a store without a large part or sweep leaves that row empty, not the small row again)."""
+    return size(rec) > _size(defaults(rec.scenario))
+
+
 def size(rec: Record) -> float:
     """The record's problem size: n, batch or pixels, whichever the scenario has."""
-    p = rec.params or {}
+    return _size(rec.params or {})
+
+
+def _size(p: Mapping[str, Any]) -> float:
     for k in ("n", "batch"):
         if isinstance(p.get(k), (int, float)):
             return float(p[k])

@@ -1,7 +1,8 @@
 """This run against the stored report of the closest machine kind, at the end of ``compare all | run``.
 
-The reference is the published store of the machine kind nearest this one: ``docs/results/h100``
-where an NVIDIA GPU is visible, ``docs/results/cpu`` otherwise (``--against DIR`` names another,
+The reference is the published store of the machine kind nearest this one: ``docs/results/h200``
+where an H200 is visible and that report is stored, ``docs/results/h100`` for any other NVIDIA GPU
+(an H200's figures are not an H100's), ``docs/results/cpu`` otherwise (``--against DIR`` names another,
 ``--against none`` turns it off). Cells are matched as ``compare site --against`` matches them
 (``compare.site.against.match``: same scenario, framework, device, precision, variant and
 parameters); per matched cell one regime (the throughput regime where both measured it, else
@@ -24,7 +25,7 @@ from compare.results.record import Record
 
 # the stored reports, one folder per machine kind (a test points this at its own)
 REFERENCES = Path(__file__).resolve().parents[2] / "docs" / "results"
-KINDS = {"cpu": "CPU", "h100": "H100"}
+KINDS = {"cpu": "CPU", "h100": "H100", "h200": "H200"}
 PAGE = "against.md"
 PREFERRED = ("throughput", "latency", "graph")      # the regime a cell's ratio is taken from
 
@@ -35,8 +36,18 @@ def chosen(against: str | None, env: RunEnvironment) -> tuple[str, Path] | None:
         return None
     if against is not None:
         return f"the report in {against}", Path(against)
-    kind = "h100" if env.get("gpus") else "cpu"      # env['gpus']: what nvidia-smi lists
+    kind = _kind(env.get("gpus") or [])
     return f"the {KINDS[kind]} report ({_shown(REFERENCES / kind)})", REFERENCES / kind
+
+
+def _kind(gpus: list[Any]) -> str:
+    """The stored report of the closest kind to a run on ``gpus`` (what nvidia-smi lists): its
+    GPU's own where stored, else the H100's; no GPU: the CPU's."""
+    if not gpus:
+        return "cpu"
+    names = " ".join(str(g.get("name", "")) if isinstance(g, dict) else str(g) for g in gpus).upper()
+    own = next((k for k in KINDS if k != "cpu" and k.upper() in names), "h100")
+    return own if (REFERENCES / own / "results.json").is_file() else "h100"
 
 
 def check(against: str | None) -> None:

@@ -152,3 +152,21 @@ def test_the_own_timer_in_the_error_sweeps_windows(doc: str) -> None:
     got = said(doc, r"when it took (\d+) s of the H100 error sweep's (\d+) s of windows, Triton's ([\d.]+) s a cell\)")
     assert got == (f"{sum(t['phases'].get('own_timer', 0.0) for t in mine):.0f}",
                    f"{sum(t['window'][1] - t['window'][0] for t in mine):.0f}", f"{sum(triton) / len(triton):.1f}")
+
+
+def test_the_h200s_matrix_part_as_its_log_says(doc: str) -> None:
+    """Session 43's H200 lease: the rounds its publish log names, the part cut off after four
+    processes (publish.json: no exit code), and the six-process projection from them."""
+    text = (RESULTS / "h200" / "evidence" / "session43" / "publish.log").read_text()
+    got = [(int(p), int(c), int(s)) for p, c, s in re.findall(r"process (\d+): (\d+) cells in (\d+) s", text)]
+    assert [p for p, _, _ in got] == [2, 3, 4]
+    first, c2, c3, cold_n, k4, kept_n, total, minutes = said(
+        doc, r"round 1 about (\d+) s, its cold rounds (\d+) and (\d+) s over (\d+) cells, its\s+first kept round "
+             r"(\d+) s over (\d+); the lease ended there, after four processes\. At that pace six\s+processes take "
+             r"about (\d+) s \(([\d.]+) minutes\)")
+    assert [(c, s) for _, c, s in got] == [(int(cold_n), int(c2)), (int(cold_n), int(c3)), (int(kept_n), int(k4))]
+    (part,) = json.loads((RESULTS / "h200" / "publish.json").read_text())["parts"]
+    assert part["name"] == "all" and part["exit_code"] is None
+    six = int(first) + int(c2) + int(c3) + 3 * int(k4)        # rounds 4-6 at the first kept round's pace
+    assert (total, minutes) == (f"{round(six / 50) * 50}", f"{round(six / 60 * 2) / 2:.1f}")
+    assert int(first) + sum(s for _, _, s in got) <= part["seconds"]

@@ -44,7 +44,7 @@ def test_readme_pictures_are_generated_by_the_reports() -> None:
 
 
 def test_readme_matrices_are_the_generated_ones() -> None:
-    machines = [f"docs/results/{m}/report" for m in ("h100", "cpu", "xeon")]
+    machines = [f"docs/results/{m}/report" for m in ("h100", "h200", "cpu", "xeon")]
     assert set(readme.blocks()) >= {"docs/results/h100/report/matrix.md", "docs/results/cpu/report/matrix.md",
                                     " ".join([readme.ANSWERS, *machines])}
     assert readme.expected() == (ROOT / "README.md").read_text(encoding="utf-8"), \

@@ -17,12 +17,12 @@ from compare.site.render import page_md
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
-MACHINES = {"h100": "H100", "cpu": "AMD EPYC", "xeon": "Intel Xeon"}
+MACHINES = {"h100": "H100", "cpu": "AMD EPYC", "xeon": "Intel Xeon", "h200": "H200"}
 NEWEST = {"drjit": "Dr.Jit", "triton": "Triton", "mlx": "MLX"}
 RULES = {r.key: r for r in questions.RULES}
 
 
-# one xdist worker: the three machines' stores, loaded once (seconds) for every test of the module, not once per worker
+# one xdist worker: the four machines' stores, loaded once (seconds) for every test of the module, not once per worker
 pytestmark = pytest.mark.xdist_group("report-claims")
 
 
@@ -33,8 +33,8 @@ def stores() -> dict[str, data.Machine]:
     return {k: data.load([DOCS / "results" / k]) for k in MACHINES}
 
 
-def test_the_machine_reports_are_the_three_the_docs_name() -> None:
-    """Three machine reports (one more, the scale-out, is against another run): none is 'both'."""
+def test_the_machine_reports_are_the_four_the_docs_name() -> None:
+    """Four machine reports (one more, the scale-out, is against another run): none is 'both'."""
     machine = sorted(p.parent.parent.name for p in DOCS.glob("results/*/report/site.json")
                      if not json.loads(p.read_text())["against"])
     assert machine == sorted(MACHINES)
@@ -98,9 +98,9 @@ def test_the_accuracy_page_says_why_jax_leads_on_the_cpu_and_not_on_the_h100(sto
 
 
 def test_every_run_of_the_results_stores_is_of_a_checked_clean_commit() -> None:
-    """measurement.md: "Every run entry of the three `results.json` stores is now of a checked clean
+    """measurement.md: "Every run entry of the four `results.json` stores is now of a checked clean
     commit": each names a commit (older runs by its short hash) and a tree known clean (not dirty, not unknown)."""
-    assert "Every run entry\nof the three `results.json` stores is now of a checked clean commit" in (
+    assert "Every run entry\nof the four `results.json` stores is now of a checked clean commit" in (
         DOCS / "measurement.md").read_text()
     for key in MACHINES:
         runs = json.loads((DOCS / "results" / key / "results.json").read_text())["runs"]

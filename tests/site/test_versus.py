@@ -43,6 +43,18 @@ def test_chosen_picks_the_report_of_the_machine_kind():
     assert versus.chosen("/x/y", {}) == ("the report in /x/y", Path("/x/y"))
 
 
+def test_an_h200_is_compared_with_the_h200_report_where_one_is_stored(tmp_path, monkeypatch):
+    monkeypatch.setattr(versus, "REFERENCES", tmp_path)
+    h200 = {"gpus": [{"name": "NVIDIA H200"}]}
+    assert versus.chosen(None, h200)[1] == tmp_path / "h100"          # none stored: the H100's
+    (tmp_path / "h200").mkdir()
+    (tmp_path / "h200" / "results.json").write_text("{}")
+    label, path = versus.chosen(None, h200)
+    assert label.startswith("the H200 report") and path == tmp_path / "h200"
+    assert versus.chosen(None, {"gpus": [{"name": "NVIDIA A100-SXM4-80GB"}]})[1] == tmp_path / "h100"
+    assert versus.chosen(None, {"gpus": [{"name": "NVIDIA H100 80GB HBM3"}]})[1] == tmp_path / "h100"
+
+
 def test_check_refuses_a_reference_without_results(tmp_path):
     versus.check(None)
     versus.check("none")

@@ -17,9 +17,9 @@ RULES = (
          f"in the throughput regime, {matrix.VARIANT_RULE}.",
          defaults_of(SCENARIO), regime("throughput")),
     Rule("particles-large", "Particle loop, large n", SCENARIO, "1/s", "higher",
-         "Particles at the largest n in the records that two or more frameworks ran (run or "
+         "Particles at the largest n above the default in the records that two or more frameworks ran (run or "
          f"scaling sweep), float32: particle-steps per second in the throughput regime, {matrix.VARIANT_RULE}.",
-         largest_of(SCENARIO, (None, "scaling")), rate),
+         largest_of(SCENARIO, (None, "scaling"), data.beyond_defaults), rate),
 )
 
 
@@ -35,7 +35,7 @@ def page(c: Ctx) -> Page:
                     [_bar(r, matrix.regime("throughput")) for r in small], log=True, fmt=fmt.seconds)
         blocks += [Figure(rel, "Every framework and variant at the default size.",
                           c.cmd(f"run {SCENARIO} --devices {c.device} --precision float32 --variants all"), csv)]
-    big = (matrix.largest_of(SCENARIO, (None, "scaling"))(c.m, c.device))
+    big = (matrix.largest_of(SCENARIO, (None, "scaling"), data.beyond_defaults)(c.m, c.device))
     if big:
         png, rel, csv = c.fig("particles-large")
         charts.bars(png, f"Particles at the largest n ({data.scope(big)}, {c.device}, float32): particle-steps "

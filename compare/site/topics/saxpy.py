@@ -15,10 +15,10 @@ SMALL = True
 
 RULES = (
     Rule("bandwidth", "Large bandwidth-bound arrays", "bandwidth", "s", "lower",
-         "SAXPY (out = a·x + y, float32) at the largest n in the records that two or more frameworks "
+         "SAXPY (out = a·x + y, float32) at the largest n above its default in the records that two or more frameworks "
          "ran; time per call in the throughput regime (k calls, one synchronise); "
          f"{matrix.VARIANT_RULE}.",
-         largest_of(SCENARIO, (None, "bandwidth")), regime("throughput")),
+         largest_of(SCENARIO, (None, "bandwidth"), data.beyond_defaults), regime("throughput")),
     Rule("latency", "Small kernel: one synchronised call", "per-call", "s", "lower",
          "SAXPY at its default n = 10^6, float32: median time of one call followed by a "
          f"synchronise (the latency regime), {matrix.VARIANT_RULE}.",
@@ -46,7 +46,7 @@ def bandwidth(c: Ctx) -> Page:
                       "more bytes per second than the copy's one read per write (not profiled), "
                       "or a CPU copy's own limits (`docs/measurement.md`, the hardware yardstick).")]
     blocks += verdicts(rows)
-    big = matrix.largest_of(SCENARIO, (None, "bandwidth"))(c.m, c.device)
+    big = matrix.largest_of(SCENARIO, (None, "bandwidth"), data.beyond_defaults)(c.m, c.device)
     allvar = [r for r in c.m.records if r.device == c.device and r.scenario == SCENARIO
               and r.precision == "float32" and data.size(r) == (data.size(big[0]) if big else -1)
               and data.tag(r, "sweep") in (None, "bandwidth")]
