@@ -119,7 +119,7 @@ def machine(c: qp.Ctx) -> list[Any]:
         total = sum(data.num(p.get("seconds")) or 0.0 for p in pub)
         names = list(dict.fromkeys(str(p.get("name")) for p in pub))
         missing = [n for n in _plan_parts(c.device) if n not in names and n != "site"]
-        blocks += [P(f"`python -m compare publish` ran {len(names)} parts on this machine in "
+        blocks += [P(f"`python -m compare publish` ran {len(names)} part{'s' if len(names) != 1 else ''} on this machine in "
                      f"{fmt.seconds(total)} of wall time, every attempt counted (publish.json; an "
                      "attempt cut off, by a time limit or a signal, is resumed by the next, keeping "
                      "its finished cells)." + (f" Parts it has not run here: {', '.join(missing)}; "
@@ -181,9 +181,11 @@ def sittings(envs: list[RunEnvironment], out: Path) -> list[Any]:
             why = list(e.get("noisy_sitting_reasons") or []) if e.get("noisy_sitting") else []
             if not (e.get("sitting") or {}).get("quiet"):      # judged without a reference: judge it now
                 others = [s for s in stores if s.get("created") != e.get("created")]
-                late = judge(c, sq.quiet(others, c.device, sq.kind_of(c.device, c.gpu, c.cpu, c.cpu_id, c.cores)))
-                why += [f"{r} (judged after the fact)" for r in late if r not in why]
-                how += (", against the stores' quiet sittings after the fact ("
+                ref = sq.quiet(others, c.device, sq.kind_of(c.device, c.gpu, c.cpu, c.cpu_id, c.cores))
+                why += [f"{r} (judged after the fact)" for r in judge(c, ref) if r not in why]
+                how += (f", absolute limits only: the stores hold under {sq.MIN_RUNS} other runs of its kind, "
+                        "no quiet sitting to compare with" if ref is None else
+                        ", against the stores' quiet sittings after the fact ("
                         + ("it had none when it ran)" if "quiet" in (e.get("sitting") or {}) else "its reference was not recorded)"))
         elif hw:
             c = SittingCheck.of(device="cuda", gpu=hw[1].get("gpu"), launch_latency_s=hw[1].get("launch_latency_s"),

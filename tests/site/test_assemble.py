@@ -87,7 +87,7 @@ def test_the_machine_page_reads_the_publish_log_and_a_rerun(tmp_path, loaded):
         {"name": "cuda-matrix", "argv": [], "started": "t2", "seconds": 30, "exit_code": None}]}))
     blocks = assemble.machine(ctx(data.load([store]), loaded[1], tmp_path))
     text = " ".join(getattr(b, "text", "") for b in blocks)
-    assert "ran 1 parts on this machine in 90 s of wall time" in text
+    assert "ran 1 part on this machine in 90 s of wall time" in text
     assert "significant orderings agree between the two runs; 0 became a tie in one of them (allowed), 0 reversed." in text
     # the second run named from its own files: when, which commit, how busy its host was, its time
     run = data.load([store / assemble.RERUN]).runs[0]
@@ -171,3 +171,8 @@ def test_the_machine_page_says_noisy_sitting(tmp_path, loaded):
     runs = next(b for b in blocks if isinstance(b, Table) and b.headers[0] == "created")
     assert runs.rows[0][3].endswith("noisy sitting") and not runs.rows[1][3].endswith("noisy sitting")
     assert assemble.sittings([dict(m.runs[1], sitting=None, hardware={})], tmp_path) == []    # neither: no block
+    # a kind the stores hold too few other runs of (a made-up GPU): the absolute limits alone, said so
+    lone = SittingCheck.of(device="cuda", gpu="NVIDIA Z900", launch_latency_s=12.65e-6, launch_pipelined_s=7.6e-6)
+    (row,) = assemble.sittings([dict(m.runs[1], sitting={"start": lone.to_json(), "quiet": None})], tmp_path)[-1].rows
+    assert row[2].endswith("absolute limits only: the stores hold under 4 other runs of its kind, no quiet "
+                           "sitting to compare with") and row[3] == "quiet"
