@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import random
 import statistics
+import sys
 import time
 from typing import Callable, Mapping, Sequence
 
@@ -177,3 +178,38 @@ def run_rounds(first: Mapping[int, Timing], processes: int | str, seed: int,
             blocks[i] = changed[i] = summary(times[i], failed[i], why[i])
         on_round(changed)
     return blocks
+
+
+def within(ends: float, sitting: float) -> Callable[[float], bool]:
+    """``--sitting``: whether a round of so many seconds, started now, ends by ``ends``
+    (time.perf_counter); says so on stderr when it would not."""
+    def fits(round_s: float) -> bool:
+        left = ends - time.perf_counter()
+        if round_s <= left:
+            return True
+        print(f"  no more processes: a round takes about {round_s:.0f} s, {max(left, 0.0):.0f} s of "
+              f"the {sitting:g} s sitting are left", file=sys.stderr, flush=True)
+        return False
+    return fits
+
+
+def say_short(kept: set[int], times: Mapping[int, Mapping[str, object] | None], processes: int | str,
+              most: Mapping[int, int]) -> int:
+    """How many cells ``--resume`` keeps with fewer processes than ``processes`` asks (their cap,
+    ``most``, where lower): a run cut off in its repeat rounds. Said on stderr: their figures keep
+    the count they reached, because a process of another sitting added to a cell's interval would
+    mix two sittings in one figure; the full count needs the run again without ``--resume``."""
+    want = plan(processes)[0]
+    short = [i for i in kept if (t := times.get(i)) is not None
+             and _count(t) < min(want, most.get(i, want))]
+    if short:
+        print(f"  --resume keeps {len(short)} cell{'s' if len(short) != 1 else ''} with fewer processes than asked (a run cut off in its "
+              "repeat rounds): they keep the count they reached, since processes of another sitting would "
+              "mix two sittings in one figure; run again without --resume for the full count",
+              file=sys.stderr, flush=True)
+    return len(short)
+
+
+def _count(t: Mapping[str, object]) -> int:
+    block = t.get("processes")
+    return int(block["count"]) if isinstance(block, Mapping) and isinstance(block.get("count"), int) else 1

@@ -276,11 +276,13 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
                                    on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
                                    footprint=lambda c: preflight.cell_bytes(c)[0])
         if many:
+            repeats.say_short(kept, {i: r.time for i in kept if (r := store.get(key(cells[i].identity()))) is not None},
+                              processes, caps(cells))
             ran = [i for i in range(len(cells)) if i not in kept]
             sitting = getattr(args, "sitting", None)
             more_processes(first, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat,
                            ahead=run.ahead, footprint=lambda c: preflight.cell_bytes(c)[0],
-                           fits=None if sitting is None else within(run.began + sitting, sitting),
+                           fits=None if sitting is None else repeats.within(run.began + sitting, sitting),
                            caches=Path(where) if where is not None else None)
     return results
 
@@ -317,19 +319,6 @@ def caps(cells: list[Cell]) -> dict[int, int]:
         elif not scenarios.get(c.scenario).timings_ranked(c.params, c.device):
             out[i] = repeats.COLD if c.variant == DEFAULT_VARIANT else 1
     return out
-
-
-def within(ends: float, sitting: float) -> Callable[[float], bool]:
-    """``--sitting``: whether a round of so many seconds, started now, ends by ``ends``
-    (time.perf_counter); says so on stderr when it would not."""
-    def fits(round_s: float) -> bool:
-        left = ends - time.perf_counter()
-        if round_s <= left:
-            return True
-        print(f"  no more processes: a round takes about {round_s:.0f} s, {max(left, 0.0):.0f} s of "
-              f"the {sitting:g} s sitting are left", file=sys.stderr, flush=True)
-        return False
-    return fits
 
 
 def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], processes: int | str,

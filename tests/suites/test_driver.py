@@ -206,8 +206,8 @@ def test_overlapped_repeat_rounds_keep_the_rounds_order(tmp_path: Path, monkeypa
 
 def test_the_sitting_says_why_it_stops(capsys):
     import time
-    from compare.suites import driver
-    fits = driver.within(time.perf_counter() + 100.0, 1500.0)
+    from compare.running import repeats
+    fits = repeats.within(time.perf_counter() + 100.0, 1500.0)
     assert fits(10.0) and not fits(1000.0)
     assert "no more processes: a round takes about 1000 s" in capsys.readouterr().err
 
