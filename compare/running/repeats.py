@@ -204,7 +204,7 @@ def say_short(kept: set[int], times: Mapping[int, Mapping[str, object] | None], 
              and _count(t) < min(want, most.get(i, want))]
     if short:
         print(f"  --resume keeps {len(short)} cell{'s' if len(short) != 1 else ''} with fewer processes than asked (a run cut off in its "
-              "repeat rounds): they keep the count they reached, since processes of another sitting would "
+              "repeat rounds, or one that asked for fewer): they keep the count they reached, since processes of another sitting would "
               "mix two sittings in one figure; run again without --resume for the full count",
               file=sys.stderr, flush=True)
     return len(short)
