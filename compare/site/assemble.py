@@ -253,6 +253,13 @@ def store_label(inputs: list[Path]) -> str:
         return "STORE"
 
 
+def _without(empty: list[qp.Row], page: str) -> list[Any]:
+    """A page's rows with no figure on this machine, each named with what it reads, so a page whose
+    rows all lack records (a store without the large parts) is not a bare introduction."""
+    return [P(f"**{r.rule.question}**: no figure on this machine; what it reads: {r.rule.text}")
+            for r in empty if r.rule.page == page and not r.rule.device]
+
+
 MANIFEST = "site.json"        # what the site was built from: a rebuild reads it
 OVERVIEW = "overview.png"     # the matrix as a picture, beside matrix.md (README shows it)
 
@@ -282,7 +289,7 @@ def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, aga
     for key, label in questions.PAGES.items():
         more = (second.summary(between, [n for n, _ in later]) if key == "machine"
                 else second.row_blocks(c.rows_of(key), between))
-        site[key] = (f"{label} — {m.name()}", BUILDERS[key](c) + more)
+        site[key] = (f"{label} — {m.name()}", BUILDERS[key](c) + more + _without(empty, key))
     site.update(c.subpages)             # a page's detail pages (stability: one per experiment)
     if against and reference is not None:
         from compare.site import against as vs

@@ -176,3 +176,16 @@ def test_the_machine_page_says_noisy_sitting(tmp_path, loaded):
     (row,) = assemble.sittings([dict(m.runs[1], sitting={"start": lone.to_json(), "quiet": None})], tmp_path)[-1].rows
     assert row[2].endswith("absolute limits only: the stores hold under 4 other runs of its kind, no quiet "
                            "sitting to compare with") and row[3] == "quiet"
+
+
+def test_a_page_names_its_rows_without_a_figure():
+    """The H200's store has no large parts yet: its Large arrays page names the row and what it
+    reads instead of ending after its introduction; a row another device answers (CPU-only use) is
+    not listed on a GPU page, and a row with a figure never is."""
+    from pathlib import Path
+    m = data.load([Path(__file__).resolve().parents[2] / "docs" / "results" / "h200"])
+    rows, empty = pages.evaluate(m)
+    (large,) = assemble._without(empty, "bandwidth")
+    assert large.text.startswith("**Large bandwidth-bound arrays**: no figure on this machine; what it reads: SAXPY")
+    assert assemble._without(empty, "cpu") == [] and assemble._without(empty, "per-call") == []
+    assert {r.rule.page for r in rows} >= {"per-call"}
