@@ -130,3 +130,15 @@ def test_measurement_md_names_the_rows_without_a_second_sitting(stores) -> None:
             assert words.startswith("every row"), (label, words)
         else:
             assert words.split("; ") == without, (label, words)
+
+
+def test_the_h200_readme_says_how_its_orderings_meet_the_h100s(stores) -> None:
+    """docs/results/h200/README.md quotes `compare agree` of the H100's and the H200's stores."""
+    from compare.site import agreement
+    got = agreement.compare_rows(pages.evaluate(stores["h100"])[0], pages.evaluate(stores["h200"])[0])
+    text = " ".join((DOCS / "results" / "h200" / "README.md").read_text(encoding="utf-8").split())
+    agree, sig, ties, rev = (int(x) for x in re.search(
+        r"\*\*(\d+) of (\d+) significant orderings agree, (\d+) became a tie in one of them, (\d+) reversed\*\*",
+        text).groups())
+    assert (agree, sig, ties, rev) == (sum(r.agree for r in got), sum(r.significant - r.missing for r in got),
+                                       sum(r.tie for r in got), sum(r.disagree for r in got))
