@@ -170,3 +170,23 @@ def test_the_h200s_matrix_part_as_its_log_says(doc: str) -> None:
     six = int(first) + int(c2) + int(c3) + 3 * int(k4)        # rounds 4-6 at the first kept round's pace
     assert (total, minutes) == (f"{round(six / 50) * 50}", f"{round(six / 60 * 2) / 2:.1f}")
     assert int(first) + sum(s for _, _, s in got) <= part["seconds"]
+
+
+def test_the_h200s_first_processes_against_session_41s(doc: str) -> None:
+    """The H200's slower round 1 is host work: each cell's set-up + first call (its first process)
+    over session 41's H100 run's, the median cell and each framework's sum."""
+    import statistics
+
+    def firsts(store: str, created: str | None) -> dict[tuple[str, ...], float]:
+        recs = json.loads((RESULTS / store / "results.json").read_text())["records"]
+        return {(r["scenario"], r["backend"], r["variant"], json.dumps(r["params"], sort_keys=True)):
+                r["time"]["setup_s"] + r["time"]["first_call_s"] for r in recs
+                if r["status"] == "ok" and (created is None or r["run"]["created"] == created)}
+    h100, h200 = firsts("h100", "2026-12-07T13:26:02+00:00"), firsts("h200", None)
+    common = sorted(set(h100) & set(h200))
+    assert len(common) == 85
+    median, lo, hi = said(doc, r"took ([\d.]+)× session 41's in the\s+median cell, every framework ([\d.]+)-([\d.]+)×")
+    assert median == f"{statistics.median(h200[k] / h100[k] for k in common):.2f}"
+    per = {b: sum(h200[k] for k in common if k[1] == b) / sum(h100[k] for k in common if k[1] == b)
+           for b in {k[1] for k in common}}
+    assert (lo, hi) == (f"{min(per.values()):.2f}", f"{max(per.values()):.2f}")
