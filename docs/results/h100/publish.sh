@@ -24,6 +24,8 @@
 # part stress-merge, named after them, merges what they wrote (issue 57, session 34). Then, here: merge $OUT's results.json / sweep.json /
 # stress.json into docs/results/h100 (a later record of a cell replaces the earlier one) and keep
 # publish.json beside them.
+# On an H200 lease (no H100 to be had) the same script runs the parts; what they wrote goes into
+# docs/results/h200, a store of its own kind, never into this one (session 43).
 set -u
 W=/root/publish
 WAIT=${WAIT:-540}
