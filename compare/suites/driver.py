@@ -276,8 +276,8 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
                                    on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
                                    footprint=lambda c: preflight.cell_bytes(c)[0])
         if many:
-            repeats.say_short(kept, {i: r.time for i in kept if store is not None
-                                     and (r := store.get(key(cells[i].identity()))) is not None}, processes, caps(cells))
+            repeats.say_short(kept, {i: r.time for i in kept if store is not None and (r := store.get(
+                key(cells[i].identity()))) is not None and r.status == "ok"}, processes, caps(cells))
             ran = [i for i in range(len(cells)) if i not in kept]
             sitting = getattr(args, "sitting", None)
             more_processes(first, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat,
