@@ -142,3 +142,25 @@ def test_the_h200_readme_says_how_its_orderings_meet_the_h100s(stores) -> None:
         text).groups())
     assert (agree, sig, ties, rev) == (sum(r.agree for r in got), sum(r.significant - r.missing for r in got),
                                        sum(r.tie for r in got), sum(r.disagree for r in got))
+
+
+def test_the_h200_readme_says_what_its_store_holds() -> None:
+    """docs/results/h200/README.md: the cut-off matrix part's process counts, from its records and
+    its run's start check."""
+    from compare.measuring.sitting import SittingCheck, summary
+    store = json.loads((DOCS / "results" / "h200" / "results.json").read_text())
+    text = " ".join((DOCS / "results" / "h200" / "README.md").read_text(encoding="utf-8").split())
+    counts: dict[int, list[dict]] = {}
+    for r in store["records"]:
+        if r["status"] == "ok":
+            counts.setdefault(((r["time"].get("processes") or {}).get("count") or 1), []).append(r)
+    ranked, = re.search(r"after four processes a cell where a row ranks its timings \((\d+) cells;", text).groups()
+    assert sorted(counts) == [1, 3, 4] and len(counts[4]) == int(ranked)
+    assert {r["scenario"] for r in counts[3]} == {"sdf", "projectile"} and all(r["variant"] == "default" for r in counts[3])
+    assert "three for the SDF's and projectile's default variants, one for the others" in text
+    (run,) = store["runs"]
+    start = summary(SittingCheck.from_json(run["sitting"]["start"]))
+    figures = re.search(r"Its start check was quiet \(launch \+ sync ([\d.]+) µs, pipelined ([\d.]+) µs, "
+                        r"(3rd best of 7 processes)\)", text).groups()
+    assert start.startswith(f"launch + sync {figures[0]} us, pipelined {figures[1]} us, {figures[2]}")
+    assert run["git_commit"].startswith("fb68863") and run["git_dirty"] is False
