@@ -14,6 +14,7 @@ from the same match (no site build: no figures).
 from __future__ import annotations
 
 import os
+import re
 import statistics
 import textwrap
 from pathlib import Path
@@ -46,7 +47,7 @@ def _kind(gpus: list[Any]) -> str:
     if not gpus:
         return "cpu"
     names = " ".join(str(g.get("name", "")) if isinstance(g, dict) else str(g) for g in gpus).upper()
-    own = next((k for k in KINDS if k != "cpu" and k.upper() in names), "h100")
+    own = next((k for k in KINDS if k != "cpu" and re.search(rf"\b{k.upper()}\b", names)), "h100")  # not GH200
     return own if (REFERENCES / own / "results.json").is_file() else "h100"
 
 

@@ -53,6 +53,7 @@ def test_an_h200_is_compared_with_the_h200_report_where_one_is_stored(tmp_path, 
     assert label.startswith("the H200 report") and path == tmp_path / "h200"
     assert versus.chosen(None, {"gpus": [{"name": "NVIDIA A100-SXM4-80GB"}]})[1] == tmp_path / "h100"
     assert versus.chosen(None, {"gpus": [{"name": "NVIDIA H100 80GB HBM3"}]})[1] == tmp_path / "h100"
+    assert versus.chosen(None, {"gpus": [{"name": "NVIDIA GH200 480GB"}]})[1] == tmp_path / "h100"   # another kind
 
 
 def test_check_refuses_a_reference_without_results(tmp_path):
