@@ -267,8 +267,9 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
     # Dask worker: another host
     share = not many and runner is None and any(suite.shares_caches(c) for c in cells)
     keeps = lifeline.temp_dir("kept-caches-") if (many and runner is None) or share else contextlib.nullcontext(None)
+    capped = caps(cells)          # the same for the first processes, the short-kept line and the repeats
     with keeps as where:
-        first = cold_once(cells, Path(where) if where is not None and many else None)
+        first = cold_once(cells, Path(where) if where is not None and many else None, capped)
         if share and where is not None:     # one process a cell: a sweep's curve shares its caches
             first = family_caches.share(first, Path(where), suite.shares_caches)
         results = engine.run_cells(first, timeout=args.timeout, probes=run.probes, runner=runner,
@@ -277,17 +278,17 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
                                    footprint=lambda c: preflight.cell_bytes(c)[0])
         if many:
             repeats.say_short(kept, {i: r.time for i in kept if store is not None and (r := store.get(
-                key(cells[i].identity()))) is not None and r.status == "ok"}, processes, caps(cells))
+                key(cells[i].identity()))) is not None and r.status == "ok"}, processes, capped)
             ran = [i for i in range(len(cells)) if i not in kept]
             sitting = getattr(args, "sitting", None)
             more_processes(first, results, ran, processes, seed, args.timeout, runner, store, suite.on_repeat,
                            ahead=run.ahead, footprint=lambda c: preflight.cell_bytes(c)[0],
                            fits=None if sitting is None else repeats.within(run.began + sitting, sitting),
-                           caches=Path(where) if where is not None else None)
+                           caches=Path(where) if where is not None else None, capped=capped)
     return results
 
 
-def cold_once(cells: list[Cell], where: Path | None) -> list[Cell]:
+def cold_once(cells: list[Cell], where: Path | None, capped: dict[int, int] | None = None) -> list[Cell]:
     """The cells as their first process runs them (--processes): a non-default variant's first
     process fills a directory of ``where`` (``Cell.cache_dir``) that its later processes start from,
     so it is cold once and its first result is that process's alone; the default variant's first
@@ -295,8 +296,8 @@ def cold_once(cells: list[Cell], where: Path | None) -> list[Cell]:
     is published (the first-call row, the compile page: ``matrix.all_defaults``), and the other
     variants' cold compiles lengthen every cold round (docs/measurement.md, the matrix part).
     ``where`` None (one process, a Dask worker): every cell as planned; a cell ``caps`` stops after
-    its first process keeps nothing (no later process would start from it)."""
-    alone = {i for i, n in caps(cells).items() if n == 1}
+    its first process keeps nothing (no later process would start from it); ``capped``: ``caps(cells)``."""
+    alone = {i for i, n in (caps(cells) if capped is None else capped).items() if n == 1}
     return [dataclasses.replace(c, cache_dir=str(where / f"cell-{i}"))
             if where is not None and c.cache == "cold" and c.variant != DEFAULT_VARIANT and i not in alone else c
             for i, c in enumerate(cells)]
@@ -325,7 +326,8 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
                    seed: int, timeout: float, runner: Callable[[Cell], cells_.Result] | None = None,
                    store: Store | None = None, on_repeat: Callable[[Timing], None] | None = None,
                    ahead: int = 0, footprint: Callable[[Cell], float] | None = None,
-                   fits: Callable[[float], bool] | None = None, caches: Path | None = None) -> None:
+                   fits: Callable[[float], bool] | None = None, caches: Path | None = None,
+                   capped: dict[int, int] | None = None) -> None:
     """The repeat processes of every cell of ``ran`` whose first process finished ok, in seeded
     rounds (``compare.running.repeats.run_rounds``): each round's ``time.processes`` replaces the
     record's in ``done`` and in the store, saved once a round. ``on_repeat`` sees each repeat
@@ -334,11 +336,11 @@ def more_processes(plan: list[Cell], done: list[engine.Result], ran: list[int], 
     (``compare.running.overlap``), as the first round's were. A cell of ``plan`` with a
     ``cache_dir`` (``cold_once``) kept its first process's caches there: its later processes start
     from them; the others' ``repeats.COLD``-th process keeps its caches in ``caches`` (None: a
-    temporary directory of its own), for the processes after it."""
+    temporary directory of its own), for the processes after it. ``capped``: ``caps(plan)``, where known."""
     first = {i: got[0].time for i in ran if (got := done[i])[0].status == "ok" and got[0].time is not None}
     own = lifeline.temp_dir("kept-caches-") if caches is None else contextlib.nullcontext(str(caches))
     cold = {i: 1 if plan[i].cache_dir else repeats.COLD for i in first}     # processes with cold caches
-    most = {i: n for i, n in caps(plan).items() if i in first}
+    most = {i: n for i, n in (caps(plan) if capped is None else capped).items() if i in first}
     if most:
         print(f"  {len(most)} cells capped ({CAPPED})", file=sys.stderr, flush=True)
 
