@@ -162,6 +162,12 @@ class Record:
         return float(share) if isinstance(share, (int, float)) else None
 
     @property
+    def process_count(self) -> int:
+        """How many worker processes timed the cell (1 for a record without repeats)."""
+        n = self.time.processes.count if self.time and self.time.processes else None
+        return n if isinstance(n, int) and not isinstance(n, bool) else 1
+
+    @property
     def key(self) -> str:
         """The cell's identity as a string (``compare.spec.key``)."""
         return cell_key(self.identity)

@@ -193,23 +193,17 @@ def within(ends: float, sitting: float) -> Callable[[float], bool]:
     return fits
 
 
-def say_short(kept: set[int], times: Mapping[int, Mapping[str, object] | None], processes: int | str,
-              most: Mapping[int, int]) -> int:
-    """How many cells ``--resume`` keeps with fewer processes than ``processes`` asks (their cap,
-    ``most``, where lower): a run cut off in its repeat rounds. Said on stderr: their figures keep
-    the count they reached, because a process of another sitting added to a cell's interval would
-    mix two sittings in one figure; the full count needs the run again without ``--resume``."""
+def say_short(counts: Mapping[int, int], processes: int | str, most: Mapping[int, int]) -> int:
+    """How many of the ok cells ``--resume`` keeps (``counts``: each one's processes) ran in fewer
+    processes than ``processes`` asks (their cap, ``most``, where lower): a run cut off in its
+    repeat rounds, or one that asked for fewer. Said on stderr: their figures keep the count they
+    reached, because a process of another sitting added to a cell's interval would mix two
+    sittings in one figure; the full count needs the run again without ``--resume``."""
     want = plan(processes)[0]
-    short = [i for i in kept if (t := times.get(i)) is not None
-             and _count(t) < min(want, most.get(i, want))]
+    short = [i for i, n in counts.items() if n < min(want, most.get(i, want))]
     if short:
         print(f"  --resume keeps {len(short)} cell{'s' if len(short) != 1 else ''} with fewer processes than asked (a run cut off in its "
               "repeat rounds, or one that asked for fewer): they keep the count they reached, since processes of another sitting would "
               "mix two sittings in one figure; run again without --resume for the full count",
               file=sys.stderr, flush=True)
     return len(short)
-
-
-def _count(t: Mapping[str, object]) -> int:
-    block = t.get("processes")
-    return int(block["count"]) if isinstance(block, Mapping) and isinstance(block.get("count"), int) else 1

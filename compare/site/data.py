@@ -200,8 +200,7 @@ PROCESS_SPREAD = 0.10       # a median whose interval strays further than this i
 
 def process_count(rec: Record) -> int:
     """How many worker processes timed the record's cell (1 for a record without repeats)."""
-    n = rec.time.processes.count if rec.time and rec.time.processes else None
-    return n if isinstance(n, int) and not isinstance(n, bool) else 1
+    return rec.process_count
 
 
 def across_processes(rec: Record, regime: str) -> Timing | None:

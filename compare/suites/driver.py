@@ -277,7 +277,7 @@ def run_cells(suite: Suite, run: Run) -> list[engine.Result]:
                                    on_record=suite.on_record, check=suite.check, refuse=run.judged, ahead=run.ahead,
                                    footprint=lambda c: preflight.cell_bytes(c)[0])
         if many:
-            repeats.say_short(kept, {i: r.time for i in kept if store is not None and (r := store.get(
+            repeats.say_short({i: r.process_count for i in kept if store is not None and (r := store.get(
                 key(cells[i].identity()))) is not None and r.status == "ok"}, processes, capped)
             ran = [i for i in range(len(cells)) if i not in kept]
             sitting = getattr(args, "sitting", None)

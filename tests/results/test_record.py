@@ -130,3 +130,12 @@ def test_fd_agreement_is_the_gradient_blocks_share_or_none() -> None:
     for stored, read in ((0.75, 0.75), (1, 1.0), ("nan", None), (None, None)):
         rec = Record.from_json({**OK_RUN, "gradient": {"method": "ad", "fd_agreement": stored}})
         assert rec.fd_agreement == read and (read is None or isinstance(rec.fd_agreement, float))
+
+
+def test_process_count_is_the_time_blocks_count_else_one() -> None:
+    """``Record.process_count``: the worker processes that timed the cell (``time.processes.count``);
+    a record without repeats or without a time block counts one."""
+    time = {k: v for k, v in OK_RUN["time"].items() if k != "processes"}
+    assert Record.from_json({**OK_RUN, "time": {**time, "processes": {"count": 4}}}).process_count == 4
+    assert Record.from_json({**OK_RUN, "time": time}).process_count == 1
+    assert Record.from_json({**OK_RUN, "time": None, "error": None}).process_count == 1

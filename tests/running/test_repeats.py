@@ -222,12 +222,9 @@ def test_resume_says_how_many_kept_cells_are_short_of_their_processes(capsys):
     """--resume keeps a cell cut off in its repeat rounds with the processes it reached (processes
     of another sitting are not added to its figures) and says how many such cells it keeps: below
     the count asked (``auto``: its fewest), or below the cell's cap where that is lower."""
-    from compare.results.record_parts import Timing
-    four = Timing.from_json({"processes": {"count": 4}})
-    times = {0: four, 1: Timing.from_json({"processes": {"count": 6}}), 2: Timing.from_json({}),
-             3: four, 4: None}
-    assert repeats.say_short({0, 1, 2, 3, 4}, times, "auto", {3: 3, 2: 1}) == 1     # cell 0 only
+    counts = {0: 4, 1: 6, 2: 1, 3: 4}
+    assert repeats.say_short(counts, "auto", {3: 3, 2: 1}) == 1                     # cell 0 only
     assert "--resume keeps 1 cell with fewer processes than asked" in capsys.readouterr().err
-    assert repeats.say_short({0, 1, 2}, times, 4, {}) == 1                          # cell 2: one process
+    assert repeats.say_short({k: counts[k] for k in (0, 1, 2)}, 4, {}) == 1          # cell 2: one process
     capsys.readouterr()
-    assert repeats.say_short({1}, times, "auto", {}) == 0 and capsys.readouterr().err == ""
+    assert repeats.say_short({1: 6}, "auto", {}) == 0 and capsys.readouterr().err == ""

@@ -20,9 +20,9 @@ def doc() -> str:
     return doc_text()
 
 
-def rounds(session: str, log: str = "publish.log") -> list[tuple[int, int, int]]:
+def rounds(session: str, log: str = "publish.log", machine: str = "h100") -> list[tuple[int, int, int]]:
     """(process, cells, seconds) of each repeat round its publish log names."""
-    text = (EVIDENCE / session / log).read_text()
+    text = (RESULTS / machine / "evidence" / session / log).read_text()
     return [(int(p), int(c), int(s)) for p, c, s in re.findall(r"process (\d+): (\d+) cells in (\d+) s", text)]
 
 
@@ -157,8 +157,7 @@ def test_the_own_timer_in_the_error_sweeps_windows(doc: str) -> None:
 def test_the_h200s_matrix_part_as_its_log_says(doc: str) -> None:
     """Session 43's H200 lease: the rounds its publish log names, the part cut off after four
     processes (publish.json: no exit code), and the six-process projection from them."""
-    text = (RESULTS / "h200" / "evidence" / "session43" / "publish.log").read_text()
-    got = [(int(p), int(c), int(s)) for p, c, s in re.findall(r"process (\d+): (\d+) cells in (\d+) s", text)]
+    got = rounds("session43", machine="h200")
     assert [p for p, _, _ in got] == [2, 3, 4]
     first, c2, c3, cold_n, k4, kept_n, total, minutes = said(
         doc, r"round 1 about (\d+) s, its cold rounds (\d+) and (\d+) s over (\d+) cells, its\s+first kept round "
