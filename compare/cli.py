@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import os
 import sys
 
 import compare.site
@@ -101,6 +102,17 @@ def main(argv: list[str]) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader of the output went away (`| head`): not a full disk; stop without a traceback
+        # from the interpreter's last flush, saying only what a measuring command keeps
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            if _records(argv):
+                print("stopped: the reader of its output closed the pipe; every record saved before it is "
+                      "kept: rerun with --resume", file=sys.stderr)
+        except OSError:
+            pass
+        return EXIT_FAIL
     except OSError as exc:
         if exc.errno == errno.ENAMETOOLONG:     # a name the file system cannot hold: bad usage
             print(f"error: {options.shown(str(exc.filename or 'a path'))}: name too long for the file "
@@ -111,12 +123,19 @@ def main(argv: list[str]) -> int:
         return EXIT_FAIL
 
 
+READ_ONLY = ("report", "list", "agree", "site")     # commands that measure nothing: no records to keep
+
+
+def _records(argv: list[str]) -> bool:
+    """Whether the command measures (saves records as it goes): a failure then keeps them."""
+    return bool(argv) and argv[0] not in READ_ONLY and argv[1:2] != ["report"]
+
+
 def write_failure(exc: OSError, argv: list[str]) -> str:
     """One line for a failed write: which file, why, and that the saved records are kept."""
     what = f"cannot write {exc.filename}" if exc.filename else "a write failed"
     why = exc.strerror or str(exc)
-    suite = bool(argv) and argv[0] not in ("report", "list") and argv[1:2] != ["report"]
-    hint = "" if not suite else "; every record saved before it is kept" + (
+    hint = "" if not _records(argv) else "; every record saved before it is kept" + (
         "" if argv[0] == "stress" else ": free some space and rerun with --resume")
     return f"{what}: {why}{hint}"
 

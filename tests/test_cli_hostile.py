@@ -348,3 +348,18 @@ def test_full_disk_while_saving_arrays_then_resume_recreates_them_and_fills_the_
     assert (arrays / "saxpy-numpy-cpu-float32.npz").is_file()
     js, rows, _ = _tables(out)
     assert js == rows and len(js) == 2
+
+
+def test_a_closed_output_pipe_is_not_a_full_disk() -> None:
+    """`compare agree A B | head`: the reader gone is no write failure to explain (no disk advice,
+    no traceback from the last flush); a command that measures nothing says nothing."""
+    store = str(ROOT / "tests" / "data" / "site")
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run([sys.executable, "-m", "compare", "agree", store, store], stdout=w,
+                           stderr=subprocess.PIPE, text=True, cwd=ROOT, timeout=120)
+    finally:
+        os.close(w)
+    assert p.returncode == 1 and p.stderr == "", p.stderr
+    assert not cli._records(["agree"]) and not cli._records(["site"]) and cli._records(["saxpy"])

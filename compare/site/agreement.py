@@ -5,6 +5,11 @@ For every matrix row and every pair of frameworks that one store's figures separ
 figures), the other store's row is asked: the same order, separated too (agrees); not separated
 (a tie there: allowed to move); or the opposite order, separated (disagrees: the ranking did not
 survive a rerun). Both directions are counted, each pair once.
+
+Only the cells both runs measured are compared (``hold``): a row ranks each framework's fastest
+variant, and a second run that timed fewer variants (a sitting of the default variants alone, a
+rerun from before a variant existed) would otherwise set one variant against another and call
+the difference a reversal.
 """
 from __future__ import annotations
 
@@ -12,6 +17,7 @@ import dataclasses
 from itertools import combinations
 
 from compare.site import ranking
+from compare.site.data import Machine
 from compare.site.matrix import Cell, Row
 
 
@@ -82,3 +88,48 @@ def summary(rows: list[RowAgreement]) -> str:
     ties = sum(r.tie for r in rows)
     return (f"{agree} of {sig} significant orderings agree between the two runs; {ties} became a tie in "
             f"one of them (allowed), {dis} reversed" + ("." if not dis else " (a ranking that did not survive a rerun)."))
+
+
+@dataclasses.dataclass(frozen=True)
+class Held:
+    """Two runs held against each other on the cells both measured (``hold``)."""
+    cells: int                  # cells (framework, variant, precision, device, sizes) both measured
+    only_first: int             # ... measured by the first alone (not compared)
+    only_second: int
+    rows: tuple[RowAgreement, ...]
+
+    @property
+    def reversed(self) -> int:
+        return sum(r.disagree for r in self.rows)
+
+    def words(self, alone: bool = True) -> str:
+        """The cells compared, in words: what a reader needs to know the orderings are like for like
+        (``alone``: and how many cells one run measured alone)."""
+        left = [f"{n} {who} alone measured" for n, who in ((self.only_first, "the first"), (self.only_second, "the second"))
+                if n]
+        return (f"on the {self.cells} cells both runs measured (the same framework, variant and sizes; a row's "
+                f"figure is a framework's best of those)" + (f"; not compared: {', '.join(left)}" if left and alone else ""))
+
+
+def _keys(m: Machine) -> set[str]:
+    return {r.key for r in (*m.records, *m.busy)}
+
+
+def common(first: Machine, second: Machine) -> tuple[Machine, Machine, Held]:
+    """Both stores cut to the cells both measured (``Record.key``: scenario, framework, device,
+    precision, variant, parameters and tags), and how many each had alone (``Held``, no rows yet)."""
+    a, b = _keys(first), _keys(second)
+    both = a & b
+
+    def cut(m: Machine) -> Machine:
+        return dataclasses.replace(m, run=tuple(r for r in m.run if r.key in both),
+                                   sweep=tuple(r for r in m.sweep if r.key in both),
+                                   busy=tuple(r for r in m.busy if r.key in both))
+    return cut(first), cut(second), Held(len(both), len(a - b), len(b - a), ())
+
+
+def hold(first: Machine, second: Machine) -> Held:
+    """``compare_rows`` of the two stores' matrices, each evaluated on the cells both measured."""
+    from compare.site import pages
+    a, b, held = common(first, second)
+    return dataclasses.replace(held, rows=tuple(compare_rows(pages.evaluate(a)[0], pages.evaluate(b)[0])))

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from compare.site import data, fmt, glossary, pages, pages_why, provenance, questions, topics
+from compare.site import data, fmt, glossary, pages, pages_why, provenance, questions, reproducibility, topics
 from compare.site import sittings as second
 from compare.site import questions_pages as qp
 from compare.site.data import Machine
@@ -30,60 +30,6 @@ def _plan_parts(device: str) -> list[str]:
     from compare.planning import publish_plan
     parts, _ = publish_plan.plan("DIR", [device], "all", have={"cpu": float("inf"), "cuda": float("inf")})
     return [p.name for p in parts]
-
-
-RERUN = "rerun"       # beside a store: a second run of (part of) its matrix part, named on the page
-
-
-def _others_cores(recs: Any) -> str:
-    """The median of the cores other processes used while the records' cells were timed."""
-    got = sorted(v for r in recs if r.time and r.time.noise
-                 for v in [data.num(r.time.noise.others_cores)] if v is not None)
-    return f"{got[len(got) // 2]:.2f}" if got else "?"
-
-
-def _hosts(envs: Any, device: str) -> str:
-    """The runs' hosts as their yardsticks saw them: the device copy's bandwidth, and the processor
-    where recorded (one model name can stand for hosts far apart: measurement.md)."""
-    words = []
-    for e in envs:
-        hw = (e.get("hardware") or {}).get(device) or {}
-        copy = fmt.rate(data.num(hw.get("copy_bytes_per_s")), "B/s") if isinstance(hw, dict) else "-"
-        words.append(f"copy {copy}" + (f", {e['cpu_id']}" if e.get("cpu_id") else ""))
-    return "; ".join(dict.fromkeys(words)) or "?"
-
-
-def reproducibility(c: qp.Ctx) -> list[Any]:
-    """How many of the matrix's significant orderings a second run agrees with (``compare agree``),
-    where the store keeps one in its ``rerun/`` folder: that run named (start, commit, tree state,
-    how busy its host was beside the windows, the part's time) from its own files, not a claim."""
-    dirs = [s.parent / RERUN for s in c.m.sources if (s.parent / RERUN).is_dir()]
-    if not dirs:
-        return [H("Reproducibility"), P("No second run of the matrix part is stored beside these records "
-                                         f"(a `{RERUN}/` folder): the rankings have not been rerun.")]
-    from compare.site import agreement
-    other = data.load([dirs[0]])
-    got = [r for r in agreement.compare_rows(c.rows, pages.evaluate(other)[0]) if r.significant]
-    runs = "; ".join(provenance.run_words(e.get("created"), e.get("git_commit"), e.get("git_dirty"))
-                     for e in other.runs)
-    took = [p for p in (other.publish["parts"] if other.publish else []) if p.get("name") == "all"]
-    asked = {r.question for r in got}
-    mine = {x for r in c.rows if r.rule.question + (f" ({r.device})" if r.device else "") in asked for x in r.runs}
-    stamps = {(r.run or {}).get("created") for r in c.m.run if provenance.label(r) in mine}
-    hosts = (f" Its host's yardstick: {_hosts(other.runs, c.device)} (the runs of these rows: "
-             f"{_hosts((e for e in c.m.runs if e.get('created') in stamps), c.device)}).")
-    part = (f" The part took {sum(float(p.get('seconds') or 0) for p in took) / 60:.1f} minutes "
-            f"in {len(took)} attempt{'s' if len(took) != 1 else ''} ({RERUN}/publish.json)." if took else "")
-    return [H("Reproducibility"),
-            P(f"A second run of the matrix part ({RERUN}/: {runs}) is held against these records ordering by "
-              "ordering (`python -m compare agree`): for every pair of frameworks that either run separates "
-              f"on a row, the other run's order. **{agreement.summary(got)}** Rows the second run did not "
-              "measure are not counted. While its cells were timed, other processes used a median of "
-              f"{_others_cores(other.run)} cores (in the runs of these rows: "
-              f"{_others_cores(r for r in c.m.run if provenance.label(r) in mine)}).{hosts}{part}"),
-            Table(("row", "significant pairs", "agree", "tie in one run", "reversed", "which"),
-                  tuple((r.question, str(r.significant - r.missing), str(r.agree), str(r.tie), str(r.disagree),
-                         ", ".join(r.reversed_pairs) or "-") for r in got))]
 
 
 def machine(c: qp.Ctx) -> list[Any]:
@@ -112,7 +58,7 @@ def machine(c: qp.Ctx) -> list[Any]:
                    P("Measured by each run with no framework involved: the device copy that floors "
                      "bandwidth-bound cells and the driver's empty-kernel launch that floors per-call cost."),
                    Table(("run", "device", "copy bandwidth", "launch + sync", "launch pipelined", "how"), tuple(yard))]
-    blocks += reproducibility(c)
+    blocks += reproducibility.blocks(c)
     pub = [p for p in ((m.publish.get("parts") if m.publish else None) or []) if isinstance(p, dict)]
     blocks += [H("Publish run time")]
     if pub:
@@ -279,12 +225,12 @@ def write_site(inputs: list[Path], out: Path, into: Path, title: str | None, aga
     loaded, ``reference`` those of ``against``."""
     figures = into / "figures"
     rows, empty = pages.evaluate(m)
-    c = qp.Ctx(m, rows, Path(out), store_label(inputs), into)
+    later = second.load_all(inputs)       # the rows measured again in later sittings (issue 57)
+    c = qp.Ctx(m, rows, Path(out), store_label(inputs), into, later)
     title = title or f"Framework comparison: {m.name()}"
     nav = [("Overview", "index.html")] + [(t, f"{k}.html") for k, t in questions.PAGES.items()]
     written: list[Path] = []
     site = {"index": (title, pages.index(c, title, empty))}
-    later = second.load_all(inputs)       # the rows measured again in later sittings (issue 57)
     between = second.compare(rows, later, m)
     for key, label in questions.PAGES.items():
         more = (second.summary(between, [n for n, _ in later]) if key == "machine"

@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Any, Callable, cast
+from typing import Any, Callable, Sequence, cast
 
 from compare.planning import publish_plan
 from compare.render import charts
@@ -37,8 +37,10 @@ class Ctx:
     links are relative to it) and the folder it is written into (``into``, its sibling while it
     is built: compare/site/whole.py)."""
 
-    def __init__(self, m: Machine, rows: list[Row], out: Path, store_arg: str, into: Path | None = None) -> None:
+    def __init__(self, m: Machine, rows: list[Row], out: Path, store_arg: str, into: Path | None = None,
+                 later: Sequence[tuple[str, Machine]] = ()) -> None:
         self.m, self.rows, self.out, self.store_arg = m, rows, out, store_arg
+        self.later = list(later)      # the later sittings' stores, by label (compare/site/sittings.py)
         self.into = into or out
         self.subpages: dict[str, tuple[str, Page]] = {}    # stem -> (title, blocks): pages a builder adds
         self.device = m.primary_device

@@ -6,7 +6,8 @@ from typing import Any
 
 from compare.results.record import Record
 from compare.site import agreement, provenance
-from test_matrix import latency, rec, row
+from compare.site import pages
+from test_matrix import latency, machine, rec, row
 
 
 def stamp(created: str, commit: str = "abc1234", dirty: bool | None = False) -> dict[str, Any]:
@@ -77,3 +78,28 @@ def test_agree_refuses_what_is_not_a_store_with_one_line_and_exit_2(tmp_path):
         p = subprocess.run([sys.executable, "-m", "compare", "agree", *args], cwd=ROOT, capture_output=True,
                            text=True, timeout=120)
         assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr, p.stderr
+
+
+def _timed(v: float) -> dict[str, Any]:
+    return latency(v, (v * 0.99, v * 1.01), n=6)
+
+
+def test_only_the_cells_both_runs_measured_are_held():
+    """A second run that timed the default variant alone: the report's fastest variant (another)
+    is not set against it, so no reversal appears that is a variant's; the defaults are held."""
+    report = machine([rec("warp", time=_timed(10e-6)), rec("warp", variant="record_cmd", time=_timed(5e-6)),
+                      rec("cupy", time=_timed(7e-6))])
+    sitting = machine([rec("warp", time=_timed(10.5e-6)), rec("cupy", time=_timed(7.2e-6))])
+    raw = agreement.compare_rows(pages.evaluate(report)[0], pages.evaluate(sitting)[0])
+    assert sum(r.disagree for r in raw) == 1        # record_cmd's 5 µs against the default's 10.5 µs
+    held = agreement.hold(report, sitting)
+    assert (held.cells, held.only_first, held.only_second, held.reversed) == (2, 1, 0, 0)
+    assert sum(r.agree for r in held.rows) == 1     # cupy ahead of warp's default in both
+    assert held.words().endswith("; not compared: 1 the first alone measured")
+
+
+def test_a_reversal_on_the_cells_both_measured_still_counts():
+    report = machine([rec("warp", time=_timed(10e-6)), rec("cupy", time=_timed(7e-6))])
+    swapped = machine([rec("warp", time=_timed(7e-6)), rec("cupy", time=_timed(10e-6))])
+    held = agreement.hold(report, swapped)
+    assert held.reversed == 1 and held.cells == 2 and "not compared" not in held.words()

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from compare.render import charts, figure_check
-from compare.site import assemble, data, fmt, pages, questions
+from compare.site import assemble, data, fmt, pages, questions, reproducibility
 from compare.site import questions_pages as qp
 from compare.site.render import P, Table
 
@@ -77,9 +77,9 @@ def test_the_machine_page_without_a_publish_log_or_a_rerun(tmp_path, loaded):
 def test_the_machine_page_reads_the_publish_log_and_a_rerun(tmp_path, loaded):
     store = tmp_path / "store"
     shutil.copytree(STORE, store)
-    (store / assemble.RERUN).mkdir()
-    shutil.copy(STORE / "results.json", store / assemble.RERUN)
-    (store / assemble.RERUN / data.PUBLISH_LOG).write_text(json.dumps({"parts": [
+    (store / reproducibility.RERUN).mkdir()
+    shutil.copy(STORE / "results.json", store / reproducibility.RERUN)
+    (store / reproducibility.RERUN / data.PUBLISH_LOG).write_text(json.dumps({"parts": [
         {"name": "all", "argv": ["all"], "started": "t", "seconds": 90, "exit_code": 0}]}))
     (store / data.PUBLISH_LOG).write_text(json.dumps({"parts": [
         {"name": "cuda-matrix", "argv": ["all", "--backends", "warp,jax"], "started": "t", "seconds": 60,
@@ -90,7 +90,7 @@ def test_the_machine_page_reads_the_publish_log_and_a_rerun(tmp_path, loaded):
     assert "ran 1 part on this machine in 90 s of wall time" in text
     assert "significant orderings agree between the two runs; 0 became a tie in one of them (allowed), 0 reversed." in text
     # the second run named from its own files: when, which commit, how busy its host was, its time
-    run = data.load([store / assemble.RERUN]).runs[0]
+    run = data.load([store / reproducibility.RERUN]).runs[0]
     assert f"(rerun/: run {run['created'][:16].replace('T', ' ')} UTC, commit {run['git_commit'][:7]}" in text
     assert "other processes used a median of" in text and "independent" not in text
     # both runs' hosts as their yardsticks saw them: one model name can stand for hosts far apart
@@ -189,3 +189,24 @@ def test_a_page_names_its_rows_without_a_figure():
     assert large.text.startswith("**Large bandwidth-bound arrays**: no figure on this machine; what it reads: SAXPY")
     assert assemble._without(empty, "cpu") == [] and assemble._without(empty, "per-call") == []
     assert {r.rule.page for r in rows} >= {"per-call"}
+
+
+def test_the_machine_page_holds_every_later_sitting_against_the_report(tmp_path, loaded):
+    """A later sitting (sittings/<label>/) is a second run too: listed with its agreement on the
+    cells both measured, without the rerun's paragraph where no rerun/ is stored."""
+    from compare.site import sittings
+    store = tmp_path / "store"
+    shutil.copytree(STORE, store)
+    (store / sittings.FOLDER / "later").mkdir(parents=True)
+    shutil.copy(STORE / "results.json", store / sittings.FOLDER / "later")
+    m = data.load([store])
+    c = qp.Ctx(m, pages.evaluate(m)[0], tmp_path / "site", "STORE", later=sittings.load_all([store]))
+    blocks = reproducibility.blocks(c)
+    text = " ".join(getattr(b, "text", "") for b in blocks)
+    assert "Every second run stored beside these records (1:" in text and "0 reversed" in text
+    assert "The second run of the matrix part" not in text
+    table = next(b for b in blocks if isinstance(b, Table))
+    [line] = table.rows
+    later = data.load([store / sittings.FOLDER / "later"])     # the report's results.json: its sweep is not in it
+    n = len({r.key for r in (*later.records, *later.busy)})
+    assert line[0] == "sittings/later" and line[2] == str(n) and line[6] == "0" and line[7] == "-"

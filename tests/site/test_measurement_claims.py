@@ -286,7 +286,7 @@ def test_where_the_fresh_per_call_sitting_lands(doc: str) -> None:
     distance in floors and seconds, how many of its figures land in their own range and in their row's
     band, the bands' sizes and widths, and the earlier sittings' shares (compare/site/sittings.py)."""
     from compare.site import sitting_readme, sittings
-    _, later, between, landed = sitting_readme._report(RESULTS / "h100")
+    _, _, later, between, landed = sitting_readme._report(RESULTS / "h100")
     labels = list(later)
     fresh = "2026-12-07-session38-percall"
     by = {s.sitting: s for s in landed}

@@ -135,7 +135,7 @@ def test_measurement_md_names_the_rows_without_a_second_sitting(stores) -> None:
 def test_the_h200_readme_says_how_its_orderings_meet_the_h100s(stores) -> None:
     """docs/results/h200/README.md quotes `compare agree` of the H100's and the H200's stores."""
     from compare.site import agreement
-    got = agreement.compare_rows(pages.evaluate(stores["h100"])[0], pages.evaluate(stores["h200"])[0])
+    got = agreement.hold(stores["h100"], stores["h200"]).rows
     text = " ".join((DOCS / "results" / "h200" / "README.md").read_text(encoding="utf-8").split())
     agree, sig, ties, rev = (int(x) for x in re.search(
         r"\*\*(\d+) of (\d+) significant orderings agree, (\d+) became a tie in one of them, (\d+) reversed\*\*",
