@@ -68,15 +68,17 @@ def blocks(c: qp.Ctx) -> list[Any]:
                      + ([f"{later} later sitting{'s' if later != 1 else ''}, in `sittings/`"] if later else []))
     counted = [(label, m, h) for label, m, h in held if any(r.significant - r.missing for r in h.rows)]
     out: list[Any] = [H("Reproducibility"), P(
-        f"Every second run stored beside these records ({len(others)}: {what}) is held against them ordering by ordering (`python -m compare agree`): "
-        "for every pair of frameworks that either run separates on a row, the other run's order, on the cells both "
-        "measured (the same framework, variant and sizes: a run that timed fewer variants is not set against "
-        f"another variant). Summed over them: **{_total(h for _, _, h in counted)}** A run with no separated "
-        "pair in common is not listed."),
-        Table(("second run", "its runs", "cells both measured", "significant pairs", "agree", "tie in one run",
-               "reversed", "which"),
-              tuple((label, _runs(m), str(h.cells), str(sum(r.significant - r.missing for r in h.rows)),
-                     str(sum(r.agree for r in h.rows)), str(sum(r.tie for r in h.rows)), str(h.reversed), _which(h))
+        f"Every second run stored beside these records ({len(others)}: {what}) is held against them ordering "
+        "by ordering (`python -m compare agree`): for every pair of frameworks that either run separates on a "
+        "row, the other run's order, on the cells both measured (the same framework, variant and sizes: a run "
+        "that timed fewer variants is not set against another variant). Summed over them: "
+        f"**{_total(h for _, _, h in counted)}** A run with no separated pair in common is not listed; its host "
+        "is named by its yardstick (the report's runs: *The sittings* below)."),
+        Table(("second run", "its runs", "its host", "cells both measured", "significant pairs", "agree",
+               "tie in one run", "reversed", "which"),
+              tuple((label, _runs(m), _hosts(m.runs, c.device), str(h.cells),
+                     str(sum(r.significant - r.missing for r in h.rows)), str(sum(r.agree for r in h.rows)),
+                     str(sum(r.tie for r in h.rows)), str(h.reversed), _which(h))
                     for label, m, h in counted))]
     if others[0][0] != f"{RERUN}/":
         return out

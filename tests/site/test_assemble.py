@@ -209,4 +209,5 @@ def test_the_machine_page_holds_every_later_sitting_against_the_report(tmp_path,
     [line] = table.rows
     later = data.load([store / sittings.FOLDER / "later"])     # the report's results.json: its sweep is not in it
     n = len({r.key for r in (*later.records, *later.busy)})
-    assert line[0] == "sittings/later" and line[2] == str(n) and line[6] == "0" and line[7] == "-"
+    assert line[0] == "sittings/later" and line[3] == str(n) and line[7] == "0" and line[8] == "-"
+    assert line[2].startswith("copy ")          # its host, as its yardstick saw it

@@ -4,6 +4,7 @@ and README: test_findings_claims.py; the code constants the docs quote: test_doc
 Each test reads the sentence and the store, so a change to either fails it. Fast tier."""
 from __future__ import annotations
 
+import re
 import statistics
 from collections import Counter
 
@@ -58,15 +59,38 @@ def test_the_rows_that_read_session_41s_matrix_part(doc: str) -> None:
         assert theirs and all(run_of(r) != theirs[r.key] for r in m.run if r.key in theirs)
 
 
-def test_the_cpu_rows_read_one_run_each_but_not_one_host(doc: str) -> None:
-    said(doc, r"Its rows read one run each, but not all the same run, and so not all one host")
+def test_every_cpu_row_reads_a_run_of_one_processor(doc: str) -> None:
+    """'One model name is not one machine': each AMD row reads one run, every one of them of the
+    processor the doc names; the large rows read session 44's, whose figures lie from session 23's
+    (a sitting now) as the doc says, with the one ordering that reversed."""
+    from compare.site import agreement, provenance, sittings
+    (cpu_id,) = said(doc, r"In the AMD store, the runs from [\d-]+ on record (family \d+, model \d+, stepping \d+)")
+    said(doc, r"Its rows read one run each, not all the same run, but since\s+session 44 \(2026-12-07\) every row "
+              r"reads a run of that one processor")
     m = machine("cpu")
-    reads = {r.rule.key: r.runs for r in pages.evaluate(m)[0]}
-    assert all(len(w) == 1 for w in reads.values()), reads
-    assert len({w for w in reads.values()}) > 1
-    hosts = {e.get("cpu_id") for e in m.runs if any(f"commit {str(e.get('git_commit'))[:7]}" in w[0]
-                                                     for w in reads.values())}
-    assert len(hosts) > 1, hosts
+    rows = pages.evaluate(m)[0]
+    assert all(len(r.runs) == 1 for r in rows)
+    read = {w for r in rows for w in r.runs}
+    assert len(read) > 1                                    # not all the same run
+    entries = [e for e in m.runs if provenance.run_words(e.get("created"), e.get("git_commit"), e.get("git_dirty")) in read]
+    assert len(entries) == len(read) and {e.get("cpu_id") for e in entries} == {cpu_id}
+    (label,) = said(doc, r"session 23's run is\s+kept as a sitting \(`docs/results/cpu/sittings/([\w-]+)`\)")
+    old = machine(f"cpu/sittings/{label}")
+    assert not any(e.get("cpu_id") for e in old.runs)
+    between = sittings.compare(rows, [(label, old)], m)
+    # the pages' "median range" (compare/site/sittings.summary): the middle figure, the upper of two
+    med = {k: f"{sorted(b.spread for b in between if b.row == k)[len([b for b in between if b.row == k]) // 2]:.2f}"
+           for k in ("bandwidth", "particles-large")}
+    said(doc, rf"lie {re.escape(med['bandwidth'])}× \(large arrays\) and {re.escape(med['particles-large'])}× \(large n\) "
+              r"from the old ones in the median")
+    large = {b.framework: b for b in between if b.row == "particles-large"}
+    slower = {f for f, b in large.items() if b.other > b.first}     # a rate: lower on the new host
+    assert slower == {"warp"} and all(b.other > b.first for b in between if b.row == "bandwidth")   # a time
+    (warp, numpy) = said(doc, r"Warp's particle loop, ([\d.]+)× slower .*? NumPy \(([\d.]+)× faster\) against Warp")
+    assert (warp, numpy) == (f"{large['warp'].spread:.2f}", f"{large['numpy'].spread:.2f}")
+    held = agreement.hold(m, old)
+    assert [(r.question, r.reversed_pairs) for r in held.rows if r.disagree] == [
+        ("Particle loop, large n (cpu)", ("numpy vs warp",))]
 
 
 def test_the_first_sitting_stored_for_the_h100(doc: str) -> None:
