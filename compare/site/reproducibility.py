@@ -9,6 +9,7 @@ runs, how busy its host was, its yardstick, the part's time) from its own files,
 """
 from __future__ import annotations
 
+import statistics
 from typing import Any, Iterable
 
 from compare.site import agreement, data, fmt, provenance
@@ -23,7 +24,7 @@ def _others_cores(recs: Any) -> str:
     """The median of the cores other processes used while the records' cells were timed."""
     got = sorted(v for r in recs if r.time and r.time.noise
                  for v in [data.num(r.time.noise.others_cores)] if v is not None)
-    return f"{got[len(got) // 2]:.2f}" if got else "?"
+    return f"{statistics.median(got):.2f}" if got else "?"
 
 
 def _hosts(envs: Any, device: str) -> str:

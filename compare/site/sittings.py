@@ -12,6 +12,7 @@ same rules as the report's (compare/site/matrix.py), so the two name the same va
 from __future__ import annotations
 
 import dataclasses
+import statistics
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -211,13 +212,12 @@ def landed(between: list[Between], labels: list[str]) -> list[Landed]:
         before = _bands(pooled)
         held = [before[b.row].holds(b) for b in mine if b.row in before]
         if ranged:
-            mid = len(ranged) // 2
             out.append(Landed(label, len(ranged),
                               sum(_within(b.other_floors, [b.first_floors, *(p.other_floors for p in past)])
                                   for b, past in ranged),
                               sum(_within(b.other, [b.first, *(p.other for p in past)]) for b, past in ranged),
-                              sorted(b.floors_spread or 1.0 for b, _ in ranged)[mid],
-                              sorted(b.spread for b, _ in ranged)[mid],
+                              statistics.median(b.floors_spread or 1.0 for b, _ in ranged),
+                              statistics.median(b.spread for b, _ in ranged),
                               len(held), sum(f for f, _ in held), sum(s for _, s in held)))
         _pool(pooled, mine)
         for b in mine:
@@ -287,7 +287,7 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
     none = "; ".join([*([f"{few} timed in fewer than 6 processes"] if few else []),
                       *([f"{exact} exact figures, which need none"] if exact else [])])
     spreads = sorted(b.spread for b in between)
-    mid = spreads[len(spreads) // 2]
+    mid = statistics.median(spreads)
     order = {r.question: i for i, r in enumerate(questions.RULES)}     # the matrix's row order
     return [H("Second sittings"),
             P(f"{len(between)} figure{'s' if len(between) != 1 else ''} of {len(by_row)} "
@@ -302,7 +302,7 @@ def summary(between: list[Between], labels: list[str]) -> list[Any]:
                    "largest range"), tuple(
                 (q, str(len(bs)), str(sum(1 for b in bs if b.inside)),
                  str(sum(1 for b in bs if b.inside is None and not b.exact)), str(sum(1 for b in bs if b.exact)),
-                 f"{sorted(b.spread for b in bs)[len(bs) // 2]:.3g}×", f"{max(b.spread for b in bs):.3g}×")
+                 f"{statistics.median(b.spread for b in bs):.3g}×", f"{max(b.spread for b in bs):.3g}×")
                 for q, bs in sorted(by_row.items(), key=lambda kv: order.get(kv[0], len(order))))),
             *landing(landed(between, labels), bands(between, labels))]
 

@@ -189,25 +189,3 @@ def test_a_page_names_its_rows_without_a_figure():
     assert large.text.startswith("**Large bandwidth-bound arrays**: no figure on this machine; what it reads: SAXPY")
     assert assemble._without(empty, "cpu") == [] and assemble._without(empty, "per-call") == []
     assert {r.rule.page for r in rows} >= {"per-call"}
-
-
-def test_the_machine_page_holds_every_later_sitting_against_the_report(tmp_path, loaded):
-    """A later sitting (sittings/<label>/) is a second run too: listed with its agreement on the
-    cells both measured, without the rerun's paragraph where no rerun/ is stored."""
-    from compare.site import sittings
-    store = tmp_path / "store"
-    shutil.copytree(STORE, store)
-    (store / sittings.FOLDER / "later").mkdir(parents=True)
-    shutil.copy(STORE / "results.json", store / sittings.FOLDER / "later")
-    m = data.load([store])
-    c = qp.Ctx(m, pages.evaluate(m)[0], tmp_path / "site", "STORE", later=sittings.load_all([store]))
-    blocks = reproducibility.blocks(c)
-    text = " ".join(getattr(b, "text", "") for b in blocks)
-    assert "Every second run stored beside these records (1:" in text and "0 reversed" in text
-    assert "The second run of the matrix part" not in text
-    table = next(b for b in blocks if isinstance(b, Table))
-    [line] = table.rows
-    later = data.load([store / sittings.FOLDER / "later"])     # the report's results.json: its sweep is not in it
-    n = len({r.key for r in (*later.records, *later.busy)})
-    assert line[0] == "sittings/later" and line[3] == str(n) and line[7] == "0" and line[8] == "-"
-    assert line[2].startswith("copy ")          # its host, as its yardstick saw it

@@ -78,9 +78,7 @@ def test_every_cpu_row_reads_a_run_of_one_processor(doc: str) -> None:
     old = machine(f"cpu/sittings/{label}")
     assert not any(e.get("cpu_id") for e in old.runs)
     between = sittings.compare(rows, [(label, old)], m)
-    # the pages' "median range" (compare/site/sittings.summary): the middle figure, the upper of two
-    med = {k: f"{sorted(b.spread for b in between if b.row == k)[len([b for b in between if b.row == k]) // 2]:.2f}"
-           for k in ("bandwidth", "particles-large")}
+    med = {k: f"{statistics.median(b.spread for b in between if b.row == k):.2f}" for k in ("bandwidth", "particles-large")}
     said(doc, rf"lie {re.escape(med['bandwidth'])}× \(large arrays\) and {re.escape(med['particles-large'])}× \(large n\) "
               r"from the old ones in the median")
     large = {b.framework: b for b in between if b.row == "particles-large"}
