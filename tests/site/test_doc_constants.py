@@ -82,6 +82,9 @@ def test_the_sitting_check(doc: str) -> None:
     assert "The quiet figure is the best quartile of those runs'" in doc and sitting_quiet.QUIET_QUANTILE == 0.25
     assert float(said(doc, r"its launch loops within ([\d.]+) s, seconds before the cell's timed window")[0]) == \
         cell_floor.BUDGET_S
+    from compare.suites import publish
+    more, apart = said(doc, r"A noisy check is first taken (\w+) more, (\d+) s apart \(`RECHECKS`")
+    assert ({"once": 1, "twice": 2}[more], float(apart)) == (publish.RECHECKS, publish.RECHECK_S)
 
 
 def test_the_yardstick_as_the_newest_runs_describe_it(doc: str) -> None:
