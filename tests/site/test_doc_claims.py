@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 import statistics
+from typing import Any
 from collections import Counter
 
 import pytest
@@ -13,6 +14,7 @@ import pytest
 from backends.base import UNRANKED_VARIANTS
 from compare.measuring import sitting_quiet as sq
 from compare.results.record import Record
+from compare.results.store import Store
 from compare.site import data, matrix, pages
 from compare.sweep.rows import throughput_s
 from measurement_doc import RESULTS, doc_text, machine, said, span
@@ -131,9 +133,11 @@ def test_the_narrowest_empty_launch_spreads_are_session_38s(doc: str) -> None:
 
 def test_the_amd_copies_of_2026_12_01_and_2026_12_02(doc: str) -> None:
     """'On 2026-12-02 ... its yardstick copied 34.4 GB/s in one thread, against 24.9 GB/s on
-    2026-12-01': session 28's run (a sitting now) and the `compare all` of 2026-12-01."""
+    2026-12-01': session 28's run (a sitting now) and the `compare all` of 2026-12-01 (the float64
+    part, kept in evidence/session27 since session 44's replaced it)."""
     late, early = said(doc, r"its yardstick copied ([\d.]+) GB/s in one thread, against ([\d.]+) GB/s on 2026-12-01")
-    runs = sq.stored_runs([RESULTS / "cpu"])
+    runs = [*sq.stored_runs([RESULTS / "cpu"]),
+            *Store.read(RESULTS / "cpu" / "evidence" / "session27" / "float64" / "results.json").runs]
 
     def one_thread(day: str, command: str) -> set[str]:
         return {f"{e['hardware']['cpu']['copy_one_thread_bytes_per_s'] / 1e9:.1f}" for e in runs
@@ -360,3 +364,26 @@ def test_the_sdf_and_the_projectile_are_capped_on_cuda(doc: str) -> None:
               r"CUDA row times")
     assert {n for n, s in scenarios.SCENARIOS.items() if s.timings_ranked_on is not None} == {"sdf", "projectile"}
     assert all(scenarios.get(s).timings_ranked_on == ("cpu",) for s in ("sdf", "projectile"))
+
+
+def test_the_orderings_that_reversed_came_from_another_host(doc: str) -> None:
+    """'Measured reproducibility': every second run (rerun/ and the sittings) held against its report
+    on the cells both measured: none reversed on the H100; on the AMD VM only runs of the day whose
+    processor was not recorded."""
+    from compare.site import agreement, sittings
+    (count, day) = said(doc, r"the H100 report's (\w+) second runs reverse no\s+ordering, .*? every reversal there is "
+                             r"against a run of ([\d-]+), whose processor was not\s+recorded")
+
+    def held(key: str) -> list[tuple[Any, agreement.Held]]:
+        m = machine(key)
+        others = [machine(f"{key}/rerun"), *(o for _, o in sittings.load_all([RESULTS / key]))]
+        return [(o, agreement.hold(m, o)) for o in others]
+    h100 = held("h100")
+    assert len(h100) == {"nine": 9, "ten": 10, "eleven": 11}[count] and not any(h.reversed for _, h in h100)
+    report = {e.get("cpu_id") for e in machine("cpu").runs if e.get("cpu_id")}
+    amd = held("cpu")
+    reversed_in = [o for o, h in amd if h.reversed]
+    assert reversed_in and all({str(e.get("created"))[:10] for e in o.runs} == {day} and not any(e.get("cpu_id") for e in o.runs)
+                               for o in reversed_in)
+    same = [h for o, h in amd if {e.get("cpu_id") for e in o.runs} <= report]
+    assert same and not any(h.reversed for h in same)
