@@ -309,7 +309,8 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     """Rebuild DIR/stress.{json,md} and plots from parts run separately (e.g. one GPU call each,
     or new backends run later); later files win per experiment, backend and device (and per cell
     record), so a part that ran some backends keeps the other backends' rows of earlier parts, and
-    a part's ``skipped`` row replaces only another skipped row."""
+    a part's ``skipped`` row replaces only another skipped row. A part cut off before its findings
+    (records, no rows) is left out, said on stderr."""
     target = Store.open(out, "stress")
     rows: list[Finding] = []
     series: dict[str, Series] = {}
@@ -319,6 +320,12 @@ def merge(files: list[str], out: Path, experiments: Registry, plots_: bool = Tru
     for f in files:
         part = Store.read(f, "stress")
         got = stored(part)
+        if part.records and not got.get("rows"):
+            # cut off before its findings: its records would sit under an earlier run's rows
+            n = len(part.records)
+            print(f"stress --merge: {f}: {n} record{'s' if n != 1 else ''} and no findings (cut off before "
+                  "its experiment ended): not merged", file=sys.stderr)
+            continue
         seen += got.get("rows", [])
         found = {row_key(r) for r in rows if r["verdict"] != "skipped"}
         ran = {row_key(r) for r in got.get("rows", []) if r["verdict"] != "skipped"}

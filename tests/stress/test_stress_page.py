@@ -152,6 +152,28 @@ def test_merge_replaces_per_backend_and_device_and_keeps_the_other_backends(tmp_
     assert again["rows"] == a["rows"] and again["provenance"] == a["provenance"]
 
 
+@pytest.mark.cli
+def test_a_part_cut_off_before_its_findings_is_not_merged(tmp_path):
+    """A stress part whose run was cut off holds records and no rows: merged, its records would
+    replace cells whose findings the page still gives from an earlier run, so it is left out with
+    one line on stderr, and the other parts merge as before."""
+    from compare.results.record import Record
+    from compare.results.store import Store
+    old = stress_part(tmp_path / "old", "old run", [stress_row("particles-inf", "torch", "cuda", "overflow step", 2)],
+                      {})
+    cut = Store(tmp_path / "cut" / "stress.json", "stress", runs=[{"command": "cut run", "created": "t"}])
+    cut.put(Record(scenario="particles", backend="torch", device="cuda", precision="float32", status="ok",
+                   params={"n": 256, "steps": 6669}, variant="compile"))
+    (tmp_path / "cut").mkdir()
+    cut.save()
+    p = run_stress("--merge", old, str(tmp_path / "cut" / "stress.json"), "--out", str(tmp_path / "merged"),
+                   "--no-plots")
+    assert p.returncode == 0, p.stderr
+    assert "1 record and no findings (cut off before its experiment ended): not merged" in p.stderr
+    got = json.loads((tmp_path / "merged" / "stress.json").read_text())
+    assert got["records"] == [] and [r["value"] for r in got["analysis"]["rows"]] == [2]
+
+
 @pytest.mark.parametrize("v,text", [(3, "3"), (0.123456, "0.1235"), (0.0, "0"), (True, "True"), (None, "-")])
 def test_fmt_value(v, text):
     assert page.fmt_value(v) == text
