@@ -13,15 +13,19 @@ host) and a multiply by ``where(hit, factor, 1)`` for the velocity, which equals
 is built (after a warm-up run on a side stream, as the CUDA-graph docs ask) and replayed by every
 ``run()``: one launch a rollout. It writes the same buffers, so the arithmetic is the default's.
 
-"compile" and "compile_graphs": the whole rollout is one compiled pure function (initial state
-in, final state and trajectory frames out; no in-place write inside), one compiled call a run, so
-reduce-overhead can replay the rollout as CUDA graphs. Its step loop is a loop over blocks of
-``BLOCK`` steps, each block a ``torch.compiler.nested_compile_region``: Inductor compiles a block
-once (steps fused into a few kernels) and stamps it out for every block. Unrolling all the steps
-into one region instead makes the first call compile-bound and superlinear in the steps (the
-error sweep runs thousands), so hierarchical compilation bounds the compile by one block (plus
-the shorter blocks that end a frame interval or the rollout). Under "compile_graphs" the returned
-tensors live in the CUDA graphs' memory pool, valid until the next run.
+"compile" and "compile_graphs": a rollout of up to ``SEGMENT`` steps (the default's 300) is one
+compiled pure function (initial state in, final state and trajectory frames out; no in-place write
+inside), one compiled call a run, so reduce-overhead can replay the rollout as CUDA graphs. Its
+step loop is a loop over blocks of ``BLOCK`` steps, each block a
+``torch.compiler.nested_compile_region``: Inductor compiles a block once (steps fused into a few
+kernels) and stamps it out for every block. Unrolling all the steps into one region instead makes
+the first call compile-bound and superlinear in the steps. Dynamo still traces every block call
+of the compiled function, so a longer rollout (the error and horizon sweeps and the stress
+experiments run up to tens of thousands of steps) runs as host calls of compiled segments of at
+most ``SEGMENT`` steps, cut at frame boundaries: a few distinct segments (the first, a full one,
+the last) compile, whatever the steps. Under "compile_graphs" the returned tensors live in the
+CUDA graphs' memory pool, valid until the next run; between segments the state is cloned out of
+it, as the CUDA Graph Trees docs ask of an output fed to the next call.
 
 With ``record_every`` > 0 every k-th state's positions are kept (frame 0 the initial state);
 without it no trajectory is kept.
@@ -41,6 +45,7 @@ from ..base import Device
 from scenarios.base import Precision
 
 BLOCK = 25       # steps per nested compile region (compiled once, stamped out per block)
+SEGMENT = 300    # steps per compiled call at most (whole frame intervals): the default rollout is one call
 
 
 def advance(x, y, u, v, c, n: int):
@@ -78,22 +83,40 @@ def runs(steps: int, record_every: int, block: int) -> list[tuple[int, bool]]:
     return out
 
 
-def make_rollout(steps: int, record_every: int, block: int = 0) -> Callable[..., Any]:
-    """(x, y, u, v, c) -> (x, y, u, v[, traj_x, traj_y]) after ``steps`` steps: ``advance`` as one
-    nested compile region, called with each block's length (an int: one compiled entry per
-    distinct length; ``block`` 0 means ``BLOCK``)."""
+def segments(plan: list[tuple[int, bool]], steps_at_most: int) -> list[list[tuple[int, bool]]]:
+    """``plan`` (``runs``) cut into compiled calls of at most ``steps_at_most`` steps, each whole
+    frame intervals (a block is the unit when no frame is kept; an interval longer than the limit
+    is one call); a rollout of no steps is one empty call."""
+    units: list[list[tuple[int, bool]]] = [[]]
+    framed = any(keep for _, keep in plan)
+    for entry in plan:
+        units[-1].append(entry)
+        if entry[1] or not framed:
+            units.append([])
+    out: list[list[tuple[int, bool]]] = []
+    for unit in filter(None, units):
+        if out and sum(n for n, _ in out[-1]) + sum(n for n, _ in unit) <= steps_at_most:
+            out[-1] += unit
+        else:
+            out.append(list(unit))
+    return out or [[]]
+
+
+def make_segment(part: list[tuple[int, bool]], initial: bool) -> Callable[..., Any]:
+    """(x, y, u, v, c) -> (x, y, u, v[, frames_x, frames_y]) after ``part``'s blocks: ``advance``
+    as one nested compile region, called with each block's length (an int: one compiled entry per
+    distinct length); frames are the kept states, led by the initial one where ``initial``."""
     import torch
-    plan = runs(steps, record_every, block or BLOCK)
     region = torch.compiler.nested_compile_region(advance)
 
     def rollout(x, y, u, v, c):
-        frames_x, frames_y = [x], [y]
-        for n, keep in plan:
+        frames_x, frames_y = ([x], [y]) if initial else ([], [])
+        for n, keep in part:
             x, y, u, v = region(x, y, u, v, c, n)
             if keep:
                 frames_x.append(x)
                 frames_y.append(y)
-        if record_every:
+        if frames_x:
             return x, y, u, v, torch.stack(frames_x), torch.stack(frames_y)
         return x, y, u, v
 
@@ -114,10 +137,15 @@ class Kernel(ScenarioKernel):
         self.c = {"dt": dt, "gdt": gravity * dt, "radius": radius, "lo": -one + radius,
                   "hi": one - radius, "neg_bounce": -bounce, "damping": damping, "one": one}
         self.consts = tuple(self.c[k] for k in ("dt", "gdt", "radius", "lo", "hi", "neg_bounce", "damping"))
-        self.fn = compiled(make_rollout(params.steps, params.record_every), variant,
-                           static=(*self.state0, *self.consts))
+        self.parts = segments(runs(params.steps, params.record_every, BLOCK), SEGMENT)
+        built: dict[Any, Any] = {}
+        for i, part in enumerate(self.parts):     # the same segment compiles once
+            key = (tuple(part), i == 0 and bool(params.record_every))
+            if key not in built:
+                built[key] = compiled(make_segment(part, key[1]), variant, static=(*self.state0, *self.consts))
+        self.calls = [built[(tuple(p), i == 0 and bool(params.record_every))] for i, p in enumerate(self.parts)]
         self.out: tuple[Any, ...] = ()
-        if self.fn is not None:
+        if self.calls[0] is not None:
             return
         self.state = [empty((n,), precision, device) for _ in range(4)]
         self.traj = [empty((n_frames(params), n), precision, device) for _ in range(2)]
@@ -171,9 +199,22 @@ class Kernel(ScenarioKernel):
                 self.traj[0][f].copy_(self.state[0])
                 self.traj[1][f].copy_(self.state[1])
 
+    def _segmented(self) -> tuple[Any, ...]:
+        import torch
+        state, frames, last = tuple(self.state0), [], len(self.calls) - 1
+        for i, call in enumerate(self.calls):
+            out = call(*state, self.consts)
+            if self.variant == "compile_graphs" and i < last:    # out of the pool the next replay reuses
+                out = tuple(t.clone() for t in out)
+            state = out[:4]
+            frames.append(out[4:])
+        if not self.params.record_every:
+            return state
+        return (*state, *(torch.cat([f[k] for f in frames if f]) for k in (0, 1)))
+
     def run(self) -> Any:
-        if self.fn is not None:
-            self.out = self.fn(*self.state0, self.consts)
+        if self.calls[0] is not None:
+            self.out = self.calls[0](*self.state0, self.consts) if len(self.calls) == 1 else self._segmented()
         elif self.graph is not None:
             self.graph.replay()
         else:
@@ -185,9 +226,13 @@ class Kernel(ScenarioKernel):
         return dict(zip(names, (download(a) for a in self.out)))
 
     def info(self) -> dict[str, Any]:
-        if self.fn is not None:
-            blocks = runs(self.params.steps, self.params.record_every, BLOCK)
-            return kernel_info(self.variant, loop="the whole rollout in one compiled call",
+        if self.calls[0] is not None:
+            blocks = [e for p in self.parts for e in p]
+            calls = len(self.calls)
+            loop = ("the whole rollout in one compiled call" if calls == 1 else
+                    f"host loop over {calls} compiled calls of at most SEGMENT = {SEGMENT} steps "
+                    f"({len({id(c) for c in self.calls})} compiled)")
+            return kernel_info(self.variant, loop=loop,
                                compiled_unit=f"{len(blocks)} calls of nested compile regions of "
                                              f"{sorted({n for n, _ in blocks})} steps (BLOCK = {BLOCK})")
         return kernel_info(self.variant, loop="host loop over steps, vectorised over particles",

@@ -215,12 +215,33 @@ def test_rollout_blocks_split_at_frames():
     assert sum(n for n, _ in runs(300, 0, 25)) == 300
 
 
+def test_long_rollouts_compile_a_few_segments_cut_at_frames():
+    """A compiled rollout's calls cover its blocks in order, each at most SEGMENT steps of whole
+    frame intervals, so however many steps it runs only a few distinct segments compile; the
+    default rollout (300 steps) is one call."""
+    from backends.torch.particles import BLOCK, SEGMENT, runs, segments
+    assert segments(runs(300, 0, BLOCK), SEGMENT) == [runs(300, 0, BLOCK)]
+    assert segments([], SEGMENT) == [[]]
+    for steps, every in [(19405, 0), (6669, 0), (2400, 70), (1000, 400), (57, 7), (5, 9)]:
+        plan = runs(steps, every, BLOCK)
+        parts = segments(plan, SEGMENT)
+        assert [e for p in parts for e in p] == plan
+        assert len({tuple(p) for p in parts[1:]}) <= 2, (steps, every)       # the first, a full one, the last
+        for p in parts:
+            assert sum(n for n, _ in p) <= max(SEGMENT, every)
+            assert not every or p is parts[-1] or p[-1][1]                    # ends on a kept frame
+    assert [sum(n for n, _ in p) for p in segments(runs(2400, 70, BLOCK), SEGMENT)] == [280] * 8 + [160]
+
+
+@pytest.mark.parametrize("segment", [300, 20])
 @pytest.mark.parametrize("params", [{"n": 33, "steps": 57, "record_every": 7}, {"n": 33, "steps": 57}])
-def test_compile_graphs_arithmetic_equals_eager_on_the_cpu(params):
+def test_compile_graphs_arithmetic_equals_eager_on_the_cpu(params, segment, monkeypatch):
     """The compile_graphs kernels built on the CPU (where reduce-overhead has nothing to graph, so
     the cell itself is unavailable) run the compiled rollout's arithmetic: blocks of several
-    lengths (25, 7 and 1 steps), frames between them, the default's results bit for bit."""
+    lengths (25, 7 and 1 steps), frames between them, in one compiled call or (SEGMENT 20) in
+    several, the state cloned between them, the default's results bit for bit."""
     _torch()
+    monkeypatch.setattr("backends.torch.particles.SEGMENT", segment)
     b = backends.get("torch")
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)
@@ -233,6 +254,7 @@ def test_compile_graphs_arithmetic_equals_eager_on_the_cpu(params):
         k.run()
         out[variant] = k.outputs()
     assert k.info()["execution"].startswith("torch.compile(mode='reduce-overhead'")
+    assert ("host loop over" in k.info()["loop"]) is (segment == 20)
     assert sorted(out["default"]) == sorted(out["compile_graphs"])
     assert all(out["compile_graphs"][n].tobytes() == a.tobytes() for n, a in out["default"].items())
 
