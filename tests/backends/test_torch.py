@@ -259,6 +259,31 @@ def test_compile_graphs_arithmetic_equals_eager_on_the_cpu(params, segment, monk
     assert all(out["compile_graphs"][n].tobytes() == a.tobytes() for n, a in out["default"].items())
 
 
+@pytest.mark.parametrize("params", [{"n": 33, "steps": 57, "record_every": 7}, {"n": 33, "steps": 57}])
+def test_cuda_compiled_segments_replay_as_graphs_and_compute_what_compile_computes(params, monkeypatch):
+    """CUDA: a rollout of several compiled segments (SEGMENT 20) under compile_graphs, each output
+    cloned out of the graphs' pool before the next replay, gives the compile variant's results bit
+    for bit at every run, with no graph skipped."""
+    require_device("torch", "cuda")
+    monkeypatch.setattr("backends.torch.particles.SEGMENT", 20)
+    b = backends.get("torch")
+    sc = scenarios.get("particles")
+    p = sc.params(params, quick=True)
+    inputs = sc.inputs(p, "float32")
+    out = {}
+    for variant in ("compile", "compile_graphs"):
+        b.setup("cuda", "float32", variant)
+        k = b.kernel("particles")(p, inputs, "cuda", "float32", variant)
+        out[variant] = []
+        for _ in range(3):      # warm-up, recording, replay
+            k.run()
+            out[variant].append(k.outputs())
+        assert "host loop over" in k.info()["loop"]
+    assert k.info()["cudagraph_skips"] == 0
+    for got, want in zip(out["compile_graphs"], out["compile"]):
+        assert sorted(got) == sorted(want) and all(got[n].tobytes() == a.tobytes() for n, a in want.items())
+
+
 def test_cuda_graph_variants_compute_what_their_twins_compute():
     """CUDA: compile_graphs replays Inductor's kernels as CUDA graphs (none skipped: a skip is an
     error there) and gives the compile variant's outputs bit for bit; particles' graph replays the
