@@ -242,21 +242,32 @@ def test_compile_graphs_arithmetic_equals_eager_on_the_cpu(params, segment, monk
     several, the state cloned between them, the default's results bit for bit."""
     _torch()
     monkeypatch.setattr("backends.torch.particles.SEGMENT", segment)
+    out, k = particle_runs(params, "cpu", "float64", ("default", "compile_graphs"), runs=2)
+    assert k.info()["execution"].startswith("torch.compile(mode='reduce-overhead'")
+    assert ("host loop over" in k.info()["loop"]) is (segment == 20)
+    assert same_arrays(out["compile_graphs"][-1], out["default"][-1])
+
+
+def particle_runs(params, device, precision, variants, runs):
+    """Each variant's particle outputs after each of ``runs`` runs of one kernel, and the last
+    variant's kernel."""
     b = backends.get("torch")
     sc = scenarios.get("particles")
     p = sc.params(params, quick=True)
-    inputs = sc.inputs(p, "float64")
+    inputs = sc.inputs(p, precision)
     out = {}
-    for variant in ("default", "compile_graphs"):
-        b.setup("cpu", "float64", variant)
-        k = b.kernel("particles")(p, inputs, "cpu", "float64", variant)
-        k.run()
-        k.run()
-        out[variant] = k.outputs()
-    assert k.info()["execution"].startswith("torch.compile(mode='reduce-overhead'")
-    assert ("host loop over" in k.info()["loop"]) is (segment == 20)
-    assert sorted(out["default"]) == sorted(out["compile_graphs"])
-    assert all(out["compile_graphs"][n].tobytes() == a.tobytes() for n, a in out["default"].items())
+    for variant in variants:
+        b.setup(device, precision, variant)
+        k = b.kernel("particles")(p, inputs, device, precision, variant)
+        out[variant] = []
+        for _ in range(runs):
+            k.run()
+            out[variant].append(k.outputs())
+    return out, k
+
+
+def same_arrays(a, b):
+    return sorted(a) == sorted(b) and all(a[n].tobytes() == x.tobytes() for n, x in b.items())
 
 
 @pytest.mark.parametrize("params", [{"n": 33, "steps": 57, "record_every": 7}, {"n": 33, "steps": 57}])
@@ -266,22 +277,9 @@ def test_cuda_compiled_segments_replay_as_graphs_and_compute_what_compile_comput
     for bit at every run, with no graph skipped."""
     require_device("torch", "cuda")
     monkeypatch.setattr("backends.torch.particles.SEGMENT", 20)
-    b = backends.get("torch")
-    sc = scenarios.get("particles")
-    p = sc.params(params, quick=True)
-    inputs = sc.inputs(p, "float32")
-    out = {}
-    for variant in ("compile", "compile_graphs"):
-        b.setup("cuda", "float32", variant)
-        k = b.kernel("particles")(p, inputs, "cuda", "float32", variant)
-        out[variant] = []
-        for _ in range(3):      # warm-up, recording, replay
-            k.run()
-            out[variant].append(k.outputs())
-        assert "host loop over" in k.info()["loop"]
-    assert k.info()["cudagraph_skips"] == 0
-    for got, want in zip(out["compile_graphs"], out["compile"]):
-        assert sorted(got) == sorted(want) and all(got[n].tobytes() == a.tobytes() for n, a in want.items())
+    out, k = particle_runs(params, "cuda", "float32", ("compile", "compile_graphs"), runs=3)  # warm-up, record, replay
+    assert "host loop over" in k.info()["loop"] and k.info()["cudagraph_skips"] == 0
+    assert all(same_arrays(got, want) for got, want in zip(out["compile_graphs"], out["compile"]))
 
 
 def test_cuda_graph_variants_compute_what_their_twins_compute():
