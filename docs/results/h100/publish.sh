@@ -21,7 +21,9 @@
 # and large. A "chains:P,P|P,P|..." argument runs those parts' own commands (as `publish --list` prints
 # them), each chain in order, the chains side by side, and waits for all: only for parts that rank no
 # time (the stress experiments: verdicts, not timings), so they carry no sitting check, and publish's
-# part stress-merge, named after them, merges what they wrote (issue 57, session 34). Then, here: merge $OUT's results.json / sweep.json /
+# part stress-merge, named after them, merges what they wrote (issue 57, session 34). A stress experiment
+# does not resume and a cut-off one is left out of the merge (session 45 lost a lease so): list the
+# parts that resume first. Then, here: merge $OUT's results.json / sweep.json /
 # stress.json into docs/results/h100 (a later record of a cell replaces the earlier one) and keep
 # publish.json beside them.
 # On an H200 lease (no H100 to be had) the same script runs the parts; what they wrote goes into
