@@ -94,11 +94,15 @@ def segments(plan: list[tuple[int, bool]], steps_at_most: int) -> list[list[tupl
         if entry[1] or not framed:
             units.append([])
     out: list[list[tuple[int, bool]]] = []
+    total = 0       # steps of out[-1]
     for unit in filter(None, units):
-        if out and sum(n for n, _ in out[-1]) + sum(n for n, _ in unit) <= steps_at_most:
+        steps = sum(n for n, _ in unit)
+        if out and total + steps <= steps_at_most:
             out[-1] += unit
+            total += steps
         else:
-            out.append(list(unit))
+            out.append(unit)
+            total = steps
     return out or [[]]
 
 
@@ -139,11 +143,13 @@ class Kernel(ScenarioKernel):
         self.consts = tuple(self.c[k] for k in ("dt", "gdt", "radius", "lo", "hi", "neg_bounce", "damping"))
         self.parts = segments(runs(params.steps, params.record_every, BLOCK), SEGMENT)
         built: dict[Any, Any] = {}
+        self.calls: list[Any] = []
         for i, part in enumerate(self.parts):     # the same segment compiles once
             key = (tuple(part), i == 0 and bool(params.record_every))
             if key not in built:
                 built[key] = compiled(make_segment(part, key[1]), variant, static=(*self.state0, *self.consts))
-        self.calls = [built[(tuple(p), i == 0 and bool(params.record_every))] for i, p in enumerate(self.parts)]
+            self.calls.append(built[key])
+        self.clone_between = variant == "compile_graphs"    # out of the pool the next replay reuses
         self.out: tuple[Any, ...] = ()
         if self.calls[0] is not None:
             return
@@ -204,7 +210,7 @@ class Kernel(ScenarioKernel):
         state, frames, last = tuple(self.state0), [], len(self.calls) - 1
         for i, call in enumerate(self.calls):
             out = call(*state, self.consts)
-            if self.variant == "compile_graphs" and i < last:    # out of the pool the next replay reuses
+            if self.clone_between and i < last:
                 out = tuple(t.clone() for t in out)
             state = out[:4]
             frames.append(out[4:])
